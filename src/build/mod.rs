@@ -1,0 +1,368 @@
+//! BVH construction over primitive bounds: parallel binned SAH and the full-sweep SAH reference.
+//!
+//! Both builders take one [`Aabb`] per primitive and produce a [`BuildTree`]: a binary tree of
+//! boxes whose leaves are contiguous ranges of a primitive index array. The tree depends only on
+//! the input and the [`BuildConfig`], never on the number of threads: every reduction a build
+//! does (box min/max, counts) is exact, and every partition is stable.
+//!
+//! ```
+//! use quiver::build::{build, BuildConfig, Builder};
+//! use quiver::Aabb;
+//! use glam::Vec3A;
+//! let boxes: Vec<Aabb> = (0..100)
+//!     .map(|i| Aabb::new(Vec3A::splat(i as f32), Vec3A::splat(i as f32 + 0.5)))
+//!     .collect();
+//! let tree = build(&boxes, &BuildConfig::default(), Builder::Binned);
+//! tree.validate(&boxes, &BuildConfig::default()).unwrap();
+//! assert!(tree.sah_cost(&BuildConfig::default()) > 0.0);
+//! ```
+
+mod binned;
+mod recurse;
+mod sweep;
+
+use crate::geometry::Aabb;
+use glam::Vec3A;
+use std::fmt;
+
+/// Settings shared by the builders.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BuildConfig {
+    /// Bins per axis in the binned builder.
+    pub bins: usize,
+    /// Largest leaf a build may make; nodes above it are always split.
+    pub max_leaf_size: usize,
+    /// SAH cost of visiting an inner node (c_T).
+    pub traversal_cost: f32,
+    /// SAH cost of testing one primitive (c_I).
+    pub intersection_cost: f32,
+    /// Nodes with at least this many primitives are built *horizontally* (all threads bin and
+    /// partition the one node); smaller nodes are built *vertically* (each subtree is a task).
+    pub horizontal_threshold: usize,
+}
+
+impl Default for BuildConfig {
+    fn default() -> Self {
+        BuildConfig {
+            bins: 16,
+            max_leaf_size: 8,
+            traversal_cost: 1.0,
+            intersection_cost: 1.0,
+            horizontal_threshold: 1 << 16,
+        }
+    }
+}
+
+/// Which algorithm builds the tree.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Builder {
+    /// Parallel binned SAH (horizontal near the root, vertical below).
+    Binned,
+    /// Full-sweep SAH: every primitive boundary is a candidate plane. The quality reference.
+    Sweep,
+}
+
+impl Builder {
+    /// The name used on the command line and in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Builder::Binned => "binned",
+            Builder::Sweep => "sweep",
+        }
+    }
+}
+
+impl fmt::Display for Builder {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// What a node of the [`BuildTree`] is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum NodeKind {
+    /// An inner node with two children (indices into [`BuildTree::nodes`]).
+    Inner {
+        /// Left child.
+        left: u32,
+        /// Right child.
+        right: u32,
+    },
+    /// A leaf holding `prim_indices[first .. first + count]`.
+    Leaf {
+        /// First slot in [`BuildTree::prim_indices`].
+        first: u32,
+        /// Number of primitives.
+        count: u32,
+    },
+}
+
+/// One node of the intermediate tree.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BuildNode {
+    /// Bounds of everything below.
+    pub bounds: Aabb,
+    /// Inner or leaf.
+    pub kind: NodeKind,
+}
+
+/// The builders' output: a binary tree in depth-first preorder (root at 0, a left child right
+/// after its parent) whose leaves index ranges of `prim_indices`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BuildTree {
+    /// Nodes in depth-first preorder.
+    pub nodes: Vec<BuildNode>,
+    /// Input primitive indices in leaf order.
+    pub prim_indices: Vec<u32>,
+    /// Primitives left out because their bounds were not finite.
+    pub dropped: usize,
+}
+
+/// Counts that describe a tree's shape.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TreeStats {
+    /// All nodes.
+    pub nodes: usize,
+    /// Leaves.
+    pub leaves: usize,
+    /// Longest root-to-leaf path in edges.
+    pub depth: usize,
+    /// Largest leaf.
+    pub max_leaf: usize,
+}
+
+/// Builds a tree over `bounds` (one box per primitive) on the current rayon thread pool.
+///
+/// Primitives whose box is not finite (a NaN or infinite coordinate) are dropped and counted in
+/// [`BuildTree::dropped`]; an empty input gives a single empty leaf.
+pub fn build(bounds: &[Aabb], config: &BuildConfig, builder: Builder) -> BuildTree {
+    assert!(config.bins >= 2, "BuildConfig::bins must be at least 2");
+    assert!(config.max_leaf_size >= 1, "BuildConfig::max_leaf_size must be at least 1");
+    let indices: Vec<u32> = (0..bounds.len() as u32)
+        .filter(|&i| is_finite(&bounds[i as usize]))
+        .collect();
+    let dropped = bounds.len() - indices.len();
+    let (nodes, prim_indices) = if indices.is_empty() {
+        let empty = BuildNode {
+            bounds: Aabb::EMPTY,
+            kind: NodeKind::Leaf { first: 0, count: 0 },
+        };
+        (vec![empty], indices)
+    } else {
+        match builder {
+            Builder::Binned => binned::build(bounds, indices, config),
+            Builder::Sweep => sweep::build(bounds, indices, config),
+        }
+    };
+    BuildTree {
+        nodes,
+        prim_indices,
+        dropped,
+    }
+}
+
+fn is_finite(b: &Aabb) -> bool {
+    b.min.is_finite() && b.max.is_finite()
+}
+
+/// Depth below which builders stop trusting the SAH and split at the object median, so that a
+/// pathological input (exponentially spaced centroids) cannot make the tree linear. With it the
+/// depth stays below `MEDIAN_DEPTH + log2(n) + 1`, which bounds every traversal stack.
+pub(crate) const MEDIAN_DEPTH: usize = 48;
+
+/// The deepest tree any builder makes for up to 2^32 primitives; traversal stacks use it.
+pub const MAX_DEPTH: usize = MEDIAN_DEPTH + 33;
+
+/// SAH cost of splitting a node of area `parent_area` into children with area·count products
+/// summing to `weighted`, compared with making it a leaf of `n` primitives.
+pub(crate) fn split_beats_leaf(config: &BuildConfig, parent_area: f32, weighted: f32, n: usize) -> bool {
+    split_cost(config, parent_area, weighted, n) < config.intersection_cost * n as f32
+}
+
+/// `c_T + c_I * weighted / A_P`; a zero-area parent (every primitive at one point) makes each
+/// child as likely to be hit as the parent.
+pub(crate) fn split_cost(config: &BuildConfig, parent_area: f32, weighted: f32, n: usize) -> f32 {
+    let ratio = if parent_area > 0.0 {
+        weighted / parent_area
+    } else {
+        n as f32
+    };
+    config.traversal_cost + config.intersection_cost * ratio
+}
+
+/// Bounds and centroid bounds of a set of primitives.
+pub(crate) fn bounds_of(bounds: &[Aabb], idx: &[u32]) -> (Aabb, Aabb) {
+    let mut b = Aabb::EMPTY;
+    let mut c = Aabb::EMPTY;
+    for &i in idx {
+        let pb = bounds[i as usize];
+        b = b.union(&pb);
+        c.grow(pb.center());
+    }
+    (b, c)
+}
+
+/// Splits `idx` at its median along the widest centroid axis (ties broken by index, so the
+/// result is a function of the input alone). Returns the size of the left half.
+pub(crate) fn median_split(bounds: &[Aabb], idx: &mut [u32], centroid_bounds: &Aabb) -> usize {
+    let axis = widest_axis(centroid_bounds.extent());
+    idx.sort_unstable_by(|&a, &b| {
+        let ca = bounds[a as usize].center()[axis];
+        let cb = bounds[b as usize].center()[axis];
+        ca.total_cmp(&cb).then(a.cmp(&b))
+    });
+    idx.len() / 2
+}
+
+pub(crate) fn widest_axis(e: Vec3A) -> usize {
+    if e.x >= e.y && e.x >= e.z {
+        0
+    } else if e.y >= e.z {
+        1
+    } else {
+        2
+    }
+}
+
+/// Turns nodes built into `2n - 1` preallocated slots (with gaps where leaves ended early)
+/// into a gap-free preorder array.
+pub(crate) fn compact(slots: Vec<Option<BuildNode>>) -> Vec<BuildNode> {
+    let mut new_index = vec![u32::MAX; slots.len()];
+    let mut next = 0u32;
+    for (i, s) in slots.iter().enumerate() {
+        if s.is_some() {
+            new_index[i] = next;
+            next += 1;
+        }
+    }
+    slots
+        .into_iter()
+        .flatten()
+        .map(|mut n| {
+            if let NodeKind::Inner { left, right } = &mut n.kind {
+                *left = new_index[*left as usize];
+                *right = new_index[*right as usize];
+            }
+            n
+        })
+        .collect()
+}
+
+impl BuildTree {
+    /// Shape counts: nodes, leaves, depth, largest leaf.
+    pub fn stats(&self) -> TreeStats {
+        let mut s = TreeStats {
+            nodes: self.nodes.len(),
+            ..TreeStats::default()
+        };
+        let mut stack = vec![(0usize, 0usize)];
+        while let Some((i, d)) = stack.pop() {
+            s.depth = s.depth.max(d);
+            match self.nodes[i].kind {
+                NodeKind::Inner { left, right } => {
+                    stack.push((left as usize, d + 1));
+                    stack.push((right as usize, d + 1));
+                }
+                NodeKind::Leaf { count, .. } => {
+                    s.leaves += 1;
+                    s.max_leaf = s.max_leaf.max(count as usize);
+                }
+            }
+        }
+        s
+    }
+
+    /// SAH cost `c_T * ΣA(inner)/A(root) + c_I * Σ A(leaf)·n(leaf)/A(root)`.
+    ///
+    /// A root of zero area (all geometry on one point or line) makes every node equally likely:
+    /// the cost becomes `c_T * inner_nodes + c_I * references`.
+    pub fn sah_cost(&self, config: &BuildConfig) -> f64 {
+        let root_area = self.nodes[0].bounds.half_area() as f64;
+        let area = |b: &Aabb| {
+            if root_area > 0.0 {
+                b.half_area() as f64 / root_area
+            } else {
+                1.0
+            }
+        };
+        self.nodes
+            .iter()
+            .map(|n| match n.kind {
+                NodeKind::Inner { .. } => config.traversal_cost as f64 * area(&n.bounds),
+                NodeKind::Leaf { count, .. } => {
+                    config.intersection_cost as f64 * area(&n.bounds) * count as f64
+                }
+            })
+            .sum()
+    }
+
+    /// Checks the invariants every build must keep, given the boxes and configuration it was
+    /// built from: every node reachable exactly once from the root, every finite primitive
+    /// referenced exactly once (and no other), no leaf above `config.max_leaf_size`, every
+    /// parent box containing its children, every leaf box containing its primitives.
+    /// Returns a description of the first violation.
+    pub fn validate(&self, bounds: &[Aabb], config: &BuildConfig) -> Result<(), String> {
+        let mut seen_node = vec![false; self.nodes.len()];
+        let mut seen_prim = vec![false; bounds.len()];
+        let mut refs = 0usize;
+        let mut stack = vec![0usize];
+        while let Some(i) = stack.pop() {
+            let node = self.nodes.get(i).ok_or(format!("child index {i} out of range"))?;
+            if std::mem::replace(&mut seen_node[i], true) {
+                return Err(format!("node {i} reached twice"));
+            }
+            match node.kind {
+                NodeKind::Inner { left, right } => {
+                    for c in [left as usize, right as usize] {
+                        let child = self.nodes.get(c).ok_or(format!("node {i}: child {c} out of range"))?;
+                        if !node.bounds.contains(&child.bounds) {
+                            return Err(format!("node {i} does not contain child {c}"));
+                        }
+                        stack.push(c);
+                    }
+                }
+                NodeKind::Leaf { first, count } => {
+                    if count as usize > config.max_leaf_size {
+                        return Err(format!("leaf {i} holds {count} > {}", config.max_leaf_size));
+                    }
+                    let range = first as usize..(first + count) as usize;
+                    let ids = self
+                        .prim_indices
+                        .get(range)
+                        .ok_or(format!("leaf {i}: range out of bounds"))?;
+                    for &p in ids {
+                        let pb = bounds.get(p as usize).ok_or(format!("leaf {i}: primitive {p} out of range"))?;
+                        if std::mem::replace(&mut seen_prim[p as usize], true) {
+                            return Err(format!("primitive {p} referenced twice"));
+                        }
+                        if !node.bounds.contains(pb) {
+                            return Err(format!("leaf {i} does not contain primitive {p}"));
+                        }
+                        refs += 1;
+                    }
+                }
+            }
+        }
+        if let Some(i) = seen_node.iter().position(|&s| !s) {
+            return Err(format!("node {i} unreachable"));
+        }
+        for (p, b) in bounds.iter().enumerate() {
+            if is_finite(b) != seen_prim[p] {
+                return Err(format!(
+                    "primitive {p} (finite: {}) referenced: {}",
+                    is_finite(b),
+                    seen_prim[p]
+                ));
+            }
+        }
+        if refs != self.prim_indices.len() || refs + self.dropped != bounds.len() {
+            return Err(format!(
+                "{refs} references, {} indices, {} dropped, {} primitives",
+                self.prim_indices.len(),
+                self.dropped,
+                bounds.len()
+            ));
+        }
+        Ok(())
+    }
+}

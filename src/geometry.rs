@@ -1,0 +1,237 @@
+//! Geometry core: rays, boxes, triangles and hit records on glam's `Vec3A`.
+//!
+//! Conventions every kernel in quiver shares:
+//! - a ray accepts hits with `t_min <= t <= t_max` (a closed interval), and callers keep
+//!   `0 <= t_min <= t_max`;
+//! - among hits at the same distance the lower primitive index wins, so every kernel, whatever
+//!   order it visits primitives in, reports the same primitive as the brute-force reference;
+//! - a primitive with a non-finite vertex is invisible: builds drop it (and count it), the
+//!   reference skips it.
+
+use glam::Vec3A;
+
+/// A ray `origin + t * dir` restricted to `t_min <= t <= t_max`.
+///
+/// `dir` need not be normalised; `t` is measured in units of `dir`.
+///
+/// ```
+/// use quiver::Ray;
+/// use glam::Vec3A;
+/// let r = Ray::new(Vec3A::ZERO, Vec3A::Z);
+/// assert_eq!(r.at(2.0), Vec3A::new(0.0, 0.0, 2.0));
+/// assert_eq!((r.t_min, r.t_max), (0.0, f32::INFINITY));
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Ray {
+    /// Where the ray starts.
+    pub origin: Vec3A,
+    /// Direction; zero components (either sign) are allowed.
+    pub dir: Vec3A,
+    /// Smallest accepted hit distance.
+    pub t_min: f32,
+    /// Largest accepted hit distance.
+    pub t_max: f32,
+}
+
+impl Ray {
+    /// A ray over `[0, +inf]`.
+    pub fn new(origin: Vec3A, dir: Vec3A) -> Self {
+        Self::segment(origin, dir, 0.0, f32::INFINITY)
+    }
+
+    /// A ray over `[t_min, t_max]`.
+    pub fn segment(origin: Vec3A, dir: Vec3A, t_min: f32, t_max: f32) -> Self {
+        Ray {
+            origin,
+            dir,
+            t_min,
+            t_max,
+        }
+    }
+
+    /// The point at distance `t`.
+    pub fn at(&self, t: f32) -> Vec3A {
+        self.origin + self.dir * t
+    }
+}
+
+/// An axis-aligned bounding box. The empty box has `min = +inf`, `max = -inf`.
+///
+/// ```
+/// use quiver::Aabb;
+/// use glam::Vec3A;
+/// let mut b = Aabb::EMPTY;
+/// b.grow(Vec3A::ZERO);
+/// b.grow(Vec3A::new(1.0, 2.0, 3.0));
+/// assert_eq!(b.half_area(), 1.0 * 2.0 + 2.0 * 3.0 + 3.0 * 1.0);
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Aabb {
+    /// Lower corner.
+    pub min: Vec3A,
+    /// Upper corner.
+    pub max: Vec3A,
+}
+
+impl Aabb {
+    /// The box containing nothing; the identity of [`Aabb::union`].
+    pub const EMPTY: Aabb = Aabb {
+        min: Vec3A::splat(f32::INFINITY),
+        max: Vec3A::splat(f32::NEG_INFINITY),
+    };
+
+    /// The box spanned by two corners.
+    pub fn new(min: Vec3A, max: Vec3A) -> Self {
+        Aabb { min, max }
+    }
+
+    /// Extends the box to contain `p`.
+    #[inline]
+    pub fn grow(&mut self, p: Vec3A) {
+        self.min = self.min.min(p);
+        self.max = self.max.max(p);
+    }
+
+    /// The smallest box containing both.
+    #[inline]
+    pub fn union(&self, other: &Aabb) -> Aabb {
+        Aabb {
+            min: self.min.min(other.min),
+            max: self.max.max(other.max),
+        }
+    }
+
+    /// True when the box contains no point.
+    pub fn is_empty(&self) -> bool {
+        self.min.cmpgt(self.max).any()
+    }
+
+    /// Edge lengths; zero for the empty box.
+    #[inline]
+    pub fn extent(&self) -> Vec3A {
+        (self.max - self.min).max(Vec3A::ZERO)
+    }
+
+    /// Half the surface area: the SAH only ever needs ratios of areas. Zero when empty.
+    #[inline]
+    pub fn half_area(&self) -> f32 {
+        let e = self.extent();
+        e.x * e.y + e.y * e.z + e.z * e.x
+    }
+
+    /// The centre point.
+    #[inline]
+    pub fn center(&self) -> Vec3A {
+        (self.min + self.max) * 0.5
+    }
+
+    /// True when `other` lies inside this box (boundaries included). The empty box lies in
+    /// every box.
+    pub fn contains(&self, other: &Aabb) -> bool {
+        other.is_empty() || (self.min.cmple(other.min).all() && other.max.cmple(self.max).all())
+    }
+}
+
+/// A triangle given by its three vertices.
+///
+/// ```
+/// use quiver::{Ray, Triangle};
+/// use glam::Vec3A;
+/// let tri = Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y);
+/// let hit = tri.intersect(&Ray::new(Vec3A::new(0.25, 0.25, -1.0), Vec3A::Z)).unwrap();
+/// assert_eq!(hit.t, 1.0);
+/// assert_eq!((hit.u, hit.v), (0.25, 0.25));
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Triangle {
+    /// The vertices; barycentric `u` weighs `v[1]`, `v` weighs `v[2]`.
+    pub v: [Vec3A; 3],
+}
+
+/// The result of one ray/triangle test: distance and barycentrics.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TriHit {
+    /// Hit distance along the ray.
+    pub t: f32,
+    /// Barycentric weight of the second vertex.
+    pub u: f32,
+    /// Barycentric weight of the third vertex.
+    pub v: f32,
+}
+
+impl Triangle {
+    /// A triangle from its vertices.
+    pub fn new(a: Vec3A, b: Vec3A, c: Vec3A) -> Self {
+        Triangle { v: [a, b, c] }
+    }
+
+    /// The bounding box of the three vertices.
+    #[inline]
+    pub fn bounds(&self) -> Aabb {
+        Aabb {
+            min: self.v[0].min(self.v[1]).min(self.v[2]),
+            max: self.v[0].max(self.v[1]).max(self.v[2]),
+        }
+    }
+
+    /// True when every vertex coordinate is finite. Non-finite triangles are invisible.
+    #[inline]
+    pub fn is_finite(&self) -> bool {
+        self.v.iter().all(|p| p.is_finite())
+    }
+
+    /// Möller–Trumbore ray/triangle test, two-sided. Returns the hit when `t` lies in
+    /// `[ray.t_min, ray.t_max]` and the barycentrics lie in the closed triangle.
+    ///
+    /// Degenerate triangles (zero area) never hit: their determinant is zero. Every comparison
+    /// is written so that a NaN rejects the hit.
+    #[inline(always)]
+    pub fn intersect(&self, ray: &Ray) -> Option<TriHit> {
+        let e1 = self.v[1] - self.v[0];
+        let e2 = self.v[2] - self.v[0];
+        let p = ray.dir.cross(e2);
+        let det = e1.dot(p);
+        if det == 0.0 {
+            return None;
+        }
+        let inv = 1.0 / det;
+        let s = ray.origin - self.v[0];
+        let u = s.dot(p) * inv;
+        if !(0.0..=1.0).contains(&u) {
+            return None;
+        }
+        let q = s.cross(e1);
+        let v = ray.dir.dot(q) * inv;
+        if !(v >= 0.0 && u + v <= 1.0) {
+            return None;
+        }
+        let t = e2.dot(q) * inv;
+        if t >= ray.t_min && t <= ray.t_max {
+            Some(TriHit { t, u, v })
+        } else {
+            None
+        }
+    }
+}
+
+/// A closest-hit answer: the distance, the primitive's index in the input, and barycentrics.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit {
+    /// Hit distance along the ray.
+    pub t: f32,
+    /// Index of the primitive in the scene's input order.
+    pub prim: u32,
+    /// Barycentric weight of the primitive's second vertex.
+    pub u: f32,
+    /// Barycentric weight of the primitive's third vertex.
+    pub v: f32,
+}
+
+impl Hit {
+    /// True when `(t, prim)` should replace `self` as the closest hit: nearer, or equally near
+    /// with a lower primitive index. This total order makes every kernel agree on ties.
+    #[inline(always)]
+    pub fn is_beaten_by(&self, t: f32, prim: u32) -> bool {
+        t < self.t || (t == self.t && prim < self.prim)
+    }
+}

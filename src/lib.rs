@@ -1,0 +1,26 @@
+//! quiver: ray shooting on CPUs.
+//!
+//! The pipeline, one module per stage:
+//! [`scene`] (geometry sources) → [`build`] (SAH trees over primitive bounds) →
+//! [`layout`] (compact node arrays) → [`traverse`] (closest-hit and any-hit queries).
+//!
+//! ```
+//! use quiver::{scene::Scene, build::{BuildConfig, Builder}, Bvh2};
+//! let scene = Scene::load("tetra3").unwrap();
+//! let (bvh, tree) = Bvh2::build(&scene.triangles, &BuildConfig::default(), Builder::Binned);
+//! let ray = scene.camera.ray(0.1, -0.2);
+//! assert_eq!(bvh.closest_hit(&ray), quiver::reference::closest_hit(&scene.triangles, &ray));
+//! assert!(tree.sah_cost(&BuildConfig::default()) > 0.0);
+//! ```
+
+pub mod build;
+pub mod geometry;
+pub mod layout;
+pub mod rays;
+pub mod rng;
+pub mod scene;
+pub mod traverse;
+
+pub use geometry::{Aabb, Hit, Ray, TriHit, Triangle};
+pub use layout::Bvh2;
+pub use traverse::reference;

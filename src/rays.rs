@@ -1,0 +1,40 @@
+//! Ray workloads shared by tests, benchmarks and the CLI: seeded incoherent rays and camera
+//! rays.
+//!
+//! ```
+//! use quiver::{rays, scene::Scene};
+//! let s = Scene::load("tetra3").unwrap();
+//! assert_eq!(rays::camera_rays(&s.camera, 8).len(), 64);
+//! assert_eq!(rays::random_rays(&s.bounds(), 100, 1).len(), 100);
+//! ```
+
+use crate::geometry::{Aabb, Ray};
+use crate::rng::Rng;
+use crate::scene::Camera;
+use glam::Vec3A;
+
+/// `n` incoherent rays: origins uniform in `bounds` grown by half its size on every side,
+/// directions uniform on the sphere. Many start inside the geometry, as secondary rays do.
+pub fn random_rays(bounds: &Aabb, n: usize, seed: u64) -> Vec<Ray> {
+    let mut rng = Rng::new(seed);
+    let (lo, hi) = if bounds.is_empty() {
+        (Vec3A::splat(-1.0), Vec3A::ONE)
+    } else {
+        let pad = bounds.extent() * 0.5;
+        (bounds.min - pad, bounds.max + pad)
+    };
+    (0..n)
+        .map(|_| Ray::new(rng.in_box(lo, hi), rng.unit_vector()))
+        .collect()
+}
+
+/// `res × res` eye rays through pixel centres, row by row from the top.
+pub fn camera_rays(camera: &Camera, res: usize) -> Vec<Ray> {
+    let step = 2.0 / res as f32;
+    (0..res * res)
+        .map(|i| {
+            let (x, y) = (i % res, i / res);
+            camera.ray(-1.0 + (x as f32 + 0.5) * step, 1.0 - (y as f32 + 0.5) * step)
+        })
+        .collect()
+}

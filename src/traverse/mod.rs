@@ -1,0 +1,61 @@
+//! Ray queries: the brute-force [`reference`] every kernel is checked against, and BVH
+//! traversal kernels.
+
+mod bvh2;
+pub mod reference;
+
+use crate::geometry::Ray;
+
+/// Slack on far distances so rounding never culls a box the exact test would enter
+/// (Ize, JCGT 2013: `1 + 2·gamma(3)`, `gamma(n) = n·eps / (1 - n·eps)` with `eps = 2^-24`).
+pub(crate) const FAR_SLACK: f32 = 1.0 + 2.0 * GAMMA3;
+const GAMMA3: f32 = 3.0 * (f32::EPSILON * 0.5) / (1.0 - 3.0 * (f32::EPSILON * 0.5));
+
+/// A ray prepared for slab tests: reciprocal direction and, per axis, which box corner is near.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct SlabRay {
+    pub origin: [f32; 3],
+    pub inv_dir: [f32; 3],
+    /// Per axis, the index of the near and far plane in a box stored as `[min, _, max, _]`
+    /// (8 floats): the max plane is near where the direction is negative.
+    pub near: [usize; 3],
+    pub far: [usize; 3],
+    pub t_min: f32,
+}
+
+impl SlabRay {
+    #[inline(always)]
+    pub fn new(ray: &Ray) -> Self {
+        let inv = ray.dir.recip();
+        // The sign of the reciprocal decides: -0.0 gives -inf, a negative direction.
+        let neg = |x: f32| x.is_sign_negative() as usize;
+        let n = [neg(inv.x), neg(inv.y), neg(inv.z)];
+        SlabRay {
+            origin: ray.origin.into(),
+            inv_dir: inv.into(),
+            near: [n[0] * 4, 1 + n[1] * 4, 2 + n[2] * 4],
+            far: [4 - n[0] * 4, 5 - n[1] * 4, 6 - n[2] * 4],
+            t_min: ray.t_min,
+        }
+    }
+
+    /// Entry distance into the box (`b[0..3]` min, `b[4..7]` max) if the ray meets it within
+    /// `[t_min, t_max]`, boundaries included.
+    ///
+    /// A zero direction component makes the reciprocal ±inf; when the origin then lies exactly
+    /// on that slab's plane the product is `0 * inf = NaN`. The ray runs inside the closed slab,
+    /// so a NaN must not limit the interval: `f32::max`/`f32::min` return the non-NaN operand,
+    /// and the accumulators (`t_min`, `t_max`) are never NaN.
+    #[inline(always)]
+    pub fn enter(&self, b: &[f32; 8], t_max: f32) -> Option<f32> {
+        let mut near = self.t_min;
+        let mut far = t_max;
+        for a in 0..3 {
+            let tn = (b[self.near[a]] - self.origin[a]) * self.inv_dir[a];
+            let tf = (b[self.far[a]] - self.origin[a]) * self.inv_dir[a];
+            near = near.max(tn);
+            far = far.min(tf * FAR_SLACK);
+        }
+        (near <= far).then_some(near)
+    }
+}

@@ -1,0 +1,39 @@
+//! Brute-force ray queries over all triangles, no acceleration structure: the oracle.
+//!
+//! ```
+//! use quiver::{reference, Ray, Triangle};
+//! use glam::Vec3A;
+//! let tris = [Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y)];
+//! let ray = Ray::new(Vec3A::new(0.1, 0.1, 1.0), -Vec3A::Z);
+//! assert_eq!(reference::closest_hit(&tris, &ray).unwrap().t, 1.0);
+//! assert!(reference::any_hit(&tris, &ray));
+//! ```
+
+use crate::geometry::{Hit, Ray, Triangle};
+
+/// The nearest hit; on equal distance the lowest index. Non-finite triangles are skipped.
+pub fn closest_hit(tris: &[Triangle], ray: &Ray) -> Option<Hit> {
+    let mut best: Option<Hit> = None;
+    for (i, tri) in tris.iter().enumerate() {
+        if !tri.is_finite() {
+            continue;
+        }
+        if let Some(h) = tri.intersect(ray) {
+            if best.is_none_or(|b| b.is_beaten_by(h.t, i as u32)) {
+                best = Some(Hit {
+                    t: h.t,
+                    prim: i as u32,
+                    u: h.u,
+                    v: h.v,
+                });
+            }
+        }
+    }
+    best
+}
+
+/// True when any finite triangle is hit within the ray's interval.
+pub fn any_hit(tris: &[Triangle], ray: &Ray) -> bool {
+    tris.iter()
+        .any(|t| t.is_finite() && t.intersect(ray).is_some())
+}
