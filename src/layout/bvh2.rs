@@ -1,6 +1,7 @@
 use crate::build::{build, BuildConfig, BuildTree, Builder, NodeKind};
 use crate::geometry::{Aabb, Triangle};
 use bytemuck::{Pod, Zeroable};
+use glam::Vec3A;
 
 /// A binary BVH node: 32 bytes, two to a 64-byte cache line.
 ///
@@ -113,8 +114,17 @@ impl Bvh2 {
     }
 }
 
-/// One bounding box per triangle, the builders' input.
+/// One bounding box per triangle, the builders' input. A triangle with a non-finite vertex
+/// gets a NaN box, so the build drops it (a min/max over a NaN would silently ignore it).
 pub fn triangle_bounds(tris: &[Triangle]) -> Vec<Aabb> {
     use rayon::prelude::*;
-    tris.par_iter().map(Triangle::bounds).collect()
+    tris.par_iter()
+        .map(|t| {
+            if t.is_finite() {
+                t.bounds()
+            } else {
+                Aabb::new(Vec3A::NAN, Vec3A::NAN)
+            }
+        })
+        .collect()
 }
