@@ -34,7 +34,10 @@ pub fn camera_rays(camera: &Camera, res: usize) -> Vec<Ray> {
     (0..res * res)
         .map(|i| {
             let (x, y) = (i % res, i / res);
-            camera.ray(-1.0 + (x as f32 + 0.5) * step, 1.0 - (y as f32 + 0.5) * step)
+            camera.ray(
+                -1.0 + (x as f32 + 0.5) * step,
+                1.0 - (y as f32 + 0.5) * step,
+            )
         })
         .collect()
 }

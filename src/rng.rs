@@ -42,7 +42,11 @@ impl Rng {
 
     /// Uniform in the box `[lo, hi)`.
     pub fn in_box(&mut self, lo: Vec3A, hi: Vec3A) -> Vec3A {
-        Vec3A::new(self.range(lo.x, hi.x), self.range(lo.y, hi.y), self.range(lo.z, hi.z))
+        Vec3A::new(
+            self.range(lo.x, hi.x),
+            self.range(lo.y, hi.y),
+            self.range(lo.z, hi.z),
+        )
     }
 
     /// Uniform on the unit sphere.

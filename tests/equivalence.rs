@@ -8,14 +8,23 @@ use rayon::prelude::*;
 
 /// Checks every ray against `want` (the reference's answers).
 fn check(bvh: &Bvh2, rays: &[Ray], want: &[Option<Hit>], what: &str) {
-    rays.par_iter().zip(want).enumerate().for_each(|(i, (ray, want))| {
-        assert_eq!(bvh.closest_hit(ray), *want, "{what}: ray {i} {ray:?}");
-        assert_eq!(bvh.any_hit(ray), want.is_some(), "{what}: any-hit, ray {i} {ray:?}");
-    });
+    rays.par_iter()
+        .zip(want)
+        .enumerate()
+        .for_each(|(i, (ray, want))| {
+            assert_eq!(bvh.closest_hit(ray), *want, "{what}: ray {i} {ray:?}");
+            assert_eq!(
+                bvh.any_hit(ray),
+                want.is_some(),
+                "{what}: any-hit, ray {i} {ray:?}"
+            );
+        });
 }
 
 fn reference_hits(tris: &[Triangle], rays: &[Ray]) -> Vec<Option<Hit>> {
-    rays.par_iter().map(|r| reference::closest_hit(tris, r)).collect()
+    rays.par_iter()
+        .map(|r| reference::closest_hit(tris, r))
+        .collect()
 }
 
 /// Both builders against the reference on random and camera rays; returns the fraction of
@@ -28,8 +37,18 @@ fn check_scene(scene: &Scene, n_random: usize, cam_res: usize) -> (f64, f64) {
     let want_cam = reference_hits(&scene.triangles, &cam);
     for builder in [Builder::Binned, Builder::Sweep] {
         let (bvh, _) = Bvh2::build(&scene.triangles, &config, builder);
-        check(&bvh, &random, &want_random, &format!("{} {builder} random", scene.name));
-        check(&bvh, &cam, &want_cam, &format!("{} {builder} camera", scene.name));
+        check(
+            &bvh,
+            &random,
+            &want_random,
+            &format!("{} {builder} random", scene.name),
+        );
+        check(
+            &bvh,
+            &cam,
+            &want_cam,
+            &format!("{} {builder} camera", scene.name),
+        );
     }
     let frac = |w: &[Option<Hit>]| w.iter().filter(|h| h.is_some()).count() as f64 / w.len() as f64;
     (frac(&want_random), frac(&want_cam))
@@ -41,13 +60,19 @@ fn mesh_tetra7_16k_triangles() {
     assert_eq!(scene.triangles.len(), 16384);
     let (random, camera) = check_scene(&scene, 100_000, 320);
     // The workload must exercise hits, not just misses.
-    assert!(random > 0.05 && camera > 0.1, "hit fractions {random} {camera}");
+    assert!(
+        random > 0.05 && camera > 0.1,
+        "hit fractions {random} {camera}"
+    );
 }
 
 #[test]
 fn random_soup_20k() {
     let (random, camera) = check_scene(&Scene::load("soup20000").unwrap(), 100_000, 320);
-    assert!(random > 0.05 && camera > 0.1, "hit fractions {random} {camera}");
+    assert!(
+        random > 0.05 && camera > 0.1,
+        "hit fractions {random} {camera}"
+    );
 }
 
 #[test]
@@ -65,7 +90,19 @@ fn segments() {
     let segs: Vec<Ray> = rays::random_rays(&scene.bounds(), 50_000, 9)
         .into_iter()
         .enumerate()
-        .map(|(i, r)| Ray::segment(r.origin, r.dir, (i % 7) as f32 * 0.02, 0.05 + (i % 13) as f32 * 0.03))
+        .map(|(i, r)| {
+            Ray::segment(
+                r.origin,
+                r.dir,
+                (i % 7) as f32 * 0.02,
+                0.05 + (i % 13) as f32 * 0.03,
+            )
+        })
         .collect();
-    check(&bvh, &segs, &reference_hits(&scene.triangles, &segs), "segments");
+    check(
+        &bvh,
+        &segs,
+        &reference_hits(&scene.triangles, &segs),
+        "segments",
+    );
 }

@@ -3,6 +3,8 @@
 //! or passes within rounding of a triangle's edge. Every disagreement is checked in f64 and
 //! must be such a tie or edge case; their number is bounded.
 
+mod common;
+
 use glam::{DVec3, Vec3A};
 use obvhs::{bvh2::builder::build_bvh2_from_tris, ray::RayHit, BvhBuildParams};
 use quiver::build::{BuildConfig, Builder};
@@ -44,7 +46,9 @@ fn outside(tri: &Triangle, ray: &Ray) -> Option<(f64, f64)> {
     let d = |v: Vec3A| DVec3::new(v.x as f64, v.y as f64, v.z as f64);
     let (a, b, c) = (d(tri.v[0]), d(tri.v[1]), d(tri.v[2]));
     let p = d(ray.origin) + d(ray.dir) * t;
-    let boundary = segment_distance(p, a, b).min(segment_distance(p, b, c)).min(segment_distance(p, c, a));
+    let boundary = segment_distance(p, a, b)
+        .min(segment_distance(p, b, c))
+        .min(segment_distance(p, c, a));
     let inside = u >= 0.0 && v >= 0.0 && u + v <= 1.0;
     let dist = if inside { -boundary } else { boundary };
     let scale = [a, b, c, d(ray.origin), p]
@@ -70,7 +74,8 @@ enum Verdict {
 }
 
 fn judge(tris: &[Triangle], ray: &Ray, q: Option<Hit>, o: Option<(u32, f32)>) -> Verdict {
-    let same_t = |a: f32, b: f32| (a as f64 - b as f64).abs() <= TIE_EPS * (a.abs().max(1.0) as f64);
+    let same_t =
+        |a: f32, b: f32| (a as f64 - b as f64).abs() <= TIE_EPS * (a.abs().max(1.0) as f64);
     match (q, o) {
         (None, None) => Verdict::Agree,
         (Some(h), Some((p, t))) if h.prim == p && same_t(h.t, t) => Verdict::Agree,
@@ -94,25 +99,24 @@ fn judge(tris: &[Triangle], ray: &Ray, q: Option<Hit>, o: Option<(u32, f32)>) ->
             }
         }
         // One engine hit a triangle the other missed: the crossing must graze an edge.
-        (Some(Hit { prim, .. }), None) | (None, Some((prim, _))) => match outside(&tris[prim as usize], ray) {
-            Some((_, e)) if e.abs() <= EDGE_EPS => Verdict::Edge,
-            _ => Verdict::Wrong,
-        },
+        (Some(Hit { prim, .. }), None) | (None, Some((prim, _))) => {
+            match outside(&tris[prim as usize], ray) {
+                Some((_, e)) if e.abs() <= EDGE_EPS => Verdict::Edge,
+                _ => Verdict::Wrong,
+            }
+        }
     }
 }
 
 fn compare(scene: &Scene, rays: &[Ray]) -> (usize, usize, usize) {
     let tris = &scene.triangles;
     let (bvh, _) = Bvh2::build(tris, &BuildConfig::default(), Builder::Binned);
-    let otris: Vec<obvhs::triangle::Triangle> = tris
-        .iter()
-        .map(|t| obvhs::triangle::Triangle {
-            v0: t.v[0],
-            v1: t.v[1],
-            v2: t.v[2],
-        })
-        .collect();
-    let obvh = build_bvh2_from_tris(&otris, BvhBuildParams::medium_build(), &mut Duration::default());
+    let otris = common::obvhs_tris(tris);
+    let obvh = build_bvh2_from_tris(
+        &otris,
+        BvhBuildParams::medium_build(),
+        &mut Duration::default(),
+    );
     let verdicts: Vec<Verdict> = rays
         .par_iter()
         .map(|ray| {
@@ -126,7 +130,11 @@ fn compare(scene: &Scene, rays: &[Ray]) -> (usize, usize, usize) {
             let v = judge(tris, ray, q, o);
             if matches!(v, Verdict::Wrong) && std::env::var("QUIVER_DEBUG").is_ok() {
                 let info = |p: u32| (p, outside(&tris[p as usize], ray));
-                eprintln!("q={q:?} {:?} o={o:?} {:?}", q.map(|h| info(h.prim)), o.map(|h| info(h.0)));
+                eprintln!(
+                    "q={q:?} {:?} o={o:?} {:?}",
+                    q.map(|h| info(h.prim)),
+                    o.map(|h| info(h.0))
+                );
             }
             v
         })
@@ -138,7 +146,11 @@ fn compare(scene: &Scene, rays: &[Ray]) -> (usize, usize, usize) {
         .filter(|(_, v)| matches!(v, Verdict::Wrong))
         .take(5)
         .collect();
-    assert!(wrong.is_empty(), "{}: disagreements that are no tie or edge case: {wrong:?}", scene.name);
+    assert!(
+        wrong.is_empty(),
+        "{}: disagreements that are no tie or edge case: {wrong:?}",
+        scene.name
+    );
     (
         count(|v| matches!(v, Verdict::Agree)),
         count(|v| matches!(v, Verdict::Tie)),
@@ -165,13 +177,22 @@ fn check(name: &str) {
     let mut rays = rays::random_rays(&scene.bounds(), 100_000, 11);
     rays.extend(rays::camera_rays(&scene.camera, 256));
     let (agree, ties, edges) = compare(&scene, &rays);
-    println!("{name}: {} random+camera rays, {agree} agree, {ties} ties, {edges} edge cases", rays.len());
+    println!(
+        "{name}: {} random+camera rays, {agree} agree, {ties} ties, {edges} edge cases",
+        rays.len()
+    );
     // Edge cases need a ray within ~EDGE_EPS (relative) of an edge; with a handful of
     // triangles crossed per ray that is well under one ray in 10^4.
-    assert!(ties + edges <= rays.len() / 10_000, "{name}: {ties} ties + {edges} edge cases");
+    assert!(
+        ties + edges <= rays.len() / 10_000,
+        "{name}: {ties} ties + {edges} edge cases"
+    );
     let aimed = edge_rays(&scene, 30_000);
     let (agree, ties, edges) = compare(&scene, &aimed);
-    println!("{name}: {} edge/vertex rays, {agree} agree, {ties} ties, {edges} edge cases", aimed.len());
+    println!(
+        "{name}: {} edge/vertex rays, {agree} agree, {ties} ties, {edges} edge cases",
+        aimed.len()
+    );
 }
 
 #[test]
@@ -192,15 +213,41 @@ fn judge_tells_ties_edges_and_errors_apart() {
     let tris = [
         Triangle::new(v(0.0, -1.0), v(0.0, 1.0), v(-1.0, 0.0)),
         Triangle::new(v(0.0, -1.0), v(1.0, 0.0), v(0.0, 1.0)),
-        Triangle::new(Vec3A::new(-5.0, -5.0, -3.0), Vec3A::new(5.0, -5.0, -3.0), Vec3A::new(0.0, 5.0, -3.0)),
+        Triangle::new(
+            Vec3A::new(-5.0, -5.0, -3.0),
+            Vec3A::new(5.0, -5.0, -3.0),
+            Vec3A::new(0.0, 5.0, -3.0),
+        ),
     ];
-    let hit = |prim, t| Some(Hit { t, prim, u: 0.0, v: 0.0 });
+    let hit = |prim, t| {
+        Some(Hit {
+            t,
+            prim,
+            u: 0.0,
+            v: 0.0,
+        })
+    };
     let on_edge = Ray::new(Vec3A::new(0.0, 0.25, 1.0), -Vec3A::Z);
-    assert!(matches!(judge(&tris, &on_edge, hit(0, 1.0), Some((1, 1.0))), Verdict::Tie));
+    assert!(matches!(
+        judge(&tris, &on_edge, hit(0, 1.0), Some((1, 1.0))),
+        Verdict::Tie
+    ));
     let grazing = Ray::new(Vec3A::new(1e-7, 0.25, 1.0), -Vec3A::Z);
-    assert!(matches!(judge(&tris, &grazing, hit(1, 1.0), None), Verdict::Edge));
+    assert!(matches!(
+        judge(&tris, &grazing, hit(1, 1.0), None),
+        Verdict::Edge
+    ));
     let inside = Ray::new(Vec3A::new(0.5, 0.0, 1.0), -Vec3A::Z);
-    assert!(matches!(judge(&tris, &inside, hit(1, 1.0), Some((2, 4.0))), Verdict::Wrong));
-    assert!(matches!(judge(&tris, &inside, hit(1, 1.0), None), Verdict::Wrong));
-    assert!(matches!(judge(&tris, &inside, hit(1, 1.0), Some((1, 1.0))), Verdict::Agree));
+    assert!(matches!(
+        judge(&tris, &inside, hit(1, 1.0), Some((2, 4.0))),
+        Verdict::Wrong
+    ));
+    assert!(matches!(
+        judge(&tris, &inside, hit(1, 1.0), None),
+        Verdict::Wrong
+    ));
+    assert!(matches!(
+        judge(&tris, &inside, hit(1, 1.0), Some((1, 1.0))),
+        Verdict::Agree
+    ));
 }

@@ -5,34 +5,36 @@
 use super::recurse::{build_tree, stable_partition, take_split, Ctx, Partition, Splitter, CHUNK};
 use super::{BuildConfig, BuildNode};
 use crate::geometry::Aabb;
-use glam::Vec3A;
+use glam::{UVec3, Vec3A};
 use rayon::prelude::*;
 
-pub(super) fn build(bounds: &[Aabb], idx: Vec<u32>, config: &BuildConfig) -> (Vec<BuildNode>, Vec<u32>) {
+pub(super) fn build(
+    bounds: &[Aabb],
+    idx: Vec<u32>,
+    config: &BuildConfig,
+) -> (Vec<BuildNode>, Vec<u32>) {
     build_tree(&Binned, bounds, idx, config)
 }
 
 struct Binned;
 
-/// Primitive bounds, centroid bounds and count of one bin (or of a run of bins).
+/// Primitive bounds and count of one bin (or of a run of bins). Children's centroid bounds
+/// are gathered later, by the partition, so binning touches one box per primitive and axis.
 #[derive(Clone, Copy)]
 struct Bin {
     bounds: Aabb,
-    centroids: Aabb,
     count: u32,
 }
 
 impl Bin {
     const EMPTY: Bin = Bin {
         bounds: Aabb::EMPTY,
-        centroids: Aabb::EMPTY,
         count: 0,
     };
 
     fn merge(&self, o: &Bin) -> Bin {
         Bin {
             bounds: self.bounds.union(&o.bounds),
-            centroids: self.centroids.union(&o.centroids),
             count: self.count + o.count,
         }
     }
@@ -42,7 +44,7 @@ impl Bin {
 struct Mapper {
     origin: Vec3A,
     scale: Vec3A,
-    last: usize,
+    last: UVec3,
 }
 
 impl Mapper {
@@ -54,27 +56,39 @@ impl Mapper {
         Mapper {
             origin: centroids.min,
             scale,
-            last: bins - 1,
+            last: UVec3::splat(bins as u32 - 1),
         }
     }
 
+    /// The bin on all three axes at once. The float-to-int cast saturates (and maps NaN to
+    /// 0), so every centroid lands in a valid bin.
     #[inline(always)]
-    fn bin(&self, c: Vec3A, axis: usize) -> usize {
-        // `as usize` saturates (and maps NaN to 0), so every centroid lands in a valid bin.
-        (((c[axis] - self.origin[axis]) * self.scale[axis]) as usize).min(self.last)
+    fn bins(&self, c: Vec3A) -> UVec3 {
+        ((c - self.origin) * self.scale).as_uvec3().min(self.last)
+    }
+
+    /// Whether `bins(c)[axis] < bin` for a split bin `1 <= bin <= last`, without the cast:
+    /// truncating a non-negative `f` gives less than an integer `bin` exactly when `f < bin`,
+    /// negative `f` and NaN go to bin 0, and the clamp to `last` cannot cross `bin`.
+    #[inline(always)]
+    #[allow(clippy::neg_cmp_op_on_partial_ord)] // NaN (0 · inf on a tiny extent) must go left
+    fn left_of(&self, c: Vec3A, axis: usize, bin: f32) -> bool {
+        let f = (c[axis] - self.origin[axis]) * self.scale[axis];
+        !(f >= bin)
     }
 }
 
 fn bin_prims(ctx: &Ctx, idx: &[u32], map: &Mapper) -> Vec<Bin> {
-    let k = map.last + 1;
+    let k = map.last.x as usize + 1;
     let mut bins = vec![Bin::EMPTY; 3 * k];
+    let (x, rest) = bins.split_at_mut(k);
+    let (y, z) = rest.split_at_mut(k);
     for &i in idx {
-        let c = ctx.centroids[i as usize];
         let b = ctx.bounds[i as usize];
-        for axis in 0..3 {
-            let bin = &mut bins[axis * k + map.bin(c, axis)];
+        let at = map.bins(ctx.centroids[i as usize]);
+        for (row, j) in [(&mut *x, at.x), (&mut *y, at.y), (&mut *z, at.z)] {
+            let bin = &mut row[j as usize];
             bin.bounds = bin.bounds.union(&b);
-            bin.centroids.grow(c);
             bin.count += 1;
         }
     }
@@ -90,7 +104,8 @@ struct Plane {
 
 fn best_plane(bins: &[Bin], k: usize, map: &Mapper) -> Option<Plane> {
     let mut best: Option<Plane> = None;
-    let mut right_cost = vec![0f32; k];
+    // Bin counts are small (the CLI caps them at 1024), so the sweep fits on the stack.
+    let mut right_cost = [0f32; 1024];
     for axis in 0..3 {
         if map.scale[axis] == 0.0 {
             continue;
@@ -101,8 +116,8 @@ fn best_plane(bins: &[Bin], k: usize, map: &Mapper) -> Option<Plane> {
             acc = acc.merge(&bins[b]);
             right_cost[b] = acc.bounds.half_area() * acc.count as f32;
         }
+        let total = acc.count + bins[0].count;
         let mut left = Bin::EMPTY;
-        let total: u32 = bins.iter().map(|b| b.count).sum();
         for b in 1..k {
             left = left.merge(&bins[b - 1]);
             if left.count == 0 || left.count == total {
@@ -110,7 +125,11 @@ fn best_plane(bins: &[Bin], k: usize, map: &Mapper) -> Option<Plane> {
             }
             let w = left.bounds.half_area() * left.count as f32 + right_cost[b];
             if best.as_ref().is_none_or(|p| w < p.weighted) {
-                best = Some(Plane { axis, bin: b, weighted: w });
+                best = Some(Plane {
+                    axis,
+                    bin: b,
+                    weighted: w,
+                });
             }
         }
     }
@@ -118,14 +137,24 @@ fn best_plane(bins: &[Bin], k: usize, map: &Mapper) -> Option<Plane> {
 }
 
 impl Splitter for Binned {
-    fn split(&self, ctx: &Ctx, idx: &mut [u32], scratch: &mut [u32], node: &Aabb, centroids: &Aabb) -> Option<Partition> {
+    fn split(
+        &self,
+        ctx: &Ctx,
+        idx: &mut [u32],
+        scratch: &mut [u32],
+        node: &Aabb,
+        centroids: &Aabb,
+    ) -> Option<Partition> {
         let k = ctx.config.bins;
         let map = Mapper::new(centroids, k);
         let horizontal = idx.len() >= ctx.config.horizontal_threshold;
         let bins = if horizontal {
             idx.par_chunks(CHUNK)
                 .map(|ch| bin_prims(ctx, ch, &map))
-                .reduce(|| vec![Bin::EMPTY; 3 * k], |a, b| a.iter().zip(&b).map(|(x, y)| x.merge(y)).collect())
+                .reduce(
+                    || vec![Bin::EMPTY; 3 * k],
+                    |a, b| a.iter().zip(&b).map(|(x, y)| x.merge(y)).collect(),
+                )
         } else {
             bin_prims(ctx, idx, &map)
         };
@@ -136,15 +165,15 @@ impl Splitter for Binned {
         let row = &bins[plane.axis * k..(plane.axis + 1) * k];
         let side = |r: &[Bin]| r.iter().fold(Bin::EMPTY, |a, b| a.merge(b));
         let (l, r) = (side(&row[..plane.bin]), side(&row[plane.bin..]));
-        let cent = ctx.centroids;
-        let nl = stable_partition(idx, scratch, horizontal, |i| {
-            map.bin(cent[i as usize], plane.axis) < plane.bin
+        let (axis, bin) = (plane.axis, plane.bin as f32);
+        let (nl, cl, cr) = stable_partition(idx, scratch, ctx.centroids, horizontal, |c| {
+            map.left_of(c, axis, bin)
         });
         debug_assert_eq!(nl, l.count as usize);
         Some(Partition {
             left_len: nl,
-            left: (l.bounds, l.centroids),
-            right: (r.bounds, r.centroids),
+            left: (l.bounds, cl),
+            right: (r.bounds, cr),
         })
     }
 }

@@ -28,7 +28,7 @@ use std::fmt;
 /// Settings shared by the builders.
 #[derive(Clone, Debug, PartialEq)]
 pub struct BuildConfig {
-    /// Bins per axis in the binned builder.
+    /// Bins per axis in the binned builder, 2 to 1024.
     pub bins: usize,
     /// Largest leaf a build may make; nodes above it are always split.
     pub max_leaf_size: usize,
@@ -136,8 +136,14 @@ pub struct TreeStats {
 /// Primitives whose box is not finite (a NaN or infinite coordinate) are dropped and counted in
 /// [`BuildTree::dropped`]; an empty input gives a single empty leaf.
 pub fn build(bounds: &[Aabb], config: &BuildConfig, builder: Builder) -> BuildTree {
-    assert!(config.bins >= 2, "BuildConfig::bins must be at least 2");
-    assert!(config.max_leaf_size >= 1, "BuildConfig::max_leaf_size must be at least 1");
+    assert!(
+        (2..=1024).contains(&config.bins),
+        "BuildConfig::bins must be in 2..=1024"
+    );
+    assert!(
+        config.max_leaf_size >= 1,
+        "BuildConfig::max_leaf_size must be at least 1"
+    );
     let indices: Vec<u32> = (0..bounds.len() as u32)
         .filter(|&i| is_finite(&bounds[i as usize]))
         .collect();
@@ -175,7 +181,12 @@ pub const MAX_DEPTH: usize = MEDIAN_DEPTH + 33;
 
 /// SAH cost of splitting a node of area `parent_area` into children with area·count products
 /// summing to `weighted`, compared with making it a leaf of `n` primitives.
-pub(crate) fn split_beats_leaf(config: &BuildConfig, parent_area: f32, weighted: f32, n: usize) -> bool {
+pub(crate) fn split_beats_leaf(
+    config: &BuildConfig,
+    parent_area: f32,
+    weighted: f32,
+    n: usize,
+) -> bool {
     split_cost(config, parent_area, weighted, n) < config.intersection_cost * n as f32
 }
 
@@ -222,30 +233,6 @@ pub(crate) fn widest_axis(e: Vec3A) -> usize {
     } else {
         2
     }
-}
-
-/// Turns nodes built into `2n - 1` preallocated slots (with gaps where leaves ended early)
-/// into a gap-free preorder array.
-pub(crate) fn compact(slots: Vec<Option<BuildNode>>) -> Vec<BuildNode> {
-    let mut new_index = vec![u32::MAX; slots.len()];
-    let mut next = 0u32;
-    for (i, s) in slots.iter().enumerate() {
-        if s.is_some() {
-            new_index[i] = next;
-            next += 1;
-        }
-    }
-    slots
-        .into_iter()
-        .flatten()
-        .map(|mut n| {
-            if let NodeKind::Inner { left, right } = &mut n.kind {
-                *left = new_index[*left as usize];
-                *right = new_index[*right as usize];
-            }
-            n
-        })
-        .collect()
 }
 
 impl BuildTree {
@@ -307,14 +294,20 @@ impl BuildTree {
         let mut refs = 0usize;
         let mut stack = vec![0usize];
         while let Some(i) = stack.pop() {
-            let node = self.nodes.get(i).ok_or(format!("child index {i} out of range"))?;
+            let node = self
+                .nodes
+                .get(i)
+                .ok_or(format!("child index {i} out of range"))?;
             if std::mem::replace(&mut seen_node[i], true) {
                 return Err(format!("node {i} reached twice"));
             }
             match node.kind {
                 NodeKind::Inner { left, right } => {
                     for c in [left as usize, right as usize] {
-                        let child = self.nodes.get(c).ok_or(format!("node {i}: child {c} out of range"))?;
+                        let child = self
+                            .nodes
+                            .get(c)
+                            .ok_or(format!("node {i}: child {c} out of range"))?;
                         if !node.bounds.contains(&child.bounds) {
                             return Err(format!("node {i} does not contain child {c}"));
                         }
@@ -331,7 +324,9 @@ impl BuildTree {
                         .get(range)
                         .ok_or(format!("leaf {i}: range out of bounds"))?;
                     for &p in ids {
-                        let pb = bounds.get(p as usize).ok_or(format!("leaf {i}: primitive {p} out of range"))?;
+                        let pb = bounds
+                            .get(p as usize)
+                            .ok_or(format!("leaf {i}: primitive {p} out of range"))?;
                         if std::mem::replace(&mut seen_prim[p as usize], true) {
                             return Err(format!("primitive {p} referenced twice"));
                         }

@@ -6,14 +6,25 @@ use super::recurse::{build_tree, take_split, Ctx, Partition, Splitter};
 use super::{bounds_of, BuildConfig, BuildNode};
 use crate::geometry::Aabb;
 
-pub(super) fn build(bounds: &[Aabb], idx: Vec<u32>, config: &BuildConfig) -> (Vec<BuildNode>, Vec<u32>) {
+pub(super) fn build(
+    bounds: &[Aabb],
+    idx: Vec<u32>,
+    config: &BuildConfig,
+) -> (Vec<BuildNode>, Vec<u32>) {
     build_tree(&Sweep, bounds, idx, config)
 }
 
 struct Sweep;
 
 impl Splitter for Sweep {
-    fn split(&self, ctx: &Ctx, idx: &mut [u32], scratch: &mut [u32], node: &Aabb, _: &Aabb) -> Option<Partition> {
+    fn split(
+        &self,
+        ctx: &Ctx,
+        idx: &mut [u32],
+        scratch: &mut [u32],
+        node: &Aabb,
+        _: &Aabb,
+    ) -> Option<Partition> {
         let n = idx.len();
         let mut right_area = vec![0f32; n];
         // (weighted cost, axis, left count)

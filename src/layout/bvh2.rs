@@ -78,9 +78,10 @@ impl Bvh2 {
     /// Lays out a built tree. The build tree is already in preorder with each left child right
     /// after its parent, which is exactly the depth-first mapping.
     pub fn from_tree(tree: &BuildTree, tris: &[Triangle]) -> Bvh2 {
+        use rayon::prelude::*;
         let nodes = tree
             .nodes
-            .iter()
+            .par_iter()
             .enumerate()
             .map(|(i, n)| {
                 let (link, count) = match n.kind {
@@ -98,7 +99,11 @@ impl Bvh2 {
                 }
             })
             .collect();
-        let tris = tree.prim_indices.iter().map(|&i| tris[i as usize]).collect();
+        let tris = tree
+            .prim_indices
+            .par_iter()
+            .map(|&i| tris[i as usize])
+            .collect();
         Bvh2 {
             nodes,
             tris,

@@ -29,7 +29,12 @@ pub struct Camera {
 impl Camera {
     /// A camera from eye, look-at point, up vector and field of view.
     pub fn new(from: Vec3A, at: Vec3A, up: Vec3A, angle: f32) -> Self {
-        Camera { from, at, up, angle }
+        Camera {
+            from,
+            at,
+            up,
+            angle,
+        }
     }
 
     /// A camera that frames `bounds` from a diagonal viewpoint (for files without one).

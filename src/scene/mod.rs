@@ -106,7 +106,10 @@ impl fmt::Display for SceneError {
                 )
             }
             SceneError::Size { name, size, max } => {
-                write!(f, "scene '{name}': size '{size}' must be a number from 0 to {max}")
+                write!(
+                    f,
+                    "scene '{name}': size '{size}' must be a number from 0 to {max}"
+                )
             }
             SceneError::File { path, message } => write!(f, "{}: {message}", path.display()),
         }
@@ -128,7 +131,9 @@ impl Scene {
                 message: "NFF files are not supported yet".into(),
             });
         }
-        let split = spec.find(|c: char| c.is_ascii_digit()).unwrap_or(spec.len());
+        let split = spec
+            .find(|c: char| c.is_ascii_digit())
+            .unwrap_or(spec.len());
         let (name, size) = spec.split_at(split);
         let gen = GENERATORS
             .iter()

@@ -16,7 +16,8 @@ pub(super) fn load(path: &Path) -> Result<Scene, SceneError> {
         ignore_points: true,
         ignore_lines: true,
     };
-    let (models, _materials) = tobj::load_obj(path, &opts).map_err(|e| err(format!("cannot load OBJ: {e}")))?;
+    let (models, _materials) =
+        tobj::load_obj(path, &opts).map_err(|e| err(format!("cannot load OBJ: {e}")))?;
     let mut tris = Vec::new();
     for m in &models {
         let pos = &m.mesh.positions;
@@ -24,7 +25,14 @@ pub(super) fn load(path: &Path) -> Result<Scene, SceneError> {
             let i = i as usize;
             pos.get(3 * i..3 * i + 3)
                 .map(Vec3A::from_slice)
-                .ok_or_else(|| err(format!("model '{}': vertex index {} out of range ({} vertices)", m.name, i + 1, pos.len() / 3)))
+                .ok_or_else(|| {
+                    err(format!(
+                        "model '{}': vertex index {} out of range ({} vertices)",
+                        m.name,
+                        i + 1,
+                        pos.len() / 3
+                    ))
+                })
         };
         for f in m.mesh.indices.chunks_exact(3) {
             tris.push(Triangle::new(vertex(f[0])?, vertex(f[1])?, vertex(f[2])?));

@@ -23,12 +23,20 @@ impl Bvh2 {
             v: 0.0,
         };
         self.traverse(ray, |range, limit| {
-            let r = Ray { t_max: *limit, ..*ray };
+            let r = Ray {
+                t_max: *limit,
+                ..*ray
+            };
             for i in range {
                 if let Some(h) = self.tris[i].intersect(&r) {
                     let prim = self.prim_ids[i];
                     if best.is_beaten_by(h.t, prim) {
-                        best = Hit { t: h.t, prim, u: h.u, v: h.v };
+                        best = Hit {
+                            t: h.t,
+                            prim,
+                            u: h.u,
+                            v: h.v,
+                        };
                     }
                 }
             }

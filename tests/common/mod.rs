@@ -1,0 +1,33 @@
+//! Helpers shared by tests and benches that put quiver beside obvhs 0.4.
+#![allow(dead_code)] // each test or bench crate uses a different subset
+
+use quiver::Triangle;
+
+/// The same triangles in obvhs's type.
+pub fn obvhs_tris(tris: &[Triangle]) -> Vec<obvhs::triangle::Triangle> {
+    tris.iter()
+        .map(|t| obvhs::triangle::Triangle {
+            v0: t.v[0],
+            v1: t.v[1],
+            v2: t.v[2],
+        })
+        .collect()
+}
+
+/// SAH cost of an obvhs tree with quiver's constants (c_T = c_I = 1), so the two compare.
+/// obvhs marks leaves by a non-zero primitive count.
+pub fn obvhs_sah(bvh: &obvhs::bvh2::Bvh2) -> f64 {
+    let area = |n: &obvhs::bvh2::node::Bvh2Node| n.aabb.half_area() as f64;
+    let root = area(&bvh.nodes[0]);
+    bvh.nodes
+        .iter()
+        .map(|n| {
+            let count = if n.prim_count == 0 {
+                1.0
+            } else {
+                n.prim_count as f64
+            };
+            area(n) / root * count
+        })
+        .sum()
+}
