@@ -234,6 +234,24 @@ pub struct Hit {
 }
 
 impl Hit {
+    /// The "nothing yet" record a closest-hit search starts from: any hit at or before `t_max`
+    /// beats it.
+    #[inline(always)]
+    pub fn none(t_max: f32) -> Hit {
+        Hit {
+            t: t_max,
+            prim: u32::MAX,
+            u: 0.0,
+            v: 0.0,
+        }
+    }
+
+    /// `Some(self)` unless this is still the [`Hit::none`] record.
+    #[inline(always)]
+    pub fn found(self) -> Option<Hit> {
+        (self.prim != u32::MAX).then_some(self)
+    }
+
     /// True when `(t, prim)` should replace `self` as the closest hit: nearer, or equally near
     /// with a lower primitive index. This total order makes every kernel agree on ties.
     #[inline(always)]

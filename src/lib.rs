@@ -16,11 +16,12 @@
 pub mod build;
 pub mod geometry;
 pub mod layout;
+pub mod measure;
 pub mod rays;
 pub mod rng;
 pub mod scene;
 pub mod traverse;
 
 pub use geometry::{Aabb, Hit, Ray, TriHit, Triangle};
-pub use layout::Bvh2;
+pub use layout::{Bvh, Bvh2, Layout};
 pub use traverse::reference;

@@ -1,13 +1,18 @@
-//! BVH2 traversal against the brute-force reference: the same primitive and the same t for
-//! every ray, and any-hit agreeing with closest-hit.
+//! Every layout's traversal against the brute-force reference: the same primitive and the
+//! same t for every ray, any-hit agreeing with closest-hit, and the counting kernels giving the
+//! plain kernels' answers.
 
-use quiver::build::{BuildConfig, Builder};
+use glam::Vec3A;
+use quiver::build::{build, BuildConfig, Builder};
+use quiver::layout::triangle_bounds;
 use quiver::scene::Scene;
-use quiver::{rays, reference, Bvh2, Hit, Ray, Triangle};
+use quiver::traverse::Counters;
+use quiver::{rays, reference, Bvh, Hit, Layout, Ray, Triangle};
 use rayon::prelude::*;
 
-/// Checks every ray against `want` (the reference's answers).
-fn check(bvh: &Bvh2, rays: &[Ray], want: &[Option<Hit>], what: &str) {
+/// Checks every ray against `want` (the reference's answers), with the plain and the counting
+/// kernels.
+fn check(bvh: &Bvh, rays: &[Ray], want: &[Option<Hit>], what: &str) {
     rays.par_iter()
         .zip(want)
         .enumerate()
@@ -18,7 +23,47 @@ fn check(bvh: &Bvh2, rays: &[Ray], want: &[Option<Hit>], what: &str) {
                 want.is_some(),
                 "{what}: any-hit, ray {i} {ray:?}"
             );
+            let mut c = Counters::default();
+            assert_eq!(
+                bvh.closest_hit_counted(ray, &mut c),
+                *want,
+                "{what}: counted, ray {i}"
+            );
+            assert_eq!(
+                bvh.any_hit_counted(ray, &mut c),
+                want.is_some(),
+                "{what}: counted any, ray {i}"
+            );
+            // A hit needs at least one node, leaf and primitive test behind it.
+            if want.is_some() {
+                assert!(
+                    c.nodes >= 2 && c.leaves >= 2 && c.prim_tests >= 2,
+                    "{what}: {c:?}"
+                );
+            }
         });
+}
+
+/// A named ray set with the reference's answers.
+type RaySet<'a> = (&'a str, &'a [Ray], &'a [Option<Hit>]);
+
+/// Builds once per builder and checks every layout.
+fn check_layouts(tris: &[Triangle], sets: &[RaySet], what: &str) {
+    let bounds = triangle_bounds(tris);
+    for builder in [Builder::Binned, Builder::Sweep] {
+        let tree = build(&bounds, &BuildConfig::default(), builder);
+        for layout in Layout::ALL {
+            let bvh = Bvh::from_tree(&tree, tris, layout);
+            for (name, rays, want) in sets {
+                check(
+                    &bvh,
+                    rays,
+                    want,
+                    &format!("{what} {builder} {layout} {name}"),
+                );
+            }
+        }
+    }
 }
 
 fn reference_hits(tris: &[Triangle], rays: &[Ray]) -> Vec<Option<Hit>> {
@@ -27,29 +72,21 @@ fn reference_hits(tris: &[Triangle], rays: &[Ray]) -> Vec<Option<Hit>> {
         .collect()
 }
 
-/// Both builders against the reference on random and camera rays; returns the fraction of
-/// random and camera rays that hit.
+/// Both builders and every layout against the reference on random and camera rays; returns
+/// the fraction of random and camera rays that hit.
 fn check_scene(scene: &Scene, n_random: usize, cam_res: usize) -> (f64, f64) {
-    let config = BuildConfig::default();
     let random = rays::random_rays(&scene.bounds(), n_random, 42);
     let cam = rays::camera_rays(&scene.camera, cam_res);
     let want_random = reference_hits(&scene.triangles, &random);
     let want_cam = reference_hits(&scene.triangles, &cam);
-    for builder in [Builder::Binned, Builder::Sweep] {
-        let (bvh, _) = Bvh2::build(&scene.triangles, &config, builder);
-        check(
-            &bvh,
-            &random,
-            &want_random,
-            &format!("{} {builder} random", scene.name),
-        );
-        check(
-            &bvh,
-            &cam,
-            &want_cam,
-            &format!("{} {builder} camera", scene.name),
-        );
-    }
+    check_layouts(
+        &scene.triangles,
+        &[
+            ("random", &random, &want_random),
+            ("camera", &cam, &want_cam),
+        ],
+        &scene.name,
+    );
     let frac = |w: &[Option<Hit>]| w.iter().filter(|h| h.is_some()).count() as f64 / w.len() as f64;
     (frac(&want_random), frac(&want_cam))
 }
@@ -86,7 +123,6 @@ fn small_soups_many_seeds() {
 #[test]
 fn segments() {
     let scene = Scene::load("soup5000").unwrap();
-    let (bvh, _) = Bvh2::build(&scene.triangles, &BuildConfig::default(), Builder::Binned);
     let segs: Vec<Ray> = rays::random_rays(&scene.bounds(), 50_000, 9)
         .into_iter()
         .enumerate()
@@ -99,10 +135,42 @@ fn segments() {
             )
         })
         .collect();
-    check(
-        &bvh,
-        &segs,
-        &reference_hits(&scene.triangles, &segs),
-        "segments",
-    );
+    let want = reference_hits(&scene.triangles, &segs);
+    check_layouts(&scene.triangles, &[("segments", &segs, &want)], "soup5000");
+}
+
+/// Axis-parallel rays with +0.0 and -0.0 in the other components, through a grid of unit
+/// triangles in the z = 0 plane and along the planes of their edges and boxes.
+#[test]
+fn axis_parallel_rays_with_signed_zeros() {
+    let mut tris = Vec::new();
+    for i in 0..20 {
+        for j in 0..20 {
+            let o = Vec3A::new(i as f32, j as f32, 0.0);
+            tris.push(Triangle::new(o, o + Vec3A::X, o + Vec3A::Y));
+            tris.push(Triangle::new(
+                o + Vec3A::X,
+                o + Vec3A::X + Vec3A::Y,
+                o + Vec3A::Y,
+            ));
+        }
+    }
+    let mut rays = Vec::new();
+    for k in 0..=80 {
+        // Quarter steps: the rays run through triangle interiors, along shared edges and
+        // exactly on box faces.
+        let c = k as f32 * 0.25;
+        for z in [0.0f32, -0.0] {
+            for (ox, oy) in [(c, 0.3), (0.3, c), (c, c), (c, 20.0 - c)] {
+                rays.push(Ray::new(Vec3A::new(ox, oy, 5.0), Vec3A::new(z, z, -1.0)));
+                rays.push(Ray::new(Vec3A::new(ox, oy, -5.0), Vec3A::new(z, -z, 1.0)));
+            }
+            // In the plane of the triangles, along x and y.
+            rays.push(Ray::new(Vec3A::new(-1.0, c, 0.0), Vec3A::new(1.0, z, z)));
+            rays.push(Ray::new(Vec3A::new(c, 21.0, 0.0), Vec3A::new(z, -1.0, -z)));
+        }
+    }
+    let want = reference_hits(&tris, &rays);
+    assert!(want.iter().filter(|h| h.is_some()).count() > rays.len() / 2);
+    check_layouts(&tris, &[("axis-parallel", &rays, &want)], "grid");
 }

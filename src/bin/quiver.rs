@@ -3,8 +3,9 @@
 
 use clap::{Parser, Subcommand, ValueEnum};
 use quiver::build::{BuildConfig, Builder};
+use quiver::measure::{self, Query};
 use quiver::scene::{Scene, GENERATORS};
-use quiver::Bvh2;
+use quiver::{rays, Bvh, Layout};
 use serde_json::{json, Value};
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -25,6 +26,8 @@ struct Cli {
 enum Command {
     /// Build a BVH over a scene and report its size, SAH cost and build time.
     Build(BuildArgs),
+    /// Measure traversal throughput of every memory layout on several scenes.
+    Layouts(LayoutsArgs),
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -41,6 +44,9 @@ struct BuildArgs {
     /// Which SAH builder.
     #[arg(long, value_enum, default_value = "binned")]
     builder: BuilderArg,
+    /// Memory layout of the nodes.
+    #[arg(long, default_value = "bvh2-dfs", value_parser = parse_layout, long_help = layout_help())]
+    layout: Layout,
     /// Worker threads (default: all cores).
     #[arg(long, value_parser = clap::value_parser!(u16).range(1..=1024))]
     threads: Option<u16>,
@@ -61,6 +67,46 @@ struct BuildArgs {
     json: Option<PathBuf>,
 }
 
+#[derive(clap::Args)]
+struct LayoutsArgs {
+    /// Scenes (generator names or .obj files).
+    #[arg(default_values_t = ["tetra9".to_string(), "soup200000".to_string(), "tetra10".to_string()])]
+    scenes: Vec<String>,
+    /// Layouts to measure (default: all).
+    #[arg(long = "layout", value_parser = parse_layout)]
+    layouts: Vec<Layout>,
+    /// Incoherent rays per measurement.
+    #[arg(long, default_value_t = 300_000)]
+    rays: usize,
+    /// Camera rays per measurement: a RES × RES image.
+    #[arg(long, default_value_t = 512)]
+    res: usize,
+    /// Thread counts to measure.
+    #[arg(long, value_delimiter = ',', default_values_t = [1u16, 2])]
+    threads: Vec<u16>,
+    /// Timed repetitions per measurement (the median is reported).
+    #[arg(long, default_value_t = 3)]
+    reps: usize,
+    /// Write the rows and ratios as JSON to this file.
+    #[arg(long)]
+    json: Option<PathBuf>,
+}
+
+fn parse_layout(s: &str) -> std::result::Result<Layout, String> {
+    s.parse()
+}
+
+fn layout_help() -> String {
+    let names: Vec<&str> = Layout::ALL.iter().map(|l| l.name()).collect();
+    format!(
+        "Memory layout of the nodes: {}. bvh2-* are 32-byte binary nodes (dfs: depth-first; bfs: \
+         breadth-first; shuffled: random order; subtree: cache-line blocks; subtree-page: 4 KiB \
+         blocks; compact/compact-page: implicitly addressed blocks); bvh4-* are 4-wide nodes \
+         (dfs, page subtrees, quant: 8-bit quantized 64-byte nodes).",
+        names.join(", ")
+    )
+}
+
 fn scene_help() -> String {
     let mut s = String::from(
         "A generator name with an optional size, e.g. tetra6 (a bare name takes the default size), \
@@ -76,6 +122,7 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Build(args) => cmd_build(args),
+        Command::Layouts(args) => cmd_layouts(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -111,23 +158,28 @@ fn cmd_build(args: BuildArgs) -> Result<()> {
     let scene = Scene::load(&args.scene)?;
     let pool = pool(args.threads)?;
     let start = Instant::now();
-    let (bvh, tree) = pool.install(|| Bvh2::build(&scene.triangles, &config, builder));
+    let (bvh, tree) = pool.install(|| Bvh::build(&scene.triangles, &config, builder, args.layout));
     let build_ms = start.elapsed().as_secs_f64() * 1e3;
     let stats = tree.stats();
+    let prims = scene.triangles.len().max(1) as f64;
     let report = json!({
         "scene": scene.name,
         "objects": scene.objects,
         "primitives": scene.triangles.len(),
         "dropped": tree.dropped,
         "builder": builder.name(),
-        "layout": "bvh2-dfs",
+        "layout": args.layout.name(),
         "threads": pool.current_num_threads(),
-        "nodes": stats.nodes,
+        "nodes": bvh.nodes(),
+        "tree_nodes": stats.nodes,
         "leaves": stats.leaves,
         "depth": stats.depth,
         "sah_cost": tree.sah_cost(&config),
         "build_ms": build_ms,
         "bytes": bvh.bytes(),
+        "node_bytes": bvh.node_bytes(),
+        "node_bytes_per_prim": bvh.node_bytes() as f64 / prims,
+        "bytes_per_prim": bvh.bytes() as f64 / prims,
     });
     print_table(&report);
     write_json(args.json.as_ref(), &report)
@@ -160,4 +212,208 @@ fn write_json(path: Option<&PathBuf>, report: &Value) -> Result<()> {
         std::fs::write(p, text + "\n").map_err(|e| format!("cannot write {}: {e}", p.display()))?;
     }
     Ok(())
+}
+
+/// One throughput measurement.
+struct Row {
+    scene: String,
+    layout: Layout,
+    threads: usize,
+    rays: &'static str,
+    query: Query,
+    mrays: f64,
+}
+
+fn cmd_layouts(args: LayoutsArgs) -> Result<()> {
+    let layouts = if args.layouts.is_empty() {
+        Layout::ALL.to_vec()
+    } else {
+        args.layouts.clone()
+    };
+    if args.rays == 0 || args.res == 0 {
+        return Err("--rays and --res must be at least 1".into());
+    }
+    let config = BuildConfig::default();
+    let per_scene = layouts.len() * args.threads.len() * 4;
+    let bar = indicatif::ProgressBar::new((args.scenes.len() * per_scene) as u64);
+    bar.set_style(indicatif::ProgressStyle::with_template(
+        "{bar:40} {pos}/{len} {msg} [{elapsed}]",
+    )?);
+    let mut rows = Vec::new();
+    let mut sizes = Vec::new();
+    for name in &args.scenes {
+        bar.set_message(format!("loading {name}"));
+        let scene = Scene::load(name)?;
+        let tree = quiver::build::build(
+            &quiver::layout::triangle_bounds(&scene.triangles),
+            &config,
+            Builder::Binned,
+        );
+        let sets = [
+            ("random", rays::random_rays(&scene.bounds(), args.rays, 7)),
+            ("camera", rays::camera_rays(&scene.camera, args.res)),
+        ];
+        for &layout in &layouts {
+            bar.set_message(format!("{name} {layout}"));
+            let bvh = Bvh::from_tree(&tree, &scene.triangles, layout);
+            sizes.push(json!({
+                "scene": scene.name,
+                "primitives": scene.triangles.len(),
+                "layout": layout.name(),
+                "nodes": bvh.nodes(),
+                "node_bytes": bvh.node_bytes(),
+                "node_bytes_per_prim": bvh.node_bytes() as f64 / scene.triangles.len().max(1) as f64,
+            }));
+            for &threads in &args.threads {
+                let pool = pool(Some(threads))?;
+                for (kind, rays) in &sets {
+                    for query in [Query::Closest, Query::Any] {
+                        let t = pool.install(|| {
+                            measure::median_time(args.reps, || {
+                                std::hint::black_box(measure::trace(&bvh, rays, query));
+                            })
+                        });
+                        rows.push(Row {
+                            scene: scene.name.clone(),
+                            layout,
+                            threads: threads as usize,
+                            rays: kind,
+                            query,
+                            mrays: measure::mrays_per_s(rays.len(), t),
+                        });
+                        bar.inc(1);
+                    }
+                }
+            }
+        }
+    }
+    bar.finish_and_clear();
+    print_layout_tables(&sizes, &rows, &layouts);
+    let ratios = layout_ratios(&rows);
+    let report = json!({
+        "sizes": sizes,
+        "rows": rows.iter().map(|r| json!({
+            "scene": r.scene, "layout": r.layout.name(), "threads": r.threads,
+            "rays": r.rays, "query": r.query.name(), "mrays_per_s": r.mrays,
+        })).collect::<Vec<_>>(),
+        "ratios": ratios,
+    });
+    write_json(args.json.as_ref(), &report)
+}
+
+/// Time ratios (slower layout's time over the faster's, Havran's convention) between pairs of
+/// layouts, per scene, threads, ray kind and query.
+const RATIOS: [(&str, Layout, Layout); 5] = [
+    ("BFS/DFS", Layout::Bvh2Bfs, Layout::Bvh2Dfs),
+    ("BFS/subtree", Layout::Bvh2Bfs, Layout::Bvh2Subtree),
+    ("DFS/subtree", Layout::Bvh2Dfs, Layout::Bvh2Subtree),
+    ("DFS/subtree-page", Layout::Bvh2Dfs, Layout::Bvh2SubtreePage),
+    ("BVH2/BVH4", Layout::Bvh2Dfs, Layout::Bvh4Dfs),
+];
+
+fn find(rows: &[Row], like: &Row, layout: Layout) -> Option<f64> {
+    rows.iter()
+        .find(|r| {
+            r.scene == like.scene
+                && r.threads == like.threads
+                && r.rays == like.rays
+                && r.query == like.query
+                && r.layout == layout
+        })
+        .map(|r| r.mrays)
+}
+
+fn layout_ratios(rows: &[Row]) -> Vec<Value> {
+    let mut out = Vec::new();
+    for r in rows.iter().filter(|r| r.layout == rows[0].layout) {
+        let mut entry = json!({"scene": r.scene, "threads": r.threads, "rays": r.rays, "query": r.query.name()});
+        for (name, slow, fast) in RATIOS {
+            if let (Some(s), Some(f)) = (find(rows, r, slow), find(rows, r, fast)) {
+                // T_slow / T_fast = throughput_fast / throughput_slow.
+                entry[name] = json!(f / s);
+            }
+        }
+        out.push(entry);
+    }
+    out
+}
+
+fn print_layout_tables(sizes: &[Value], rows: &[Row], layouts: &[Layout]) {
+    println!(
+        "{:<12} {:<18} {:>10} {:>12} {:>10}",
+        "scene", "layout", "nodes", "node bytes", "B/prim"
+    );
+    for s in sizes {
+        println!(
+            "{:<12} {:<18} {:>10} {:>12} {:>10.2}",
+            s["scene"].as_str().unwrap_or(""),
+            s["layout"].as_str().unwrap_or(""),
+            s["nodes"],
+            s["node_bytes"],
+            s["node_bytes_per_prim"].as_f64().unwrap_or(f64::NAN)
+        );
+    }
+    println!();
+    print!(
+        "{:<12} {:>3} {:<7} {:<8}",
+        "Mrays/s", "thr", "rays", "query"
+    );
+    for l in layouts {
+        print!(" {:>8}", short(*l));
+    }
+    println!();
+    for r in rows.iter().filter(|r| r.layout == layouts[0]) {
+        print!(
+            "{:<12} {:>3} {:<7} {:<8}",
+            r.scene,
+            r.threads,
+            r.rays,
+            r.query.name()
+        );
+        for &l in layouts {
+            print!(" {:>8.2}", find(rows, r, l).unwrap_or(f64::NAN));
+        }
+        println!();
+    }
+    println!();
+    print!(
+        "{:<12} {:>3} {:<7} {:<8}",
+        "time ratio", "thr", "rays", "query"
+    );
+    for (name, ..) in RATIOS {
+        print!(" {name:>16}");
+    }
+    println!();
+    for r in rows.iter().filter(|r| r.layout == layouts[0]) {
+        print!(
+            "{:<12} {:>3} {:<7} {:<8}",
+            r.scene,
+            r.threads,
+            r.rays,
+            r.query.name()
+        );
+        for (_, slow, fast) in RATIOS {
+            match (find(rows, r, slow), find(rows, r, fast)) {
+                (Some(s), Some(f)) => print!(" {:>16.3}", f / s),
+                _ => print!(" {:>16}", "-"),
+            }
+        }
+        println!();
+    }
+}
+
+/// Column header for a layout: its name without the common prefix noise.
+fn short(l: Layout) -> &'static str {
+    match l {
+        Layout::Bvh2Dfs => "2-dfs",
+        Layout::Bvh2Bfs => "2-bfs",
+        Layout::Bvh2Shuffled => "2-shuf",
+        Layout::Bvh2Subtree => "2-sub",
+        Layout::Bvh2SubtreePage => "2-subpg",
+        Layout::Bvh2Compact => "2-cmp",
+        Layout::Bvh2CompactPage => "2-cmppg",
+        Layout::Bvh4Dfs => "4-dfs",
+        Layout::Bvh4Subtree => "4-sub",
+        Layout::Bvh4Quant => "4-quant",
+    }
 }

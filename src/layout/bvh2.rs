@@ -1,3 +1,4 @@
+use super::order::{self, Shape, HOLE};
 use crate::build::{build, BuildConfig, BuildTree, Builder, NodeKind};
 use crate::geometry::{Aabb, Triangle};
 use bytemuck::{Pod, Zeroable};
@@ -5,8 +6,11 @@ use glam::Vec3A;
 
 /// A binary BVH node: 32 bytes, two to a 64-byte cache line.
 ///
-/// Inner node: `link` is the right child's index (the left child follows its parent), `count`
-/// is 0. Leaf: `link` is the first triangle, `count` is [`Bvh2Node::LEAF`] | triangle count.
+/// Leaf: `link` is the first triangle, `count` is [`Bvh2Node::LEAF`] | triangle count. Inner
+/// node, by [`Bvh2Mapping`]: depth-first stores the right child in `link` (the left child
+/// follows its parent) and 0 in `count`; the other mappings store the left child in `link` and
+/// the right in `count`, except that inside a compact block `count` is 0 and `link` holds the
+/// block's height, and the children are found by position.
 #[repr(C, align(32))]
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 pub struct Bvh2Node {
@@ -43,9 +47,85 @@ impl Bvh2Node {
     pub fn bounds(&self) -> Aabb {
         Aabb::new(self.min.into(), self.max.into())
     }
+
+    fn new(bounds: &Aabb, link: u32, count: u32) -> Self {
+        Bvh2Node {
+            min: bounds.min.into(),
+            link,
+            max: bounds.max.into(),
+            count,
+        }
+    }
 }
 
-/// A binary BVH over triangles in depth-first order, with triangles stored in leaf order.
+/// Where a [`Bvh2`]'s nodes sit in memory (Havran's mappings; see [`super::order`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Bvh2Mapping {
+    /// Depth-first preorder: the left child follows its parent; only the right child's index
+    /// is stored.
+    DepthFirst,
+    /// Breadth-first (level) order; both child indices stored. A baseline.
+    BreadthFirst,
+    /// Random order (seeded, root first); both child indices stored. The no-locality baseline.
+    Shuffled,
+    /// Subtree blocks of one 64-byte cache line (two nodes: a node and its likelier child),
+    /// line-aligned; both child indices stored.
+    Subtree,
+    /// Subtree blocks of one 4 KiB page (128 nodes grown by area); both indices stored.
+    SubtreePage,
+    /// Compact subtree blocks of two cache lines: a 3-node heap (plus one pad slot) whose
+    /// inner children are found by position; only links leaving the block are stored.
+    Compact,
+    /// Compact subtree blocks of up to one page: a heap of up to 127 nodes (smaller for
+    /// short subtrees near the leaves).
+    CompactPage,
+}
+
+/// How a traversal finds a node's children; one kernel is compiled per variant.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Addressing {
+    /// Left child at `i + 1`, right child at `link`.
+    DepthFirst,
+    /// Left child at `link`, right at `count`.
+    Explicit,
+    /// Heap blocks (see [`Bvh2Mapping::Compact`]): an inner node with `count == 0` lies inside
+    /// a block of height `link` and finds its children by position; any other inner node
+    /// stores left in `link`, right in `count`.
+    Compact,
+}
+
+impl Bvh2Mapping {
+    pub(crate) fn addressing(self) -> Addressing {
+        match self {
+            Bvh2Mapping::DepthFirst => Addressing::DepthFirst,
+            Bvh2Mapping::BreadthFirst
+            | Bvh2Mapping::Shuffled
+            | Bvh2Mapping::Subtree
+            | Bvh2Mapping::SubtreePage => Addressing::Explicit,
+            Bvh2Mapping::Compact | Bvh2Mapping::CompactPage => Addressing::Compact,
+        }
+    }
+
+    /// The slot table and, for compact mappings, the block height of each block-interior slot.
+    fn slots(self, shape: &Shape) -> (Vec<u32>, Vec<u8>) {
+        const LINE: usize = 64 / std::mem::size_of::<Bvh2Node>();
+        const PAGE: usize = 4096 / std::mem::size_of::<Bvh2Node>();
+        let plain = match self {
+            Bvh2Mapping::DepthFirst => order::depth_first(shape),
+            Bvh2Mapping::BreadthFirst => order::breadth_first(shape),
+            Bvh2Mapping::Shuffled => order::shuffled(shape, 0x5eed),
+            Bvh2Mapping::Subtree => order::subtree(shape, LINE, LINE),
+            Bvh2Mapping::SubtreePage => order::subtree(shape, PAGE, LINE),
+            Bvh2Mapping::Compact => return order::compact(shape, 2),
+            Bvh2Mapping::CompactPage => return order::compact(shape, 7),
+        };
+        let n = plain.len();
+        (plain, vec![0; n])
+    }
+}
+
+/// A binary BVH over triangles: 32-byte nodes in the chosen [`Bvh2Mapping`], triangles copied
+/// into leaf order so a leaf is a contiguous run the intersector reads directly.
 ///
 /// ```
 /// use quiver::{Bvh2, Ray, Triangle};
@@ -58,25 +138,27 @@ impl Bvh2Node {
 /// ```
 #[derive(Clone, Debug)]
 pub struct Bvh2 {
-    /// Nodes in depth-first order; the root is node 0.
+    /// Nodes in the order of `mapping`; the root is node 0. Padding slots hold empty leaves.
     pub nodes: Vec<Bvh2Node>,
     /// Triangles in leaf order.
     pub tris: Vec<Triangle>,
     /// For each entry of `tris`, its index in the input.
     pub prim_ids: Vec<u32>,
+    /// How the nodes are ordered and linked.
+    pub mapping: Bvh2Mapping,
 }
 
 impl Bvh2 {
-    /// Builds the tree over `tris` and lays it out; also returns the intermediate tree (for
-    /// SAH cost and statistics).
+    /// Builds the tree over `tris` and lays it out depth-first; also returns the intermediate
+    /// tree (for SAH cost and statistics).
     pub fn build(tris: &[Triangle], config: &BuildConfig, builder: Builder) -> (Bvh2, BuildTree) {
         let bounds = triangle_bounds(tris);
         let tree = build(&bounds, config, builder);
         (Bvh2::from_tree(&tree, tris), tree)
     }
 
-    /// Lays out a built tree. The build tree is already in preorder with each left child right
-    /// after its parent, which is exactly the depth-first mapping.
+    /// Lays out a built tree depth-first. The build tree is already in preorder with each left
+    /// child right after its parent, so this is a straight (parallel) conversion.
     pub fn from_tree(tree: &BuildTree, tris: &[Triangle]) -> Bvh2 {
         use rayon::prelude::*;
         let nodes = tree
@@ -91,32 +173,110 @@ impl Bvh2 {
                     }
                     NodeKind::Leaf { first, count } => (first, Bvh2Node::LEAF | count),
                 };
-                Bvh2Node {
-                    min: n.bounds.min.into(),
-                    link,
-                    max: n.bounds.max.into(),
-                    count,
-                }
+                Bvh2Node::new(&n.bounds, link, count)
             })
-            .collect();
-        let tris = tree
-            .prim_indices
-            .par_iter()
-            .map(|&i| tris[i as usize])
             .collect();
         Bvh2 {
             nodes,
-            tris,
+            tris: leaf_order(tree, tris),
             prim_ids: tree.prim_indices.clone(),
+            mapping: Bvh2Mapping::DepthFirst,
+        }
+    }
+
+    /// Lays out a built tree in any [`Bvh2Mapping`].
+    ///
+    /// ```
+    /// use quiver::layout::{Bvh2, Bvh2Mapping};
+    /// use quiver::build::{build, BuildConfig, Builder};
+    /// use quiver::{scene::Scene, layout::triangle_bounds};
+    /// let scene = Scene::load("tetra4").unwrap();
+    /// let tree = build(&triangle_bounds(&scene.triangles), &BuildConfig::default(), Builder::Binned);
+    /// let dfs = Bvh2::from_tree(&tree, &scene.triangles);
+    /// let sub = Bvh2::from_tree_mapped(&tree, &scene.triangles, Bvh2Mapping::Subtree);
+    /// let ray = scene.camera.ray(0.0, 0.0);
+    /// assert_eq!(dfs.closest_hit(&ray), sub.closest_hit(&ray));
+    /// ```
+    pub fn from_tree_mapped(tree: &BuildTree, tris: &[Triangle], mapping: Bvh2Mapping) -> Bvh2 {
+        if mapping == Bvh2Mapping::DepthFirst {
+            return Bvh2::from_tree(tree, tris);
+        }
+        let shape = Shape {
+            kids: tree
+                .nodes
+                .iter()
+                .map(|n| match n.kind {
+                    NodeKind::Inner { left, right } => [left, right, HOLE, HOLE],
+                    NodeKind::Leaf { .. } => [HOLE; 4],
+                })
+                .collect(),
+            area: tree.nodes.iter().map(|n| n.bounds.half_area()).collect(),
+        };
+        let (slots, interior) = mapping.slots(&shape);
+        let pos = order::positions(&slots, tree.nodes.len());
+        let nodes = slots
+            .iter()
+            .enumerate()
+            .map(|(i, &n)| {
+                if n == HOLE {
+                    return Bvh2Node::new(&Aabb::EMPTY, 0, Bvh2Node::LEAF);
+                }
+                let node = &tree.nodes[n as usize];
+                let (link, count) = match node.kind {
+                    NodeKind::Leaf { first, count } => (first, Bvh2Node::LEAF | count),
+                    NodeKind::Inner { left, right } => {
+                        let (l, r) = (pos[left as usize], pos[right as usize]);
+                        match interior[i] {
+                            0 => (l, r),
+                            h => {
+                                debug_assert_eq!(
+                                    compact_children(i, h as u32),
+                                    (l as usize, r as usize)
+                                );
+                                (h as u32, 0)
+                            }
+                        }
+                    }
+                };
+                Bvh2Node::new(&node.bounds, link, count)
+            })
+            .collect();
+        Bvh2 {
+            nodes,
+            tris: leaf_order(tree, tris),
+            prim_ids: tree.prim_indices.clone(),
+            mapping,
         }
     }
 
     /// Bytes of node and leaf data the traversal reads.
     pub fn bytes(&self) -> usize {
-        std::mem::size_of_val(self.nodes.as_slice())
+        self.node_bytes()
             + std::mem::size_of_val(self.tris.as_slice())
             + std::mem::size_of_val(self.prim_ids.as_slice())
     }
+
+    /// Bytes of the node array alone (padding slots included).
+    pub fn node_bytes(&self) -> usize {
+        std::mem::size_of_val(self.nodes.as_slice())
+    }
+}
+
+/// Positions of the children of slot `i` inside a compact block of height `h`: at block
+/// position `p` they are `2p + 1` and `2p + 2`, i.e. `i + p + 1` and `i + p + 2`.
+#[inline(always)]
+pub(crate) fn compact_children(i: usize, h: u32) -> (usize, usize) {
+    let p = i & ((1 << h) - 1);
+    (i + p + 1, i + p + 2)
+}
+
+/// The input triangles in the order the leaves reference them.
+pub(crate) fn leaf_order(tree: &BuildTree, tris: &[Triangle]) -> Vec<Triangle> {
+    use rayon::prelude::*;
+    tree.prim_indices
+        .par_iter()
+        .map(|&i| tris[i as usize])
+        .collect()
 }
 
 /// One bounding box per triangle, the builders' input. A triangle with a non-finite vertex

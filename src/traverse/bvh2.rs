@@ -1,8 +1,10 @@
-//! Single-ray traversal of the depth-first [`Bvh2`].
+//! Single-ray traversal of a [`Bvh2`] in any of its memory mappings.
 
-use super::{SlabRay, FAR_SLACK};
+use super::stats::{Counters, NoStats, Stats};
+use super::{leaf_any_hit, leaf_closest_hit, SlabRay, Stack, FAR_SLACK};
 use crate::build::MAX_DEPTH;
 use crate::geometry::{Hit, Ray};
+use crate::layout::bvh2::{compact_children, Addressing};
 use crate::layout::{Bvh2, Bvh2Node};
 use std::ops::Range;
 
@@ -12,109 +14,159 @@ fn planes(n: &Bvh2Node) -> &[f32; 8] {
     bytemuck::cast_ref(n)
 }
 
+/// How a kernel finds the children of inner node `i`; one kernel is compiled per rule.
+trait Children {
+    fn of(i: usize, n: &Bvh2Node) -> (usize, usize);
+}
+
+struct DepthFirst;
+impl Children for DepthFirst {
+    #[inline(always)]
+    fn of(i: usize, n: &Bvh2Node) -> (usize, usize) {
+        (i + 1, n.link as usize)
+    }
+}
+
+struct Explicit;
+impl Children for Explicit {
+    #[inline(always)]
+    fn of(_: usize, n: &Bvh2Node) -> (usize, usize) {
+        (n.link as usize, n.count as usize)
+    }
+}
+
+struct Compact;
+impl Children for Compact {
+    #[inline(always)]
+    fn of(i: usize, n: &Bvh2Node) -> (usize, usize) {
+        if n.count == 0 {
+            compact_children(i, n.link)
+        } else {
+            (n.link as usize, n.count as usize)
+        }
+    }
+}
+
 impl Bvh2 {
     /// The nearest hit along `ray` (lowest primitive index on ties): exactly what
     /// [`crate::reference::closest_hit`] returns for the same triangles.
     pub fn closest_hit(&self, ray: &Ray) -> Option<Hit> {
-        let mut best = Hit {
-            t: ray.t_max,
-            prim: u32::MAX,
-            u: 0.0,
-            v: 0.0,
-        };
-        self.traverse(ray, |range, limit| {
-            let r = Ray {
-                t_max: *limit,
-                ..*ray
-            };
-            for i in range {
-                if let Some(h) = self.tris[i].intersect(&r) {
-                    let prim = self.prim_ids[i];
-                    if best.is_beaten_by(h.t, prim) {
-                        best = Hit {
-                            t: h.t,
-                            prim,
-                            u: h.u,
-                            v: h.v,
-                        };
-                    }
-                }
-            }
-            *limit = best.t;
-            false
-        });
-        (best.prim != u32::MAX).then_some(best)
+        self.closest_hit_with(ray, &mut NoStats)
+    }
+
+    /// [`Bvh2::closest_hit`], adding what the traversal did to `counters`.
+    pub fn closest_hit_counted(&self, ray: &Ray, counters: &mut Counters) -> Option<Hit> {
+        self.closest_hit_with(ray, counters)
     }
 
     /// True when anything is hit within the ray's interval; stops at the first hit.
     pub fn any_hit(&self, ray: &Ray) -> bool {
+        self.any_hit_with(ray, &mut NoStats)
+    }
+
+    /// [`Bvh2::any_hit`], adding what the traversal did to `counters`.
+    pub fn any_hit_counted(&self, ray: &Ray, counters: &mut Counters) -> bool {
+        self.any_hit_with(ray, counters)
+    }
+
+    /// Closest hit with any statistics sink.
+    pub fn closest_hit_with<S: Stats>(&self, ray: &Ray, stats: &mut S) -> Option<Hit> {
+        let mut best = Hit::none(ray.t_max);
+        self.traverse(ray, stats, |range, limit, stats| {
+            leaf_closest_hit(
+                &self.tris[range.clone()],
+                &self.prim_ids[range],
+                ray,
+                &mut best,
+                stats,
+            );
+            *limit = best.t;
+            false
+        });
+        best.found()
+    }
+
+    /// Any hit with any statistics sink.
+    pub fn any_hit_with<S: Stats>(&self, ray: &Ray, stats: &mut S) -> bool {
         let mut hit = false;
-        self.traverse(ray, |range, _| {
-            hit = self.tris[range].iter().any(|t| t.intersect(ray).is_some());
+        self.traverse(ray, stats, |range, _, stats| {
+            hit = leaf_any_hit(&self.tris[range], ray, stats);
             hit
         });
         hit
     }
 
-    /// Visits the leaves the ray may hit, nearest box first. `leaf(triangles, t_limit)` tests
-    /// a leaf, may lower `t_limit` (boxes entered beyond it are skipped; a box entered exactly
-    /// at it is still visited, so ties are seen) and returns true to stop.
     #[inline(always)]
-    fn traverse<F>(&self, ray: &Ray, mut leaf: F)
+    fn traverse<S, F>(&self, ray: &Ray, stats: &mut S, leaf: F)
     where
-        F: FnMut(Range<usize>, &mut f32) -> bool,
+        S: Stats,
+        F: FnMut(Range<usize>, &mut f32, &mut S) -> bool,
     {
-        let sr = SlabRay::new(ray);
-        let nodes = self.nodes.as_slice();
-        let mut limit = ray.t_max;
-        let mut stack = [(0u32, 0f32); MAX_DEPTH + 1];
-        let mut sp = 0;
-        let mut node = 0usize;
-        if sr.enter(planes(&nodes[0]), limit).is_none() {
-            return;
+        match self.mapping.addressing() {
+            Addressing::DepthFirst => walk::<DepthFirst, S, F>(&self.nodes, ray, stats, leaf),
+            Addressing::Explicit => walk::<Explicit, S, F>(&self.nodes, ray, stats, leaf),
+            Addressing::Compact => walk::<Compact, S, F>(&self.nodes, ray, stats, leaf),
         }
-        loop {
-            let n = &nodes[node];
-            if n.is_leaf() {
-                let first = n.link as usize;
-                if leaf(first..first + n.prim_count() as usize, &mut limit) {
-                    return;
-                }
-            } else {
-                let (l, r) = (node + 1, n.link as usize);
-                let bound = limit * FAR_SLACK;
-                let tl = sr.enter(planes(&nodes[l]), bound);
-                let tr = sr.enter(planes(&nodes[r]), bound);
-                match (tl, tr) {
-                    (Some(a), Some(b)) => {
-                        let (near, far, t_far) = if a <= b { (l, r, b) } else { (r, l, a) };
-                        stack[sp] = (far as u32, t_far);
-                        sp += 1;
-                        node = near;
-                        continue;
-                    }
-                    (Some(_), None) => {
-                        node = l;
-                        continue;
-                    }
-                    (None, Some(_)) => {
-                        node = r;
-                        continue;
-                    }
-                    (None, None) => {}
-                }
+    }
+}
+
+/// Visits the leaves the ray may hit, nearer child first. `leaf(triangles, t_limit, stats)`
+/// tests a leaf, may lower `t_limit` (boxes entered beyond it are skipped; a box entered
+/// exactly at it is still visited, so ties are seen) and returns true to stop.
+#[inline(always)]
+fn walk<C, S, F>(nodes: &[Bvh2Node], ray: &Ray, stats: &mut S, mut leaf: F)
+where
+    C: Children,
+    S: Stats,
+    F: FnMut(Range<usize>, &mut f32, &mut S) -> bool,
+{
+    let sr = SlabRay::new(ray);
+    let mut limit = ray.t_max;
+    let mut stack: Stack<(u32, f32), { MAX_DEPTH + 1 }> = Stack::new();
+    let mut node = 0usize;
+    stats.boxes(1);
+    if sr.enter(planes(&nodes[0]), limit).is_none() {
+        return;
+    }
+    loop {
+        let n = &nodes[node];
+        stats.node();
+        if n.is_leaf() {
+            let first = n.link as usize;
+            stats.leaf();
+            if leaf(first..first + n.prim_count() as usize, &mut limit, stats) {
+                return;
             }
-            // Pop the next box still worth entering.
-            loop {
-                if sp == 0 {
-                    return;
+        } else {
+            let (l, r) = C::of(node, n);
+            let bound = limit * FAR_SLACK;
+            stats.boxes(2);
+            let tl = sr.enter(planes(&nodes[l]), bound);
+            let tr = sr.enter(planes(&nodes[r]), bound);
+            match (tl, tr) {
+                (Some(a), Some(b)) => {
+                    let (near, far, t_far) = if a <= b { (l, r, b) } else { (r, l, a) };
+                    stack.push((far as u32, t_far));
+                    node = near;
+                    continue;
                 }
-                sp -= 1;
-                let (i, t) = stack[sp];
-                if t <= limit * FAR_SLACK {
-                    node = i as usize;
-                    break;
+                (Some(_), None) => {
+                    node = l;
+                    continue;
                 }
+                (None, Some(_)) => {
+                    node = r;
+                    continue;
+                }
+                (None, None) => {}
+            }
+        }
+        // Pop the next box still worth entering.
+        loop {
+            let Some((i, t)) = stack.pop() else { return };
+            if t <= limit * FAR_SLACK {
+                node = i as usize;
+                break;
             }
         }
     }

@@ -2,9 +2,62 @@
 //! traversal kernels.
 
 mod bvh2;
+mod bvh4;
 pub mod reference;
+mod stats;
 
-use crate::geometry::Ray;
+pub use stats::{Counters, NoStats, Stats};
+
+use crate::geometry::{Hit, Ray, Triangle};
+
+/// Tests a leaf's triangles for the closest hit, updating `best`; `prim_ids` gives each
+/// triangle's input index. Returns true when `best` changed.
+#[inline(always)]
+pub(crate) fn leaf_closest_hit<S: Stats>(
+    tris: &[Triangle],
+    prim_ids: &[u32],
+    ray: &Ray,
+    best: &mut Hit,
+    stats: &mut S,
+) -> bool {
+    stats.prims(tris.len() as u32);
+    let r = Ray {
+        t_max: best.t,
+        ..*ray
+    };
+    let mut found = false;
+    for (tri, &prim) in tris.iter().zip(prim_ids) {
+        if let Some(h) = tri.intersect(&r) {
+            if best.is_beaten_by(h.t, prim) {
+                *best = Hit {
+                    t: h.t,
+                    prim,
+                    u: h.u,
+                    v: h.v,
+                };
+                found = true;
+            }
+        }
+    }
+    if !found {
+        stats.empty_leaf();
+    }
+    found
+}
+
+/// Tests a leaf's triangles until one is hit.
+#[inline(always)]
+pub(crate) fn leaf_any_hit<S: Stats>(tris: &[Triangle], ray: &Ray, stats: &mut S) -> bool {
+    for (i, tri) in tris.iter().enumerate() {
+        if tri.intersect(ray).is_some() {
+            stats.prims(i as u32 + 1);
+            return true;
+        }
+    }
+    stats.prims(tris.len() as u32);
+    stats.empty_leaf();
+    false
+}
 
 /// Slack on far distances so rounding never culls a box the exact test would enter
 /// (Ize, JCGT 2013: `1 + 2·gamma(3)`, `gamma(n) = n·eps / (1 - n·eps)` with `eps = 2^-24`).
@@ -57,5 +110,40 @@ impl SlabRay {
             far = far.min(tf * FAR_SLACK);
         }
         (near <= far).then_some(near)
+    }
+}
+
+/// A fixed-capacity stack that is not initialised up front: zeroing a traversal stack of a few
+/// hundred entries per ray cost more than the traversal of a small scene.
+pub(crate) struct Stack<T: Copy, const N: usize> {
+    items: [std::mem::MaybeUninit<T>; N],
+    len: usize,
+}
+
+impl<T: Copy, const N: usize> Stack<T, N> {
+    #[inline(always)]
+    pub fn new() -> Self {
+        Stack {
+            items: [std::mem::MaybeUninit::uninit(); N],
+            len: 0,
+        }
+    }
+
+    /// Pushes `x`. Capacities come from the tree depth bound, so overflow is a bug: it panics
+    /// (bounds check) rather than corrupting memory.
+    #[inline(always)]
+    pub fn push(&mut self, x: T) {
+        self.items[self.len] = std::mem::MaybeUninit::new(x);
+        self.len += 1;
+    }
+
+    #[inline(always)]
+    pub fn pop(&mut self) -> Option<T> {
+        if self.len == 0 {
+            return None;
+        }
+        self.len -= 1;
+        // SAFETY: every slot below `len` was written by `push` and `len` only shrinks here.
+        Some(unsafe { self.items[self.len].assume_init() })
     }
 }

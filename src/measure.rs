@@ -1,0 +1,71 @@
+//! Throughput measurement shared by the CLI reports and benchmarks: trace a ray set through a
+//! [`Bvh`] on the current rayon pool and time it.
+//!
+//! ```
+//! use quiver::measure::{trace, Query};
+//! use quiver::{rays, scene::Scene, Bvh, Layout};
+//! use quiver::build::{BuildConfig, Builder};
+//! let s = Scene::load("tetra4").unwrap();
+//! let (bvh, _) = Bvh::build(&s.triangles, &BuildConfig::default(), Builder::Binned, Layout::Bvh4Dfs);
+//! let rays = rays::camera_rays(&s.camera, 32);
+//! assert!(trace(&bvh, &rays, Query::Closest) > 0);
+//! ```
+
+use crate::geometry::Ray;
+use crate::layout::Bvh;
+use rayon::prelude::*;
+use std::time::{Duration, Instant};
+
+/// Which query to run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Query {
+    /// Nearest hit.
+    Closest,
+    /// Any hit (shadow-ray style, stops at the first).
+    Any,
+}
+
+impl Query {
+    /// Report name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Query::Closest => "closest",
+            Query::Any => "any",
+        }
+    }
+}
+
+/// Rays per rayon task: big enough that scheduling is noise, small enough to balance.
+const RAYS_PER_TASK: usize = 1024;
+
+/// Traces every ray on the current thread pool; returns how many hit.
+pub fn trace(bvh: &Bvh, rays: &[Ray], query: Query) -> usize {
+    rays.par_chunks(RAYS_PER_TASK)
+        .map(|chunk| match query {
+            Query::Closest => chunk
+                .iter()
+                .filter(|r| bvh.closest_hit(r).is_some())
+                .count(),
+            Query::Any => chunk.iter().filter(|r| bvh.any_hit(r)).count(),
+        })
+        .sum()
+}
+
+/// The median of `reps` timings of `f` (after one untimed warm-up run).
+pub fn median_time(reps: usize, mut f: impl FnMut()) -> Duration {
+    f();
+    let mut times: Vec<Duration> = (0..reps.max(1))
+        .map(|_| {
+            let t = Instant::now();
+            f();
+            t.elapsed()
+        })
+        .collect();
+    times.sort();
+    times[times.len() / 2]
+}
+
+/// Million rays per second for `rays` traced in `time`.
+pub fn mrays_per_s(rays: usize, time: Duration) -> f64 {
+    rays as f64 / time.as_secs_f64() / 1e6
+}

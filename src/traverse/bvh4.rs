@@ -1,0 +1,240 @@
+//! Single-ray traversal of 4-wide BVHs: the four child boxes of a node are tested at once
+//! with `wide::f32x4`, hit children are visited nearest first, any-hit exits at the first hit.
+
+use super::stats::{Counters, NoStats, Stats};
+use super::{leaf_any_hit, leaf_closest_hit, Stack, FAR_SLACK};
+use crate::build::MAX_DEPTH;
+use crate::geometry::{Hit, Ray};
+use crate::layout::bvh4::pow2;
+use crate::layout::{Bvh4, Bvh4Node, QBvh4, QBvh4Node};
+use crate::Triangle;
+use wide::f32x4;
+
+/// What the kernel needs from a 4-wide node format.
+trait WideNode {
+    /// Child boxes as `[min_x, min_y, min_z, max_x, max_y, max_z]` rows.
+    fn planes(&self) -> [f32x4; 6];
+    /// Child `i` as (node index or first triangle, leaf triangle count; 0 = inner).
+    fn child(&self, i: usize) -> (u32, u32);
+}
+
+impl WideNode for Bvh4Node {
+    #[inline(always)]
+    fn planes(&self) -> [f32x4; 6] {
+        *bytemuck::cast_ref::<[[f32; 4]; 6], [f32x4; 6]>(&self.planes)
+    }
+    #[inline(always)]
+    fn child(&self, i: usize) -> (u32, u32) {
+        (self.child[i], self.count[i] & !Bvh4Node::LEAF)
+    }
+}
+
+impl WideNode for QBvh4Node {
+    #[inline(always)]
+    fn planes(&self) -> [f32x4; 6] {
+        let mut out = [f32x4::ZERO; 6];
+        for (row, q) in out.iter_mut().zip(&self.q) {
+            *row = f32x4::new([q[0] as f32, q[1] as f32, q[2] as f32, q[3] as f32]);
+        }
+        for a in 0..3 {
+            // Multiply, then add: the arithmetic the encoder verified as conservative.
+            let (o, step) = (
+                f32x4::splat(self.origin[a]),
+                f32x4::splat(pow2(self.exp[a])),
+            );
+            out[a] = out[a] * step + o;
+            out[3 + a] = out[3 + a] * step + o;
+        }
+        out
+    }
+    #[inline(always)]
+    fn child(&self, i: usize) -> (u32, u32) {
+        (self.child[i], self.count[i] as u32)
+    }
+}
+
+/// `max(a, b)` where `a` may be NaN and `b` never is; returns `b` for a NaN `a`, so a NaN slab
+/// distance (a zero direction with the origin on the plane) never limits the interval.
+#[inline(always)]
+fn max_nan_first(a: f32x4, b: f32x4) -> f32x4 {
+    #[cfg(target_feature = "sse")]
+    {
+        // MAXPS returns its second operand when either is NaN.
+        a.fast_max(b)
+    }
+    #[cfg(not(target_feature = "sse"))]
+    {
+        b.max(a)
+    }
+}
+
+/// `min(a, b)` with the same NaN rule as [`max_nan_first`].
+#[inline(always)]
+fn min_nan_first(a: f32x4, b: f32x4) -> f32x4 {
+    #[cfg(target_feature = "sse")]
+    {
+        a.fast_min(b)
+    }
+    #[cfg(not(target_feature = "sse"))]
+    {
+        b.min(a)
+    }
+}
+
+/// A ray prepared for 4-wide slab tests.
+struct Ray4 {
+    origin: [f32x4; 3],
+    inv: [f32x4; 3],
+    /// Per axis, the plane row entered first (min row, or max row for a negative direction).
+    near: [usize; 3],
+    far: [usize; 3],
+    t_min: f32x4,
+}
+
+impl Ray4 {
+    #[inline(always)]
+    fn new(ray: &Ray) -> Self {
+        let inv = ray.dir.recip();
+        let neg = [inv.x, inv.y, inv.z].map(|x| x.is_sign_negative() as usize);
+        Ray4 {
+            origin: [ray.origin.x, ray.origin.y, ray.origin.z].map(f32x4::splat),
+            inv: [inv.x, inv.y, inv.z].map(f32x4::splat),
+            near: [0, 1, 2].map(|a| a + 3 * neg[a]),
+            far: [0, 1, 2].map(|a| a + 3 - 3 * neg[a]),
+            t_min: f32x4::splat(ray.t_min),
+        }
+    }
+
+    /// Entry distances of the four boxes and the mask of those entered within
+    /// `[t_min, t_max]` (boundaries included).
+    #[inline(always)]
+    fn enter(&self, p: &[f32x4; 6], t_max: f32) -> ([f32; 4], u32) {
+        let mut near = self.t_min;
+        let mut far = f32x4::splat(t_max);
+        for a in 0..3 {
+            let tn = (p[self.near[a]] - self.origin[a]) * self.inv[a];
+            let tf = (p[self.far[a]] - self.origin[a]) * self.inv[a];
+            near = max_nan_first(tn, near);
+            far = min_nan_first(tf * f32x4::splat(FAR_SLACK), far);
+        }
+        (near.to_array(), near.simd_le(far).to_bitmask())
+    }
+}
+
+/// Stack entry: (node or first triangle, leaf count or 0, entry distance).
+type Entry = (u32, u32, f32);
+
+/// The 4-wide walk, shared by both node formats. See `Bvh2`'s walk for the `leaf` contract.
+#[inline(always)]
+fn walk<N, S, F>(nodes: &[N], ray: &Ray, stats: &mut S, mut leaf: F)
+where
+    N: WideNode,
+    S: Stats,
+    F: FnMut(std::ops::Range<usize>, &mut f32, &mut S) -> bool,
+{
+    let r4 = Ray4::new(ray);
+    let mut limit = ray.t_max;
+    // Each node pushes at most three entries beyond the one it continues with.
+    let mut stack: Stack<Entry, { 3 * MAX_DEPTH + 4 }> = Stack::new();
+    let mut node = 0usize;
+    loop {
+        let n = &nodes[node];
+        stats.node();
+        stats.boxes(4);
+        let (t, mut mask) = r4.enter(&n.planes(), limit * FAR_SLACK);
+        // Push hit children farthest first, so the nearest is popped next.
+        let mut hits: [(f32, usize); 4] = [(0.0, 0); 4];
+        let mut k = 0;
+        while mask != 0 {
+            let i = mask.trailing_zeros() as usize;
+            mask &= mask - 1;
+            let mut j = k;
+            while j > 0 && hits[j - 1].0 < t[i] {
+                hits[j] = hits[j - 1];
+                j -= 1;
+            }
+            hits[j] = (t[i], i);
+            k += 1;
+        }
+        for &(ti, i) in &hits[..k] {
+            let (c, count) = n.child(i);
+            stack.push((c, count, ti));
+        }
+        // Pop until an inner node worth entering; leaves are handled on the way.
+        loop {
+            let Some((c, count, ti)) = stack.pop() else {
+                return;
+            };
+            if ti > limit * FAR_SLACK {
+                continue;
+            }
+            if count == 0 {
+                node = c as usize;
+                break;
+            }
+            stats.node();
+            stats.leaf();
+            if leaf(c as usize..(c + count) as usize, &mut limit, stats) {
+                return;
+            }
+        }
+    }
+}
+
+/// Closest-hit and any-hit over one 4-wide node format.
+#[inline(always)]
+fn closest<N: WideNode, S: Stats>(
+    nodes: &[N],
+    tris: &[Triangle],
+    ids: &[u32],
+    ray: &Ray,
+    stats: &mut S,
+) -> Option<Hit> {
+    let mut best = Hit::none(ray.t_max);
+    walk(nodes, ray, stats, |range, limit, stats| {
+        leaf_closest_hit(&tris[range.clone()], &ids[range], ray, &mut best, stats);
+        *limit = best.t;
+        false
+    });
+    best.found()
+}
+
+#[inline(always)]
+fn any<N: WideNode, S: Stats>(nodes: &[N], tris: &[Triangle], ray: &Ray, stats: &mut S) -> bool {
+    let mut hit = false;
+    walk(nodes, ray, stats, |range, _, stats| {
+        hit = leaf_any_hit(&tris[range], ray, stats);
+        hit
+    });
+    hit
+}
+
+macro_rules! wide_queries {
+    ($t:ty) => {
+        impl $t {
+            /// The nearest hit along `ray` (lowest primitive index on ties): exactly what
+            /// [`crate::reference::closest_hit`] returns for the same triangles.
+            pub fn closest_hit(&self, ray: &Ray) -> Option<Hit> {
+                closest(&self.nodes, &self.tris, &self.prim_ids, ray, &mut NoStats)
+            }
+
+            /// Closest hit, adding what the traversal did to `counters`.
+            pub fn closest_hit_counted(&self, ray: &Ray, counters: &mut Counters) -> Option<Hit> {
+                closest(&self.nodes, &self.tris, &self.prim_ids, ray, counters)
+            }
+
+            /// True when anything is hit within the ray's interval; stops at the first hit.
+            pub fn any_hit(&self, ray: &Ray) -> bool {
+                any(&self.nodes, &self.tris, ray, &mut NoStats)
+            }
+
+            /// Any hit, adding what the traversal did to `counters`.
+            pub fn any_hit_counted(&self, ray: &Ray, counters: &mut Counters) -> bool {
+                any(&self.nodes, &self.tris, ray, counters)
+            }
+        }
+    };
+}
+
+wide_queries!(Bvh4);
+wide_queries!(QBvh4);
