@@ -69,3 +69,25 @@ pub fn median_time(reps: usize, mut f: impl FnMut()) -> Duration {
 pub fn mrays_per_s(rays: usize, time: Duration) -> f64 {
     rays as f64 / time.as_secs_f64() / 1e6
 }
+
+/// Times `n` alternatives side by side: after one warm-up run of each, `reps` rounds each run
+/// every alternative once (`f(i)`), so a slow spell on a shared machine hits all of them alike.
+/// Returns the median time of each.
+pub fn median_times_interleaved(reps: usize, n: usize, mut f: impl FnMut(usize)) -> Vec<Duration> {
+    (0..n).for_each(&mut f);
+    let mut times = vec![Vec::with_capacity(reps); n];
+    for _ in 0..reps.max(1) {
+        for (i, t) in times.iter_mut().enumerate() {
+            let start = Instant::now();
+            f(i);
+            t.push(start.elapsed());
+        }
+    }
+    times
+        .into_iter()
+        .map(|mut t| {
+            t.sort();
+            t[t.len() / 2]
+        })
+        .collect()
+}

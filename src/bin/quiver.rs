@@ -84,8 +84,8 @@ struct LayoutsArgs {
     /// Thread counts to measure.
     #[arg(long, value_delimiter = ',', default_values_t = [1u16, 2])]
     threads: Vec<u16>,
-    /// Timed repetitions per measurement (the median is reported).
-    #[arg(long, default_value_t = 3)]
+    /// Timed rounds (each runs every layout once; the median per layout is reported).
+    #[arg(long, default_value_t = 5)]
     reps: usize,
     /// Write the rows and ratios as JSON to this file.
     #[arg(long)]
@@ -253,8 +253,9 @@ fn cmd_layouts(args: LayoutsArgs) -> Result<()> {
             ("random", rays::random_rays(&scene.bounds(), args.rays, 7)),
             ("camera", rays::camera_rays(&scene.camera, args.res)),
         ];
+        let mut bvhs = Vec::new();
         for &layout in &layouts {
-            bar.set_message(format!("{name} {layout}"));
+            bar.set_message(format!("{name}: laying out {layout}"));
             let bvh = Bvh::from_tree(&tree, &scene.triangles, layout);
             sizes.push(json!({
                 "scene": scene.name,
@@ -264,15 +265,23 @@ fn cmd_layouts(args: LayoutsArgs) -> Result<()> {
                 "node_bytes": bvh.node_bytes(),
                 "node_bytes_per_prim": bvh.node_bytes() as f64 / scene.triangles.len().max(1) as f64,
             }));
-            for &threads in &args.threads {
-                let pool = pool(Some(threads))?;
-                for (kind, rays) in &sets {
-                    for query in [Query::Closest, Query::Any] {
-                        let t = pool.install(|| {
-                            measure::median_time(args.reps, || {
-                                std::hint::black_box(measure::trace(&bvh, rays, query));
-                            })
-                        });
+            bvhs.push(bvh);
+        }
+        for &threads in &args.threads {
+            let pool = pool(Some(threads))?;
+            for (kind, rays) in &sets {
+                for query in [Query::Closest, Query::Any] {
+                    bar.set_message(format!(
+                        "{name}: {threads} threads, {kind} rays, {}",
+                        query.name()
+                    ));
+                    // All layouts side by side, round after round.
+                    let times = pool.install(|| {
+                        measure::median_times_interleaved(args.reps, bvhs.len(), |i| {
+                            std::hint::black_box(measure::trace(&bvhs[i], rays, query));
+                        })
+                    });
+                    for (&layout, t) in layouts.iter().zip(times) {
                         rows.push(Row {
                             scene: scene.name.clone(),
                             layout,
@@ -281,8 +290,8 @@ fn cmd_layouts(args: LayoutsArgs) -> Result<()> {
                             query,
                             mrays: measure::mrays_per_s(rays.len(), t),
                         });
-                        bar.inc(1);
                     }
+                    bar.inc(layouts.len() as u64);
                 }
             }
         }

@@ -68,13 +68,15 @@ pub enum Bvh2Mapping {
     BreadthFirst,
     /// Random order (seeded, root first); both child indices stored. The no-locality baseline.
     Shuffled,
-    /// Subtree blocks of one 64-byte cache line (two nodes: a node and its likelier child),
-    /// line-aligned; both child indices stored.
+    /// Subtree blocks of one 64-byte cache line. The traversal reads both children of a node
+    /// together, so the block is a sibling pair; pairs are placed depth-first. Both child
+    /// indices stored.
     Subtree,
-    /// Subtree blocks of one 4 KiB page (128 nodes grown by area); both indices stored.
+    /// Subtree blocks of one 4 KiB page: 64 sibling pairs grown from the block root by area.
     SubtreePage,
     /// Compact subtree blocks of two cache lines: a 3-node heap (plus one pad slot) whose
-    /// inner children are found by position; only links leaving the block are stored.
+    /// inner children are found by position (siblings share a line); only links leaving the
+    /// block are stored.
     Compact,
     /// Compact subtree blocks of up to one page: a heap of up to 127 nodes (smaller for
     /// short subtrees near the leaves).
@@ -114,8 +116,8 @@ impl Bvh2Mapping {
             Bvh2Mapping::DepthFirst => order::depth_first(shape),
             Bvh2Mapping::BreadthFirst => order::breadth_first(shape),
             Bvh2Mapping::Shuffled => order::shuffled(shape, 0x5eed),
-            Bvh2Mapping::Subtree => order::subtree(shape, LINE, LINE),
-            Bvh2Mapping::SubtreePage => order::subtree(shape, PAGE, LINE),
+            Bvh2Mapping::Subtree => order::sibling_pairs(shape, 1),
+            Bvh2Mapping::SubtreePage => order::sibling_pairs(shape, PAGE / LINE),
             Bvh2Mapping::Compact => return order::compact(shape, 2),
             Bvh2Mapping::CompactPage => return order::compact(shape, 7),
         };
@@ -263,11 +265,11 @@ impl Bvh2 {
 }
 
 /// Positions of the children of slot `i` inside a compact block of height `h`: at block
-/// position `p` they are `2p + 1` and `2p + 2`, i.e. `i + p + 1` and `i + p + 2`.
+/// position `p` they are `2p` and `2p + 1`, i.e. `i + p` and `i + p + 1`.
 #[inline(always)]
 pub(crate) fn compact_children(i: usize, h: u32) -> (usize, usize) {
     let p = i & ((1 << h) - 1);
-    (i + p + 1, i + p + 2)
+    (i + p, i + p + 1)
 }
 
 /// The input triangles in the order the leaves reference them.

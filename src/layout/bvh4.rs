@@ -126,8 +126,7 @@ fn arrange(wide: &[Wide], mapping: Bvh4Mapping, node_size: usize) -> (Vec<u32>, 
                     })
                     .collect(),
             };
-            let line = (64 / node_size).max(1);
-            order::subtree(&shape, 4096 / node_size, line)
+            order::subtree(&shape, 4096 / node_size)
         }
     };
     let pos = order::positions(&slots, wide.len());

@@ -72,45 +72,46 @@ pub(crate) fn shuffled(shape: &Shape, seed: u64) -> Vec<u32> {
     out
 }
 
-/// Subtree mapping: blocks of up to `cap` nodes, each a connected piece of the tree grown from
-/// its root by always adding the frontier node of largest area (the one a ray is most likely
-/// to visit next). Blocks are placed in depth-first order of their roots. A block of up to
-/// `line` slots never straddles a `line` boundary, a larger block never straddles a `cap`
-/// boundary; the padding this leaves is filled with single-node blocks where possible.
-pub(crate) fn subtree(shape: &Shape, cap: usize, line: usize) -> Vec<u32> {
-    let mut packer = Packer::default();
+/// Subtree mapping: the node array is cut into groups of `cap` slots (a page, say), and each
+/// group is filled with connected pieces of the tree, each grown from its root by always
+/// adding the frontier node of largest area (the one a ray is most likely to visit next)
+/// until the group is full. Pieces are placed in depth-first order of their roots. A piece
+/// never straddles a group boundary and no slot is left empty.
+pub(crate) fn subtree(shape: &Shape, cap: usize) -> Vec<u32> {
+    let mut slots = Vec::with_capacity(shape.len());
     let mut roots = vec![0u32];
     while let Some(root) = roots.pop() {
-        let mut block = Vec::with_capacity(cap);
+        let room = cap - slots.len() % cap;
         let mut frontier = BinaryHeap::new();
         frontier.push(ByArea(shape.area[root as usize], root));
-        while block.len() < cap {
+        let mut taken = 0;
+        while taken < room {
             let Some(ByArea(_, n)) = frontier.pop() else {
                 break;
             };
-            block.push(n);
+            slots.push(n);
+            taken += 1;
             for k in shape.children(n) {
                 frontier.push(ByArea(shape.area[k as usize], k));
             }
         }
         // Nodes are numbered in preorder, so sorting the frontier by number puts the next
-        // blocks in depth-first order.
+        // pieces in depth-first order.
         let mut rest: Vec<u32> = frontier.into_iter().map(|ByArea(_, n)| n).collect();
         rest.sort_unstable_by(|a, b| b.cmp(a));
         roots.extend(rest);
-        let group = if block.len() <= line { line } else { cap };
-        packer.place(&block, group);
     }
-    packer.slots
+    slots
 }
 
 /// Compact subtree mapping for binary trees: each block is a complete binary heap of height
-/// `h` in `2^h` slots aligned to `2^h` (the last slot is padding), so a node's children inside
-/// its block sit at `2p + 1` and `2p + 2` of its block position `p` and need no link. Only nodes
-/// on the block's bottom level link to other blocks. `h` is `max_h`, or less for a subtree
-/// that is not that tall, so short subtrees near the leaves do not reserve a full page. A
-/// block whose root has no children takes a single slot (it is never used to address
-/// children), placed in the padding of earlier blocks when there is any.
+/// `h` in `2^h` slots aligned to `2^h`. The heap is 1-indexed (slot 0 of a block is padding),
+/// so a node at block position `p` has its children inside the block at `2p` and `2p + 1`:
+/// siblings share a cache line, and need no link. Only nodes on the block's bottom level link
+/// to other blocks. `h` is `max_h`, or less for a subtree that is not that tall, so short
+/// subtrees near the leaves do not reserve a full page. A block whose root has no children
+/// takes a single slot (it is never used to address children), placed in the padding of
+/// earlier blocks when there is any.
 ///
 /// Returns the slot table and, per slot, the height of the block whose interior holds it (0
 /// for bottom-level nodes, single nodes and holes).
@@ -118,7 +119,15 @@ pub(crate) fn compact(shape: &Shape, max_h: u32) -> (Vec<u32>, Vec<u8>) {
     let height = heights(shape);
     let mut packer = Packer::default();
     let mut interior = Vec::new();
-    let mut roots = vec![0u32];
+    // The traversal starts at slot 0, which no block interior can use (slot 0 of a block is
+    // padding), so the root sits there alone and links to its children explicitly.
+    let mut roots = match shape.kids[0] {
+        [l, r, ..] if l != HOLE => {
+            packer.place_aligned(&[0, HOLE]);
+            vec![r, l]
+        }
+        _ => vec![0],
+    };
     while let Some(root) = roots.pop() {
         if shape.children(root).next().is_none() {
             packer.place_single(root, 2);
@@ -128,9 +137,9 @@ pub(crate) fn compact(shape: &Shape, max_h: u32) -> (Vec<u32>, Vec<u8>) {
         let size = 1usize << h;
         let mut heap = vec![HOLE; size];
         let mut inside = vec![0u8; size];
-        heap[0] = root;
+        heap[1] = root;
         let mut next_roots = Vec::new();
-        for p in 0..size - 1 {
+        for p in 1..size {
             let n = heap[p];
             if n == HOLE {
                 continue;
@@ -143,10 +152,10 @@ pub(crate) fn compact(shape: &Shape, max_h: u32) -> (Vec<u32>, Vec<u8>) {
             if kids.is_empty() {
                 continue;
             }
-            if 2 * p + 2 < size - 1 {
+            if 2 * p + 1 < size {
                 inside[p] = h as u8;
-                heap[2 * p + 1] = kids[0];
-                heap[2 * p + 2] = kids[1];
+                heap[2 * p] = kids[0];
+                heap[2 * p + 1] = kids[1];
             } else {
                 next_roots.extend(kids);
             }
@@ -159,6 +168,52 @@ pub(crate) fn compact(shape: &Shape, max_h: u32) -> (Vec<u32>, Vec<u8>) {
     }
     interior.resize(packer.slots.len(), 0);
     (packer.slots, interior)
+}
+
+/// Subtree mapping for binary trees whose traversal reads both children of a node together:
+/// the unit of access is a *sibling pair*, stored in one 64-byte line. Pairs are grouped into
+/// blocks of up to `cap_pairs` by [`subtree`] (grown by area, depth-first between blocks); the
+/// root takes a line of its own.
+pub(crate) fn sibling_pairs(shape: &Shape, cap_pairs: usize) -> Vec<u32> {
+    // Unit 0 is the root's line; unit k > 0 holds the children of the k-th inner node in
+    // preorder, which numbers the units in preorder too.
+    let mut unit_of = vec![HOLE; shape.len()];
+    let mut lines: Vec<[u32; 2]> = vec![[0, HOLE]];
+    let mut units = Shape {
+        kids: vec![[HOLE; 4]],
+        area: vec![shape.area[0]],
+    };
+    for n in 0..shape.len() as u32 {
+        let kids: Vec<u32> = shape.children(n).collect();
+        if kids.is_empty() {
+            continue;
+        }
+        debug_assert_eq!(kids.len(), 2, "sibling pairs need a binary tree");
+        unit_of[n as usize] = lines.len() as u32;
+        lines.push([kids[0], kids[1]]);
+        units.kids.push([HOLE; 4]);
+        units.area.push(shape.area[n as usize]);
+    }
+    // A unit's children are the units of its inner members (the root's line holds the root).
+    for (u, line) in lines.iter().enumerate() {
+        let mut j = 0;
+        for &m in line.iter().filter(|&&m| m != HOLE) {
+            if unit_of[m as usize] != HOLE {
+                units.kids[u][j] = unit_of[m as usize];
+                j += 1;
+            }
+        }
+    }
+    subtree(&units, cap_pairs)
+        .iter()
+        .flat_map(|&u| {
+            if u == HOLE {
+                [HOLE, HOLE]
+            } else {
+                lines[u as usize]
+            }
+        })
+        .collect()
 }
 
 /// Height of every node's subtree (0 for a leaf). Children always follow their parent in the
@@ -193,7 +248,7 @@ impl Ord for ByArea {
     }
 }
 
-/// Places blocks into a growing slot table, remembering padding for single nodes.
+/// Places aligned blocks into a growing slot table, remembering padding for single nodes.
 #[derive(Default)]
 struct Packer {
     slots: Vec<u32>,
@@ -202,21 +257,6 @@ struct Packer {
 }
 
 impl Packer {
-    /// Appends `block` so that it does not straddle a multiple of `group` slots.
-    fn place(&mut self, block: &[u32], group: usize) {
-        if block.len() == 1 {
-            if let Some(h) = self.holes.pop() {
-                self.slots[h] = block[0];
-                return;
-            }
-        }
-        let start = self.slots.len();
-        if start / group != (start + block.len() - 1) / group {
-            self.pad_to(start.next_multiple_of(group));
-        }
-        self.slots.extend_from_slice(block);
-    }
-
     /// A single node: into a hole, or else a fresh aligned group of `size` slots.
     fn place_single(&mut self, node: u32, size: usize) {
         if let Some(h) = self.holes.pop() {
@@ -310,8 +350,11 @@ mod tests {
         assert_eq!(depth_first(&s), (0..n as u32).collect::<Vec<_>>());
         assert!(is_permutation(&breadth_first(&s), n));
         assert!(is_permutation(&shuffled(&s, 1), n));
-        for (cap, line) in [(2, 2), (128, 2), (32, 1)] {
-            assert!(is_permutation(&subtree(&s, cap, line), n), "subtree {cap}");
+        for cap in [1, 2, 32, 128] {
+            assert!(is_permutation(&subtree(&s, cap), n), "subtree {cap}");
+        }
+        for cap in [1, 64] {
+            assert!(is_permutation(&sibling_pairs(&s, cap), n), "pairs {cap}");
         }
         for h in [2, 7] {
             assert!(is_permutation(&compact(&s, h).0, n), "compact {h}");
@@ -319,26 +362,25 @@ mod tests {
     }
 
     #[test]
-    fn subtree_blocks_prefer_the_larger_child_and_respect_lines() {
+    fn subtree_blocks_grow_by_area_and_fill_groups() {
         let s = tree(4);
-        let slots = subtree(&s, 2, 2);
         // The root's right child (preorder number 8) has the larger area.
-        assert_eq!(&slots[..2], &[0, 8]);
-        // With one-line blocks, each line holds a block root and its larger child, or single
-        // leaves placed into padding: an odd slot holds a leaf or the larger child of the node
-        // before it.
-        for (i, pair) in slots.chunks(2).enumerate() {
-            let [a, b] = [pair[0], *pair.get(1).unwrap_or(&HOLE)];
-            if b == HOLE || s.kids[b as usize][0] == HOLE {
-                continue;
+        assert_eq!(&subtree(&s, 2)[..2], &[0, 8]);
+        // A group of four: the root, then always the largest frontier node (ties: lower number).
+        assert_eq!(&subtree(&s, 4)[..4], &[0, 8, 1, 9]);
+    }
+
+    #[test]
+    fn sibling_pairs_share_lines() {
+        let s = tree(7);
+        for cap in [1, 64] {
+            let slots = sibling_pairs(&s, cap);
+            let pos = positions(&slots, s.len());
+            assert_eq!(pos[0], 0);
+            for kids in s.kids.iter().filter(|k| k[0] != HOLE) {
+                let (l, r) = (pos[kids[0] as usize], pos[kids[1] as usize]);
+                assert_eq!((l % 2, r), (0, l + 1));
             }
-            let [l, r, ..] = s.kids[a as usize];
-            let larger = if s.area[r as usize] > s.area[l as usize] {
-                r
-            } else {
-                l
-            };
-            assert_eq!(b, larger, "line {i}");
         }
     }
 
@@ -355,8 +397,9 @@ mod tests {
                 if h > 0 {
                     inside += 1;
                     let p = i % (1 << h);
-                    assert_eq!(pos[kids[0] as usize] as usize, i + p + 1);
-                    assert_eq!(pos[kids[1] as usize] as usize, i + p + 2);
+                    assert_eq!(pos[kids[0] as usize] as usize, i + p);
+                    assert_eq!(pos[kids[1] as usize] as usize, i + p + 1);
+                    assert_eq!(pos[kids[0] as usize] % 2, 0, "siblings share a line");
                 }
             }
             // A 6-level complete tree: every block interior is used.
