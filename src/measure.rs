@@ -13,6 +13,7 @@
 
 use crate::geometry::Ray;
 use crate::layout::Bvh;
+use crate::traverse::Counters;
 use rayon::prelude::*;
 use std::time::{Duration, Instant};
 
@@ -49,6 +50,29 @@ pub fn trace(bvh: &Bvh, rays: &[Ray], query: Query) -> usize {
             Query::Any => chunk.iter().filter(|r| bvh.any_hit(r)).count(),
         })
         .sum()
+}
+
+/// Traces every ray with the counting kernels and returns the summed counters.
+pub fn count(bvh: &Bvh, rays: &[Ray], query: Query) -> Counters {
+    rays.par_chunks(RAYS_PER_TASK)
+        .map(|chunk| {
+            let mut c = Counters::default();
+            for r in chunk {
+                match query {
+                    Query::Closest => {
+                        bvh.closest_hit_counted(r, &mut c);
+                    }
+                    Query::Any => {
+                        bvh.any_hit_counted(r, &mut c);
+                    }
+                }
+            }
+            c
+        })
+        .reduce(Counters::default, |mut a, b| {
+            a += b;
+            a
+        })
 }
 
 /// The median of `reps` timings of `f` (after one untimed warm-up run).

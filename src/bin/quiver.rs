@@ -257,6 +257,9 @@ fn cmd_layouts(args: LayoutsArgs) -> Result<()> {
         for &layout in &layouts {
             bar.set_message(format!("{name}: laying out {layout}"));
             let bvh = Bvh::from_tree(&tree, &scene.triangles, layout);
+            // What each layout's boxes cost in work: counters over the random rays.
+            let work = pool(None)?.install(|| measure::count(&bvh, &sets[0].1, Query::Closest));
+            let per_ray = |x: u64| x as f64 / sets[0].1.len() as f64;
             sizes.push(json!({
                 "scene": scene.name,
                 "primitives": scene.triangles.len(),
@@ -264,6 +267,9 @@ fn cmd_layouts(args: LayoutsArgs) -> Result<()> {
                 "nodes": bvh.nodes(),
                 "node_bytes": bvh.node_bytes(),
                 "node_bytes_per_prim": bvh.node_bytes() as f64 / scene.triangles.len().max(1) as f64,
+                "nodes_per_ray": per_ray(work.nodes),
+                "box_tests_per_ray": per_ray(work.box_tests),
+                "prim_tests_per_ray": per_ray(work.prim_tests),
             }));
             bvhs.push(bvh);
         }
@@ -349,19 +355,24 @@ fn layout_ratios(rows: &[Row]) -> Vec<Value> {
 
 fn print_layout_tables(sizes: &[Value], rows: &[Row], layouts: &[Layout]) {
     println!(
-        "{:<12} {:<18} {:>10} {:>12} {:>10}",
-        "scene", "layout", "nodes", "node bytes", "B/prim"
+        "{:<12} {:<18} {:>10} {:>12} {:>8} {:>10} {:>10} {:>10}",
+        "scene", "layout", "nodes", "node bytes", "B/prim", "nodes/ray", "boxes/ray", "prims/ray"
     );
+    let f = |v: &Value| v.as_f64().unwrap_or(f64::NAN);
     for s in sizes {
         println!(
-            "{:<12} {:<18} {:>10} {:>12} {:>10.2}",
+            "{:<12} {:<18} {:>10} {:>12} {:>8.2} {:>10.1} {:>10.1} {:>10.1}",
             s["scene"].as_str().unwrap_or(""),
             s["layout"].as_str().unwrap_or(""),
             s["nodes"],
             s["node_bytes"],
-            s["node_bytes_per_prim"].as_f64().unwrap_or(f64::NAN)
+            f(&s["node_bytes_per_prim"]),
+            f(&s["nodes_per_ray"]),
+            f(&s["box_tests_per_ray"]),
+            f(&s["prim_tests_per_ray"]),
         );
     }
+    println!("(work per random closest-hit ray; node visits include leaves)");
     println!();
     print!(
         "{:<12} {:>3} {:<7} {:<8}",
