@@ -35,7 +35,7 @@ fn bench_builds(c: &mut Criterion) {
     ];
     for (name, builders) in inputs {
         let scene = Scene::load(name).expect("built-in scene");
-        let tris = &scene.triangles;
+        let tris = &scene.triangles();
         let otris = obvhs_tris(tris);
         for threads in [1, 2] {
             let pool = pool(threads);

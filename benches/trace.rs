@@ -16,8 +16,9 @@ use std::time::Duration;
 fn bench_layouts(c: &mut Criterion) {
     let name = std::env::var("QUIVER_BENCH_SCENE").unwrap_or_else(|_| "tetra9".into());
     let scene = Scene::load(&name).expect("scene");
+    let tris = scene.triangles();
     let tree = build(
-        &triangle_bounds(&scene.triangles),
+        &triangle_bounds(&tris),
         &BuildConfig::default(),
         Builder::Binned,
     );
@@ -31,7 +32,7 @@ fn bench_layouts(c: &mut Criterion) {
         .measurement_time(Duration::from_secs(2))
         .warm_up_time(Duration::from_millis(500));
     for layout in Layout::ALL {
-        let bvh = Bvh::from_tree(&tree, &scene.triangles, layout);
+        let bvh = Bvh::from_tree(&tree, &tris, layout);
         for threads in [1, 2] {
             let pool = rayon::ThreadPoolBuilder::new()
                 .num_threads(threads)

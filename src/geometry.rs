@@ -101,6 +101,11 @@ impl Aabb {
         }
     }
 
+    /// True when both corners are finite (no NaN, no infinity).
+    pub fn is_finite(&self) -> bool {
+        self.min.is_finite() && self.max.is_finite()
+    }
+
     /// True when the box contains no point.
     pub fn is_empty(&self) -> bool {
         self.min.cmpgt(self.max).any()
@@ -217,6 +222,42 @@ impl Triangle {
         } else {
             None
         }
+    }
+}
+
+/// Anything a BVH can hold: it has bounds and a ray test. Triangles are the fast path; the
+/// mixed [`crate::primitive::Prim`] covers the SPD's analytic shapes.
+pub trait Primitive: Clone + Send + Sync {
+    /// Bounding box. A primitive with a non-finite coordinate must return a box with a NaN
+    /// (see [`Aabb::is_finite`]) so the builders drop it.
+    fn bounds(&self) -> Aabb;
+    /// The hit within `[ray.t_min, ray.t_max]`, if any: distance and two surface parameters
+    /// (barycentrics for triangles).
+    fn intersect(&self, ray: &Ray) -> Option<TriHit>;
+    /// True when every coordinate is finite; others are invisible (builds drop them).
+    fn is_finite(&self) -> bool {
+        self.bounds().is_finite()
+    }
+}
+
+impl Primitive for Triangle {
+    #[inline]
+    fn bounds(&self) -> Aabb {
+        if self.is_finite() {
+            Triangle::bounds(self)
+        } else {
+            Aabb::new(Vec3A::NAN, Vec3A::NAN)
+        }
+    }
+
+    #[inline(always)]
+    fn intersect(&self, ray: &Ray) -> Option<TriHit> {
+        Triangle::intersect(self, ray)
+    }
+
+    #[inline]
+    fn is_finite(&self) -> bool {
+        Triangle::is_finite(self)
     }
 }
 

@@ -6,7 +6,7 @@
 //! use quiver::{rays, scene::Scene, Bvh, Layout};
 //! use quiver::build::{BuildConfig, Builder};
 //! let s = Scene::load("tetra4").unwrap();
-//! let (bvh, _) = Bvh::build(&s.triangles, &BuildConfig::default(), Builder::Binned, Layout::Bvh4Dfs);
+//! let (bvh, _) = Bvh::build(&s.triangles(), &BuildConfig::default(), Builder::Binned, Layout::Bvh4Dfs);
 //! let rays = rays::camera_rays(&s.camera, 32);
 //! assert!(trace(&bvh, &rays, Query::Closest) > 0);
 //! ```

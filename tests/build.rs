@@ -20,7 +20,7 @@ fn in_pool<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
 #[test]
 fn same_tree_for_one_and_two_threads() {
     let scene = Scene::load("soup150000").unwrap();
-    let bounds = triangle_bounds(&scene.triangles);
+    let bounds = triangle_bounds(&scene.triangles());
     // A low threshold sends many nodes through the horizontal (shared-node) path as well.
     for horizontal_threshold in [1 << 16, 2_000] {
         let config = BuildConfig {
@@ -42,7 +42,7 @@ fn same_tree_for_one_and_two_threads() {
 #[test]
 fn horizontal_and_vertical_give_the_same_tree() {
     let scene = Scene::load("tetra8").unwrap();
-    let bounds = triangle_bounds(&scene.triangles);
+    let bounds = triangle_bounds(&scene.triangles());
     let build_with = |horizontal_threshold| {
         let config = BuildConfig {
             horizontal_threshold,
@@ -271,7 +271,7 @@ fn binned_sah_within_3_percent_of_sweep() {
     let config = BuildConfig::default();
     for name in ["tetra7", "soup20000"] {
         let scene = Scene::load(name).unwrap();
-        let bounds = triangle_bounds(&scene.triangles);
+        let bounds = triangle_bounds(&scene.triangles());
         let binned = build(&bounds, &config, Builder::Binned).sah_cost(&config);
         let sweep = build(&bounds, &config, Builder::Sweep).sah_cost(&config);
         println!(

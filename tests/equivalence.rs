@@ -77,10 +77,10 @@ fn reference_hits(tris: &[Triangle], rays: &[Ray]) -> Vec<Option<Hit>> {
 fn check_scene(scene: &Scene, n_random: usize, cam_res: usize) -> (f64, f64) {
     let random = rays::random_rays(&scene.bounds(), n_random, 42);
     let cam = rays::camera_rays(&scene.camera, cam_res);
-    let want_random = reference_hits(&scene.triangles, &random);
-    let want_cam = reference_hits(&scene.triangles, &cam);
+    let want_random = reference_hits(&scene.triangles(), &random);
+    let want_cam = reference_hits(&scene.triangles(), &cam);
     check_layouts(
-        &scene.triangles,
+        &scene.triangles(),
         &[
             ("random", &random, &want_random),
             ("camera", &cam, &want_cam),
@@ -94,7 +94,7 @@ fn check_scene(scene: &Scene, n_random: usize, cam_res: usize) -> (f64, f64) {
 #[test]
 fn mesh_tetra7_16k_triangles() {
     let scene = Scene::load("tetra7").unwrap();
-    assert_eq!(scene.triangles.len(), 16384);
+    assert_eq!(scene.triangles().len(), 16384);
     let (random, camera) = check_scene(&scene, 100_000, 320);
     // The workload must exercise hits, not just misses.
     assert!(
@@ -135,8 +135,12 @@ fn segments() {
             )
         })
         .collect();
-    let want = reference_hits(&scene.triangles, &segs);
-    check_layouts(&scene.triangles, &[("segments", &segs, &want)], "soup5000");
+    let want = reference_hits(&scene.triangles(), &segs);
+    check_layouts(
+        &scene.triangles(),
+        &[("segments", &segs, &want)],
+        "soup5000",
+    );
 }
 
 /// Axis-parallel rays with +0.0 and -0.0 in the other components, through a grid of unit

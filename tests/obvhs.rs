@@ -109,7 +109,7 @@ fn judge(tris: &[Triangle], ray: &Ray, q: Option<Hit>, o: Option<(u32, f32)>) ->
 }
 
 fn compare(scene: &Scene, rays: &[Ray]) -> (usize, usize, usize) {
-    let tris = &scene.triangles;
+    let tris = &scene.triangles();
     let (bvh, _) = Bvh2::build(tris, &BuildConfig::default(), Builder::Binned);
     let otris = common::obvhs_tris(tris);
     let obvh = build_bvh2_from_tris(
@@ -164,7 +164,7 @@ fn edge_rays(scene: &Scene, n: usize) -> Vec<Ray> {
     let b = scene.bounds();
     let eye = b.max + b.extent() * 1.5;
     scene
-        .triangles
+        .triangles()
         .iter()
         .flat_map(|t| [(t.v[0] + t.v[1]) * 0.5, (t.v[1] + t.v[2]) * 0.5, t.v[0]])
         .take(n)

@@ -2,6 +2,7 @@
 //! and, with `--json FILE`, writes the same facts under stable keys.
 
 use clap::{Parser, Subcommand, ValueEnum};
+use quiver::accel::SceneBvh;
 use quiver::build::{BuildConfig, Builder};
 use quiver::measure::{self, Query};
 use quiver::scene::{Scene, GENERATORS};
@@ -158,14 +159,15 @@ fn cmd_build(args: BuildArgs) -> Result<()> {
     let scene = Scene::load(&args.scene)?;
     let pool = pool(args.threads)?;
     let start = Instant::now();
-    let (bvh, tree) = pool.install(|| Bvh::build(&scene.triangles, &config, builder, args.layout));
+    let (bvh, tree) = pool.install(|| SceneBvh::build(&scene, &config, builder, args.layout));
     let build_ms = start.elapsed().as_secs_f64() * 1e3;
     let stats = tree.stats();
-    let prims = scene.triangles.len().max(1) as f64;
+    let prims = bvh.primitives().max(1) as f64;
     let report = json!({
         "scene": scene.name,
-        "objects": scene.objects,
-        "primitives": scene.triangles.len(),
+        "objects": scene.objects.len(),
+        "primitives": bvh.primitives(),
+        "primitive_kind": if bvh.is_triangles() { "triangles" } else { "mixed" },
         "dropped": tree.dropped,
         "builder": builder.name(),
         "layout": args.layout.name(),
@@ -244,8 +246,9 @@ fn cmd_layouts(args: LayoutsArgs) -> Result<()> {
     for name in &args.scenes {
         bar.set_message(format!("loading {name}"));
         let scene = Scene::load(name)?;
+        let tris = scene.triangles();
         let tree = quiver::build::build(
-            &quiver::layout::triangle_bounds(&scene.triangles),
+            &quiver::layout::triangle_bounds(&tris),
             &config,
             Builder::Binned,
         );
@@ -256,17 +259,17 @@ fn cmd_layouts(args: LayoutsArgs) -> Result<()> {
         let mut bvhs = Vec::new();
         for &layout in &layouts {
             bar.set_message(format!("{name}: laying out {layout}"));
-            let bvh = Bvh::from_tree(&tree, &scene.triangles, layout);
+            let bvh = Bvh::from_tree(&tree, &tris, layout);
             // What each layout's boxes cost in work: counters over the random rays.
             let work = pool(None)?.install(|| measure::count(&bvh, &sets[0].1, Query::Closest));
             let per_ray = |x: u64| x as f64 / sets[0].1.len() as f64;
             sizes.push(json!({
                 "scene": scene.name,
-                "primitives": scene.triangles.len(),
+                "primitives": tris.len(),
                 "layout": layout.name(),
                 "nodes": bvh.nodes(),
                 "node_bytes": bvh.node_bytes(),
-                "node_bytes_per_prim": bvh.node_bytes() as f64 / scene.triangles.len().max(1) as f64,
+                "node_bytes_per_prim": bvh.node_bytes() as f64 / tris.len().max(1) as f64,
                 "nodes_per_ray": per_ray(work.nodes),
                 "box_tests_per_ray": per_ray(work.box_tests),
                 "prim_tests_per_ray": per_ray(work.prim_tests),

@@ -168,7 +168,7 @@ pub fn build(bounds: &[Aabb], config: &BuildConfig, builder: Builder) -> BuildTr
 }
 
 fn is_finite(b: &Aabb) -> bool {
-    b.min.is_finite() && b.max.is_finite()
+    b.is_finite()
 }
 
 /// Depth below which builders stop trusting the SAH and split at the object median, so that a

@@ -1,8 +1,7 @@
 use super::order::{self, Shape, HOLE};
 use crate::build::{build, BuildConfig, BuildTree, Builder, NodeKind};
-use crate::geometry::{Aabb, Triangle};
+use crate::geometry::{Aabb, Primitive, Triangle};
 use bytemuck::{Pod, Zeroable};
-use glam::Vec3A;
 
 /// A binary BVH node: 32 bytes, two to a 64-byte cache line.
 ///
@@ -139,29 +138,29 @@ impl Bvh2Mapping {
 /// assert_eq!((hit.prim, hit.t), (0, 1.0));
 /// ```
 #[derive(Clone, Debug)]
-pub struct Bvh2 {
+pub struct Bvh2<P = Triangle> {
     /// Nodes in the order of `mapping`; the root is node 0. Padding slots hold empty leaves.
     pub nodes: Vec<Bvh2Node>,
-    /// Triangles in leaf order.
-    pub tris: Vec<Triangle>,
+    /// Primitives in leaf order.
+    pub prims: Vec<P>,
     /// For each entry of `tris`, its index in the input.
     pub prim_ids: Vec<u32>,
     /// How the nodes are ordered and linked.
     pub mapping: Bvh2Mapping,
 }
 
-impl Bvh2 {
+impl<P: Primitive> Bvh2<P> {
     /// Builds the tree over `tris` and lays it out depth-first; also returns the intermediate
     /// tree (for SAH cost and statistics).
-    pub fn build(tris: &[Triangle], config: &BuildConfig, builder: Builder) -> (Bvh2, BuildTree) {
-        let bounds = triangle_bounds(tris);
+    pub fn build(prims: &[P], config: &BuildConfig, builder: Builder) -> (Self, BuildTree) {
+        let bounds = prim_bounds(prims);
         let tree = build(&bounds, config, builder);
-        (Bvh2::from_tree(&tree, tris), tree)
+        (Bvh2::from_tree(&tree, prims), tree)
     }
 
     /// Lays out a built tree depth-first. The build tree is already in preorder with each left
     /// child right after its parent, so this is a straight (parallel) conversion.
-    pub fn from_tree(tree: &BuildTree, tris: &[Triangle]) -> Bvh2 {
+    pub fn from_tree(tree: &BuildTree, prims: &[P]) -> Self {
         use rayon::prelude::*;
         let nodes = tree
             .nodes
@@ -180,7 +179,7 @@ impl Bvh2 {
             .collect();
         Bvh2 {
             nodes,
-            tris: leaf_order(tree, tris),
+            prims: leaf_order(tree, prims),
             prim_ids: tree.prim_indices.clone(),
             mapping: Bvh2Mapping::DepthFirst,
         }
@@ -193,15 +192,16 @@ impl Bvh2 {
     /// use quiver::build::{build, BuildConfig, Builder};
     /// use quiver::{scene::Scene, layout::triangle_bounds};
     /// let scene = Scene::load("tetra4").unwrap();
-    /// let tree = build(&triangle_bounds(&scene.triangles), &BuildConfig::default(), Builder::Binned);
-    /// let dfs = Bvh2::from_tree(&tree, &scene.triangles);
-    /// let sub = Bvh2::from_tree_mapped(&tree, &scene.triangles, Bvh2Mapping::Subtree);
+    /// let tris = scene.triangles();
+    /// let tree = build(&triangle_bounds(&tris), &BuildConfig::default(), Builder::Binned);
+    /// let dfs = Bvh2::from_tree(&tree, &tris);
+    /// let sub = Bvh2::from_tree_mapped(&tree, &tris, Bvh2Mapping::Subtree);
     /// let ray = scene.camera.ray(0.0, 0.0);
     /// assert_eq!(dfs.closest_hit(&ray), sub.closest_hit(&ray));
     /// ```
-    pub fn from_tree_mapped(tree: &BuildTree, tris: &[Triangle], mapping: Bvh2Mapping) -> Bvh2 {
+    pub fn from_tree_mapped(tree: &BuildTree, prims: &[P], mapping: Bvh2Mapping) -> Self {
         if mapping == Bvh2Mapping::DepthFirst {
-            return Bvh2::from_tree(tree, tris);
+            return Bvh2::from_tree(tree, prims);
         }
         let shape = Shape {
             kids: tree
@@ -245,7 +245,7 @@ impl Bvh2 {
             .collect();
         Bvh2 {
             nodes,
-            tris: leaf_order(tree, tris),
+            prims: leaf_order(tree, prims),
             prim_ids: tree.prim_indices.clone(),
             mapping,
         }
@@ -254,7 +254,7 @@ impl Bvh2 {
     /// Bytes of node and leaf data the traversal reads.
     pub fn bytes(&self) -> usize {
         self.node_bytes()
-            + std::mem::size_of_val(self.tris.as_slice())
+            + std::mem::size_of_val(self.prims.as_slice())
             + std::mem::size_of_val(self.prim_ids.as_slice())
     }
 
@@ -273,25 +273,22 @@ pub(crate) fn compact_children(i: usize, h: u32) -> (usize, usize) {
 }
 
 /// The input triangles in the order the leaves reference them.
-pub(crate) fn leaf_order(tree: &BuildTree, tris: &[Triangle]) -> Vec<Triangle> {
+pub(crate) fn leaf_order<P: Primitive>(tree: &BuildTree, prims: &[P]) -> Vec<P> {
     use rayon::prelude::*;
     tree.prim_indices
         .par_iter()
-        .map(|&i| tris[i as usize])
+        .map(|&i| prims[i as usize].clone())
         .collect()
 }
 
-/// One bounding box per triangle, the builders' input. A triangle with a non-finite vertex
-/// gets a NaN box, so the build drops it (a min/max over a NaN would silently ignore it).
-pub fn triangle_bounds(tris: &[Triangle]) -> Vec<Aabb> {
+/// One bounding box per primitive, the builders' input (computed in parallel). A primitive
+/// with a non-finite coordinate gets a NaN box, so the build drops it.
+pub fn prim_bounds<P: Primitive>(prims: &[P]) -> Vec<Aabb> {
     use rayon::prelude::*;
-    tris.par_iter()
-        .map(|t| {
-            if t.is_finite() {
-                t.bounds()
-            } else {
-                Aabb::new(Vec3A::NAN, Vec3A::NAN)
-            }
-        })
-        .collect()
+    prims.par_iter().map(|p| p.bounds()).collect()
+}
+
+/// [`prim_bounds`] for triangles.
+pub fn triangle_bounds(tris: &[Triangle]) -> Vec<Aabb> {
+    prim_bounds(tris)
 }

@@ -5,7 +5,7 @@
 use super::bvh2::leaf_order;
 use super::order::{self, Shape, HOLE};
 use crate::build::{BuildTree, NodeKind};
-use crate::geometry::{Aabb, Triangle};
+use crate::geometry::{Aabb, Primitive, Triangle};
 use bytemuck::{Pod, Zeroable};
 
 /// A child of a node in the collapsed tree.
@@ -174,33 +174,34 @@ impl Bvh4Node {
     }
 }
 
-/// A 4-wide BVH over triangles with exact f32 child boxes.
+/// A 4-wide BVH with exact f32 child boxes (over triangles unless `P` says otherwise).
 ///
 /// ```
 /// use quiver::layout::{Bvh4, Bvh4Mapping};
 /// use quiver::build::{build, BuildConfig, Builder};
 /// use quiver::{reference, scene::Scene, layout::triangle_bounds};
 /// let scene = Scene::load("tetra4").unwrap();
-/// let tree = build(&triangle_bounds(&scene.triangles), &BuildConfig::default(), Builder::Binned);
-/// let bvh = Bvh4::from_tree(&tree, &scene.triangles, Bvh4Mapping::DepthFirst);
+/// let tris = scene.triangles();
+/// let tree = build(&triangle_bounds(&tris), &BuildConfig::default(), Builder::Binned);
+/// let bvh = Bvh4::from_tree(&tree, &tris, Bvh4Mapping::DepthFirst);
 /// let ray = scene.camera.ray(0.1, 0.0);
-/// assert_eq!(bvh.closest_hit(&ray), reference::closest_hit(&scene.triangles, &ray));
+/// assert_eq!(bvh.closest_hit(&ray), reference::closest_hit(&tris, &ray));
 /// ```
 #[derive(Clone, Debug)]
-pub struct Bvh4 {
+pub struct Bvh4<P = Triangle> {
     /// Nodes; the root is node 0. Padding slots are nodes with four empty children.
     pub nodes: Vec<Bvh4Node>,
-    /// Triangles in leaf order.
-    pub tris: Vec<Triangle>,
+    /// Primitives in leaf order.
+    pub prims: Vec<P>,
     /// For each entry of `tris`, its index in the input.
     pub prim_ids: Vec<u32>,
     /// Node order.
     pub mapping: Bvh4Mapping,
 }
 
-impl Bvh4 {
+impl<P: Primitive> Bvh4<P> {
     /// Collapses and lays out a built binary tree.
-    pub fn from_tree(tree: &BuildTree, tris: &[Triangle], mapping: Bvh4Mapping) -> Bvh4 {
+    pub fn from_tree(tree: &BuildTree, prims: &[P], mapping: Bvh4Mapping) -> Self {
         let wide = collapse(tree);
         let (slots, pos) = arrange(&wide, mapping, std::mem::size_of::<Bvh4Node>());
         let empty = Wide {
@@ -213,7 +214,7 @@ impl Bvh4 {
             .collect();
         Bvh4 {
             nodes,
-            tris: leaf_order(tree, tris),
+            prims: leaf_order(tree, prims),
             prim_ids: tree.prim_indices.clone(),
             mapping,
         }
@@ -227,7 +228,7 @@ impl Bvh4 {
     /// Bytes of node and leaf data the traversal reads.
     pub fn bytes(&self) -> usize {
         self.node_bytes()
-            + std::mem::size_of_val(self.tris.as_slice())
+            + std::mem::size_of_val(self.prims.as_slice())
             + std::mem::size_of_val(self.prim_ids.as_slice())
     }
 }
@@ -343,28 +344,29 @@ impl QBvh4Node {
 /// use quiver::build::{build, BuildConfig, Builder};
 /// use quiver::{reference, scene::Scene, layout::triangle_bounds};
 /// let scene = Scene::load("tetra4").unwrap();
-/// let tree = build(&triangle_bounds(&scene.triangles), &BuildConfig::default(), Builder::Binned);
-/// let bvh = QBvh4::from_tree(&tree, &scene.triangles);
+/// let tris = scene.triangles();
+/// let tree = build(&triangle_bounds(&tris), &BuildConfig::default(), Builder::Binned);
+/// let bvh = QBvh4::from_tree(&tree, &tris);
 /// let ray = scene.camera.ray(0.1, 0.0);
-/// assert_eq!(bvh.closest_hit(&ray), reference::closest_hit(&scene.triangles, &ray));
+/// assert_eq!(bvh.closest_hit(&ray), reference::closest_hit(&tris, &ray));
 /// ```
 #[derive(Clone, Debug)]
-pub struct QBvh4 {
+pub struct QBvh4<P = Triangle> {
     /// Nodes in depth-first order; the root is node 0.
     pub nodes: Vec<QBvh4Node>,
-    /// Triangles in leaf order.
-    pub tris: Vec<Triangle>,
+    /// Primitives in leaf order.
+    pub prims: Vec<P>,
     /// For each entry of `tris`, its index in the input.
     pub prim_ids: Vec<u32>,
 }
 
-impl QBvh4 {
+impl<P: Primitive> QBvh4<P> {
     /// Collapses, quantizes and lays out a built binary tree.
     ///
     /// # Panics
     /// If a leaf holds more than 65535 triangles (a [`crate::build::BuildConfig::max_leaf_size`]
     /// above that).
-    pub fn from_tree(tree: &BuildTree, tris: &[Triangle]) -> QBvh4 {
+    pub fn from_tree(tree: &BuildTree, prims: &[P]) -> Self {
         let wide = collapse(tree);
         let (slots, pos) = arrange(
             &wide,
@@ -377,7 +379,7 @@ impl QBvh4 {
             .collect();
         QBvh4 {
             nodes,
-            tris: leaf_order(tree, tris),
+            prims: leaf_order(tree, prims),
             prim_ids: tree.prim_indices.clone(),
         }
     }
@@ -390,7 +392,7 @@ impl QBvh4 {
     /// Bytes of node and leaf data the traversal reads.
     pub fn bytes(&self) -> usize {
         self.node_bytes()
-            + std::mem::size_of_val(self.tris.as_slice())
+            + std::mem::size_of_val(self.prims.as_slice())
             + std::mem::size_of_val(self.prim_ids.as_slice())
     }
 }
@@ -431,7 +433,7 @@ mod tests {
     #[test]
     fn collapse_keeps_every_leaf_once() {
         let scene = crate::scene::Scene::load("soup3000").unwrap();
-        let bounds = crate::layout::triangle_bounds(&scene.triangles);
+        let bounds = crate::layout::triangle_bounds(&scene.triangles());
         let tree = crate::build::build(&bounds, &Default::default(), crate::build::Builder::Binned);
         let wide = collapse(&tree);
         let mut covered = vec![false; tree.prim_indices.len()];

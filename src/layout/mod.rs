@@ -13,11 +13,11 @@ pub(crate) mod bvh2;
 pub(crate) mod bvh4;
 pub(crate) mod order;
 
-pub use bvh2::{triangle_bounds, Bvh2, Bvh2Mapping, Bvh2Node};
+pub use bvh2::{prim_bounds, triangle_bounds, Bvh2, Bvh2Mapping, Bvh2Node};
 pub use bvh4::{Bvh4, Bvh4Mapping, Bvh4Node, QBvh4, QBvh4Node};
 
 use crate::build::{build, BuildConfig, BuildTree, Builder};
-use crate::geometry::{Hit, Ray, Triangle};
+use crate::geometry::{Hit, Primitive, Ray, Triangle};
 use crate::traverse::Counters;
 use std::fmt;
 use std::str::FromStr;
@@ -111,37 +111,38 @@ impl FromStr for Layout {
 /// use quiver::build::{BuildConfig, Builder};
 /// use quiver::{reference, scene::Scene};
 /// let scene = Scene::load("tetra4").unwrap();
+/// let tris = scene.triangles();
 /// let ray = scene.camera.ray(0.0, 0.1);
 /// for layout in Layout::ALL {
-///     let (bvh, _) = Bvh::build(&scene.triangles, &BuildConfig::default(), Builder::Binned, layout);
-///     assert_eq!(bvh.closest_hit(&ray), reference::closest_hit(&scene.triangles, &ray));
+///     let (bvh, _) = Bvh::build(&tris, &BuildConfig::default(), Builder::Binned, layout);
+///     assert_eq!(bvh.closest_hit(&ray), reference::closest_hit(&tris, &ray));
 /// }
 /// ```
 #[derive(Clone, Debug)]
-pub enum Bvh {
+pub enum Bvh<P = Triangle> {
     /// Binary nodes.
-    Bvh2(Bvh2),
+    Bvh2(Bvh2<P>),
     /// 4-wide exact nodes.
-    Bvh4(Bvh4),
+    Bvh4(Bvh4<P>),
     /// 4-wide quantized nodes.
-    QBvh4(QBvh4),
+    QBvh4(QBvh4<P>),
 }
 
-impl Bvh {
-    /// Builds over `tris` and lays the tree out as `layout`; also returns the build tree.
+impl<P: Primitive> Bvh<P> {
+    /// Builds over `prims` and lays the tree out as `layout`; also returns the build tree.
     pub fn build(
-        tris: &[Triangle],
+        prims: &[P],
         config: &BuildConfig,
         builder: Builder,
         layout: Layout,
-    ) -> (Bvh, BuildTree) {
-        let tree = build(&triangle_bounds(tris), config, builder);
-        (Bvh::from_tree(&tree, tris, layout), tree)
+    ) -> (Self, BuildTree) {
+        let tree = build(&prim_bounds(prims), config, builder);
+        (Bvh::from_tree(&tree, prims, layout), tree)
     }
 
     /// Lays out a built tree.
-    pub fn from_tree(tree: &BuildTree, tris: &[Triangle], layout: Layout) -> Bvh {
-        let b2 = |m| Bvh::Bvh2(Bvh2::from_tree_mapped(tree, tris, m));
+    pub fn from_tree(tree: &BuildTree, prims: &[P], layout: Layout) -> Self {
+        let b2 = |m| Bvh::Bvh2(Bvh2::from_tree_mapped(tree, prims, m));
         match layout {
             Layout::Bvh2Dfs => b2(Bvh2Mapping::DepthFirst),
             Layout::Bvh2Bfs => b2(Bvh2Mapping::BreadthFirst),
@@ -150,9 +151,9 @@ impl Bvh {
             Layout::Bvh2SubtreePage => b2(Bvh2Mapping::SubtreePage),
             Layout::Bvh2Compact => b2(Bvh2Mapping::Compact),
             Layout::Bvh2CompactPage => b2(Bvh2Mapping::CompactPage),
-            Layout::Bvh4Dfs => Bvh::Bvh4(Bvh4::from_tree(tree, tris, Bvh4Mapping::DepthFirst)),
-            Layout::Bvh4Subtree => Bvh::Bvh4(Bvh4::from_tree(tree, tris, Bvh4Mapping::Subtree)),
-            Layout::Bvh4Quant => Bvh::QBvh4(QBvh4::from_tree(tree, tris)),
+            Layout::Bvh4Dfs => Bvh::Bvh4(Bvh4::from_tree(tree, prims, Bvh4Mapping::DepthFirst)),
+            Layout::Bvh4Subtree => Bvh::Bvh4(Bvh4::from_tree(tree, prims, Bvh4Mapping::Subtree)),
+            Layout::Bvh4Quant => Bvh::QBvh4(QBvh4::from_tree(tree, prims)),
         }
     }
 

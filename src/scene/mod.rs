@@ -5,7 +5,7 @@
 //! ```
 //! use quiver::scene::Scene;
 //! let s = Scene::load("tetra2").unwrap();
-//! assert_eq!((s.objects, s.triangles.len()), (16, 16));
+//! assert_eq!((s.objects.len(), s.triangles().len()), (16, 16));
 //! assert!(Scene::load("nosuchscene").unwrap_err().to_string().contains("tetra"));
 //! ```
 
@@ -13,28 +13,98 @@ mod camera;
 #[cfg(feature = "obj")]
 mod obj;
 mod soup;
+pub mod tessellate;
 mod tetra;
 
 pub use camera::Camera;
 
-use crate::geometry::{Aabb, Triangle};
+use crate::geometry::{Aabb, Primitive, Triangle};
+use crate::primitive::{Cone, PatchTriangle, Polygon, Prim, Sphere};
 use glam::Vec3A;
 use std::fmt;
 use std::path::{Path, PathBuf};
 
-/// Geometry plus the viewpoint and lights that go with it.
+/// A surface description in NFF terms (`f r g b Kd Ks Shine T index_of_refraction`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Material {
+    /// Base colour, linear RGB in 0..1.
+    pub color: Vec3A,
+    /// Diffuse coefficient.
+    pub kd: f32,
+    /// Specular coefficient; above 0 the surface reflects (and gets Phong highlights).
+    pub ks: f32,
+    /// Phong exponent.
+    pub shine: f32,
+    /// Transmittance; above 0 the surface refracts.
+    pub t: f32,
+    /// Index of refraction.
+    pub ior: f32,
+}
+
+impl Material {
+    /// The material of files that bring none: white, diffuse, not reflective.
+    pub const DEFAULT: Material = Material {
+        color: Vec3A::ONE,
+        kd: 0.8,
+        ks: 0.0,
+        shine: 0.0,
+        t: 0.0,
+        ior: 1.0,
+    };
+}
+
+/// One object as the SPD counts it: a sphere, a cone or cylinder, a polygon or a polygonal
+/// patch.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Shape {
+    /// NFF `s`.
+    Sphere(Sphere),
+    /// NFF `c`.
+    Cone(Cone),
+    /// NFF `p` with three vertices.
+    Triangle(Triangle),
+    /// NFF `p` with more vertices (planar, possibly concave).
+    Polygon(Vec<Vec3A>),
+    /// NFF `pp`: a planar polygon with a normal per vertex.
+    Patch {
+        /// Vertices.
+        verts: Vec<Vec3A>,
+        /// One normal per vertex.
+        normals: Vec<Vec3A>,
+    },
+}
+
+/// A shape and the index of its material in [`Scene::materials`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct Object {
+    /// The geometry.
+    pub shape: Shape,
+    /// Index into [`Scene::materials`].
+    pub material: u32,
+}
+
+/// A positional light.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Light {
+    /// Position.
+    pub pos: Vec3A,
+    /// Colour (white unless the scene says otherwise).
+    pub color: Vec3A,
+}
+
+/// Geometry plus the viewpoint, lights and materials that go with it: an NFF file's content.
 #[derive(Clone, Debug)]
 pub struct Scene {
     /// The name it was loaded by (`tetra6`, a file path, ...).
     pub name: String,
-    /// All geometry as triangles.
-    pub triangles: Vec<Triangle>,
-    /// What the source counts as objects (the SPD counts each polygon once).
-    pub objects: usize,
+    /// The objects, in output order.
+    pub objects: Vec<Object>,
+    /// Materials the objects refer to.
+    pub materials: Vec<Material>,
     /// The viewpoint.
     pub camera: Camera,
     /// Positional lights.
-    pub lights: Vec<Vec3A>,
+    pub lights: Vec<Light>,
     /// Background colour (linear RGB).
     pub background: Vec3A,
 }
@@ -154,12 +224,96 @@ impl Scene {
         Ok((gen.make)(size))
     }
 
-    /// Bounds of all finite triangles.
+    /// Bounds of all finite objects.
     pub fn bounds(&self) -> Aabb {
-        self.triangles
+        let (prims, _) = self.prims();
+        prims
             .iter()
-            .filter(|t| t.is_finite())
-            .fold(Aabb::EMPTY, |b, t| b.union(&t.bounds()))
+            .map(|p| p.bounds())
+            .filter(|b| b.is_finite())
+            .fold(Aabb::EMPTY, |a, b| a.union(&b))
+    }
+
+    /// A scene of triangles with one default material (soups, meshes).
+    pub fn from_triangles(
+        name: String,
+        tris: Vec<Triangle>,
+        camera: Camera,
+        lights: Vec<Vec3A>,
+        background: Vec3A,
+    ) -> Scene {
+        Scene {
+            name,
+            objects: tris
+                .into_iter()
+                .map(|t| Object {
+                    shape: Shape::Triangle(t),
+                    material: 0,
+                })
+                .collect(),
+            materials: vec![Material::DEFAULT],
+            camera,
+            lights: lights
+                .into_iter()
+                .map(|pos| Light {
+                    pos,
+                    color: Vec3A::ONE,
+                })
+                .collect(),
+            background,
+        }
+    }
+
+    /// The primitives a curve-mode BVH holds, and for each the index of its object: spheres
+    /// and cones stay analytic, a polygon stays one n-gon, a patch becomes a fan of patch
+    /// triangles.
+    pub fn prims(&self) -> (Vec<Prim>, Vec<u32>) {
+        let mut prims = Vec::with_capacity(self.objects.len());
+        let mut owner = Vec::with_capacity(self.objects.len());
+        for (i, o) in self.objects.iter().enumerate() {
+            let before = prims.len();
+            match &o.shape {
+                Shape::Sphere(s) => prims.push(Prim::Sphere(*s)),
+                Shape::Cone(c) => prims.push(Prim::Cone(*c)),
+                Shape::Triangle(t) => prims.push(Prim::Triangle(*t)),
+                Shape::Polygon(v) => prims.push(Prim::Polygon(Polygon::new(v.clone()))),
+                Shape::Patch { verts, normals } => {
+                    for k in 1..verts.len().saturating_sub(1) {
+                        prims.push(Prim::Patch(PatchTriangle {
+                            tri: Triangle::new(verts[0], verts[k], verts[k + 1]),
+                            normals: [normals[0], normals[k], normals[k + 1]],
+                        }));
+                    }
+                }
+            }
+            owner.resize(owner.len() + prims.len() - before, i as u32);
+        }
+        (prims, owner)
+    }
+
+    /// Every object as flat triangles: polygons and patches triangulated (concave polygons
+    /// by ear clipping), spheres and cones tessellated as the SPD's patch mode does at its
+    /// default resolution. The all-triangle fast path's input.
+    pub fn triangles(&self) -> Vec<Triangle> {
+        self.triangles_with_owner().0
+    }
+
+    /// [`Scene::triangles`] and, for each triangle, the index of its object.
+    pub fn triangles_with_owner(&self) -> (Vec<Triangle>, Vec<u32>) {
+        let mut out = Vec::with_capacity(self.objects.len());
+        let mut owner = Vec::with_capacity(self.objects.len());
+        for (i, o) in self.objects.iter().enumerate() {
+            tessellate::shape_triangles(&o.shape, &mut out);
+            owner.resize(out.len(), i as u32);
+        }
+        (out, owner)
+    }
+
+    /// True when every object is a triangle (no analytic shape, polygon or patch).
+    pub fn is_all_triangles(&self) -> bool {
+        self.objects
+            .iter()
+            .all(|o| matches!(o.shape, Shape::Triangle(_)))
     }
 }
 

@@ -39,12 +39,11 @@ pub(super) fn load(path: &Path) -> Result<Scene, SceneError> {
         }
     }
     let bounds = tris.iter().fold(Aabb::EMPTY, |b, t| b.union(&t.bounds()));
-    Ok(Scene {
-        name: path.display().to_string(),
-        objects: tris.len(),
-        camera: Camera::framing(&bounds),
-        triangles: tris,
-        lights: vec![bounds.max + bounds.extent()],
-        background: Vec3A::splat(0.2),
-    })
+    Ok(Scene::from_triangles(
+        path.display().to_string(),
+        tris,
+        Camera::framing(&bounds),
+        vec![bounds.max + bounds.extent()],
+        Vec3A::splat(0.2),
+    ))
 }

@@ -16,12 +16,11 @@ pub(super) fn soup(n: u32) -> Scene {
             Triangle::new(v(), v(), v())
         })
         .collect();
-    Scene {
-        name: format!("soup{n}"),
-        objects: tris.len(),
-        camera: Camera::framing(&Aabb::new(Vec3A::ZERO, Vec3A::ONE)),
-        triangles: tris,
-        lights: vec![Vec3A::new(3.0, 4.0, 5.0)],
-        background: Vec3A::splat(0.2),
-    }
+    Scene::from_triangles(
+        format!("soup{n}"),
+        tris,
+        Camera::framing(&Aabb::new(Vec3A::ZERO, Vec3A::ONE)),
+        vec![Vec3A::new(3.0, 4.0, 5.0)],
+        Vec3A::splat(0.2),
+    )
 }

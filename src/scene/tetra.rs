@@ -16,19 +16,18 @@ const CORNERS: [Vec3A; 4] = [
 pub(super) fn tetra(size: u32) -> Scene {
     let mut tris = Vec::with_capacity(4usize.pow(size.max(1)));
     pyramid(size, Vec3A::ZERO, 1.0, &mut tris);
-    Scene {
-        name: format!("tetra{size}"),
-        objects: tris.len(),
-        triangles: tris,
-        camera: Camera::new(
+    Scene::from_triangles(
+        format!("tetra{size}"),
+        tris,
+        Camera::new(
             Vec3A::new(1.022846, -3.177154, -2.174512),
             Vec3A::new(-0.004103, -0.004103, 0.216539),
             Vec3A::new(-0.816497, -0.816497, 0.816497),
             45.0,
         ),
-        lights: vec![Vec3A::new(2.0, -18.0, -5.0)],
-        background: Vec3A::new(0.078, 0.361, 0.753),
-    }
+        vec![Vec3A::new(2.0, -18.0, -5.0)],
+        Vec3A::new(0.078, 0.361, 0.753),
+    )
 }
 
 fn pyramid(depth: u32, center: Vec3A, half: f32, out: &mut Vec<Triangle>) {

@@ -3,7 +3,7 @@
 use super::stats::{Counters, NoStats, Stats};
 use super::{leaf_any_hit, leaf_closest_hit, SlabRay, Stack, FAR_SLACK};
 use crate::build::MAX_DEPTH;
-use crate::geometry::{Hit, Ray};
+use crate::geometry::{Hit, Primitive, Ray};
 use crate::layout::bvh2::{compact_children, Addressing};
 use crate::layout::{Bvh2, Bvh2Node};
 use std::ops::Range;
@@ -47,7 +47,7 @@ impl Children for Compact {
     }
 }
 
-impl Bvh2 {
+impl<P: Primitive> Bvh2<P> {
     /// The nearest hit along `ray` (lowest primitive index on ties): exactly what
     /// [`crate::reference::closest_hit`] returns for the same triangles.
     pub fn closest_hit(&self, ray: &Ray) -> Option<Hit> {
@@ -74,7 +74,7 @@ impl Bvh2 {
         let mut best = Hit::none(ray.t_max);
         self.traverse(ray, stats, |range, limit, stats| {
             leaf_closest_hit(
-                &self.tris[range.clone()],
+                &self.prims[range.clone()],
                 &self.prim_ids[range],
                 ray,
                 &mut best,
@@ -90,7 +90,7 @@ impl Bvh2 {
     pub fn any_hit_with<S: Stats>(&self, ray: &Ray, stats: &mut S) -> bool {
         let mut hit = false;
         self.traverse(ray, stats, |range, _, stats| {
-            hit = leaf_any_hit(&self.tris[range], ray, stats);
+            hit = leaf_any_hit(&self.prims[range], ray, stats);
             hit
         });
         hit

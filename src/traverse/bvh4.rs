@@ -4,10 +4,10 @@
 use super::stats::{Counters, NoStats, Stats};
 use super::{leaf_any_hit, leaf_closest_hit, Stack, FAR_SLACK};
 use crate::build::MAX_DEPTH;
+use crate::geometry::Primitive;
 use crate::geometry::{Hit, Ray};
 use crate::layout::bvh4::pow2;
 use crate::layout::{Bvh4, Bvh4Node, QBvh4, QBvh4Node};
-use crate::Triangle;
 use wide::f32x4;
 
 /// What the kernel needs from a 4-wide node format.
@@ -183,9 +183,9 @@ where
 
 /// Closest-hit and any-hit over one 4-wide node format.
 #[inline(always)]
-fn closest<N: WideNode, S: Stats>(
+fn closest<N: WideNode, P: Primitive, S: Stats>(
     nodes: &[N],
-    tris: &[Triangle],
+    tris: &[P],
     ids: &[u32],
     ray: &Ray,
     stats: &mut S,
@@ -200,7 +200,12 @@ fn closest<N: WideNode, S: Stats>(
 }
 
 #[inline(always)]
-fn any<N: WideNode, S: Stats>(nodes: &[N], tris: &[Triangle], ray: &Ray, stats: &mut S) -> bool {
+fn any<N: WideNode, P: Primitive, S: Stats>(
+    nodes: &[N],
+    tris: &[P],
+    ray: &Ray,
+    stats: &mut S,
+) -> bool {
     let mut hit = false;
     walk(nodes, ray, stats, |range, _, stats| {
         hit = leaf_any_hit(&tris[range], ray, stats);
@@ -210,27 +215,27 @@ fn any<N: WideNode, S: Stats>(nodes: &[N], tris: &[Triangle], ray: &Ray, stats: 
 }
 
 macro_rules! wide_queries {
-    ($t:ty) => {
-        impl $t {
+    ($t:ident) => {
+        impl<P: Primitive> $t<P> {
             /// The nearest hit along `ray` (lowest primitive index on ties): exactly what
             /// [`crate::reference::closest_hit`] returns for the same triangles.
             pub fn closest_hit(&self, ray: &Ray) -> Option<Hit> {
-                closest(&self.nodes, &self.tris, &self.prim_ids, ray, &mut NoStats)
+                closest(&self.nodes, &self.prims, &self.prim_ids, ray, &mut NoStats)
             }
 
             /// Closest hit, adding what the traversal did to `counters`.
             pub fn closest_hit_counted(&self, ray: &Ray, counters: &mut Counters) -> Option<Hit> {
-                closest(&self.nodes, &self.tris, &self.prim_ids, ray, counters)
+                closest(&self.nodes, &self.prims, &self.prim_ids, ray, counters)
             }
 
             /// True when anything is hit within the ray's interval; stops at the first hit.
             pub fn any_hit(&self, ray: &Ray) -> bool {
-                any(&self.nodes, &self.tris, ray, &mut NoStats)
+                any(&self.nodes, &self.prims, ray, &mut NoStats)
             }
 
             /// Any hit, adding what the traversal did to `counters`.
             pub fn any_hit_counted(&self, ray: &Ray, counters: &mut Counters) -> bool {
-                any(&self.nodes, &self.tris, ray, counters)
+                any(&self.nodes, &self.prims, ray, counters)
             }
         }
     };

@@ -8,13 +8,13 @@ mod stats;
 
 pub use stats::{Counters, NoStats, Stats};
 
-use crate::geometry::{Hit, Ray, Triangle};
+use crate::geometry::{Hit, Primitive, Ray};
 
 /// Tests a leaf's triangles for the closest hit, updating `best`; `prim_ids` gives each
 /// triangle's input index. Returns true when `best` changed.
 #[inline(always)]
-pub(crate) fn leaf_closest_hit<S: Stats>(
-    tris: &[Triangle],
+pub(crate) fn leaf_closest_hit<P: Primitive, S: Stats>(
+    tris: &[P],
     prim_ids: &[u32],
     ray: &Ray,
     best: &mut Hit,
@@ -47,7 +47,7 @@ pub(crate) fn leaf_closest_hit<S: Stats>(
 
 /// Tests a leaf's triangles until one is hit.
 #[inline(always)]
-pub(crate) fn leaf_any_hit<S: Stats>(tris: &[Triangle], ray: &Ray, stats: &mut S) -> bool {
+pub(crate) fn leaf_any_hit<P: Primitive, S: Stats>(tris: &[P], ray: &Ray, stats: &mut S) -> bool {
     for (i, tri) in tris.iter().enumerate() {
         if tri.intersect(ray).is_some() {
             stats.prims(i as u32 + 1);

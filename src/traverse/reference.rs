@@ -1,4 +1,4 @@
-//! Brute-force ray queries over all triangles, no acceleration structure: the oracle.
+//! Brute-force ray queries over all primitives, no acceleration structure: the oracle.
 //!
 //! ```
 //! use quiver::{reference, Ray, Triangle};
@@ -9,16 +9,21 @@
 //! assert!(reference::any_hit(&tris, &ray));
 //! ```
 
-use crate::geometry::{Hit, Ray, Triangle};
+use crate::geometry::{Hit, Primitive, Ray};
 
-/// The nearest hit; on equal distance the lowest index. Non-finite triangles are skipped.
-pub fn closest_hit(tris: &[Triangle], ray: &Ray) -> Option<Hit> {
+/// A primitive the builders keep. Others are invisible.
+fn visible<P: Primitive>(p: &P) -> bool {
+    p.is_finite()
+}
+
+/// The nearest hit; on equal distance the lowest index. Non-finite primitives are skipped.
+pub fn closest_hit<P: Primitive>(prims: &[P], ray: &Ray) -> Option<Hit> {
     let mut best: Option<Hit> = None;
-    for (i, tri) in tris.iter().enumerate() {
-        if !tri.is_finite() {
+    for (i, p) in prims.iter().enumerate() {
+        if !visible(p) {
             continue;
         }
-        if let Some(h) = tri.intersect(ray) {
+        if let Some(h) = p.intersect(ray) {
             if best.is_none_or(|b| b.is_beaten_by(h.t, i as u32)) {
                 best = Some(Hit {
                     t: h.t,
@@ -32,8 +37,9 @@ pub fn closest_hit(tris: &[Triangle], ray: &Ray) -> Option<Hit> {
     best
 }
 
-/// True when any finite triangle is hit within the ray's interval.
-pub fn any_hit(tris: &[Triangle], ray: &Ray) -> bool {
-    tris.iter()
-        .any(|t| t.is_finite() && t.intersect(ray).is_some())
+/// True when any finite primitive is hit within the ray's interval.
+pub fn any_hit<P: Primitive>(prims: &[P], ray: &Ray) -> bool {
+    prims
+        .iter()
+        .any(|p| visible(p) && p.intersect(ray).is_some())
 }
