@@ -8,9 +8,24 @@ use quiver::measure::{self, Query};
 use quiver::scene::{Scene, GENERATORS};
 use quiver::{rays, Bvh, Layout};
 use serde_json::{json, Value};
+use std::io::Write;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
+
+/// `println!` that stops quietly when stdout is gone (`quiver ... | head`) instead of panicking.
+macro_rules! outln {
+    ($($t:tt)*) => {{
+        let _ = writeln!(std::io::stdout(), $($t)*);
+    }};
+}
+
+/// `print!` with the same rule as [`outln!`].
+macro_rules! out {
+    ($($t:tt)*) => {{
+        let _ = write!(std::io::stdout(), $($t)*);
+    }};
+}
 
 #[derive(Parser)]
 #[command(
@@ -29,6 +44,24 @@ enum Command {
     Build(BuildArgs),
     /// Measure traversal throughput of every memory layout on several scenes.
     Layouts(LayoutsArgs),
+    /// Write a scene as NFF (to stdout, or to a file with -o).
+    Gen(GenArgs),
+}
+
+#[derive(clap::Args)]
+struct GenArgs {
+    /// A generator name with optional size, or an .nff/.obj file.
+    #[arg(long_help = scene_help())]
+    scene: String,
+    /// Tessellate spheres and cones into polygonal patches (the SPD's patch mode).
+    #[arg(long)]
+    patches: bool,
+    /// Tessellation resolution for --patches (the SPD's OUTPUT_RESOLUTION).
+    #[arg(long, default_value_t = quiver::scene::tessellate::DEFAULT_RESOLUTION, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    resolution: u32,
+    /// Output file (default: stdout).
+    #[arg(short, long)]
+    output: Option<PathBuf>,
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -124,6 +157,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Build(args) => cmd_build(args),
         Command::Layouts(args) => cmd_layouts(args),
+        Command::Gen(args) => cmd_gen(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -187,6 +221,34 @@ fn cmd_build(args: BuildArgs) -> Result<()> {
     write_json(args.json.as_ref(), &report)
 }
 
+fn cmd_gen(args: GenArgs) -> Result<()> {
+    let mut scene = Scene::load(&args.scene)?;
+    if args.patches {
+        scene = scene.into_patches(args.resolution);
+    }
+    match &args.output {
+        Some(p) => {
+            let file = std::fs::File::create(p)
+                .map_err(|e| format!("cannot create {}: {e}", p.display()))?;
+            let mut w = std::io::BufWriter::new(file);
+            quiver::scene::nff::write(&scene, &mut w)
+                .map_err(|e| format!("cannot write {}: {e}", p.display()))?;
+            w.flush()
+                .map_err(|e| format!("cannot write {}: {e}", p.display()))?;
+        }
+        None => {
+            let stdout = std::io::stdout();
+            let mut w = std::io::BufWriter::new(stdout.lock());
+            // A closed pipe (`quiver gen ... | head`) is not an error worth a message.
+            match quiver::scene::nff::write(&scene, &mut w).and_then(|_| w.flush()) {
+                Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => {}
+                other => other?,
+            }
+        }
+    }
+    Ok(())
+}
+
 fn finite_cost(flag: &str, v: f32) -> Result<f32> {
     if v.is_finite() && v >= 0.0 {
         Ok(v)
@@ -204,7 +266,7 @@ fn print_table(report: &Value) {
             Value::Number(n) if n.is_f64() => format!("{:.3}", n.as_f64().unwrap_or(f64::NAN)),
             other => other.to_string(),
         };
-        println!("{k:<width$}  {shown}");
+        outln!("{k:<width$}  {shown}");
     }
 }
 
@@ -357,13 +419,20 @@ fn layout_ratios(rows: &[Row]) -> Vec<Value> {
 }
 
 fn print_layout_tables(sizes: &[Value], rows: &[Row], layouts: &[Layout]) {
-    println!(
+    outln!(
         "{:<12} {:<18} {:>10} {:>12} {:>8} {:>10} {:>10} {:>10}",
-        "scene", "layout", "nodes", "node bytes", "B/prim", "nodes/ray", "boxes/ray", "prims/ray"
+        "scene",
+        "layout",
+        "nodes",
+        "node bytes",
+        "B/prim",
+        "nodes/ray",
+        "boxes/ray",
+        "prims/ray"
     );
     let f = |v: &Value| v.as_f64().unwrap_or(f64::NAN);
     for s in sizes {
-        println!(
+        outln!(
             "{:<12} {:<18} {:>10} {:>12} {:>8.2} {:>10.1} {:>10.1} {:>10.1}",
             s["scene"].as_str().unwrap_or(""),
             s["layout"].as_str().unwrap_or(""),
@@ -375,18 +444,21 @@ fn print_layout_tables(sizes: &[Value], rows: &[Row], layouts: &[Layout]) {
             f(&s["prim_tests_per_ray"]),
         );
     }
-    println!("(work per random closest-hit ray; node visits include leaves)");
-    println!();
-    print!(
+    outln!("(work per random closest-hit ray; node visits include leaves)");
+    outln!();
+    out!(
         "{:<12} {:>3} {:<7} {:<8}",
-        "Mrays/s", "thr", "rays", "query"
+        "Mrays/s",
+        "thr",
+        "rays",
+        "query"
     );
     for l in layouts {
-        print!(" {:>8}", short(*l));
+        out!(" {:>8}", short(*l));
     }
-    println!();
+    outln!();
     for r in rows.iter().filter(|r| r.layout == layouts[0]) {
-        print!(
+        out!(
             "{:<12} {:>3} {:<7} {:<8}",
             r.scene,
             r.threads,
@@ -394,21 +466,24 @@ fn print_layout_tables(sizes: &[Value], rows: &[Row], layouts: &[Layout]) {
             r.query.name()
         );
         for &l in layouts {
-            print!(" {:>8.2}", find(rows, r, l).unwrap_or(f64::NAN));
+            out!(" {:>8.2}", find(rows, r, l).unwrap_or(f64::NAN));
         }
-        println!();
+        outln!();
     }
-    println!();
-    print!(
+    outln!();
+    out!(
         "{:<12} {:>3} {:<7} {:<8}",
-        "time ratio", "thr", "rays", "query"
+        "time ratio",
+        "thr",
+        "rays",
+        "query"
     );
     for (name, ..) in RATIOS {
-        print!(" {name:>16}");
+        out!(" {name:>16}");
     }
-    println!();
+    outln!();
     for r in rows.iter().filter(|r| r.layout == layouts[0]) {
-        print!(
+        out!(
             "{:<12} {:>3} {:<7} {:<8}",
             r.scene,
             r.threads,
@@ -417,11 +492,11 @@ fn print_layout_tables(sizes: &[Value], rows: &[Row], layouts: &[Layout]) {
         );
         for (_, slow, fast) in RATIOS {
             match (find(rows, r, slow), find(rows, r, fast)) {
-                (Some(s), Some(f)) => print!(" {:>16.3}", f / s),
-                _ => print!(" {:>16}", "-"),
+                (Some(s), Some(f)) => out!(" {:>16.3}", f / s),
+                _ => out!(" {:>16}", "-"),
             }
         }
-        println!();
+        outln!();
     }
 }
 

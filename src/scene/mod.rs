@@ -10,6 +10,7 @@
 //! ```
 
 mod camera;
+pub mod nff;
 #[cfg(feature = "obj")]
 mod obj;
 mod soup;
@@ -107,6 +108,10 @@ pub struct Scene {
     pub lights: Vec<Light>,
     /// Background colour (linear RGB).
     pub background: Vec3A,
+    /// Distance of the near clipping plane (NFF `hither`); eye rays start there.
+    pub hither: f32,
+    /// Image size the scene was designed for (NFF `resolution`).
+    pub resolution: [u32; 2],
 }
 
 /// A procedural scene: its name, the size it gets without one, and how to make it.
@@ -171,7 +176,7 @@ impl fmt::Display for SceneError {
                 let names: Vec<_> = GENERATORS.iter().map(|g| g.name).collect();
                 write!(
                     f,
-                    "unknown scene '{s}': expected a generator name with an optional size ({}) or a .obj file",
+                    "unknown scene '{s}': expected a generator name with an optional size ({}), a .nff or a .obj file",
                     names.join(", ")
                 )
             }
@@ -196,10 +201,11 @@ impl Scene {
             return load_obj(Path::new(spec));
         }
         if lower.ends_with(".nff") {
-            return Err(SceneError::File {
+            let text = std::fs::read_to_string(spec).map_err(|e| SceneError::File {
                 path: spec.into(),
-                message: "NFF files are not supported yet".into(),
-            });
+                message: format!("cannot read: {e}"),
+            })?;
+            return nff::parse(&text, spec);
         }
         let split = spec
             .find(|c: char| c.is_ascii_digit())
@@ -261,6 +267,8 @@ impl Scene {
                 })
                 .collect(),
             background,
+            hither: 1e-3,
+            resolution: [512, 512],
         }
     }
 
@@ -307,6 +315,28 @@ impl Scene {
             owner.resize(out.len(), i as u32);
         }
         (out, owner)
+    }
+
+    /// The scene in the SPD's patch mode: every sphere and cone replaced by the polygonal
+    /// patches [`tessellate`] makes of it at `resolution`; polygons and patches unchanged.
+    pub fn into_patches(mut self, resolution: u32) -> Scene {
+        let mut objects = Vec::with_capacity(self.objects.len());
+        for o in self.objects {
+            let patches = match &o.shape {
+                Shape::Sphere(s) => tessellate::sphere_patches(s, resolution),
+                Shape::Cone(c) => tessellate::cone_patches(c, resolution),
+                _ => {
+                    objects.push(o);
+                    continue;
+                }
+            };
+            objects.extend(patches.into_iter().map(|(verts, normals)| Object {
+                shape: Shape::Patch { verts, normals },
+                material: o.material,
+            }));
+        }
+        self.objects = objects;
+        self
     }
 
     /// True when every object is a triangle (no analytic shape, polygon or patch).
