@@ -202,7 +202,7 @@ pub fn parse(text: &str, path: impl AsRef<Path>) -> Result<Scene, SceneError> {
             "s" => {
                 let center = tk.vec3("sphere centre")?;
                 let radius = tk.number("sphere radius")?;
-                if !(radius > 0.0) {
+                if radius <= 0.0 {
                     return Err(tk.err(line, format!("sphere radius {radius} must be positive")));
                 }
                 shape(
