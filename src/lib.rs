@@ -23,6 +23,7 @@ pub mod layout;
 pub mod measure;
 pub mod primitive;
 pub mod rays;
+pub mod render;
 pub mod rng;
 pub mod scene;
 pub mod traverse;

@@ -5,6 +5,7 @@ use clap::{Parser, Subcommand, ValueEnum};
 use quiver::accel::SceneBvh;
 use quiver::build::{BuildConfig, Builder};
 use quiver::measure::{self, Query};
+use quiver::render::{render, RenderConfig};
 use quiver::scene::{Scene, GENERATORS};
 use quiver::{rays, Bvh, Layout};
 use serde_json::{json, Value};
@@ -46,7 +47,40 @@ enum Command {
     Layouts(LayoutsArgs),
     /// Write a scene as NFF (to stdout, or to a file with -o).
     Gen(GenArgs),
+    /// Render a scene by the SPD testing procedure to a PNG and report the rays it traced.
+    Render(RenderArgs),
 }
+
+#[derive(clap::Args)]
+struct RenderArgs {
+    /// A generator name with optional size, or an .nff/.obj file.
+    #[arg(default_value = DEFAULT_SCENE, long_help = scene_help())]
+    scene: String,
+    /// Image width and height in pixels ((res+1)^2 eye rays at the pixel corners).
+    #[arg(long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(1..=16384))]
+    res: u32,
+    /// Output PNG.
+    #[arg(short, long, default_value = "quiver.png")]
+    output: PathBuf,
+    /// Worker threads (default: all cores).
+    #[arg(long, value_parser = clap::value_parser!(u16).range(1..=1024))]
+    threads: Option<u16>,
+    /// Memory layout of the BVH.
+    #[arg(long, default_value = "bvh4-dfs", value_parser = parse_layout, long_help = layout_help())]
+    layout: Layout,
+    /// Tessellate spheres and cones (the SPD's patch mode).
+    #[arg(long)]
+    patches: bool,
+    /// Write a false-colour image of nodes visited per eye ray.
+    #[arg(long)]
+    heatmap: Option<PathBuf>,
+    /// Write the report as JSON to this file.
+    #[arg(long)]
+    json: Option<PathBuf>,
+}
+
+/// The scene `quiver render` draws without an argument.
+const DEFAULT_SCENE: &str = "tetra";
 
 #[derive(clap::Args)]
 struct GenArgs {
@@ -158,6 +192,7 @@ fn main() -> ExitCode {
         Command::Build(args) => cmd_build(args),
         Command::Layouts(args) => cmd_layouts(args),
         Command::Gen(args) => cmd_gen(args),
+        Command::Render(args) => cmd_render(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -219,6 +254,135 @@ fn cmd_build(args: BuildArgs) -> Result<()> {
     });
     print_table(&report);
     write_json(args.json.as_ref(), &report)
+}
+
+fn cmd_render(args: RenderArgs) -> Result<()> {
+    let mut scene = Scene::load(&args.scene)?;
+    if args.patches {
+        scene = scene.into_patches(quiver::scene::tessellate::DEFAULT_RESOLUTION);
+    }
+    let pool = pool(args.threads)?;
+    let config = BuildConfig::default();
+    let start = Instant::now();
+    let (bvh, tree) =
+        pool.install(|| SceneBvh::build(&scene, &config, Builder::Binned, args.layout));
+    let build_ms = start.elapsed().as_secs_f64() * 1e3;
+    let rconfig = RenderConfig {
+        res: args.res,
+        two_sided: scene.two_sided_materials(),
+        ..RenderConfig::default()
+    };
+    let rows = args.res as u64 + 1;
+    let bar = indicatif::ProgressBar::new(rows);
+    bar.set_style(indicatif::ProgressStyle::with_template(
+        "rendering {bar:40} {pos}/{len} rows [{elapsed}]",
+    )?);
+    let start = Instant::now();
+    let image = pool.install(|| render(&scene, &bvh, &rconfig, &|n| bar.inc(n as u64)));
+    let trace_ms = start.elapsed().as_secs_f64() * 1e3;
+    bar.finish_and_clear();
+    write_png(&args.output, image.res, image.res, &image.rgb)?;
+    // Havran's statistics come from a second, counting pass: the timed pass above runs the
+    // plain kernels. Both passes trace the same rays.
+    let counted_config = RenderConfig {
+        counters: true,
+        ..rconfig.clone()
+    };
+    let counted = pool.install(|| render(&scene, &bvh, &counted_config, &|_| {}));
+    if counted.rays != image.rays || counted.rgb != image.rgb {
+        return Err(
+            "internal error: the counting pass traced different rays than the plain pass".into(),
+        );
+    }
+    if let Some(h) = &args.heatmap {
+        let (w, px) = heatmap(&counted.eye_nodes, args.res as usize + 1);
+        write_png(h, w as u32, w as u32, &px)?;
+    }
+    let stats = tree.stats();
+    let rays = image.rays;
+    let total = rays.total().max(1) as f64;
+    let work = counted.work;
+    let report = json!({
+        "scene": scene.name,
+        "objects": scene.objects.len(),
+        "primitives": bvh.primitives(),
+        "width": args.res,
+        "height": args.res,
+        "threads": pool.current_num_threads(),
+        "layout": args.layout.name(),
+        "rays": {
+            "eye": rays.eye,
+            "eye_hit": rays.eye_hit,
+            "reflect": rays.reflect,
+            "refract": rays.refract,
+            "shadow": rays.shadow,
+            "shadow_blocked": rays.shadow_blocked,
+            "total": rays.total(),
+        },
+        "build_ms": build_ms,
+        "trace_ms": trace_ms,
+        "mrays_per_s": rays.total() as f64 / (trace_ms * 1e3),
+        "havran": {
+            "N_G": stats.nodes - stats.leaves,
+            "N_E": stats.leaves,
+            "N_EE": 0,
+            "N_ER": bvh.primitives(),
+            "N_TS": work.nodes as f64 / total,
+            "N_ETS": work.leaves as f64 / total,
+            "N_EETS": work.empty_leaves as f64 / total,
+            "N_IT": work.prim_tests as f64 / total,
+            "box_tests_per_ray": work.box_tests as f64 / total,
+            "T_B_ms": build_ms,
+            "T_R_ms": trace_ms,
+        },
+        "output": args.output.display().to_string(),
+    });
+    print_table(&report);
+    write_json(args.json.as_ref(), &report)
+}
+
+fn write_png(path: &PathBuf, w: u32, h: u32, rgb: &[[u8; 3]]) -> Result<()> {
+    let fail = |e: &dyn std::fmt::Display| format!("cannot write {}: {e}", path.display());
+    let file = std::fs::File::create(path).map_err(|e| fail(&e))?;
+    let mut enc = png::Encoder::new(std::io::BufWriter::new(file), w, h);
+    enc.set_color(png::ColorType::Rgb);
+    enc.set_depth(png::BitDepth::Eight);
+    let mut writer = enc.write_header().map_err(|e| fail(&e))?;
+    writer
+        .write_image_data(rgb.as_flattened())
+        .map_err(|e| fail(&e))?;
+    writer.finish().map_err(|e| fail(&e))?;
+    Ok(())
+}
+
+/// A false-colour picture of per-ray node counts: dark blue (few) through green and yellow to
+/// red (the most, at the 99th percentile so a few outliers do not wash out the image).
+fn heatmap(counts: &[u32], width: usize) -> (usize, Vec<[u8; 3]>) {
+    let mut sorted = counts.to_vec();
+    sorted.sort_unstable();
+    let top = sorted
+        .get(sorted.len() * 99 / 100)
+        .copied()
+        .unwrap_or(1)
+        .max(1) as f32;
+    let px = counts
+        .iter()
+        .map(|&c| {
+            let x = (c as f32 / top).min(1.0);
+            let ramp = [
+                (0.0, [0.0, 0.0, 0.3]),
+                (0.33, [0.0, 0.6, 1.0]),
+                (0.66, [1.0, 1.0, 0.0]),
+                (1.0, [1.0, 0.0, 0.0]),
+            ];
+            let k = ramp.windows(2).position(|w| x <= w[1].0).unwrap_or(2);
+            let (a, b) = (ramp[k], ramp[k + 1]);
+            let f = (x - a.0) / (b.0 - a.0);
+            let ch = |i: usize| ((a.1[i] + (b.1[i] - a.1[i]) * f) * 255.0 + 0.5) as u8;
+            [ch(0), ch(1), ch(2)]
+        })
+        .collect();
+    (width, px)
 }
 
 fn cmd_gen(args: GenArgs) -> Result<()> {

@@ -339,6 +339,21 @@ impl Scene {
         self
     }
 
+    /// Materials whose surfaces are two-sided: those of polygonal patches (the SPD asks for a
+    /// two-sided teapot, whose lid lets the viewer see back faces; patches elsewhere are
+    /// closed surfaces where it makes no difference).
+    pub fn two_sided_materials(&self) -> Vec<u32> {
+        let mut m: Vec<u32> = self
+            .objects
+            .iter()
+            .filter(|o| matches!(o.shape, Shape::Patch { .. }))
+            .map(|o| o.material)
+            .collect();
+        m.sort_unstable();
+        m.dedup();
+        m
+    }
+
     /// True when every object is a triangle (no analytic shape, polygon or patch).
     pub fn is_all_triangles(&self) -> bool {
         self.objects

@@ -147,3 +147,30 @@ impl<T: Copy, const N: usize> Stack<T, N> {
         Some(unsafe { self.items[self.len].assume_init() })
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::Stack;
+
+    #[test]
+    fn stack_returns_what_was_pushed_last_in_first_out() {
+        let mut s: Stack<(u32, f32), 4> = Stack::new();
+        assert_eq!(s.pop(), None);
+        for i in 0..4 {
+            s.push((i, i as f32));
+        }
+        assert_eq!(s.pop(), Some((3, 3.0)));
+        s.push((9, 9.0));
+        let rest: Vec<u32> = std::iter::from_fn(|| s.pop()).map(|x| x.0).collect();
+        assert_eq!(rest, vec![9, 2, 1, 0]);
+    }
+
+    #[test]
+    #[should_panic]
+    fn stack_overflow_panics_instead_of_corrupting() {
+        let mut s: Stack<u32, 2> = Stack::new();
+        for i in 0..3 {
+            s.push(i);
+        }
+    }
+}
