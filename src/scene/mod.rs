@@ -15,7 +15,7 @@ pub mod nff;
 mod obj;
 mod soup;
 pub mod tessellate;
-mod tetra;
+mod spd;
 
 pub use camera::Camera;
 
@@ -131,11 +131,74 @@ pub struct Generator {
 /// Every built-in generator.
 pub const GENERATORS: &[Generator] = &[
     Generator {
+        name: "balls",
+        default_size: 4,
+        max_size: 6,
+        about: "SPD sphereflake: (9^(size+1)-1)/8 mirrored spheres on a floor",
+        make: spd::balls::make,
+    },
+    Generator {
+        name: "gears",
+        default_size: 4,
+        max_size: 12,
+        about: "SPD gears: size^3 gear pairs with 144-vertex concave faces, some transparent",
+        make: spd::gears::make,
+    },
+    Generator {
+        name: "jacks",
+        default_size: 1,
+        max_size: 6,
+        about: "SPD jacks: recursive jacks of spheres and cylinders",
+        make: spd::jacks::make,
+    },
+    Generator {
+        name: "lattice",
+        default_size: 12,
+        max_size: 60,
+        about: "SPD lattice: (size+1)^3 spheres joined by cylinders",
+        make: spd::lattice::make,
+    },
+    Generator {
+        name: "mount",
+        default_size: 6,
+        max_size: 10,
+        about: "SPD fractal mountain: 2*4^size triangles and 4 glass spheres",
+        make: spd::mount::make,
+    },
+    Generator {
+        name: "rings",
+        default_size: 7,
+        max_size: 40,
+        about: "SPD rings: pentagonal rings of spheres and cylinders",
+        make: spd::rings::make,
+    },
+    Generator {
+        name: "sombrero",
+        default_size: 1,
+        max_size: 6,
+        about: "SPD sombrero: a height field of 2*(2^(size+4)-1)^2 triangles",
+        make: spd::sombrero::make,
+    },
+    Generator {
+        name: "teapot",
+        default_size: 6,
+        max_size: 128,
+        about: "SPD teapot: Bezier patches tessellated to 64*size^2-8*size triangles on a checkerboard",
+        make: spd::teapot::make,
+    },
+    Generator {
         name: "tetra",
         default_size: 6,
         max_size: 12,
         about: "SPD tetra: recursive tetrahedron, 4^size triangles",
-        make: tetra::tetra,
+        make: spd::tetra::make,
+    },
+    Generator {
+        name: "tree",
+        default_size: 11,
+        max_size: 18,
+        about: "SPD tree: a branching tree of 2^(size+1)-1 cones and spheres",
+        make: spd::tree::make,
     },
     Generator {
         name: "soup",
