@@ -178,3 +178,15 @@ fn axis_parallel_rays_with_signed_zeros() {
     assert!(want.iter().filter(|h| h.is_some()).count() > rays.len() / 2);
     check_layouts(&tris, &[("axis-parallel", &rays, &want)], "grid");
 }
+
+/// A real scanned mesh (tests/data/bunny.obj, see tests/data/README.md).
+#[test]
+fn stanford_bunny() {
+    let scene = Scene::load(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/bunny.obj")).unwrap();
+    assert_eq!(scene.triangles().len(), 3674);
+    let (random, camera) = check_scene(&scene, 20_000, 128);
+    assert!(
+        random > 0.05 && camera > 0.1,
+        "hit fractions {random} {camera}"
+    );
+}

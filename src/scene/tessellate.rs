@@ -4,7 +4,7 @@
 use super::Shape;
 use crate::geometry::Triangle;
 use crate::primitive::{Cone, Polygon, Sphere};
-use glam::Vec3A;
+use glam::{DVec3, Vec3A};
 
 /// Appends the triangles of one shape to `out`.
 pub fn shape_triangles(shape: &Shape, out: &mut Vec<Triangle>) {
@@ -25,7 +25,8 @@ pub fn shape_triangles(shape: &Shape, out: &mut Vec<Triangle>) {
     }
 }
 
-/// The SPD's default tessellation resolution for patch mode.
+/// The default tessellation resolution for patch mode: 4, the value the SPD Readme states
+/// and its poly/patch statistics use (the programs' own `OUTPUT_RESOLUTION` is 3).
 pub const DEFAULT_RESOLUTION: u32 = 4;
 
 /// Triangulates a planar polygon by ear clipping in its projection plane. Convex polygons
@@ -100,52 +101,116 @@ pub fn polygon_triangles(verts: &[Vec3A], out: &mut Vec<Triangle>) {
     out.push(Triangle::new(verts[idx[0]], verts[idx[1]], verts[idx[2]]));
 }
 
-/// A sphere as polygonal patches (vertices, normals), placeholder until the SPD's exact
-/// tessellation is in: `2 * res` longitude by `res` latitude bands.
+/// A sphere as the SPD's patch mode writes it (`lib_output_polygon_sphere`): the six faces of
+/// a cube projected onto the sphere, each an `res × res` grid cut into two triangles per cell,
+/// `12 res^2` triangles in all, counter-clockwise from outside, with the unit radial
+/// direction as each vertex normal. Faces come in the order -X, -Y, -Z, +X, +Y, +Z.
 pub fn sphere_patches(s: &Sphere, res: u32) -> Vec<(Vec<Vec3A>, Vec<Vec3A>)> {
-    let (nu, nv) = (2 * res.max(2), res.max(2));
-    let dir = |u: u32, v: u32| {
-        let phi = std::f32::consts::TAU * u as f32 / nu as f32;
-        let theta = std::f32::consts::PI * v as f32 / nv as f32;
-        Vec3A::new(
-            theta.sin() * phi.cos(),
-            theta.sin() * phi.sin(),
-            theta.cos(),
-        )
-    };
-    let mut out = Vec::new();
-    for v in 0..nv {
-        for u in 0..nu {
-            let n = [dir(u, v), dir(u + 1, v), dir(u + 1, v + 1), dir(u, v + 1)];
-            let p = n.map(|d| s.center + d * s.radius);
-            out.push((p.to_vec(), n.to_vec()));
+    use std::f64::consts::FRAC_PI_4;
+    let r = res.max(1) as usize;
+    let angle = |e: usize| FRAC_PI_4 * (2.0 * e as f64 / r as f64 - 1.0);
+    // The +Z face: crossing a meridian direction with a parallel direction.
+    let mut grid: Vec<Vec<DVec3>> = (0..=r)
+        .map(|u| {
+            let a = angle(u);
+            let xa = DVec3::new(a.cos(), 0.0, -a.sin());
+            (0..=r)
+                .map(|v| {
+                    let b = angle(v);
+                    xa.cross(DVec3::new(0.0, b.cos(), b.sin())).normalize()
+                })
+                .collect()
+        })
+        .collect();
+    let center = DVec3::new(s.center.x as f64, s.center.y as f64, s.center.z as f64);
+    let radius = s.radius as f64;
+    let f = |p: DVec3| Vec3A::new(p.x as f32, p.y as f32, p.z as f32);
+    let mut out = Vec::with_capacity(12 * r * r);
+    for face in 0..6 {
+        // Each face is the previous one turned by a quarter about the next axis.
+        for p in grid.iter_mut().flatten() {
+            *p = match (face + 2) % 3 {
+                0 => DVec3::new(-p.y, p.x, p.z),
+                1 => DVec3::new(p.x, -p.z, p.y),
+                _ => DVec3::new(-p.z, p.y, p.x),
+            };
+        }
+        for u in 0..r {
+            for v in 0..r {
+                let q = [
+                    grid[u][v],
+                    grid[u][v + 1],
+                    grid[u + 1][v + 1],
+                    grid[u + 1][v],
+                ];
+                for tri in [[q[0], q[1], q[2]], [q[2], q[3], q[0]]] {
+                    out.push((
+                        tri.iter().map(|&n| f(center + n * radius)).collect(),
+                        tri.iter().map(|&n| f(n)).collect(),
+                    ));
+                }
+            }
         }
     }
     out
 }
 
-/// A cone as polygonal patches (placeholder like [`sphere_patches`]).
+/// A cone or cylinder as the SPD's patch mode writes it (`lib_output_polygon_cylcone`): `4 res`
+/// segments around the axis, two triangles each (`8 res` in all), facing outward, with normals
+/// that lean by the cone's slope.
 pub fn cone_patches(c: &Cone, res: u32) -> Vec<(Vec<Vec3A>, Vec<Vec3A>)> {
-    let axis = (c.apex - c.base).normalize_or_zero();
-    let u = axis.any_orthonormal_vector();
-    let w = axis.cross(u);
-    let n = 4 * res.max(1);
-    let ring = |k: u32| {
-        let a = std::f32::consts::TAU * k as f32 / n as f32;
-        u * a.cos() + w * a.sin()
+    let d = |v: Vec3A| DVec3::new(v.x as f64, v.y as f64, v.z as f64);
+    let f = |p: DVec3| Vec3A::new(p.x as f32, p.y as f32, p.z as f32);
+    let (base, apex) = (d(c.base), d(c.apex));
+    let (br, ar) = (c.base_radius as f64, c.apex_radius as f64);
+    let axis = apex - base;
+    let h = axis.length();
+    if h == 0.0 {
+        return Vec::new();
+    }
+    let na = axis / h;
+    let side = axis.cross(DVec3::Z);
+    let sd = if side.length() < 1e-6 {
+        axis.cross(DVec3::X).normalize()
+    } else {
+        side.normalize()
     };
-    (0..n)
-        .map(|k| {
-            let (r0, r1) = (ring(k), ring(k + 1));
-            let p = vec![
-                c.base + r0 * c.base_radius,
-                c.base + r1 * c.base_radius,
-                c.apex + r1 * c.apex_radius,
-                c.apex + r0 * c.apex_radius,
-            ];
-            (p, vec![r0, r1, r1, r0])
-        })
-        .collect()
+    let (r0, r1) = (sd * br, sd * ar);
+    let sn = if br == ar {
+        sd
+    } else {
+        (sd * h + na * (br - ar)).normalize()
+    };
+    let n = 4 * res.max(1) as usize;
+    let step = std::f64::consts::TAU / n as f64;
+    let (mut b_prev, mut a_prev, mut n_prev) = (base + r0, apex + r1, sn);
+    let mut theta = 0.0;
+    let mut out = Vec::with_capacity(2 * n);
+    for _ in 0..n {
+        // The angle accumulates by repeated addition, as the SPD library does.
+        theta += step;
+        let (a_i, b_i, n_i) = (
+            apex + rotate(r1, na, theta),
+            base + rotate(r0, na, theta),
+            rotate(sn, na, theta),
+        );
+        out.push((
+            vec![f(a_i), f(a_prev), f(b_prev)],
+            vec![f(n_i), f(n_prev), f(n_prev)],
+        ));
+        out.push((
+            vec![f(b_i), f(a_i), f(b_prev)],
+            vec![f(n_i), f(n_i), f(n_prev)],
+        ));
+        (a_prev, b_prev, n_prev) = (a_i, b_i, n_i);
+    }
+    out
+}
+
+/// Right-handed rotation of `p` about unit axis `u` by `a` radians (Rodrigues' formula).
+pub(crate) fn rotate(p: DVec3, u: DVec3, a: f64) -> DVec3 {
+    let (s, c) = a.sin_cos();
+    p * c + u.cross(p) * s + u * u.dot(p) * (1.0 - c)
 }
 
 #[cfg(test)]
@@ -156,6 +221,57 @@ mod tests {
         tris.iter()
             .map(|t| (t.v[1] - t.v[0]).cross(t.v[2] - t.v[0]).length() * 0.5)
             .sum()
+    }
+
+    /// Every vertex on the surface, every normal radial, outward winding, 12 r^2 triangles.
+    #[test]
+    fn sphere_patches_lie_on_the_sphere_and_face_out() {
+        let s = Sphere {
+            center: Vec3A::new(1.0, 2.0, 3.0),
+            radius: 2.0,
+        };
+        for res in [1, 3, 4] {
+            let p = sphere_patches(&s, res);
+            assert_eq!(p.len(), 12 * (res * res) as usize);
+            for (v, n) in &p {
+                for (x, nx) in v.iter().zip(n) {
+                    assert!(((*x - s.center).length() - 2.0).abs() < 1e-5);
+                    assert!((*nx - (*x - s.center) / 2.0).length() < 1e-5);
+                }
+                let face = (v[1] - v[0]).cross(v[2] - v[0]);
+                assert!(face.dot(v[0] - s.center) > 0.0, "winding");
+            }
+        }
+        // Resolution 1 gives the cube's corners.
+        let corner = 1.0 / 3f32.sqrt();
+        for (_, n) in sphere_patches(&s, 1) {
+            assert!(n
+                .iter()
+                .all(|x| (x.abs() - Vec3A::splat(corner)).abs().max_element() < 1e-6));
+        }
+    }
+
+    #[test]
+    fn cone_patches_lie_on_the_cone_and_face_out() {
+        let c = Cone {
+            base: Vec3A::ZERO,
+            base_radius: 2.0,
+            apex: Vec3A::new(0.0, 0.0, 2.0),
+            apex_radius: 1.0,
+        };
+        for res in [1, 3, 4] {
+            let p = cone_patches(&c, res);
+            assert_eq!(p.len(), 8 * res as usize);
+            for (v, _) in &p {
+                for x in v {
+                    let r = (x.x * x.x + x.y * x.y).sqrt();
+                    assert!((r - (2.0 - x.z / 2.0)).abs() < 1e-5, "{x}");
+                }
+                let face = (v[1] - v[0]).cross(v[2] - v[0]);
+                let out = Vec3A::new(v[0].x, v[0].y, 0.0);
+                assert!(face.dot(out) > 0.0, "winding");
+            }
+        }
     }
 
     #[test]

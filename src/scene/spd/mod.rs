@@ -98,7 +98,9 @@ impl Spd {
     }
 
     fn push(&mut self, shape: Shape) {
-        let material = self.current.expect("an SPD generator sets a material before its objects");
+        let material = self
+            .current
+            .expect("an SPD generator sets a material before its objects");
         self.scene.objects.push(Object { shape, material });
     }
 
@@ -166,11 +168,9 @@ pub(crate) fn shine(ang: f64) -> f64 {
     }
 }
 
-/// Right-handed rotation of row vector `p` about unit axis `u` by `a` radians (Rodrigues).
-pub(crate) fn rotate(p: DVec3, u: DVec3, a: f64) -> DVec3 {
-    let (s, c) = a.sin_cos();
-    p * c + u.cross(p) * s + u * u.dot(p) * (1.0 - c)
-}
+/// Right-handed rotation of `p` about unit axis `u` by `a` radians (Rodrigues).
+#[allow(unused_imports)]
+pub(crate) use super::tessellate::rotate;
 
 #[cfg(test)]
 mod tests {
@@ -179,8 +179,19 @@ mod tests {
     #[test]
     fn shine_matches_the_spd_table() {
         // §3.4 of the SPD spec: %g renderings of lib_output_color's exponents.
-        for (ang, want) in [(6.7, 101.148), (10.0, 45.2776), (20.0, 11.1434), (30.0, 4.81884), (37.0, 3.0827), (40.0, 2.60078)] {
-            assert!((shine(ang) - want).abs() < 5e-4 * want, "{ang}: {}", shine(ang));
+        for (ang, want) in [
+            (6.7, 101.148),
+            (10.0, 45.2776),
+            (20.0, 11.1434),
+            (30.0, 4.81884),
+            (37.0, 3.0827),
+            (40.0, 2.60078),
+        ] {
+            assert!(
+                (shine(ang) - want).abs() < 5e-4 * want,
+                "{ang}: {}",
+                shine(ang)
+            );
         }
         assert_eq!((shine(0.0), shine(90.0)), (100000.0, 1.0));
     }

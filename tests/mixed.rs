@@ -1,0 +1,89 @@
+//! The mixed-primitive path (spheres, cones, n-gons, patch triangles in one BVH) against the
+//! brute-force reference, for every layout.
+
+use glam::Vec3A;
+use quiver::build::{BuildConfig, Builder};
+use quiver::primitive::{Cone, PatchTriangle, Polygon, Prim, Sphere};
+use quiver::rng::Rng;
+use quiver::{rays, reference, Aabb, Bvh, Layout, Primitive, Triangle};
+use rayon::prelude::*;
+
+/// A seeded jumble of every primitive kind in the unit cube.
+fn jumble(n: usize, seed: u64) -> Vec<Prim> {
+    let mut rng = Rng::new(seed);
+    (0..n)
+        .map(|i| {
+            let c = rng.in_box(Vec3A::ZERO, Vec3A::ONE);
+            let r = rng.range(0.005, 0.05);
+            match i % 5 {
+                0 => Prim::Sphere(Sphere {
+                    center: c,
+                    radius: r,
+                }),
+                1 => Prim::Cone(Cone {
+                    base: c,
+                    base_radius: r,
+                    apex: c + rng.unit_vector() * (3.0 * r),
+                    apex_radius: if i % 2 == 0 { r } else { r * 0.3 },
+                }),
+                2 => {
+                    // A star: concave, 10 vertices, in a random plane.
+                    let (u, v) = {
+                        let n = rng.unit_vector();
+                        let u = n.any_orthonormal_vector();
+                        (u, n.cross(u))
+                    };
+                    let verts = (0..10)
+                        .map(|k| {
+                            let a = k as f32 * std::f32::consts::TAU / 10.0;
+                            let rr = if k % 2 == 0 { r * 2.0 } else { r * 0.8 };
+                            c + (u * a.cos() + v * a.sin()) * rr
+                        })
+                        .collect();
+                    Prim::Polygon(Polygon::new(verts))
+                }
+                3 => {
+                    let mut p = || c + rng.in_box(Vec3A::splat(-r), Vec3A::splat(r)) * 2.0;
+                    let tri = Triangle::new(p(), p(), p());
+                    Prim::Patch(PatchTriangle {
+                        tri,
+                        normals: [Vec3A::X, Vec3A::Y, Vec3A::Z],
+                    })
+                }
+                _ => {
+                    let mut p = || c + rng.in_box(Vec3A::splat(-r), Vec3A::splat(r)) * 2.0;
+                    Prim::Triangle(Triangle::new(p(), p(), p()))
+                }
+            }
+        })
+        .collect()
+}
+
+#[test]
+fn every_layout_matches_the_reference_on_mixed_primitives() {
+    let prims = jumble(5000, 11);
+    let bounds = prims.iter().fold(Aabb::EMPTY, |a, p| a.union(&p.bounds()));
+    let rays = rays::random_rays(&bounds, 30_000, 5);
+    let want: Vec<_> = rays
+        .par_iter()
+        .map(|r| reference::closest_hit(&prims, r))
+        .collect();
+    let hits = want.iter().filter(|h| h.is_some()).count();
+    assert!(hits > rays.len() / 20, "only {hits} hits");
+    for builder in [Builder::Binned, Builder::Sweep] {
+        for layout in Layout::ALL {
+            let (bvh, _) = Bvh::build(&prims, &BuildConfig::default(), builder, layout);
+            rays.par_iter()
+                .zip(&want)
+                .enumerate()
+                .for_each(|(i, (r, w))| {
+                    assert_eq!(bvh.closest_hit(r), *w, "{builder} {layout} ray {i}");
+                    assert_eq!(
+                        bvh.any_hit(r),
+                        w.is_some(),
+                        "{builder} {layout} any ray {i}"
+                    );
+                });
+        }
+    }
+}
