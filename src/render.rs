@@ -237,15 +237,17 @@ impl Tracer<'_> {
         let m = self.scene.materials[self.scene.objects[object as usize].material as usize];
         let p = ray.at(hit.t);
         let d = ray.dir.normalize();
-        let mut n = self.bvh.normal(ray, &hit);
-        if self
-            .config
-            .two_sided
-            .contains(&self.scene.objects[object as usize].material)
-            && n.dot(d) > 0.0
-        {
-            n = -n;
-        }
+        // The outward normal decides entering or leaving a transmitter; the shading normal
+        // turns toward the viewer on two-sided surfaces: transmitters (NFF: "objects with
+        // T > 0 are two-sided") and the materials the config lists (the teapot).
+        let outward = self.bvh.normal(ray, &hit);
+        let material = self.scene.objects[object as usize].material;
+        let two_sided = m.t > 0.0 || self.config.two_sided.contains(&material);
+        let n = if two_sided && outward.dot(d) > 0.0 {
+            -outward
+        } else {
+            outward
+        };
         let eps = 1e-4 * (1.0 + p.abs().max_element());
         let mut color = m.color * AMBIENT;
         let intensity = 1.0 / (self.scene.lights.len().max(1) as f32).sqrt();
@@ -267,13 +269,18 @@ impl Tracer<'_> {
             return color;
         }
         // Facing the incoming ray, for reflection and refraction.
-        let (nf, entering) = if n.dot(d) < 0.0 {
-            (n, true)
+        let (nf, entering) = if outward.dot(d) < 0.0 {
+            (outward, true)
         } else {
-            (-n, false)
+            (-outward, false)
         };
         let reflect_dir = d - nf * (2.0 * d.dot(nf));
-        let mut reflect = m.ks > 0.0;
+        // Reflective and transmitting surfaces both spawn reflection rays (SPD rule 8; the
+        // gears' glass has Ks = 0 and still reflects).
+        let reflect = m.ks > 0.0 || m.t > 0.0;
+        // The reflected ray carries Ks, and on total internal reflection also the T the
+        // refracted ray would have carried.
+        let mut reflect_weight = m.ks;
         if m.t > 0.0 {
             let eta = if entering { 1.0 / m.ior } else { m.ior };
             let cos_i = -d.dot(nf);
@@ -284,15 +291,14 @@ impl Tracer<'_> {
                 let r = Ray::new(p - nf * eps, dir);
                 color += self.trace(&r, depth + 1) * m.t;
             } else {
-                // Total internal reflection: the node still spawns a reflection ray.
-                reflect = true;
+                // Total internal reflection: the reflection ray takes the transmitted share.
+                reflect_weight += m.t;
             }
         }
         if reflect {
             self.rays.reflect += 1;
             let r = Ray::new(p + nf * eps, reflect_dir);
-            color +=
-                self.trace(&r, depth + 1) * m.ks.max(if m.t > 0.0 { m.t } else { 0.0 }).min(1.0);
+            color += self.trace(&r, depth + 1) * reflect_weight;
         }
         color
     }

@@ -80,7 +80,7 @@ struct RenderArgs {
 }
 
 /// The scene `quiver render` draws without an argument.
-const DEFAULT_SCENE: &str = "tetra";
+const DEFAULT_SCENE: &str = "teapot12";
 
 #[derive(clap::Args)]
 struct GenArgs {

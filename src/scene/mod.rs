@@ -14,8 +14,8 @@ pub mod nff;
 #[cfg(feature = "obj")]
 mod obj;
 mod soup;
-pub mod tessellate;
 mod spd;
+pub mod tessellate;
 
 pub use camera::Camera;
 
@@ -183,7 +183,8 @@ pub const GENERATORS: &[Generator] = &[
         name: "teapot",
         default_size: 6,
         max_size: 128,
-        about: "SPD teapot: Bezier patches tessellated to 64*size^2-8*size triangles on a checkerboard",
+        about:
+            "SPD teapot: Bezier patches tessellated to 64*size^2-8*size triangles on a checkerboard",
         make: spd::teapot::make,
     },
     Generator {

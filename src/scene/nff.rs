@@ -189,7 +189,9 @@ pub fn parse(text: &str, path: impl AsRef<Path>) -> Result<Scene, SceneError> {
                     ks: tk.number("Ks")?,
                     shine: tk.number("Shine")?,
                     t: tk.number("T")?,
-                    ior: tk.number("index of refraction")?,
+                    // The SPD writes 0 for opaque surfaces; below 1 means vacuum (as the SPD
+                    // library reads it).
+                    ior: tk.number("index of refraction")?.max(1.0),
                 };
                 material = Some(match scene.materials.iter().position(|x| *x == m) {
                     Some(i) => i as u32,

@@ -10,19 +10,13 @@ pub(crate) mod balls;
 pub(crate) mod gears;
 pub(crate) mod jacks;
 pub(crate) mod lattice;
+mod mat;
 pub(crate) mod mount;
 pub(crate) mod rings;
 pub(crate) mod sombrero;
 pub(crate) mod teapot;
 pub(crate) mod tetra;
 pub(crate) mod tree;
-
-/// Stand-in while a generator is being written: an empty scene.
-pub(crate) fn placeholder(name: &str, size: u32) -> Scene {
-    let mut spd = Spd::new(format!("{name}{size}"), SKY);
-    spd.material([1.0; 3], 1.0, 0.0, 0.0, 0.0, 1.0);
-    spd.finish()
-}
 
 use super::{Camera, Light, Material, Object, Scene, Shape};
 use crate::primitive::{Cone, Sphere};
