@@ -15,7 +15,7 @@
 use crate::build::{BuildConfig, BuildTree, Builder};
 use crate::geometry::{Hit, Ray, TriHit, Triangle};
 use crate::layout::{Bvh, Layout};
-use crate::primitive::Prim;
+use crate::primitive::{PatchTriangle, Prim};
 use crate::scene::Scene;
 use crate::traverse::Counters;
 use glam::Vec3A;
@@ -30,14 +30,15 @@ pub struct SceneBvh {
 
 #[derive(Clone, Debug)]
 enum Kind {
-    Triangles(Bvh<Triangle>, Vec<Triangle>),
+    /// Triangles and, where they came from patches, their vertex normals.
+    Triangles(Bvh<Triangle>, Vec<Triangle>, Vec<Option<[Vec3A; 3]>>),
     Mixed(Bvh<Prim>, Vec<Prim>),
 }
 
 macro_rules! each {
     ($self:expr, $b:ident => $e:expr) => {
         match &$self.kind {
-            Kind::Triangles($b, _) => $e,
+            Kind::Triangles($b, ..) => $e,
             Kind::Mixed($b, _) => $e,
         }
     };
@@ -53,15 +54,7 @@ impl SceneBvh {
         layout: Layout,
     ) -> (SceneBvh, BuildTree) {
         if scene.is_all_triangles() {
-            let (tris, owner) = scene.triangles_with_owner();
-            let (bvh, tree) = Bvh::build(&tris, config, builder, layout);
-            (
-                SceneBvh {
-                    kind: Kind::Triangles(bvh, tris),
-                    owner,
-                },
-                tree,
-            )
+            Self::build_triangles(scene, config, builder, layout)
         } else {
             let (prims, owner) = scene.prims();
             let (bvh, tree) = Bvh::build(&prims, config, builder, layout);
@@ -73,6 +66,25 @@ impl SceneBvh {
                 tree,
             )
         }
+    }
+
+    /// Builds over triangles only (patch mode): polygons triangulated, patches kept as
+    /// triangles with their vertex normals for smooth shading, spheres and cones tessellated.
+    pub fn build_triangles(
+        scene: &Scene,
+        config: &BuildConfig,
+        builder: Builder,
+        layout: Layout,
+    ) -> (SceneBvh, BuildTree) {
+        let (tris, owner, normals) = scene.triangles_with_normals();
+        let (bvh, tree) = Bvh::build(&tris, config, builder, layout);
+        (
+            SceneBvh {
+                kind: Kind::Triangles(bvh, tris, normals),
+                owner,
+            },
+            tree,
+        )
     }
 
     /// Primitives in the BVH.
@@ -98,7 +110,13 @@ impl SceneBvh {
             v: hit.v,
         };
         match &self.kind {
-            Kind::Triangles(_, tris) => Prim::Triangle(tris[hit.prim as usize]).normal(ray, &th),
+            Kind::Triangles(_, tris, normals) => {
+                let tri = tris[hit.prim as usize];
+                match normals[hit.prim as usize] {
+                    Some(normals) => Prim::Patch(PatchTriangle { tri, normals }).normal(ray, &th),
+                    None => Prim::Triangle(tri).normal(ray, &th),
+                }
+            }
             Kind::Mixed(_, prims) => prims[hit.prim as usize].normal(ray, &th),
         }
     }

@@ -115,6 +115,9 @@ struct BuildArgs {
     /// Memory layout of the nodes.
     #[arg(long, default_value = "bvh2-dfs", value_parser = parse_layout, long_help = layout_help())]
     layout: Layout,
+    /// Tessellate spheres and cones (the SPD's patch mode).
+    #[arg(long)]
+    patches: bool,
     /// Worker threads (default: all cores).
     #[arg(long, value_parser = clap::value_parser!(u16).range(1..=1024))]
     threads: Option<u16>,
@@ -225,10 +228,19 @@ fn cmd_build(args: BuildArgs) -> Result<()> {
         BuilderArg::Binned => Builder::Binned,
         BuilderArg::Sweep => Builder::Sweep,
     };
-    let scene = Scene::load(&args.scene)?;
+    let mut scene = Scene::load(&args.scene)?;
+    if args.patches {
+        scene = scene.into_patches(quiver::scene::tessellate::DEFAULT_RESOLUTION);
+    }
     let pool = pool(args.threads)?;
     let start = Instant::now();
-    let (bvh, tree) = pool.install(|| SceneBvh::build(&scene, &config, builder, args.layout));
+    let (bvh, tree) = pool.install(|| {
+        if args.patches {
+            SceneBvh::build_triangles(&scene, &config, builder, args.layout)
+        } else {
+            SceneBvh::build(&scene, &config, builder, args.layout)
+        }
+    });
     let build_ms = start.elapsed().as_secs_f64() * 1e3;
     let stats = tree.stats();
     let prims = bvh.primitives().max(1) as f64;

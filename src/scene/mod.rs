@@ -363,8 +363,8 @@ impl Scene {
         (prims, owner)
     }
 
-    /// Every object as flat triangles: polygons and patches triangulated (concave polygons
-    /// by ear clipping), spheres and cones tessellated as the SPD's patch mode does at its
+    /// Every object as triangles: polygons triangulated (concave ones by ear clipping),
+    /// patches as fans, spheres and cones tessellated as the SPD's patch mode does at its
     /// default resolution. The all-triangle fast path's input.
     pub fn triangles(&self) -> Vec<Triangle> {
         self.triangles_with_owner().0
@@ -372,13 +372,21 @@ impl Scene {
 
     /// [`Scene::triangles`] and, for each triangle, the index of its object.
     pub fn triangles_with_owner(&self) -> (Vec<Triangle>, Vec<u32>) {
+        let (tris, owner, _) = self.triangles_with_normals();
+        (tris, owner)
+    }
+
+    /// [`Scene::triangles_with_owner`] plus, per triangle, the vertex normals of triangles cut
+    /// from patches (or from spheres and cones), `None` for flat ones.
+    pub fn triangles_with_normals(&self) -> (Vec<Triangle>, Vec<u32>, Vec<Option<[Vec3A; 3]>>) {
         let mut out = Vec::with_capacity(self.objects.len());
         let mut owner = Vec::with_capacity(self.objects.len());
+        let mut normals = Vec::with_capacity(self.objects.len());
         for (i, o) in self.objects.iter().enumerate() {
-            tessellate::shape_triangles(&o.shape, &mut out);
+            tessellate::shape_triangles(&o.shape, &mut out, &mut normals);
             owner.resize(out.len(), i as u32);
         }
-        (out, owner)
+        (out, owner, normals)
     }
 
     /// The scene in the SPD's patch mode: every sphere and cone replaced by the polygonal

@@ -231,7 +231,9 @@ pub fn parse(text: &str, path: impl AsRef<Path>) -> Result<Scene, SceneError> {
             }
             "p" | "pp" => {
                 let n = tk.count("vertex count", 3)?;
-                let mut verts = Vec::with_capacity(n);
+                // A count larger than the rest of the file is an error found below; do not let
+                // it reserve memory first.
+                let mut verts = Vec::with_capacity(n.min(tk.items.len() - tk.at));
                 let mut normals = Vec::new();
                 for _ in 0..n {
                     verts.push(tk.vec3("vertex")?);

@@ -6,22 +6,45 @@ use crate::geometry::Triangle;
 use crate::primitive::{Cone, Polygon, Sphere};
 use glam::{DVec3, Vec3A};
 
-/// Appends the triangles of one shape to `out`.
-pub fn shape_triangles(shape: &Shape, out: &mut Vec<Triangle>) {
+/// Appends the triangles of one shape to `out`, and to `normals` the vertex normals of each
+/// (patches, and spheres and cones through their SPD tessellation, at `DEFAULT_RESOLUTION`)
+/// or `None` (flat polygons).
+pub fn shape_triangles(
+    shape: &Shape,
+    out: &mut Vec<Triangle>,
+    normals: &mut Vec<Option<[Vec3A; 3]>>,
+) {
+    let start = out.len();
     match shape {
         Shape::Triangle(t) => out.push(*t),
         Shape::Polygon(v) => polygon_triangles(v, out),
-        Shape::Patch { verts, .. } => polygon_triangles(verts, out),
+        Shape::Patch { verts, normals: n } => return patch_fan(verts, n, out, normals),
         Shape::Sphere(s) => {
-            for (verts, _) in sphere_patches(s, DEFAULT_RESOLUTION) {
-                polygon_triangles(&verts, out);
+            for (verts, n) in sphere_patches(s, DEFAULT_RESOLUTION) {
+                patch_fan(&verts, &n, out, normals);
             }
+            return;
         }
         Shape::Cone(c) => {
-            for (verts, _) in cone_patches(c, DEFAULT_RESOLUTION) {
-                polygon_triangles(&verts, out);
+            for (verts, n) in cone_patches(c, DEFAULT_RESOLUTION) {
+                patch_fan(&verts, &n, out, normals);
             }
+            return;
         }
+    }
+    normals.resize(normals.len() + out.len() - start, None);
+}
+
+/// A patch (the SPD's are triangles) as a fan, keeping each vertex's normal.
+fn patch_fan(
+    verts: &[Vec3A],
+    n: &[Vec3A],
+    out: &mut Vec<Triangle>,
+    normals: &mut Vec<Option<[Vec3A; 3]>>,
+) {
+    for k in 1..verts.len().saturating_sub(1) {
+        out.push(Triangle::new(verts[0], verts[k], verts[k + 1]));
+        normals.push(Some([n[0], n[k], n[k + 1]]));
     }
 }
 
