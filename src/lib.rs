@@ -19,6 +19,7 @@
 pub mod accel;
 pub mod build;
 pub mod geometry;
+pub mod intersect;
 pub mod layout;
 pub mod measure;
 pub mod primitive;

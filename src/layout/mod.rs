@@ -18,7 +18,7 @@ pub use bvh4::{Bvh4, Bvh4Mapping, Bvh4Node, QBvh4, QBvh4Node};
 
 use crate::build::{build, BuildConfig, BuildTree, Builder};
 use crate::geometry::{Hit, Primitive, Ray, Triangle};
-use crate::traverse::Counters;
+use crate::traverse::{BoxTest, Counters, Stats};
 use std::fmt;
 use std::str::FromStr;
 
@@ -208,6 +208,24 @@ impl<P: Primitive> Bvh<P> {
             Bvh::Bvh2(b) => b.closest_hit_counted(ray, c),
             Bvh::Bvh4(b) => b.closest_hit_counted(ray, c),
             Bvh::QBvh4(b) => b.closest_hit_counted(ray, c),
+        }
+    }
+
+    /// Closest hit with a chosen box test and statistics sink.
+    pub fn closest_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> Option<Hit> {
+        match self {
+            Bvh::Bvh2(b) => b.closest_hit_with::<B, S>(ray, stats),
+            Bvh::Bvh4(b) => b.closest_hit_with::<B, S>(ray, stats),
+            Bvh::QBvh4(b) => b.closest_hit_with::<B, S>(ray, stats),
+        }
+    }
+
+    /// Any hit with a chosen box test and statistics sink.
+    pub fn any_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> bool {
+        match self {
+            Bvh::Bvh2(b) => b.any_hit_with::<B, S>(ray, stats),
+            Bvh::Bvh4(b) => b.any_hit_with::<B, S>(ray, stats),
+            Bvh::QBvh4(b) => b.any_hit_with::<B, S>(ray, stats),
         }
     }
 

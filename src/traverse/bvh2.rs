@@ -1,7 +1,7 @@
 //! Single-ray traversal of a [`Bvh2`] in any of its memory mappings.
 
 use super::stats::{Counters, NoStats, Stats};
-use super::{leaf_any_hit, leaf_closest_hit, SlabRay, Stack, FAR_SLACK};
+use super::{leaf_any_hit, leaf_closest_hit, BoxTest, ConservativeBoxes, SlabRay, Stack};
 use crate::build::MAX_DEPTH;
 use crate::geometry::{Hit, Primitive, Ray};
 use crate::layout::bvh2::{compact_children, Addressing};
@@ -51,28 +51,28 @@ impl<P: Primitive> Bvh2<P> {
     /// The nearest hit along `ray` (lowest primitive index on ties): exactly what
     /// [`crate::reference::closest_hit`] returns for the same triangles.
     pub fn closest_hit(&self, ray: &Ray) -> Option<Hit> {
-        self.closest_hit_with(ray, &mut NoStats)
+        self.closest_hit_with::<ConservativeBoxes, _>(ray, &mut NoStats)
     }
 
     /// [`Bvh2::closest_hit`], adding what the traversal did to `counters`.
     pub fn closest_hit_counted(&self, ray: &Ray, counters: &mut Counters) -> Option<Hit> {
-        self.closest_hit_with(ray, counters)
+        self.closest_hit_with::<ConservativeBoxes, _>(ray, counters)
     }
 
     /// True when anything is hit within the ray's interval; stops at the first hit.
     pub fn any_hit(&self, ray: &Ray) -> bool {
-        self.any_hit_with(ray, &mut NoStats)
+        self.any_hit_with::<ConservativeBoxes, _>(ray, &mut NoStats)
     }
 
     /// [`Bvh2::any_hit`], adding what the traversal did to `counters`.
     pub fn any_hit_counted(&self, ray: &Ray, counters: &mut Counters) -> bool {
-        self.any_hit_with(ray, counters)
+        self.any_hit_with::<ConservativeBoxes, _>(ray, counters)
     }
 
-    /// Closest hit with any statistics sink.
-    pub fn closest_hit_with<S: Stats>(&self, ray: &Ray, stats: &mut S) -> Option<Hit> {
+    /// Closest hit with any box test and statistics sink.
+    pub fn closest_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> Option<Hit> {
         let mut best = Hit::none(ray.t_max);
-        self.traverse(ray, stats, |range, limit, stats| {
+        self.traverse::<B, S, _>(ray, stats, |range, limit, stats| {
             leaf_closest_hit(
                 &self.prims[range.clone()],
                 &self.prim_ids[range],
@@ -86,10 +86,10 @@ impl<P: Primitive> Bvh2<P> {
         best.found()
     }
 
-    /// Any hit with any statistics sink.
-    pub fn any_hit_with<S: Stats>(&self, ray: &Ray, stats: &mut S) -> bool {
+    /// Any hit with any box test and statistics sink.
+    pub fn any_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> bool {
         let mut hit = false;
-        self.traverse(ray, stats, |range, _, stats| {
+        self.traverse::<B, S, _>(ray, stats, |range, _, stats| {
             hit = leaf_any_hit(&self.prims[range], ray, stats);
             hit
         });
@@ -97,15 +97,16 @@ impl<P: Primitive> Bvh2<P> {
     }
 
     #[inline(always)]
-    fn traverse<S, F>(&self, ray: &Ray, stats: &mut S, leaf: F)
+    fn traverse<B, S, F>(&self, ray: &Ray, stats: &mut S, leaf: F)
     where
+        B: BoxTest,
         S: Stats,
         F: FnMut(Range<usize>, &mut f32, &mut S) -> bool,
     {
         match self.mapping.addressing() {
-            Addressing::DepthFirst => walk::<DepthFirst, S, F>(&self.nodes, ray, stats, leaf),
-            Addressing::Explicit => walk::<Explicit, S, F>(&self.nodes, ray, stats, leaf),
-            Addressing::Compact => walk::<Compact, S, F>(&self.nodes, ray, stats, leaf),
+            Addressing::DepthFirst => walk::<DepthFirst, B, S, F>(&self.nodes, ray, stats, leaf),
+            Addressing::Explicit => walk::<Explicit, B, S, F>(&self.nodes, ray, stats, leaf),
+            Addressing::Compact => walk::<Compact, B, S, F>(&self.nodes, ray, stats, leaf),
         }
     }
 }
@@ -114,9 +115,10 @@ impl<P: Primitive> Bvh2<P> {
 /// tests a leaf, may lower `t_limit` (boxes entered beyond it are skipped; a box entered
 /// exactly at it is still visited, so ties are seen) and returns true to stop.
 #[inline(always)]
-fn walk<C, S, F>(nodes: &[Bvh2Node], ray: &Ray, stats: &mut S, mut leaf: F)
+fn walk<C, B, S, F>(nodes: &[Bvh2Node], ray: &Ray, stats: &mut S, mut leaf: F)
 where
     C: Children,
+    B: BoxTest,
     S: Stats,
     F: FnMut(Range<usize>, &mut f32, &mut S) -> bool,
 {
@@ -125,7 +127,7 @@ where
     let mut stack: Stack<(u32, f32), { MAX_DEPTH + 1 }> = Stack::new();
     let mut node = 0usize;
     stats.boxes(1);
-    if sr.enter(planes(&nodes[0]), limit).is_none() {
+    if sr.enter::<B>(planes(&nodes[0]), limit).is_none() {
         return;
     }
     loop {
@@ -139,10 +141,10 @@ where
             }
         } else {
             let (l, r) = C::of(node, n);
-            let bound = limit * FAR_SLACK;
+            let bound = limit * B::SLACK;
             stats.boxes(2);
-            let tl = sr.enter(planes(&nodes[l]), bound);
-            let tr = sr.enter(planes(&nodes[r]), bound);
+            let tl = sr.enter::<B>(planes(&nodes[l]), bound);
+            let tr = sr.enter::<B>(planes(&nodes[r]), bound);
             match (tl, tr) {
                 (Some(a), Some(b)) => {
                     let (near, far, t_far) = if a <= b { (l, r, b) } else { (r, l, a) };
@@ -164,7 +166,7 @@ where
         // Pop the next box still worth entering.
         loop {
             let Some((i, t)) = stack.pop() else { return };
-            if t <= limit * FAR_SLACK {
+            if t <= limit * B::SLACK {
                 node = i as usize;
                 break;
             }

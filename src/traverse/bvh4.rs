@@ -2,7 +2,7 @@
 //! with `wide::f32x4`, hit children are visited nearest first, any-hit exits at the first hit.
 
 use super::stats::{Counters, NoStats, Stats};
-use super::{leaf_any_hit, leaf_closest_hit, Stack, FAR_SLACK};
+use super::{leaf_any_hit, leaf_closest_hit, BoxTest, ConservativeBoxes, Stack};
 use crate::build::MAX_DEPTH;
 use crate::geometry::Primitive;
 use crate::geometry::{Hit, Ray};
@@ -108,14 +108,14 @@ impl Ray4 {
     /// Entry distances of the four boxes and the mask of those entered within
     /// `[t_min, t_max]` (boundaries included).
     #[inline(always)]
-    fn enter(&self, p: &[f32x4; 6], t_max: f32) -> ([f32; 4], u32) {
+    fn enter<B: BoxTest>(&self, p: &[f32x4; 6], t_max: f32) -> ([f32; 4], u32) {
         let mut near = self.t_min;
         let mut far = f32x4::splat(t_max);
         for a in 0..3 {
             let tn = (p[self.near[a]] - self.origin[a]) * self.inv[a];
             let tf = (p[self.far[a]] - self.origin[a]) * self.inv[a];
             near = max_nan_first(tn, near);
-            far = min_nan_first(tf * f32x4::splat(FAR_SLACK), far);
+            far = min_nan_first(tf * f32x4::splat(B::SLACK), far);
         }
         (near.to_array(), near.simd_le(far).to_bitmask())
     }
@@ -126,9 +126,10 @@ type Entry = (u32, u32, f32);
 
 /// The 4-wide walk, shared by both node formats. See `Bvh2`'s walk for the `leaf` contract.
 #[inline(always)]
-fn walk<N, S, F>(nodes: &[N], ray: &Ray, stats: &mut S, mut leaf: F)
+fn walk<N, B, S, F>(nodes: &[N], ray: &Ray, stats: &mut S, mut leaf: F)
 where
     N: WideNode,
+    B: BoxTest,
     S: Stats,
     F: FnMut(std::ops::Range<usize>, &mut f32, &mut S) -> bool,
 {
@@ -141,7 +142,7 @@ where
         let n = &nodes[node];
         stats.node();
         stats.boxes(4);
-        let (t, mut mask) = r4.enter(&n.planes(), limit * FAR_SLACK);
+        let (t, mut mask) = r4.enter::<B>(&n.planes(), limit * B::SLACK);
         // Push hit children farthest first, so the nearest is popped next.
         let mut hits: [(f32, usize); 4] = [(0.0, 0); 4];
         let mut k = 0;
@@ -165,7 +166,7 @@ where
             let Some((c, count, ti)) = stack.pop() else {
                 return;
             };
-            if ti > limit * FAR_SLACK {
+            if ti > limit * B::SLACK {
                 continue;
             }
             if count == 0 {
@@ -183,7 +184,7 @@ where
 
 /// Closest-hit and any-hit over one 4-wide node format.
 #[inline(always)]
-fn closest<N: WideNode, P: Primitive, S: Stats>(
+fn closest<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
     nodes: &[N],
     tris: &[P],
     ids: &[u32],
@@ -191,7 +192,7 @@ fn closest<N: WideNode, P: Primitive, S: Stats>(
     stats: &mut S,
 ) -> Option<Hit> {
     let mut best = Hit::none(ray.t_max);
-    walk(nodes, ray, stats, |range, limit, stats| {
+    walk::<N, B, S, _>(nodes, ray, stats, |range, limit, stats| {
         leaf_closest_hit(&tris[range.clone()], &ids[range], ray, &mut best, stats);
         *limit = best.t;
         false
@@ -200,14 +201,14 @@ fn closest<N: WideNode, P: Primitive, S: Stats>(
 }
 
 #[inline(always)]
-fn any<N: WideNode, P: Primitive, S: Stats>(
+fn any<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
     nodes: &[N],
     tris: &[P],
     ray: &Ray,
     stats: &mut S,
 ) -> bool {
     let mut hit = false;
-    walk(nodes, ray, stats, |range, _, stats| {
+    walk::<N, B, S, _>(nodes, ray, stats, |range, _, stats| {
         hit = leaf_any_hit(&tris[range], ray, stats);
         hit
     });
@@ -220,22 +221,48 @@ macro_rules! wide_queries {
             /// The nearest hit along `ray` (lowest primitive index on ties): exactly what
             /// [`crate::reference::closest_hit`] returns for the same triangles.
             pub fn closest_hit(&self, ray: &Ray) -> Option<Hit> {
-                closest(&self.nodes, &self.prims, &self.prim_ids, ray, &mut NoStats)
+                closest::<_, ConservativeBoxes, _, _>(
+                    &self.nodes,
+                    &self.prims,
+                    &self.prim_ids,
+                    ray,
+                    &mut NoStats,
+                )
             }
 
             /// Closest hit, adding what the traversal did to `counters`.
             pub fn closest_hit_counted(&self, ray: &Ray, counters: &mut Counters) -> Option<Hit> {
-                closest(&self.nodes, &self.prims, &self.prim_ids, ray, counters)
+                closest::<_, ConservativeBoxes, _, _>(
+                    &self.nodes,
+                    &self.prims,
+                    &self.prim_ids,
+                    ray,
+                    counters,
+                )
             }
 
             /// True when anything is hit within the ray's interval; stops at the first hit.
             pub fn any_hit(&self, ray: &Ray) -> bool {
-                any(&self.nodes, &self.prims, ray, &mut NoStats)
+                any::<_, ConservativeBoxes, _, _>(&self.nodes, &self.prims, ray, &mut NoStats)
             }
 
             /// Any hit, adding what the traversal did to `counters`.
             pub fn any_hit_counted(&self, ray: &Ray, counters: &mut Counters) -> bool {
-                any(&self.nodes, &self.prims, ray, counters)
+                any::<_, ConservativeBoxes, _, _>(&self.nodes, &self.prims, ray, counters)
+            }
+
+            /// Closest hit with any box test and statistics sink.
+            pub fn closest_hit_with<B: BoxTest, S: Stats>(
+                &self,
+                ray: &Ray,
+                stats: &mut S,
+            ) -> Option<Hit> {
+                closest::<_, B, _, _>(&self.nodes, &self.prims, &self.prim_ids, ray, stats)
+            }
+
+            /// Any hit with any box test and statistics sink.
+            pub fn any_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> bool {
+                any::<_, B, _, _>(&self.nodes, &self.prims, ray, stats)
             }
         }
     };

@@ -64,6 +64,35 @@ pub(crate) fn leaf_any_hit<P: Primitive, S: Stats>(tris: &[P], ray: &Ray, stats:
 pub(crate) const FAR_SLACK: f32 = 1.0 + 2.0 * GAMMA3;
 const GAMMA3: f32 = 3.0 * (f32::EPSILON * 0.5) / (1.0 - 3.0 * (f32::EPSILON * 0.5));
 
+/// How ray-box tests treat rounding, chosen at compile time.
+///
+/// ```
+/// use quiver::traverse::{BoxTest, ConservativeBoxes, FastBoxes};
+/// assert_eq!(FastBoxes::SLACK, 1.0);
+/// assert!(ConservativeBoxes::SLACK > 1.0);
+/// ```
+pub trait BoxTest {
+    /// Factor applied to far slab distances (and to the pruning distance).
+    const SLACK: f32;
+}
+
+/// The plain slab test: rounding may cull a box a ray grazes.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct FastBoxes;
+
+impl BoxTest for FastBoxes {
+    const SLACK: f32 = 1.0;
+}
+
+/// Ize's conservative slab test (JCGT 2013): far distances scaled by `1 + 2·gamma(3)`, so no
+/// box the exact test would enter is culled. The default.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct ConservativeBoxes;
+
+impl BoxTest for ConservativeBoxes {
+    const SLACK: f32 = FAR_SLACK;
+}
+
 /// A ray prepared for slab tests: reciprocal direction and, per axis, which box corner is near.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct SlabRay {
@@ -100,14 +129,14 @@ impl SlabRay {
     /// so a NaN must not limit the interval: `f32::max`/`f32::min` return the non-NaN operand,
     /// and the accumulators (`t_min`, `t_max`) are never NaN.
     #[inline(always)]
-    pub fn enter(&self, b: &[f32; 8], t_max: f32) -> Option<f32> {
+    pub fn enter<B: BoxTest>(&self, b: &[f32; 8], t_max: f32) -> Option<f32> {
         let mut near = self.t_min;
         let mut far = t_max;
         for a in 0..3 {
             let tn = (b[self.near[a]] - self.origin[a]) * self.inv_dir[a];
             let tf = (b[self.far[a]] - self.origin[a]) * self.inv_dir[a];
             near = near.max(tn);
-            far = far.min(tf * FAR_SLACK);
+            far = far.min(tf * B::SLACK);
         }
         (near <= far).then_some(near)
     }
