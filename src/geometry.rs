@@ -300,3 +300,32 @@ impl Hit {
         t < self.t || (t == self.t && prim < self.prim)
     }
 }
+
+/// Moves a surface point off the surface along `n` (the side the new ray leaves from) by a few
+/// ulps of its own coordinates: Wächter and Binder, "A Fast and Robust Method for Avoiding
+/// Self-Intersection" (Ray Tracing Gems, ch. 6). Unlike an epsilon it scales with the
+/// coordinates, so it works for scenes far from the origin and tiny ones alike.
+///
+/// ```
+/// use quiver::geometry::offset_ray_origin;
+/// use glam::Vec3A;
+/// let p = Vec3A::new(1e6, 0.0, 1.0);
+/// let q = offset_ray_origin(p, Vec3A::Z);
+/// assert!(q.z > p.z && q.x == p.x);
+/// ```
+pub fn offset_ray_origin(p: Vec3A, n: Vec3A) -> Vec3A {
+    const ORIGIN: f32 = 1.0 / 32.0;
+    const FLOAT_SCALE: f32 = 1.0 / 65536.0;
+    const INT_SCALE: f32 = 256.0;
+    let one = |p: f32, n: f32| {
+        if p.abs() < ORIGIN {
+            // Near zero the ulps are tiny: a fixed small step instead.
+            p + FLOAT_SCALE * n
+        } else {
+            let of = (INT_SCALE * n) as i32;
+            let of = if p < 0.0 { -of } else { of };
+            f32::from_bits((p.to_bits() as i32).wrapping_add(of) as u32)
+        }
+    };
+    Vec3A::new(one(p.x, n.x), one(p.y, n.y), one(p.z, n.z))
+}

@@ -107,9 +107,25 @@ impl Primitive for Watertight {
             v = e(x[0], y[2], y[0], x[2]);
             w = e(x[1], y[0], y[1], x[0]);
         }
+        if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
+            return None;
+        }
+        let det = u + v + w;
+        if det == 0.0 {
+            return None;
+        }
         let z = rel.map(|p| sz * p[kz]);
         let t_scaled = u * z[0] + v * z[1] + w * z[2];
-        finish(u, v, w, t_scaled, ray)
+        let inv = 1.0 / det;
+        let t = t_scaled * inv;
+        if !(t >= ray.t_min && t <= ray.t_max) {
+            return None;
+        }
+        Some(TriHit {
+            t,
+            u: v * inv,
+            v: w * inv,
+        })
     }
 }
 

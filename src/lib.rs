@@ -17,6 +17,7 @@
 //! ```
 
 pub mod accel;
+pub mod accuracy;
 pub mod build;
 pub mod geometry;
 pub mod intersect;

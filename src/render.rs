@@ -21,7 +21,7 @@
 //! ```
 
 use crate::accel::SceneBvh;
-use crate::geometry::Ray;
+use crate::geometry::{offset_ray_origin, Ray};
 use crate::scene::{Material, Scene};
 use crate::traverse::Counters;
 use glam::Vec3A;
@@ -40,6 +40,35 @@ pub struct RenderConfig {
     pub two_sided: Vec<u32>,
     /// Count traversal work (nodes, leaves, tests) and nodes visited per eye ray.
     pub counters: bool,
+    /// How secondary rays leave the surface.
+    pub offset: Offset,
+}
+
+/// How a secondary ray avoids re-hitting the surface it starts on.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Offset {
+    /// Start at the hit point and ignore hits closer than `1e-4 * (1 + max|p|)`: what the
+    /// classical tracers behind the SPD's published counts did, and the default. It skips
+    /// real geometry closer than that (balls: the contacts of touching spheres).
+    #[default]
+    Epsilon,
+    /// Move the origin a few ulps off the surface along the normal (Wächter & Binder): finds
+    /// geometry however close, at any scale.
+    Ulps,
+}
+
+impl Offset {
+    /// A ray leaving point `p` of a surface with normal `side` (pointing to where the ray
+    /// goes) in direction `dir`, up to `t_max`.
+    pub fn ray(self, p: Vec3A, side: Vec3A, dir: Vec3A, t_max: f32) -> Ray {
+        match self {
+            Offset::Epsilon => {
+                let eps = 1e-4 * (1.0 + p.abs().max_element());
+                Ray::segment(p, dir, eps / dir.length(), t_max)
+            }
+            Offset::Ulps => Ray::segment(offset_ray_origin(p, side), dir, 0.0, t_max),
+        }
+    }
 }
 
 impl Default for RenderConfig {
@@ -49,6 +78,7 @@ impl Default for RenderConfig {
             max_depth: 5,
             two_sided: Vec::new(),
             counters: false,
+            offset: Offset::Epsilon,
         }
     }
 }
@@ -248,7 +278,7 @@ impl Tracer<'_> {
         } else {
             outward
         };
-        let eps = 1e-4 * (1.0 + p.abs().max_element());
+        let offset = self.config.offset;
         let mut color = m.color * AMBIENT;
         let intensity = 1.0 / (self.scene.lights.len().max(1) as f32).sqrt();
         for l in &self.scene.lights {
@@ -258,7 +288,8 @@ impl Tracer<'_> {
                 continue;
             }
             self.rays.shadow += 1;
-            let shadow = Ray::segment(p + n * eps, to_light - n * eps, 0.0, 1.0);
+            // Up to just short of the light.
+            let shadow = offset.ray(p, n, to_light, 1.0);
             if self.occluded(&shadow) {
                 self.rays.shadow_blocked += 1;
                 continue;
@@ -288,7 +319,7 @@ impl Tracer<'_> {
             if k >= 0.0 {
                 self.rays.refract += 1;
                 let dir = d * eta + nf * (eta * cos_i - k.sqrt());
-                let r = Ray::new(p - nf * eps, dir);
+                let r = offset.ray(p, -nf, dir, f32::INFINITY);
                 color += self.trace(&r, depth + 1) * m.t;
             } else {
                 // Total internal reflection: the reflection ray takes the transmitted share.
@@ -297,7 +328,7 @@ impl Tracer<'_> {
         }
         if reflect {
             self.rays.reflect += 1;
-            let r = Ray::new(p + nf * eps, reflect_dir);
+            let r = offset.ray(p, nf, reflect_dir, f32::INFINITY);
             color += self.trace(&r, depth + 1) * reflect_weight;
         }
         color

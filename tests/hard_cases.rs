@@ -10,72 +10,8 @@ use quiver::traverse::{ConservativeBoxes, FastBoxes, NoStats};
 use quiver::{reference, Bvh, Layout, Primitive, Ray, Triangle};
 use rayon::prelude::*;
 
-/// An icosahedron subdivided `n` times onto the unit sphere: closed, every edge shared by two
-/// triangles with bit-identical vertices.
 fn icosphere(n: u32) -> Vec<Triangle> {
-    let t = (1.0 + 5f32.sqrt()) / 2.0;
-    let v: Vec<Vec3A> = [
-        [-1.0, t, 0.0],
-        [1.0, t, 0.0],
-        [-1.0, -t, 0.0],
-        [1.0, -t, 0.0],
-        [0.0, -1.0, t],
-        [0.0, 1.0, t],
-        [0.0, -1.0, -t],
-        [0.0, 1.0, -t],
-        [t, 0.0, -1.0],
-        [t, 0.0, 1.0],
-        [-t, 0.0, -1.0],
-        [-t, 0.0, 1.0],
-    ]
-    .iter()
-    .map(|p| Vec3A::from(*p).normalize())
-    .collect();
-    let faces = [
-        [0, 11, 5],
-        [0, 5, 1],
-        [0, 1, 7],
-        [0, 7, 10],
-        [0, 10, 11],
-        [1, 5, 9],
-        [5, 11, 4],
-        [11, 10, 2],
-        [10, 7, 6],
-        [7, 1, 8],
-        [3, 9, 4],
-        [3, 4, 2],
-        [3, 2, 6],
-        [3, 6, 8],
-        [3, 8, 9],
-        [4, 9, 5],
-        [2, 4, 11],
-        [6, 2, 10],
-        [8, 6, 7],
-        [9, 8, 1],
-    ];
-    let mut tris: Vec<[Vec3A; 3]> = faces.iter().map(|f| [v[f[0]], v[f[1]], v[f[2]]]).collect();
-    for _ in 0..n {
-        // Midpoints are computed from the same two endpoints in the same order by both
-        // triangles sharing an edge (min/max ordering), so they are bit-identical.
-        let mid = |a: Vec3A, b: Vec3A| {
-            let (p, q) = if a.to_array() < b.to_array() {
-                (a, b)
-            } else {
-                (b, a)
-            };
-            ((p + q) * 0.5).normalize()
-        };
-        tris = tris
-            .iter()
-            .flat_map(|&[a, b, c]| {
-                let (ab, bc, ca) = (mid(a, b), mid(b, c), mid(c, a));
-                [[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]]
-            })
-            .collect();
-    }
-    tris.into_iter()
-        .map(|[a, b, c]| Triangle::new(a, b, c))
-        .collect()
+    Scene::load(&format!("icosphere{n}")).unwrap().triangles()
 }
 
 /// A unit cube as 12 triangles.

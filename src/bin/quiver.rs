@@ -5,7 +5,7 @@ use clap::{Parser, Subcommand, ValueEnum};
 use quiver::accel::SceneBvh;
 use quiver::build::{BuildConfig, Builder};
 use quiver::measure::{self, Query};
-use quiver::render::{render, RenderConfig};
+use quiver::render::{render, Offset, RenderConfig};
 use quiver::scene::{Scene, GENERATORS};
 use quiver::{rays, Bvh, Layout};
 use serde_json::{json, Value};
@@ -49,6 +49,33 @@ enum Command {
     Gen(GenArgs),
     /// Render a scene by the SPD testing procedure to a PNG and report the rays it traced.
     Render(RenderArgs),
+    /// Measure what accuracy costs: intersector x box test x offset, in time and errors.
+    Accuracy(AccuracyArgs),
+}
+
+#[derive(clap::Args)]
+struct AccuracyArgs {
+    /// Scene (triangulated for the measurement).
+    #[arg(default_value = "teapot12", long_help = scene_help())]
+    scene: String,
+    /// Incoherent rays for throughput, reference mismatches and secondary rays.
+    #[arg(long, default_value_t = 300_000)]
+    rays: usize,
+    /// Timed repetitions (median).
+    #[arg(long, default_value_t = 3)]
+    reps: usize,
+    /// Subdivisions of the icosphere the leak test shoots at (20*4^n triangles).
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(0..=8))]
+    sphere: u32,
+    /// Worker threads (default: all cores).
+    #[arg(long, value_parser = clap::value_parser!(u16).range(1..=1024))]
+    threads: Option<u16>,
+    /// Write the time-against-error plot (SVG) here.
+    #[arg(long, default_value = "accuracy.svg")]
+    plot: PathBuf,
+    /// Write the rows as JSON to this file.
+    #[arg(long)]
+    json: Option<PathBuf>,
 }
 
 #[derive(clap::Args)]
@@ -74,6 +101,10 @@ struct RenderArgs {
     /// Write a false-colour image of nodes visited per eye ray.
     #[arg(long)]
     heatmap: Option<PathBuf>,
+    /// How secondary rays leave a surface: epsilon (a relative t_min, as the tracers behind
+    /// the SPD's counts) or ulps (offset along the normal, Wächter & Binder).
+    #[arg(long, value_enum, default_value = "epsilon")]
+    offset: OffsetArg,
     /// Write the report as JSON to this file.
     #[arg(long)]
     json: Option<PathBuf>,
@@ -96,6 +127,12 @@ struct GenArgs {
     /// Output file (default: stdout).
     #[arg(short, long)]
     output: Option<PathBuf>,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum OffsetArg {
+    Ulps,
+    Epsilon,
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -196,6 +233,7 @@ fn main() -> ExitCode {
         Command::Layouts(args) => cmd_layouts(args),
         Command::Gen(args) => cmd_gen(args),
         Command::Render(args) => cmd_render(args),
+        Command::Accuracy(args) => cmd_accuracy(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -282,6 +320,10 @@ fn cmd_render(args: RenderArgs) -> Result<()> {
     let rconfig = RenderConfig {
         res: args.res,
         two_sided: scene.two_sided_materials(),
+        offset: match args.offset {
+            OffsetArg::Ulps => Offset::Ulps,
+            OffsetArg::Epsilon => Offset::Epsilon,
+        },
         ..RenderConfig::default()
     };
     let rows = args.res as u64 + 1;
@@ -351,6 +393,127 @@ fn cmd_render(args: RenderArgs) -> Result<()> {
     });
     print_table(&report);
     write_json(args.json.as_ref(), &report)
+}
+
+fn cmd_accuracy(args: AccuracyArgs) -> Result<()> {
+    if args.rays == 0 {
+        return Err("--rays must be at least 1".into());
+    }
+    let scene = Scene::load(&args.scene)?;
+    let tris = scene.triangles();
+    let pool = pool(args.threads)?;
+    let bar = indicatif::ProgressBar::new_spinner();
+    bar.set_message(format!("measuring 12 combinations on {}", scene.name));
+    bar.enable_steady_tick(std::time::Duration::from_millis(200));
+    let rows =
+        pool.install(|| quiver::accuracy::evaluate(&tris, args.rays, args.reps, args.sphere));
+    bar.finish_and_clear();
+    outln!(
+        "{:<11} {:<13} {:<8} {:>9} {:>9} {:>12} {:>12} {:>12}",
+        "intersector",
+        "box test",
+        "offset",
+        "Mrays/s",
+        "any M/s",
+        "leaks/M",
+        "self-hits/M",
+        "ref diff/M"
+    );
+    for r in &rows {
+        outln!(
+            "{:<11} {:<13} {:<8} {:>9.2} {:>9.2} {:>12.1} {:>12.1} {:>12.1}",
+            r.intersector,
+            r.box_test,
+            r.offset,
+            r.mrays_per_s,
+            r.any_mrays_per_s,
+            r.leaks_per_million,
+            r.self_hits_per_million,
+            r.ref_mismatch_per_million
+        );
+    }
+    outln!(
+        "({} triangles, {} rays, {} threads; leaks on icosphere{})",
+        tris.len(),
+        args.rays,
+        pool.current_num_threads(),
+        args.sphere
+    );
+    let json_rows: Vec<Value> = rows
+        .iter()
+        .map(|r| {
+            json!({
+                "scene": scene.name,
+                "intersector": r.intersector,
+                "box_test": r.box_test,
+                "offset": r.offset,
+                "mrays_per_s": r.mrays_per_s,
+                "any_mrays_per_s": r.any_mrays_per_s,
+                "leaks_per_million": r.leaks_per_million,
+                "self_hits_per_million": r.self_hits_per_million,
+                "ref_mismatch_per_million": r.ref_mismatch_per_million,
+            })
+        })
+        .collect();
+    std::fs::write(&args.plot, accuracy_svg(&rows, &scene.name))
+        .map_err(|e| format!("cannot write {}: {e}", args.plot.display()))?;
+    write_json(args.json.as_ref(), &Value::Array(json_rows))
+}
+
+/// Time per ray against errors per million (log scale), one labelled point per combination.
+fn accuracy_svg(rows: &[quiver::accuracy::Row], scene: &str) -> String {
+    let (w, h, m) = (760.0, 480.0, 70.0);
+    let ns = |r: &quiver::accuracy::Row| 1e3 / r.mrays_per_s.max(1e-9);
+    let err = |r: &quiver::accuracy::Row| {
+        r.leaks_per_million + r.self_hits_per_million + r.ref_mismatch_per_million
+    };
+    let xmax = rows.iter().map(ns).fold(0.0f64, f64::max) * 1.1;
+    let ymax = rows.iter().map(err).fold(10.0f64, f64::max).log10().ceil();
+    let x = |v: f64| m + v / xmax * (w - 2.0 * m);
+    let y = |v: f64| h - m - (1.0 + v).log10() / ymax * (h - 2.0 * m);
+    let mut s = format!(
+        "<svg xmlns='http://www.w3.org/2000/svg' width='{w}' height='{h}' font-family='sans-serif' font-size='11'>\n\
+         <rect width='100%' height='100%' fill='white'/>\n\
+         <text x='{}' y='20' text-anchor='middle' font-size='14'>What accuracy costs on {scene}: time per closest-hit ray vs errors</text>\n\
+         <line x1='{m}' y1='{}' x2='{}' y2='{}' stroke='black'/><line x1='{m}' y1='{m}' x2='{m}' y2='{}' stroke='black'/>\n\
+         <text x='{}' y='{}' text-anchor='middle'>ns per ray (closest hit, incoherent)</text>\n\
+         <text x='16' y='{}' transform='rotate(-90 16 {})' text-anchor='middle'>leaks + self-hits + reference mismatches per million (log)</text>\n",
+        w / 2.0, h - m, w - m, h - m, h - m, w / 2.0, h - 20.0, h / 2.0, h / 2.0
+    );
+    for k in 0..=ymax as i32 {
+        let v = 10f64.powi(k) - 1.0;
+        s += &format!(
+            "<text x='{}' y='{}' text-anchor='end'>{}</text>\n",
+            m - 6.0,
+            y(v) + 4.0,
+            10f64.powi(k) as u64 - 1
+        );
+    }
+    for k in 0..=4 {
+        let v = xmax * k as f64 / 4.0;
+        s += &format!(
+            "<text x='{}' y='{}' text-anchor='middle'>{v:.0}</text>\n",
+            x(v),
+            h - m + 16.0
+        );
+    }
+    for (i, r) in rows.iter().enumerate() {
+        let color = match r.intersector {
+            "fast" => "#d62728",
+            "watertight" => "#1f77b4",
+            _ => "#2ca02c",
+        };
+        let (px, py) = (x(ns(r)), y(err(r)));
+        s += &format!(
+            "<circle cx='{px:.1}' cy='{py:.1}' r='5' fill='{color}' fill-opacity='0.7'/><text x='{:.1}' y='{:.1}'>{} / {} / {}</text>\n",
+            px + 7.0,
+            py - 4.0 + (i % 2) as f64 * 12.0,
+            r.intersector,
+            r.box_test,
+            r.offset
+        );
+    }
+    s + "</svg>\n"
 }
 
 fn write_png(path: &PathBuf, w: u32, h: u32, rgb: &[[u8; 3]]) -> Result<()> {

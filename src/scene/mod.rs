@@ -202,6 +202,13 @@ pub const GENERATORS: &[Generator] = &[
         make: spd::tree::make,
     },
     Generator {
+        name: "icosphere",
+        default_size: 4,
+        max_size: 9,
+        about: "a closed unit sphere: an icosahedron subdivided size times, 20*4^size triangles",
+        make: soup::icosphere,
+    },
+    Generator {
         name: "soup",
         default_size: 10_000,
         max_size: 50_000_000,
