@@ -19,6 +19,7 @@
 pub mod accel;
 pub mod accuracy;
 pub mod build;
+pub mod checks;
 pub mod geometry;
 pub mod intersect;
 pub mod layout;

@@ -395,3 +395,19 @@ fn far_from_origin_and_tiny_scenes() {
         println!("offset {offset} scale {scale}: {plain} rays where plain boxes lose a hit");
     }
 }
+
+/// A direction component too small for its reciprocal (subnormal): the box it must still enter
+/// lies a finite distance along that axis. Found by fuzzing.
+#[test]
+fn subnormal_direction_components() {
+    let tris = [Triangle::new(
+        Vec3A::new(1.0, 1e-45, -1.0),
+        Vec3A::new(1.0, 1e-45, 1.0),
+        Vec3A::new(1.0, 1.0, 0.0),
+    )];
+    let ray = Ray::new(Vec3A::ZERO, Vec3A::new(1.0, 1e-40, 0.0));
+    assert_eq!(reference::closest_hit(&tris, &ray).map(|h| h.t), Some(1.0));
+    for got in all_layout_hits(&tris, &ray) {
+        assert_eq!(got, Some(1.0));
+    }
+}

@@ -47,7 +47,13 @@ impl Camera {
         let dir = Vec3A::new(0.6, 0.45, 1.0).normalize();
         // 45° full angle: the bounding sphere fits when the distance is r / sin(22.5°).
         let dist = r / (22.5f32).to_radians().sin();
-        Camera::new(c + dir * dist, c, Vec3A::Y, 45.0)
+        let cam = Camera::new(c + dir * dist, c, Vec3A::Y, 45.0);
+        if cam.from.is_finite() && cam.at.is_finite() && cam.from != cam.at {
+            cam
+        } else {
+            // Bounds too large (or too small) to frame in f32: a fixed view of the origin.
+            Camera::new(Vec3A::new(0.0, 0.0, 10.0), Vec3A::ZERO, Vec3A::Y, 45.0)
+        }
     }
 
     /// The eye ray through image-plane point `(sx, sy)`, both in `[-1, 1]`: `(-1, 1)` is the

@@ -2,7 +2,7 @@
 //! with `wide::f32x4`, hit children are visited nearest first, any-hit exits at the first hit.
 
 use super::stats::{Counters, NoStats, Stats};
-use super::{leaf_any_hit, leaf_closest_hit, BoxTest, ConservativeBoxes, Stack};
+use super::{leaf_any_hit, leaf_closest_hit, slab_reciprocal, BoxTest, ConservativeBoxes, Stack};
 use crate::build::MAX_DEPTH;
 use crate::geometry::Primitive;
 use crate::geometry::{Hit, Ray};
@@ -94,7 +94,7 @@ struct Ray4 {
 impl Ray4 {
     #[inline(always)]
     fn new(ray: &Ray) -> Self {
-        let inv = ray.dir.recip();
+        let inv = slab_reciprocal(ray.dir);
         let neg = [inv.x, inv.y, inv.z].map(|x| x.is_sign_negative() as usize);
         Ray4 {
             origin: [ray.origin.x, ray.origin.y, ray.origin.z].map(f32x4::splat),

@@ -93,6 +93,17 @@ impl BoxTest for ConservativeBoxes {
     const SLACK: f32 = FAR_SLACK;
 }
 
+/// Per-axis reciprocals for slab tests. A subnormal component's reciprocal overflows to ±inf,
+/// which would make the ray look parallel to that axis and cull boxes it does enter at a huge
+/// but finite distance; it becomes NaN instead, which the slab tests ignore (that axis then
+/// never limits the interval: conservative). Found by fuzzing.
+#[inline(always)]
+pub(crate) fn slab_reciprocal(d: glam::Vec3A) -> glam::Vec3A {
+    let subnormal =
+        d.abs().cmplt(glam::Vec3A::splat(f32::MIN_POSITIVE)) & d.cmpne(glam::Vec3A::ZERO);
+    glam::Vec3A::select(subnormal, glam::Vec3A::NAN, d.recip())
+}
+
 /// A ray prepared for slab tests: reciprocal direction and, per axis, which box corner is near.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct SlabRay {
@@ -108,7 +119,7 @@ pub(crate) struct SlabRay {
 impl SlabRay {
     #[inline(always)]
     pub fn new(ray: &Ray) -> Self {
-        let inv = ray.dir.recip();
+        let inv = slab_reciprocal(ray.dir);
         // The sign of the reciprocal decides: -0.0 gives -inf, a negative direction.
         let neg = |x: f32| x.is_sign_negative() as usize;
         let n = [neg(inv.x), neg(inv.y), neg(inv.z)];

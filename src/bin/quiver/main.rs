@@ -14,12 +14,16 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
 
+mod bench;
+
 /// `println!` that stops quietly when stdout is gone (`quiver ... | head`) instead of panicking.
 macro_rules! outln {
     ($($t:tt)*) => {{
+        use std::io::Write as _;
         let _ = writeln!(std::io::stdout(), $($t)*);
     }};
 }
+pub(crate) use outln;
 
 /// `print!` with the same rule as [`outln!`].
 macro_rules! out {
@@ -51,6 +55,8 @@ enum Command {
     Render(RenderArgs),
     /// Measure what accuracy costs: intersector x box test x offset, in time and errors.
     Accuracy(AccuracyArgs),
+    /// quiver and obvhs side by side: builds, SAH cost, eye/shadow/incoherent Mrays/s.
+    Bench(bench::BenchArgs),
 }
 
 #[derive(clap::Args)]
@@ -234,6 +240,7 @@ fn main() -> ExitCode {
         Command::Gen(args) => cmd_gen(args),
         Command::Render(args) => cmd_render(args),
         Command::Accuracy(args) => cmd_accuracy(args),
+        Command::Bench(args) => bench::cmd_bench(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -244,9 +251,9 @@ fn main() -> ExitCode {
     }
 }
 
-type Result<T> = std::result::Result<T, Box<dyn std::error::Error>>;
+pub(crate) type Result<T> = std::result::Result<T, Box<dyn std::error::Error>>;
 
-fn pool(threads: Option<u16>) -> Result<rayon::ThreadPool> {
+pub(crate) fn pool(threads: Option<u16>) -> Result<rayon::ThreadPool> {
     let mut b = rayon::ThreadPoolBuilder::new();
     if let Some(n) = threads {
         b = b.num_threads(n as usize);
@@ -609,7 +616,7 @@ fn print_table(report: &Value) {
     }
 }
 
-fn write_json(path: Option<&PathBuf>, report: &Value) -> Result<()> {
+pub(crate) fn write_json(path: Option<&PathBuf>, report: &Value) -> Result<()> {
     if let Some(p) = path {
         let text = serde_json::to_string_pretty(report)?;
         std::fs::write(p, text + "\n").map_err(|e| format!("cannot write {}: {e}", p.display()))?;
