@@ -411,3 +411,23 @@ fn subnormal_direction_components() {
         assert_eq!(got, Some(1.0));
     }
 }
+
+/// Every direction component subnormal: no slab limits the ray, so every box — including the
+/// unused slots of 4-wide nodes — counts as entered; the answer must still be brute force's.
+/// Found by fuzzing (it walked into an unused slot as if it were the root).
+#[test]
+fn all_subnormal_direction() {
+    let tris = Scene::load("tetra3").unwrap().triangles();
+    for d in [
+        Vec3A::new(1e-40, 2e-41, -3e-42),
+        Vec3A::new(-1e-39, 0.0, 1e-45),
+    ] {
+        let ray = Ray::new(Vec3A::new(0.1, 0.2, -3.0), d);
+        let want = reference::closest_hit(&tris, &ray);
+        for layout in Layout::ALL {
+            let (bvh, _) = Bvh::build(&tris, &BuildConfig::default(), Builder::Binned, layout);
+            assert_eq!(bvh.closest_hit(&ray), want, "{layout}");
+            assert_eq!(bvh.any_hit(&ray), want.is_some(), "{layout}");
+        }
+    }
+}

@@ -239,7 +239,8 @@ impl<P: Primitive> Bvh4<P> {
 /// outward and is checked in the same f32 arithmetic the traversal uses, so a decoded box
 /// always contains the exact one: traversal may enter more boxes, never fewer. Child `i`:
 /// `count[i] == 0` is an inner child at node `child[i]`, otherwise a leaf of `count[i]`
-/// triangles from `child[i]`. Unused slots decode to an inverted box no ray enters.
+/// triangles from `child[i]`. Unused slots decode to an inverted box no ray enters, and carry
+/// `child[i] == u32::MAX`.
 #[repr(C, align(64))]
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 pub struct QBvh4Node {
@@ -279,6 +280,7 @@ impl QBvh4Node {
         if frame.is_empty() {
             for i in 0..4 {
                 (n.q[0][i], n.q[3][i]) = (255, 0);
+                n.child[i] = u32::MAX;
             }
             return n;
         }
@@ -297,6 +299,7 @@ impl QBvh4Node {
                 for a in 0..3 {
                     (n.q[a][i], n.q[3 + a][i]) = (255, 0);
                 }
+                n.child[i] = u32::MAX;
                 continue;
             }
             for a in 0..3 {

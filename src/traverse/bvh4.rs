@@ -14,7 +14,9 @@ use wide::f32x4;
 trait WideNode {
     /// Child boxes as `[min_x, min_y, min_z, max_x, max_y, max_z]` rows.
     fn planes(&self) -> [f32x4; 6];
-    /// Child `i` as (node index or first triangle, leaf triangle count; 0 = inner).
+    /// Child `i` as (node index or first primitive, `LEAF | count` for a leaf, 0 for an inner
+    /// node). Unused slots are empty leaves: a ray whose every slab distance is NaN (all
+    /// direction components subnormal) "enters" every box, so they must be harmless.
     fn child(&self, i: usize) -> (u32, u32);
 }
 
@@ -25,7 +27,7 @@ impl WideNode for Bvh4Node {
     }
     #[inline(always)]
     fn child(&self, i: usize) -> (u32, u32) {
-        (self.child[i], self.count[i] & !Bvh4Node::LEAF)
+        (self.child[i], self.count[i])
     }
 }
 
@@ -49,7 +51,12 @@ impl WideNode for QBvh4Node {
     }
     #[inline(always)]
     fn child(&self, i: usize) -> (u32, u32) {
-        (self.child[i], self.count[i] as u32)
+        match self.count[i] {
+            // Inner, unless this is an unused slot (marked by an impossible node index).
+            0 if self.child[i] == u32::MAX => (0, Bvh4Node::LEAF),
+            0 => (self.child[i], 0),
+            n => (self.child[i], Bvh4Node::LEAF | n as u32),
+        }
     }
 }
 
@@ -169,10 +176,11 @@ where
             if ti > limit * B::SLACK {
                 continue;
             }
-            if count == 0 {
+            if count & Bvh4Node::LEAF == 0 {
                 node = c as usize;
                 break;
             }
+            let count = count & !Bvh4Node::LEAF;
             stats.node();
             stats.leaf();
             if leaf(c as usize..(c + count) as usize, &mut limit, stats) {
