@@ -113,12 +113,16 @@ fn same_or_tie(got: Option<crate::Hit>, want: Option<crate::Hit>) -> bool {
 /// (coordinates spanning 1e-40..1e30 in one triangle). The BVH's boxes are right about such a
 /// "hit" and may legitimately skip it, so the two answers are not compared.
 fn outside_own_box(tri: &Triangle, ray: &Ray, t: f32) -> bool {
-    let p = ray.at(t);
+    // In f64: in f32 the point's coordinates can underflow onto the box face (a ray leaving a
+    // box face at t = 0 with a 1e-33 direction component is still "on" it at t = 1e-24).
+    let d = |v: Vec3A| glam::DVec3::new(v.x as f64, v.y as f64, v.z as f64);
+    let (o, dir) = (d(ray.origin), d(ray.dir));
+    let p = o + dir * t as f64;
     let b = tri.bounds();
     // Per axis, the rounding of `origin + t * dir` in that coordinate (not of the triangle's
     // far-away corners): a ray running parallel to an axis keeps its coordinate exactly.
-    let slack = (ray.origin.abs() + (ray.dir * t).abs()) * 1e-5;
-    !((p.cmpge(b.min - slack) & p.cmple(b.max + slack)).all())
+    let slack = (o.abs() + (dir * t as f64).abs()) * 1e-5;
+    !((p.cmpge(d(b.min) - slack) & p.cmple(d(b.max) + slack)).all())
 }
 
 /// NFF text from the bytes: parsing must not panic, and what parses must write and read back
