@@ -273,20 +273,15 @@ fn cmd_build(args: BuildArgs) -> Result<()> {
         BuilderArg::Binned => Builder::Binned,
         BuilderArg::Sweep => Builder::Sweep,
     };
-    let mut scene = Scene::load(&args.scene)?;
-    if args.patches {
-        scene = scene.into_patches(quiver::scene::tessellate::DEFAULT_RESOLUTION);
-    }
     let pool = pool(args.threads)?;
-    let start = Instant::now();
-    let (bvh, tree) = pool.install(|| {
-        if args.patches {
-            SceneBvh::build_triangles(&scene, &config, builder, args.layout)
-        } else {
-            SceneBvh::build(&scene, &config, builder, args.layout)
-        }
-    });
-    let build_ms = start.elapsed().as_secs_f64() * 1e3;
+    let (scene, bvh, tree, build_ms) = load_and_build(
+        &args.scene,
+        args.patches,
+        &pool,
+        &config,
+        builder,
+        args.layout,
+    )?;
     let stats = tree.stats();
     let prims = bvh.primitives().max(1) as f64;
     let report = json!({
@@ -313,17 +308,42 @@ fn cmd_build(args: BuildArgs) -> Result<()> {
     write_json(args.json.as_ref(), &report)
 }
 
-fn cmd_render(args: RenderArgs) -> Result<()> {
-    let mut scene = Scene::load(&args.scene)?;
-    if args.patches {
+/// Loads a scene (in patch mode if asked) and builds its BVH on `pool`: curve mode keeps
+/// analytic shapes on the mixed path, patch mode puts everything on the triangle path.
+/// Returns the build time in ms beside the results.
+fn load_and_build(
+    name: &str,
+    patches: bool,
+    pool: &rayon::ThreadPool,
+    config: &BuildConfig,
+    builder: Builder,
+    layout: Layout,
+) -> Result<(Scene, SceneBvh, quiver::build::BuildTree, f64)> {
+    let mut scene = Scene::load(name)?;
+    if patches {
         scene = scene.into_patches(quiver::scene::tessellate::DEFAULT_RESOLUTION);
     }
-    let pool = pool(args.threads)?;
-    let config = BuildConfig::default();
     let start = Instant::now();
-    let (bvh, tree) =
-        pool.install(|| SceneBvh::build(&scene, &config, Builder::Binned, args.layout));
-    let build_ms = start.elapsed().as_secs_f64() * 1e3;
+    let (bvh, tree) = pool.install(|| {
+        if patches {
+            SceneBvh::build_triangles(&scene, config, builder, layout)
+        } else {
+            SceneBvh::build(&scene, config, builder, layout)
+        }
+    });
+    Ok((scene, bvh, tree, start.elapsed().as_secs_f64() * 1e3))
+}
+
+fn cmd_render(args: RenderArgs) -> Result<()> {
+    let pool = pool(args.threads)?;
+    let (scene, bvh, tree, build_ms) = load_and_build(
+        &args.scene,
+        args.patches,
+        &pool,
+        &BuildConfig::default(),
+        Builder::Binned,
+        args.layout,
+    )?;
     let rconfig = RenderConfig {
         res: args.res,
         two_sided: scene.two_sided_materials(),
@@ -804,13 +824,7 @@ fn print_layout_tables(sizes: &[Value], rows: &[Row], layouts: &[Layout]) {
     }
     outln!();
     for r in rows.iter().filter(|r| r.layout == layouts[0]) {
-        out!(
-            "{:<12} {:>3} {:<7} {:<8}",
-            r.scene,
-            r.threads,
-            r.rays,
-            r.query.name()
-        );
+        row_head(r);
         for &l in layouts {
             out!(" {:>8.2}", find(rows, r, l).unwrap_or(f64::NAN));
         }
@@ -829,13 +843,7 @@ fn print_layout_tables(sizes: &[Value], rows: &[Row], layouts: &[Layout]) {
     }
     outln!();
     for r in rows.iter().filter(|r| r.layout == layouts[0]) {
-        out!(
-            "{:<12} {:>3} {:<7} {:<8}",
-            r.scene,
-            r.threads,
-            r.rays,
-            r.query.name()
-        );
+        row_head(r);
         for (_, slow, fast) in RATIOS {
             match (find(rows, r, slow), find(rows, r, fast)) {
                 (Some(s), Some(f)) => out!(" {:>16.3}", f / s),
@@ -844,6 +852,17 @@ fn print_layout_tables(sizes: &[Value], rows: &[Row], layouts: &[Layout]) {
         }
         outln!();
     }
+}
+
+/// The scene, threads, ray kind and query that start each row of the layout tables.
+fn row_head(r: &Row) {
+    out!(
+        "{:<12} {:>3} {:<7} {:<8}",
+        r.scene,
+        r.threads,
+        r.rays,
+        r.query.name()
+    );
 }
 
 /// Column header for a layout: its name without the common prefix noise.
