@@ -4,13 +4,10 @@
 //!
 //! `cargo bench --bench build` (all) or `cargo bench --bench build -- tetra8` (one input).
 
-#[path = "../tests/common/mod.rs"]
-mod common;
-
-use common::{obvhs_sah, obvhs_tris};
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use obvhs::{bvh2::builder::build_bvh2_from_tris, BvhBuildParams};
 use quiver::build::{BuildConfig, Builder};
+use quiver::obvhs_bridge::{sah_cost as obvhs_sah, triangles as obvhs_tris};
 use quiver::scene::Scene;
 use quiver::Bvh2;
 use std::time::Duration;

@@ -24,6 +24,8 @@ pub mod geometry;
 pub mod intersect;
 pub mod layout;
 pub mod measure;
+#[cfg(feature = "cli")]
+pub mod obvhs_bridge;
 pub mod primitive;
 pub mod rays;
 pub mod render;

@@ -3,8 +3,6 @@
 //! or passes within rounding of a triangle's edge. Every disagreement is checked in f64 and
 //! must be such a tie or edge case; their number is bounded.
 
-mod common;
-
 use glam::{DVec3, Vec3A};
 use obvhs::{bvh2::builder::build_bvh2_from_tris, ray::RayHit, BvhBuildParams};
 use quiver::build::{BuildConfig, Builder};
@@ -111,7 +109,7 @@ fn judge(tris: &[Triangle], ray: &Ray, q: Option<Hit>, o: Option<(u32, f32)>) ->
 fn compare(scene: &Scene, rays: &[Ray]) -> (usize, usize, usize) {
     let tris = &scene.triangles();
     let (bvh, _) = Bvh2::build(tris, &BuildConfig::default(), Builder::Binned);
-    let otris = common::obvhs_tris(tris);
+    let otris = quiver::obvhs_bridge::triangles(tris);
     let obvh = build_bvh2_from_tris(
         &otris,
         BvhBuildParams::medium_build(),

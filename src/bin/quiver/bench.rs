@@ -10,7 +10,7 @@ use quiver::build::{BuildConfig, Builder};
 use quiver::layout::triangle_bounds;
 use quiver::measure::{median_times_interleaved, mrays_per_s};
 use quiver::scene::Scene;
-use quiver::{rays, Bvh, Layout, Ray, Triangle};
+use quiver::{obvhs_bridge, rays, Bvh, Layout, Ray};
 use rayon::prelude::*;
 use serde_json::{json, Value};
 use std::path::PathBuf;
@@ -38,32 +38,6 @@ const KERNELS: [Layout; 4] = [
     Layout::Bvh4Dfs,
     Layout::Bvh4Quant,
 ];
-
-fn otris(tris: &[Triangle]) -> Vec<obvhs::triangle::Triangle> {
-    tris.iter()
-        .map(|t| obvhs::triangle::Triangle {
-            v0: t.v[0],
-            v1: t.v[1],
-            v2: t.v[2],
-        })
-        .collect()
-}
-
-fn obvhs_sah(bvh: &obvhs::bvh2::Bvh2) -> f64 {
-    let area = |n: &obvhs::bvh2::node::Bvh2Node| n.aabb.half_area() as f64;
-    let root = area(&bvh.nodes[0]).max(f64::MIN_POSITIVE);
-    bvh.nodes
-        .iter()
-        .map(|n| {
-            area(n) / root
-                * if n.prim_count == 0 {
-                    1.0
-                } else {
-                    n.prim_count as f64
-                }
-        })
-        .sum()
-}
 
 fn time<T>(f: impl FnOnce() -> T) -> (T, f64) {
     let t = Instant::now();
@@ -94,7 +68,7 @@ pub fn cmd_bench(args: BenchArgs) -> Result<()> {
         bar.set_message(format!("{name}: building"));
         let scene = Scene::load(name)?.into_patches(quiver::scene::tessellate::DEFAULT_RESOLUTION);
         let tris = scene.triangles();
-        let ot = otris(&tris);
+        let ot = obvhs_bridge::triangles(&tris);
         let row = |engine: &str,
                    kernel: &str,
                    rays: &str,
@@ -131,7 +105,7 @@ pub fn cmd_bench(args: BenchArgs) -> Result<()> {
                     threads,
                     None,
                     Some(ms),
-                    Some(obvhs_sah(&ob)),
+                    Some(obvhs_bridge::sah_cost(&ob)),
                 ));
                 let (_, ms) = time(|| build_cwbvh_from_tris(&ot, medium, &mut Duration::default()));
                 rows.push(row(

@@ -1,10 +1,17 @@
-//! Helpers shared by tests and benches that put quiver beside obvhs 0.4.
-#![allow(dead_code)] // each test or bench crate uses a different subset
+//! quiver's data in obvhs 0.4's terms, for measuring the two side by side (`quiver bench`,
+//! the obvhs agreement test, the build benchmark). Only with the `cli` feature, which brings
+//! obvhs in.
+//!
+//! ```
+//! use quiver::{obvhs_bridge, scene::Scene};
+//! let tris = Scene::load("tetra3").unwrap().triangles();
+//! assert_eq!(obvhs_bridge::triangles(&tris).len(), 64);
+//! ```
 
-use quiver::Triangle;
+use crate::Triangle;
 
 /// The same triangles in obvhs's type.
-pub fn obvhs_tris(tris: &[Triangle]) -> Vec<obvhs::triangle::Triangle> {
+pub fn triangles(tris: &[Triangle]) -> Vec<obvhs::triangle::Triangle> {
     tris.iter()
         .map(|t| obvhs::triangle::Triangle {
             v0: t.v[0],
@@ -16,9 +23,9 @@ pub fn obvhs_tris(tris: &[Triangle]) -> Vec<obvhs::triangle::Triangle> {
 
 /// SAH cost of an obvhs tree with quiver's constants (c_T = c_I = 1), so the two compare.
 /// obvhs marks leaves by a non-zero primitive count.
-pub fn obvhs_sah(bvh: &obvhs::bvh2::Bvh2) -> f64 {
+pub fn sah_cost(bvh: &obvhs::bvh2::Bvh2) -> f64 {
     let area = |n: &obvhs::bvh2::node::Bvh2Node| n.aabb.half_area() as f64;
-    let root = area(&bvh.nodes[0]);
+    let root = area(&bvh.nodes[0]).max(f64::MIN_POSITIVE);
     bvh.nodes
         .iter()
         .map(|n| {
