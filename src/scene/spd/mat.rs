@@ -121,6 +121,14 @@ pub(crate) mod testing {
         n
     }
 
+    /// The vertices of object `i`, which must be a triangle.
+    pub fn tri(s: &Scene, i: usize) -> [Vec3A; 3] {
+        match &s.objects[i].shape {
+            Shape::Triangle(t) => t.v,
+            other => panic!("object {i} is not a triangle: {other:?}"),
+        }
+    }
+
     /// (spheres, cones, polygons, patches)
     pub fn counts(s: &Scene) -> [usize; 4] {
         let mut n = [0; 4];

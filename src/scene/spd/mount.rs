@@ -196,38 +196,15 @@ impl Mountain {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::scene::spd::mat::testing::{close, close3};
+    use crate::scene::spd::mat::testing::{close, close3, kinds, tri};
     use crate::scene::Shape;
-    use glam::Vec3A;
-
-    /// (spheres, cones, triangles, other polygons, patches)
-    fn counts(s: &Scene) -> [usize; 5] {
-        let mut n = [0; 5];
-        for o in &s.objects {
-            n[match o.shape {
-                Shape::Sphere(_) => 0,
-                Shape::Cone(_) => 1,
-                Shape::Triangle(_) => 2,
-                Shape::Polygon(_) => 3,
-                Shape::Patch { .. } => 4,
-            }] += 1;
-        }
-        n
-    }
-
-    fn tri(s: &Scene, i: usize) -> [Vec3A; 3] {
-        match &s.objects[i].shape {
-            Shape::Triangle(t) => t.v,
-            other => panic!("object {i} is not a triangle: {other:?}"),
-        }
-    }
 
     #[test]
     fn counts_match_the_c_program() {
         for (size, tris) in [(0, 2), (1, 8), (6, 8192), (7, 32768)] {
             let s = make(size);
             assert_eq!(s.name, format!("mount{size}"));
-            assert_eq!(counts(&s), [4, 0, tris, 0, 0], "size {size}");
+            assert_eq!(kinds(&s), [4, 0, tris, 0, 0], "size {size}");
         }
     }
 

@@ -81,16 +81,7 @@ fn height_field(spd: &mut Spd, data: &[f32], w: usize, x: [f64; 2], y0: f64, z: 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::scene::spd::mat::testing::{close, close3, kinds};
-    use crate::scene::Shape;
-    use glam::Vec3A;
-
-    fn tri(s: &Scene, i: usize) -> [Vec3A; 3] {
-        match &s.objects[i].shape {
-            Shape::Triangle(t) => t.v,
-            other => panic!("object {i} is not a triangle: {other:?}"),
-        }
-    }
+    use crate::scene::spd::mat::testing::{close, close3, kinds, tri};
 
     #[test]
     fn counts_match_the_c_program() {
