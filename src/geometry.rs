@@ -238,6 +238,17 @@ pub trait Primitive: Clone + Send + Sync {
     fn is_finite(&self) -> bool {
         self.bounds().is_finite()
     }
+    /// `Some` when the slice holds plain (fast Möller–Trumbore) triangles: the packet kernels
+    /// then test eight rays per triangle with SIMD instead of one at a time. Other primitive
+    /// types keep the default `None` and are tested ray by ray.
+    #[doc(hidden)]
+    #[inline(always)]
+    fn as_triangles(_prims: &[Self]) -> Option<&[Triangle]>
+    where
+        Self: Sized,
+    {
+        None
+    }
 }
 
 impl Primitive for Triangle {
@@ -258,6 +269,11 @@ impl Primitive for Triangle {
     #[inline]
     fn is_finite(&self) -> bool {
         Triangle::is_finite(self)
+    }
+
+    #[inline(always)]
+    fn as_triangles(prims: &[Self]) -> Option<&[Triangle]> {
+        Some(prims)
     }
 }
 

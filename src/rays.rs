@@ -41,3 +41,27 @@ pub fn camera_rays(camera: &Camera, res: usize) -> Vec<Ray> {
         })
         .collect()
 }
+
+/// The same eye rays as [`camera_rays`], ordered tile by tile: `tile × tile` pixel squares,
+/// left to right, top to bottom, each square row by row (partial squares at the right and
+/// bottom edges when `tile` does not divide `res`). Consecutive runs of `tile²` rays are
+/// coherent packets.
+///
+/// ```
+/// use quiver::{rays, scene::Scene};
+/// let s = Scene::load("tetra3").unwrap();
+/// let (rows, tiles) = (rays::camera_rays(&s.camera, 16), rays::camera_tiles(&s.camera, 16, 8));
+/// assert_eq!(tiles[8], rows[16]); // the ninth ray of the first tile starts its second row
+/// ```
+pub fn camera_tiles(camera: &Camera, res: usize, tile: usize) -> Vec<Ray> {
+    let rows = camera_rays(camera, res);
+    let mut out = Vec::with_capacity(rows.len());
+    for ty in (0..res).step_by(tile) {
+        for tx in (0..res).step_by(tile) {
+            for y in ty..(ty + tile).min(res) {
+                out.extend_from_slice(&rows[y * res + tx..y * res + (tx + tile).min(res)]);
+            }
+        }
+    }
+    out
+}

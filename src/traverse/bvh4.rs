@@ -11,7 +11,7 @@ use crate::layout::{Bvh4, Bvh4Node, QBvh4, QBvh4Node};
 use wide::f32x4;
 
 /// What the kernel needs from a 4-wide node format.
-trait WideNode {
+pub(super) trait WideNode {
     /// Child boxes as `[min_x, min_y, min_z, max_x, max_y, max_z]` rows.
     fn planes(&self) -> [f32x4; 6];
     /// Child `i` as (node index or first primitive, `LEAF | count` for a leaf, 0 for an inner
@@ -63,7 +63,7 @@ impl WideNode for QBvh4Node {
 /// `max(a, b)` where `a` may be NaN and `b` never is; returns `b` for a NaN `a`, so a NaN slab
 /// distance (a zero direction with the origin on the plane) never limits the interval.
 #[inline(always)]
-fn max_nan_first(a: f32x4, b: f32x4) -> f32x4 {
+pub(super) fn max_nan_first(a: f32x4, b: f32x4) -> f32x4 {
     #[cfg(target_feature = "sse")]
     {
         // MAXPS returns its second operand when either is NaN.
@@ -77,7 +77,7 @@ fn max_nan_first(a: f32x4, b: f32x4) -> f32x4 {
 
 /// `min(a, b)` with the same NaN rule as [`max_nan_first`].
 #[inline(always)]
-fn min_nan_first(a: f32x4, b: f32x4) -> f32x4 {
+pub(super) fn min_nan_first(a: f32x4, b: f32x4) -> f32x4 {
     #[cfg(target_feature = "sse")]
     {
         a.fast_min(b)
@@ -89,7 +89,7 @@ fn min_nan_first(a: f32x4, b: f32x4) -> f32x4 {
 }
 
 /// A ray prepared for 4-wide slab tests.
-struct Ray4 {
+pub(super) struct Ray4 {
     origin: [f32x4; 3],
     inv: [f32x4; 3],
     /// Per axis, the plane row entered first (min row, or max row for a negative direction).
@@ -102,20 +102,26 @@ impl Ray4 {
     #[inline(always)]
     fn new(ray: &Ray) -> Self {
         let inv = slab_reciprocal(ray.dir);
-        let neg = [inv.x, inv.y, inv.z].map(|x| x.is_sign_negative() as usize);
+        Self::from_parts(ray.origin.into(), inv.into(), ray.t_min)
+    }
+
+    /// From an origin, the slab reciprocals of the direction and `t_min`.
+    #[inline(always)]
+    pub(super) fn from_parts(origin: [f32; 3], inv: [f32; 3], t_min: f32) -> Self {
+        let neg = inv.map(|x| x.is_sign_negative() as usize);
         Ray4 {
-            origin: [ray.origin.x, ray.origin.y, ray.origin.z].map(f32x4::splat),
-            inv: [inv.x, inv.y, inv.z].map(f32x4::splat),
+            origin: origin.map(f32x4::splat),
+            inv: inv.map(f32x4::splat),
             near: [0, 1, 2].map(|a| a + 3 * neg[a]),
             far: [0, 1, 2].map(|a| a + 3 - 3 * neg[a]),
-            t_min: f32x4::splat(ray.t_min),
+            t_min: f32x4::splat(t_min),
         }
     }
 
     /// Entry distances of the four boxes and the mask of those entered within
     /// `[t_min, t_max]` (boundaries included).
     #[inline(always)]
-    fn enter<B: BoxTest>(&self, p: &[f32x4; 6], t_max: f32) -> ([f32; 4], u32) {
+    pub(super) fn enter<B: BoxTest>(&self, p: &[f32x4; 6], t_max: f32) -> ([f32; 4], u32) {
         let mut near = self.t_min;
         let mut far = f32x4::splat(t_max);
         for a in 0..3 {
@@ -192,7 +198,7 @@ where
 
 /// Closest-hit and any-hit over one 4-wide node format.
 #[inline(always)]
-fn closest<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
+pub(super) fn closest<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
     nodes: &[N],
     tris: &[P],
     ids: &[u32],
@@ -209,7 +215,7 @@ fn closest<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
 }
 
 #[inline(always)]
-fn any<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
+pub(super) fn any<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
     nodes: &[N],
     tris: &[P],
     ray: &Ray,

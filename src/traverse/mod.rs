@@ -3,9 +3,11 @@
 
 mod bvh2;
 mod bvh4;
+mod packet;
 pub mod reference;
 mod stats;
 
+pub use packet::{PacketMode, PACKET_RAYS};
 pub use stats::{Counters, NoStats, Stats};
 
 use crate::geometry::{Hit, Primitive, Ray};
