@@ -11,9 +11,9 @@
 //! assert!(trace(&bvh, &rays, Query::Closest) > 0);
 //! ```
 
-use crate::geometry::Ray;
+use crate::geometry::{Primitive, Ray};
 use crate::layout::Bvh;
-use crate::traverse::Counters;
+use crate::traverse::{ConservativeBoxes, Counters, NoStats, PacketMode};
 use rayon::prelude::*;
 use std::time::{Duration, Instant};
 
@@ -40,7 +40,7 @@ impl Query {
 const RAYS_PER_TASK: usize = 1024;
 
 /// Traces every ray on the current thread pool; returns how many hit.
-pub fn trace(bvh: &Bvh, rays: &[Ray], query: Query) -> usize {
+pub fn trace<P: Primitive>(bvh: &Bvh<P>, rays: &[Ray], query: Query) -> usize {
     rays.par_chunks(RAYS_PER_TASK)
         .map(|chunk| match query {
             Query::Closest => chunk
@@ -48,6 +48,55 @@ pub fn trace(bvh: &Bvh, rays: &[Ray], query: Query) -> usize {
                 .filter(|r| bvh.closest_hit(r).is_some())
                 .count(),
             Query::Any => chunk.iter().filter(|r| bvh.any_hit(r)).count(),
+        })
+        .sum()
+}
+
+/// Traces the rays in packets of consecutive rays (see [`Bvh::closest_hit_packet`]) on the
+/// current thread pool; returns how many hit. Each task's rays are cut into packets in order,
+/// so coherent input must come packet-ordered (e.g. [`crate::rays::camera_tiles`]).
+///
+/// ```
+/// use quiver::measure::{trace, trace_packets, Query};
+/// use quiver::traverse::PacketMode;
+/// use quiver::{rays, scene::Scene, Bvh, Layout};
+/// use quiver::build::{BuildConfig, Builder};
+/// let s = Scene::load("tetra4").unwrap();
+/// let (bvh, _) = Bvh::build(&s.triangles(), &BuildConfig::default(), Builder::Binned, Layout::Bvh4Dfs);
+/// let rays = rays::camera_tiles(&s.camera, 32, 8);
+/// let hits = trace(&bvh, &rays, Query::Closest);
+/// assert_eq!(trace_packets(&bvh, &rays, Query::Closest, PacketMode::Always), hits);
+/// ```
+pub fn trace_packets<P: Primitive>(
+    bvh: &Bvh<P>,
+    rays: &[Ray],
+    query: Query,
+    mode: PacketMode,
+) -> usize {
+    rays.par_chunks(RAYS_PER_TASK)
+        .map(|chunk| match query {
+            Query::Closest => {
+                let mut hits = vec![None; chunk.len()];
+                bvh.closest_hit_packet_with::<ConservativeBoxes, _>(
+                    chunk,
+                    None,
+                    mode,
+                    &mut hits,
+                    &mut NoStats,
+                );
+                hits.iter().filter(|h| h.is_some()).count()
+            }
+            Query::Any => {
+                let mut hit = vec![false; chunk.len()];
+                bvh.any_hit_packet_with::<ConservativeBoxes, _>(
+                    chunk,
+                    None,
+                    mode,
+                    &mut hit,
+                    &mut NoStats,
+                );
+                hit.iter().filter(|&&h| h).count()
+            }
         })
         .sum()
 }

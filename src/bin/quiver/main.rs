@@ -15,6 +15,7 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 mod bench;
+mod packets;
 
 /// `println!` that stops quietly when stdout is gone (`quiver ... | head`) instead of panicking.
 macro_rules! outln {
@@ -57,6 +58,8 @@ enum Command {
     Accuracy(AccuracyArgs),
     /// quiver and obvhs side by side: builds, SAH cost, eye/shadow/incoherent Mrays/s.
     Bench(bench::BenchArgs),
+    /// Packet traversal against BVH4 single rays: eye, shadow and incoherent Mrays/s.
+    Packets(packets::PacketsArgs),
 }
 
 #[derive(clap::Args)]
@@ -107,6 +110,10 @@ struct RenderArgs {
     /// Write a false-colour image of nodes visited per eye ray.
     #[arg(long)]
     heatmap: Option<PathBuf>,
+    /// Eye rays in 8 x 8 packets and their shadow rays per light as packets (on), or every
+    /// ray alone (off). Image and ray counts are identical either way.
+    #[arg(long, value_enum, default_value = "on")]
+    packets: OnOff,
     /// How secondary rays leave a surface: epsilon (a relative t_min, as the tracers behind
     /// the SPD's counts) or ulps (offset along the normal, Wächter & Binder).
     #[arg(long, value_enum, default_value = "epsilon")]
@@ -133,6 +140,12 @@ struct GenArgs {
     /// Output file (default: stdout).
     #[arg(short, long)]
     output: Option<PathBuf>,
+}
+
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum OnOff {
+    On,
+    Off,
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -206,7 +219,7 @@ struct LayoutsArgs {
     json: Option<PathBuf>,
 }
 
-fn parse_layout(s: &str) -> std::result::Result<Layout, String> {
+pub(crate) fn parse_layout(s: &str) -> std::result::Result<Layout, String> {
     s.parse()
 }
 
@@ -241,6 +254,7 @@ fn main() -> ExitCode {
         Command::Render(args) => cmd_render(args),
         Command::Accuracy(args) => cmd_accuracy(args),
         Command::Bench(args) => bench::cmd_bench(args),
+        Command::Packets(args) => packets::cmd_packets(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -351,6 +365,7 @@ fn cmd_render(args: RenderArgs) -> Result<()> {
             OffsetArg::Ulps => Offset::Ulps,
             OffsetArg::Epsilon => Offset::Epsilon,
         },
+        packets: args.packets == OnOff::On,
         ..RenderConfig::default()
     };
     let rows = args.res as u64 + 1;
@@ -364,9 +379,11 @@ fn cmd_render(args: RenderArgs) -> Result<()> {
     bar.finish_and_clear();
     write_png(&args.output, image.res, image.res, &image.rgb)?;
     // Havran's statistics come from a second, counting pass: the timed pass above runs the
-    // plain kernels. Both passes trace the same rays.
+    // plain kernels. The counting pass traces ray by ray, so the statistics are per ray as
+    // Havran defines them; both passes must trace the same rays and draw the same image.
     let counted_config = RenderConfig {
         counters: true,
+        packets: false,
         ..rconfig.clone()
     };
     let counted = pool.install(|| render(&scene, &bvh, &counted_config, &|_| {}));
@@ -391,6 +408,7 @@ fn cmd_render(args: RenderArgs) -> Result<()> {
         "height": args.res,
         "threads": pool.current_num_threads(),
         "layout": args.layout.name(),
+        "packets": rconfig.packets,
         "rays": {
             "eye": rays.eye,
             "eye_hit": rays.eye_hit,
