@@ -17,7 +17,7 @@ use crate::geometry::{Hit, Ray, TriHit, Triangle};
 use crate::layout::{Bvh, Layout};
 use crate::primitive::{PatchTriangle, Prim};
 use crate::scene::Scene;
-use crate::traverse::Counters;
+use crate::traverse::{ConservativeBoxes, Counters, PacketMode, Stats};
 use glam::Vec3A;
 
 /// The BVH of one scene.
@@ -154,5 +154,36 @@ impl SceneBvh {
     /// Any hit, counting.
     pub fn any_hit_counted(&self, ray: &Ray, c: &mut Counters) -> bool {
         each!(self, b => b.any_hit_counted(ray, c))
+    }
+
+    /// Nearest hits of `rays` in packets (see [`Bvh::closest_hit_packet_with`]); only rays
+    /// flagged in `active` are traced.
+    ///
+    /// # Panics
+    /// When `hits` or `active` differ in length from `rays`.
+    pub fn closest_hit_packet_with<S: Stats>(
+        &self,
+        rays: &[Ray],
+        active: Option<&[bool]>,
+        mode: PacketMode,
+        hits: &mut [Option<Hit>],
+        stats: &mut S,
+    ) {
+        each!(self, b => b.closest_hit_packet_with::<ConservativeBoxes, S>(rays, active, mode, hits, stats))
+    }
+
+    /// Any-hit answers of `rays` in packets (see [`Bvh::any_hit_packet_with`]).
+    ///
+    /// # Panics
+    /// When `occluded` or `active` differ in length from `rays`.
+    pub fn any_hit_packet_with<S: Stats>(
+        &self,
+        rays: &[Ray],
+        active: Option<&[bool]>,
+        mode: PacketMode,
+        occluded: &mut [bool],
+        stats: &mut S,
+    ) {
+        each!(self, b => b.any_hit_packet_with::<ConservativeBoxes, S>(rays, active, mode, occluded, stats))
     }
 }

@@ -23,7 +23,7 @@
 use crate::accel::SceneBvh;
 use crate::geometry::{offset_ray_origin, Ray};
 use crate::scene::{Material, Scene};
-use crate::traverse::Counters;
+use crate::traverse::{Counters, NoStats};
 use glam::Vec3A;
 use rayon::prelude::*;
 use std::ops::AddAssign;
@@ -42,6 +42,11 @@ pub struct RenderConfig {
     pub counters: bool,
     /// How secondary rays leave the surface.
     pub offset: Offset,
+    /// Trace eye rays in packets of 8 x 8 pixel corners, and each light's shadow rays from
+    /// those corners as a packet (see [`crate::traverse::PacketMode::Auto`]); secondary rays
+    /// go one by one. The image and the ray counts are the same either way; only the
+    /// traversal work counted with [`RenderConfig::counters`] differs.
+    pub packets: bool,
 }
 
 /// How a secondary ray avoids re-hitting the surface it starts on.
@@ -79,6 +84,7 @@ impl Default for RenderConfig {
             two_sided: Vec::new(),
             counters: false,
             offset: Offset::Epsilon,
+            packets: true,
         }
     }
 }
@@ -130,13 +136,17 @@ pub struct Rendered {
     /// Traversal work over all rays (zero unless [`RenderConfig::counters`]).
     pub work: Counters,
     /// Nodes visited by each eye ray, `(res + 1)^2` corners row by row (empty unless
-    /// [`RenderConfig::counters`]).
+    /// [`RenderConfig::counters`]). With packets, each ray is charged its packet's node visits.
     pub eye_nodes: Vec<u32>,
 }
 
-/// Per-corner-row accumulation.
+/// Corner rows a render task handles, and the side of a packet's square of corners.
+const TILE: usize = 8;
+
+/// One band of [`TILE`] corner rows.
 #[derive(Default)]
-struct RowOut {
+struct Band {
+    /// Colours of the band's corners, row by row.
     colors: Vec<Vec3A>,
     rays: RayCounts,
     work: Counters,
@@ -153,54 +163,38 @@ pub fn render(
     progress: &(dyn Fn(usize) + Sync),
 ) -> Rendered {
     let n = config.res as usize + 1;
-    let rows: Vec<RowOut> = (0..n)
+    let bands: Vec<Band> = (0..n.div_ceil(TILE))
         .into_par_iter()
-        .map(|j| {
-            let mut row = RowOut::default();
-            for i in 0..n {
-                let sx = -1.0 + 2.0 * i as f32 / config.res as f32;
-                let sy = 1.0 - 2.0 * j as f32 / config.res as f32;
-                let mut ray = scene.camera.ray(sx, sy);
-                ray.t_min = scene.hither.max(0.0);
-                let mut tracer = Tracer {
-                    scene,
-                    bvh,
-                    config,
-                    rays: RayCounts {
-                        eye: 1,
-                        ..Default::default()
-                    },
-                    work: Counters::default(),
-                    eye_nodes: 0,
-                };
-                row.colors.push(tracer.trace(&ray, 1));
-                row.rays += tracer.rays;
-                row.work += tracer.work;
-                if config.counters {
-                    row.eye_nodes.push(tracer.eye_nodes as u32);
-                }
-            }
-            progress(1);
-            row
+        .map(|b| {
+            let rows = b * TILE..((b + 1) * TILE).min(n);
+            let mut tracer = Tracer {
+                scene,
+                bvh,
+                config,
+                rays: RayCounts::default(),
+                work: Counters::default(),
+            };
+            let band = tracer.band(rows.clone(), n);
+            progress(rows.len());
+            band
         })
         .collect();
     let mut rays = RayCounts::default();
     let mut work = Counters::default();
     let mut eye_nodes = Vec::new();
-    for r in &rows {
-        rays += r.rays;
-        work += r.work;
-        eye_nodes.extend_from_slice(&r.eye_nodes);
+    let mut corners = Vec::with_capacity(n * n);
+    for b in &bands {
+        rays += b.rays;
+        work += b.work;
+        eye_nodes.extend_from_slice(&b.eye_nodes);
+        corners.extend_from_slice(&b.colors);
     }
     let res = config.res as usize;
+    let at = |x: usize, y: usize| corners[y * n + x];
     let mut rgb = Vec::with_capacity(res * res);
     for y in 0..res {
         for x in 0..res {
-            let c = (rows[y].colors[x]
-                + rows[y].colors[x + 1]
-                + rows[y + 1].colors[x]
-                + rows[y + 1].colors[x + 1])
-                * 0.25;
+            let c = (at(x, y) + at(x + 1, y) + at(x, y + 1) + at(x + 1, y + 1)) * 0.25;
             rgb.push(to_rgb8(c));
         }
     }
@@ -227,11 +221,149 @@ struct Tracer<'a> {
     config: &'a RenderConfig,
     rays: RayCounts,
     work: Counters,
-    /// Nodes the last eye ray visited.
-    eye_nodes: u64,
+}
+
+/// What shading needs to know about a hit.
+struct Surface {
+    /// Hit point.
+    p: Vec3A,
+    /// Unit direction of the incoming ray.
+    d: Vec3A,
+    material: Material,
+    /// Geometric normal pointing out of the object.
+    outward: Vec3A,
+    /// Shading normal: `outward`, turned toward the viewer on two-sided surfaces.
+    n: Vec3A,
+}
+
+/// Where a surface learns whether its shadow rays are blocked.
+enum Shadows<'s> {
+    /// Trace each shadow ray now.
+    Trace,
+    /// Already traced (as a packet): the answer per light, for the lights the surface faces.
+    Known(&'s [bool]),
 }
 
 impl Tracer<'_> {
+    /// The corners of rows `rows` (of `n` corners each): eye rays in packets of
+    /// `TILE x TILE` corners, or one by one.
+    fn band(&mut self, rows: std::ops::Range<usize>, n: usize) -> Band {
+        let mut band = Band {
+            colors: vec![Vec3A::ZERO; rows.len() * n],
+            ..Default::default()
+        };
+        if self.config.counters {
+            band.eye_nodes = vec![0; rows.len() * n];
+        }
+        let eye = |i: usize, j: usize| {
+            let sx = -1.0 + 2.0 * i as f32 / self.config.res as f32;
+            let sy = 1.0 - 2.0 * j as f32 / self.config.res as f32;
+            let mut ray = self.scene.camera.ray(sx, sy);
+            ray.t_min = self.scene.hither.max(0.0);
+            ray
+        };
+        if !self.config.packets {
+            for j in rows.clone() {
+                for i in 0..n {
+                    let before = self.work.nodes;
+                    let k = (j - rows.start) * n + i;
+                    band.colors[k] = self.trace(&eye(i, j), 1);
+                    if self.config.counters {
+                        band.eye_nodes[k] = (self.work.nodes - before) as u32;
+                    }
+                }
+            }
+        } else {
+            for x0 in (0..n).step_by(TILE) {
+                let cols = x0..(x0 + TILE).min(n);
+                let slots: Vec<(usize, usize)> = rows
+                    .clone()
+                    .flat_map(|j| cols.clone().map(move |i| (i, j)))
+                    .collect();
+                let rays: Vec<Ray> = slots.iter().map(|&(i, j)| eye(i, j)).collect();
+                let before = self.work.nodes;
+                let colors = self.trace_packet(&rays);
+                for (&(i, j), c) in slots.iter().zip(colors) {
+                    let k = (j - rows.start) * n + i;
+                    band.colors[k] = c;
+                    if self.config.counters {
+                        band.eye_nodes[k] = (self.work.nodes - before) as u32;
+                    }
+                }
+            }
+        }
+        band.rays = self.rays;
+        band.work = self.work;
+        band
+    }
+
+    /// Colours seen along a packet of eye rays: the eye rays, and per light the shadow rays of
+    /// the corners facing it, go as packets; everything after that ray by ray.
+    fn trace_packet(&mut self, rays: &[Ray]) -> Vec<Vec3A> {
+        let mut hits = vec![None; rays.len()];
+        let mode = crate::traverse::PacketMode::Auto;
+        if self.config.counters {
+            self.bvh
+                .closest_hit_packet_with(rays, None, mode, &mut hits, &mut self.work);
+        } else {
+            self.bvh
+                .closest_hit_packet_with(rays, None, mode, &mut hits, &mut NoStats);
+        }
+        let surfaces: Vec<Option<Surface>> = rays
+            .iter()
+            .zip(&hits)
+            .map(|(r, h)| h.map(|h| self.surface(r, &h)))
+            .collect();
+        let lights = self.scene.lights.len();
+        // blocked[corner * lights + light]
+        let mut blocked = vec![false; rays.len() * lights];
+        let mut shadow = vec![Ray::new(Vec3A::ZERO, Vec3A::Z); rays.len()];
+        let mut active = vec![false; rays.len()];
+        let mut answer = vec![false; rays.len()];
+        for (l, light) in self.scene.lights.iter().enumerate() {
+            for (k, s) in surfaces.iter().enumerate() {
+                let ray = s.as_ref().and_then(|s| self.shadow_ray(s, light.pos));
+                active[k] = ray.is_some();
+                if let Some(r) = ray {
+                    shadow[k] = r;
+                }
+            }
+            if self.config.counters {
+                self.bvh.any_hit_packet_with(
+                    &shadow,
+                    Some(&active),
+                    mode,
+                    &mut answer,
+                    &mut self.work,
+                );
+            } else {
+                self.bvh.any_hit_packet_with(
+                    &shadow,
+                    Some(&active),
+                    mode,
+                    &mut answer,
+                    &mut NoStats,
+                );
+            }
+            for (k, &a) in answer.iter().enumerate() {
+                blocked[k * lights + l] = a;
+            }
+        }
+        let mut out = Vec::with_capacity(rays.len());
+        for (k, s) in surfaces.into_iter().enumerate() {
+            self.rays.eye += 1;
+            out.push(match s {
+                None => self.scene.background,
+                Some(s) => {
+                    self.rays.eye_hit += 1;
+                    let known = &blocked[k * lights..(k + 1) * lights];
+                    self.shade_surface(&s, 1, Shadows::Known(known))
+                }
+            });
+        }
+        out
+    }
+
     /// Closest hit; with counters on, through the counting kernel (a per-ray choice: the plain
     /// kernel itself carries no counting code).
     fn closest(&mut self, ray: &Ray) -> Option<crate::Hit> {
@@ -252,49 +384,70 @@ impl Tracer<'_> {
 
     /// Colour seen along `ray`, a ray of generation `depth`.
     fn trace(&mut self, ray: &Ray, depth: u32) -> Vec3A {
-        let before = self.work.nodes;
-        let found = self.closest(ray);
         if depth == 1 {
-            self.eye_nodes = self.work.nodes - before;
+            self.rays.eye += 1;
         }
-        let Some(hit) = found else {
+        let Some(hit) = self.closest(ray) else {
             return self.scene.background;
         };
         if depth == 1 {
             self.rays.eye_hit += 1;
         }
-        let object = self.bvh.object_of(hit.prim);
-        let m = self.scene.materials[self.scene.objects[object as usize].material as usize];
-        let p = ray.at(hit.t);
+        let s = self.surface(ray, &hit);
+        self.shade_surface(&s, depth, Shadows::Trace)
+    }
+
+    fn surface(&self, ray: &Ray, hit: &crate::Hit) -> Surface {
+        let object = &self.scene.objects[self.bvh.object_of(hit.prim) as usize];
+        let material = self.scene.materials[object.material as usize];
         let d = ray.dir.normalize();
         // The outward normal decides entering or leaving a transmitter; the shading normal
         // turns toward the viewer on two-sided surfaces: transmitters (NFF: "objects with
         // T > 0 are two-sided") and the materials the config lists (the teapot).
-        let outward = self.bvh.normal(ray, &hit);
-        let material = self.scene.objects[object as usize].material;
-        let two_sided = m.t > 0.0 || self.config.two_sided.contains(&material);
+        let outward = self.bvh.normal(ray, hit);
+        let two_sided = material.t > 0.0 || self.config.two_sided.contains(&object.material);
         let n = if two_sided && outward.dot(d) > 0.0 {
             -outward
         } else {
             outward
         };
+        Surface {
+            p: ray.at(hit.t),
+            d,
+            material,
+            outward,
+            n,
+        }
+    }
+
+    /// The shadow ray from `s` toward a light at `light`, up to just short of it; `None` when
+    /// the light is behind the surface (SPD rule 10, transmitters too).
+    fn shadow_ray(&self, s: &Surface, light: Vec3A) -> Option<Ray> {
+        let to_light = light - s.p;
+        (s.n.dot(to_light) > 0.0).then(|| self.config.offset.ray(s.p, s.n, to_light, 1.0))
+    }
+
+    /// Colour leaving `s` toward the viewer: lights, then reflection and refraction rays.
+    fn shade_surface(&mut self, s: &Surface, depth: u32, shadows: Shadows) -> Vec3A {
+        let m = s.material;
+        let (p, d, n, outward) = (s.p, s.d, s.n, s.outward);
         let offset = self.config.offset;
         let mut color = m.color * AMBIENT;
         let intensity = 1.0 / (self.scene.lights.len().max(1) as f32).sqrt();
-        for l in &self.scene.lights {
-            let to_light = l.pos - p;
-            // No shadow ray toward a light behind the surface (SPD rule 10, transmitters too).
-            if n.dot(to_light) <= 0.0 {
+        for (i, l) in self.scene.lights.iter().enumerate() {
+            let Some(shadow) = self.shadow_ray(s, l.pos) else {
                 continue;
-            }
+            };
             self.rays.shadow += 1;
-            // Up to just short of the light.
-            let shadow = offset.ray(p, n, to_light, 1.0);
-            if self.occluded(&shadow) {
+            let blocked = match shadows {
+                Shadows::Trace => self.occluded(&shadow),
+                Shadows::Known(b) => b[i],
+            };
+            if blocked {
                 self.rays.shadow_blocked += 1;
                 continue;
             }
-            color += shade(&m, n, to_light.normalize(), d) * l.color * intensity;
+            color += shade(&m, n, (l.pos - p).normalize(), d) * l.color * intensity;
         }
         if depth >= self.config.max_depth {
             return color;

@@ -14,6 +14,17 @@ fn run(
     threads: usize,
     counters: bool,
 ) -> quiver::render::Rendered {
+    run_with(scene, res, layout, threads, counters, true)
+}
+
+fn run_with(
+    scene: &Scene,
+    res: u32,
+    layout: Layout,
+    threads: usize,
+    counters: bool,
+    packets: bool,
+) -> quiver::render::Rendered {
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
@@ -24,6 +35,7 @@ fn run(
             res,
             two_sided: scene.two_sided_materials(),
             counters,
+            packets,
             ..RenderConfig::default()
         };
         render(scene, &bvh, &config, &|_| {})
@@ -168,5 +180,26 @@ fn mount_counts_identical_across_layouts_and_threads() {
     for layout in [Layout::Bvh2Subtree, Layout::Bvh4Dfs, Layout::Bvh4Quant] {
         let r = run(&scene, 64, layout, 2, true);
         assert_eq!((r.rays, &r.rgb), (base.rays, &base.rgb), "{layout}");
+    }
+}
+
+/// Packets on or off, the same rays and the same image: eye rays, shadow rays (several
+/// lights, some behind surfaces), reflection and refraction, triangles and analytic shapes,
+/// packet and binary layouts, 1 and 2 threads, counters on and off.
+#[test]
+fn packets_on_and_off_trace_the_same_rays_and_draw_the_same_image() {
+    for spec in ["tetra5", "mount3", "balls2", "gears2", "teapot6"] {
+        let scene = Scene::load(spec).unwrap();
+        // 100 x 100 pixels: 101 corners, so the last tile column and band are partial.
+        let base = run_with(&scene, 100, Layout::Bvh4Dfs, 1, false, false);
+        assert!(base.rays.eye_hit > 0 && base.rays.shadow > 0, "{spec}");
+        for layout in [Layout::Bvh4Dfs, Layout::Bvh4Quant, Layout::Bvh2Dfs] {
+            for (threads, counters) in [(1, false), (2, true)] {
+                let r = run_with(&scene, 100, layout, threads, counters, true);
+                let what = format!("{spec} {layout} {threads} threads counters {counters}");
+                assert_eq!(r.rays, base.rays, "{what}");
+                assert_eq!(r.rgb, base.rgb, "{what}");
+            }
+        }
     }
 }
