@@ -3,11 +3,13 @@
 //!
 //! The walk follows the *first active ray* (Wald, Boulos and Shirley, "Ray Tracing Deformable
 //! Scenes Using Dynamic Bounding Volume Hierarchies", 2007): every stack entry carries the
-//! index of the first ray that enters its box. A node's children are tested against that ray
-//! alone (one 4-wide test); a child it misses is searched for a later ray that enters it, and
-//! skipped when there is none. Before that search an interval-arithmetic bound over all the
-//! packet's origins and directions (the cull test) rejects, in one 4-wide test, the children no
-//! ray of the packet can enter. Leaves test 8 rays per triangle in `f32x8` lanes.
+//! index of the first ray that enters its box, and a mask of the rays that may. A node's
+//! children are tested against the first ray alone (one 4-wide test); a child it misses is
+//! tested against the node's other candidate rays, which yields the child's exact candidate
+//! mask, so searches shrink as the packet spreads out; a child no candidate enters is skipped.
+//! Before those searches an interval-arithmetic bound over all the packet's origins and
+//! directions (the cull test) rejects, in one 4-wide test, the children no ray of the packet
+//! can enter. Leaves test 8 rays per triangle in `f32x8` lanes.
 //!
 //! Every per-ray computation (slab test, triangle test, tie break) is the single-ray kernel's
 //! operation for operation, so each ray gets exactly the single-ray answer. Incoherent rays
@@ -250,17 +252,6 @@ impl Packet {
         )
     }
 
-    /// Active rays of chunk `k` numbered `from` or later, as a lane mask.
-    #[inline(always)]
-    fn chunk_bits(&self, k: usize, from: usize) -> u32 {
-        let from_mask = if from > LANES * k {
-            u64::MAX << from.min(63)
-        } else {
-            u64::MAX
-        };
-        ((self.active & from_mask) >> (LANES * k)) as u32 & 0xFF
-    }
-
     /// The slab test of chunk `k`'s rays against box `b` (`[min xyz, max xyz]`): the mask of
     /// lanes entering it within their limits, and their entry distances. Per lane this is
     /// [`Ray4::enter`]'s arithmetic exactly.
@@ -281,21 +272,14 @@ impl Packet {
         (near.simd_le(far).to_bitmask(), near)
     }
 
-    /// The first active ray numbered `from` or later that enters `b`, with its entry distance.
+    /// The first active ray of `mask` that enters `b`, with its entry distance.
     #[inline(always)]
-    fn find_first<B: BoxTest>(&self, b: &[f32; 6], from: usize) -> Option<(usize, f32)> {
-        if from >= PACKET_RAYS {
-            return None;
-        }
-        let rest = self.active & (u64::MAX << from);
-        if rest == 0 {
-            return None;
-        }
-        for k in rest.trailing_zeros() as usize / LANES..CHUNKS {
-            let bits = self.chunk_bits(k, from);
-            if bits == 0 {
-                continue;
-            }
+    fn find_first<B: BoxTest>(&self, b: &[f32; 6], mask: u64) -> Option<(usize, f32)> {
+        let mut rest = self.active & mask;
+        while rest != 0 {
+            let k = rest.trailing_zeros() as usize / LANES;
+            let bits = (rest >> (LANES * k)) as u32 & 0xFF;
+            rest &= !(0xFF << (LANES * k));
             let (m, near) = self.enter_chunk::<B>(k, b);
             let m = m & bits;
             if m != 0 {
@@ -306,12 +290,32 @@ impl Packet {
         None
     }
 
-    /// Masks, per chunk, of the active rays from `first` on that enter `b`.
+    /// The active rays of `mask` that enter `b`, and the entry distance of the first.
     #[inline(always)]
-    fn entering<B: BoxTest>(&self, b: &[f32; 6], first: usize) -> [u32; CHUNKS] {
+    fn enter_all<B: BoxTest>(&self, b: &[f32; 6], mask: u64) -> (u64, f32) {
+        let mut rest = self.active & mask;
+        let (mut out, mut t) = (0u64, 0.0);
+        while rest != 0 {
+            let k = rest.trailing_zeros() as usize / LANES;
+            let bits = (rest >> (LANES * k)) as u32 & 0xFF;
+            rest &= !(0xFF << (LANES * k));
+            let (m, near) = self.enter_chunk::<B>(k, b);
+            let m = m & bits;
+            if out == 0 && m != 0 {
+                t = near.as_array()[m.trailing_zeros() as usize];
+            }
+            out |= (m as u64) << (LANES * k);
+        }
+        (out, t)
+    }
+
+    /// Masks, per chunk, of the active rays of `mask` that enter `b`.
+    #[inline(always)]
+    fn entering<B: BoxTest>(&self, b: &[f32; 6], mask: u64) -> [u32; CHUNKS] {
         let mut out = [0; CHUNKS];
-        for (k, o) in out.iter_mut().enumerate().skip(first / LANES) {
-            let bits = self.chunk_bits(k, first);
+        let live = self.active & mask;
+        for (k, o) in out.iter_mut().enumerate() {
+            let bits = (live >> (LANES * k)) as u32 & 0xFF;
             if bits != 0 {
                 *o = bits & self.enter_chunk::<B>(k, b).0;
             }
@@ -383,7 +387,7 @@ impl TriSetup {
 }
 
 /// Stack entry: a child, where its box is (slot of a parent node), the first ray entering it
-/// and that ray's entry distance. The box is re-read only when needed (leaf, or a new first
+/// and that ray's entry distance, and the rays that may enter it. The box is re-read only when needed (leaf, or a new first
 /// ray), which is cheaper than carrying it.
 #[derive(Clone, Copy)]
 struct Entry {
@@ -394,6 +398,9 @@ struct Entry {
     t: f32,
     parent: u32,
     slot: u32,
+    /// The rays that may enter the child: every ray that enters it is in here. Searches for
+    /// a first ray scan only these, so they get cheaper as the packet spreads out.
+    mask: u64,
 }
 
 #[inline(always)]
@@ -401,23 +408,36 @@ fn slot_box(p: &[f32x4; 6], i: usize) -> [f32; 6] {
     [0, 1, 2, 3, 4, 5].map(|r| p[r].as_array()[i])
 }
 
-/// The packet walk over one 4-wide node format. `leaf(packet, range, box, first, stats)`
-/// handles a leaf's primitives for the active rays from `first` on that enter `box`, and
-/// returns true once every ray is done (any-hit), which ends the walk.
+/// Bits above `i`.
+#[inline(always)]
+fn above(i: usize) -> u64 {
+    (u64::MAX << i) << 1
+}
+
+/// The packet walk over one 4-wide node format. `leaf(packet, range, box, mask, stats)`
+/// handles a leaf's primitives for the active rays of `mask` that enter `box`, and returns
+/// true once every ray is done (any-hit), which ends the walk.
+///
+/// Each node is tested against its first ray alone. A child that ray misses is tested
+/// against the other candidate rays (those that may have entered the node), which gives
+/// the child's exact candidate set, so the deeper the walk, the fewer rays a search scans.
 #[inline(always)]
 fn walk<N, B, S, F>(nodes: &[N], pk: &mut Packet, stats: &mut S, mut leaf: F)
 where
     N: WideNode,
     B: BoxTest,
     S: Stats,
-    F: FnMut(&mut Packet, Range<usize>, &[f32; 6], usize, &mut S) -> bool,
+    F: FnMut(&mut Packet, Range<usize>, &[f32; 6], u64, &mut S) -> bool,
 {
     if pk.active == 0 {
         return;
     }
     let mut stack: Stack<Entry, { 3 * MAX_DEPTH + 4 }> = Stack::new();
     let mut node = 0usize;
-    let mut first = pk.active.trailing_zeros() as usize;
+    let mut mask = pk.active;
+    let mut first = mask.trailing_zeros() as usize;
+    // The first ray prepared for 4-wide tests; it often stays first for many nodes.
+    let (mut r4, mut r4_of) = (pk.ray4(first), first);
     loop {
         let n = &nodes[node];
         stats.node();
@@ -427,13 +447,15 @@ where
         for i in 0..4 {
             used |= ((n.child(i).1 != Bvh4Node::LEAF) as u32) << i;
         }
-        let limit = lane(&pk.limit, first);
-        let (t, hit) = pk.ray4(first).enter::<B>(&planes, limit * B::SLACK);
+        if r4_of != first {
+            (r4, r4_of) = (pk.ray4(first), first);
+        }
+        let (t, hit) = r4.enter::<B>(&planes, lane(&pk.limit, first) * B::SLACK);
         let hit = hit & used;
-        // (entry distance, slot, first ray), sorted farthest first.
-        let mut kids: [(f32, usize, usize); 4] = [(0.0, 0, 0); 4];
+        // (entry distance, slot, first ray, candidates), sorted farthest first.
+        let mut kids: [(f32, usize, usize, u64); 4] = [(0.0, 0, 0, 0); 4];
         let mut k = 0;
-        let mut add = |kid: (f32, usize, usize), k: &mut usize| {
+        let mut add = |kid: (f32, usize, usize, u64), k: &mut usize| {
             let mut j = *k;
             while j > 0 && kids[j - 1].0 < kid.0 {
                 kids[j] = kids[j - 1];
@@ -442,26 +464,30 @@ where
             kids[j] = kid;
             *k += 1;
         };
-        // A child the first ray misses may still be entered by a later ray.
+        // A child the first ray misses may still be entered by a later candidate.
+        let rest = mask & above(first);
         let mut missed = !hit & used;
-        if missed != 0 {
+        if missed != 0 && rest & pk.active != 0 {
             missed &= pk.bound.may_enter::<B>(&planes);
+        } else {
+            missed = 0;
         }
         while missed != 0 {
             let i = missed.trailing_zeros() as usize;
             missed &= missed - 1;
             stats.boxes(1);
-            if let Some((f, tf)) = pk.find_first::<B>(&slot_box(&planes, i), first + 1) {
-                add((tf, i, f), &mut k);
+            let (m, tf) = pk.enter_all::<B>(&slot_box(&planes, i), rest);
+            if m != 0 {
+                add((tf, i, m.trailing_zeros() as usize, m), &mut k);
             }
         }
         let mut h = hit;
         while h != 0 {
             let i = h.trailing_zeros() as usize;
             h &= h - 1;
-            add((t[i], i, first), &mut k);
+            add((t[i], i, first, mask), &mut k);
         }
-        for &(ti, i, f) in &kids[..k] {
+        for &(ti, i, f, m) in &kids[..k] {
             let (child, count) = n.child(i);
             stack.push(Entry {
                 child,
@@ -470,6 +496,7 @@ where
                 t: ti,
                 parent: node as u32,
                 slot: i as u32,
+                mask: m,
             });
         }
         // Pop until an inner node some ray still enters; leaves are handled on the way.
@@ -481,33 +508,26 @@ where
             let is_leaf = e.count & Bvh4Node::LEAF != 0;
             let valid = pk.active >> f & 1 == 1 && e.t <= lane(&pk.limit, f) * B::SLACK;
             if valid && !is_leaf {
-                node = e.child as usize;
-                first = f;
+                (node, first, mask) = (e.child as usize, f, e.mask);
                 break;
             }
             let b = slot_box(&nodes[e.parent as usize].planes(), e.slot as usize);
             if !valid {
                 // The first ray was shortened (or retired) since the push: look for another.
-                match pk.find_first::<B>(&b, f + 1) {
+                match pk.find_first::<B>(&b, e.mask & above(f)) {
                     Some((nf, _)) => f = nf,
                     None => continue,
                 }
                 if !is_leaf {
-                    node = e.child as usize;
-                    first = f;
+                    (node, first, mask) = (e.child as usize, f, e.mask);
                     break;
                 }
             }
             let count = e.count & !Bvh4Node::LEAF;
             stats.node();
             stats.leaf();
-            if leaf(
-                pk,
-                e.child as usize..(e.child + count) as usize,
-                &b,
-                f,
-                stats,
-            ) {
+            let range = e.child as usize..(e.child + count) as usize;
+            if leaf(pk, range, &b, e.mask & !((1u64 << f) - 1), stats) {
                 return;
             }
         }
@@ -537,8 +557,8 @@ fn closest_packet<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
     best: &mut [Hit],
     stats: &mut S,
 ) {
-    walk::<N, B, S, _>(nodes, pk, stats, |pk, range, b, first, stats| {
-        let masks = pk.entering::<B>(b, first);
+    walk::<N, B, S, _>(nodes, pk, stats, |pk, range, b, cand, stats| {
+        let masks = pk.entering::<B>(b, cand);
         let mut changed = false;
         match P::as_triangles(&prims[range.clone()]) {
             Some(tris) => {
@@ -603,8 +623,8 @@ fn any_packet<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
     hit: &mut [bool],
     stats: &mut S,
 ) {
-    walk::<N, B, S, _>(nodes, pk, stats, |pk, range, b, first, stats| {
-        let mut masks = pk.entering::<B>(b, first);
+    walk::<N, B, S, _>(nodes, pk, stats, |pk, range, b, cand, stats| {
+        let mut masks = pk.entering::<B>(b, cand);
         let before = pk.active;
         match P::as_triangles(&prims[range.clone()]) {
             Some(tris) => {
