@@ -137,9 +137,10 @@ impl Ray4 {
 /// Stack entry: (node or first triangle, leaf count or 0, entry distance).
 type Entry = (u32, u32, f32);
 
-/// The 4-wide walk, shared by both node formats. See `Bvh2`'s walk for the `leaf` contract.
+/// The 4-wide walk, shared by both node formats, over the subtree of inner node `root`,
+/// searching up to `limit`. See `Bvh2`'s walk for the `leaf` contract.
 #[inline(always)]
-fn walk<N, B, S, F>(nodes: &[N], ray: &Ray, stats: &mut S, mut leaf: F)
+fn walk<N, B, S, F>(nodes: &[N], ray: &Ray, root: usize, mut limit: f32, stats: &mut S, mut leaf: F)
 where
     N: WideNode,
     B: BoxTest,
@@ -147,10 +148,9 @@ where
     F: FnMut(std::ops::Range<usize>, &mut f32, &mut S) -> bool,
 {
     let r4 = Ray4::new(ray);
-    let mut limit = ray.t_max;
     // Each node pushes at most three entries beyond the one it continues with.
     let mut stack: Stack<Entry, { 3 * MAX_DEPTH + 4 }> = Stack::new();
-    let mut node = 0usize;
+    let mut node = root;
     loop {
         let n = &nodes[node];
         stats.node();
@@ -206,12 +206,27 @@ pub(super) fn closest<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
     stats: &mut S,
 ) -> Option<Hit> {
     let mut best = Hit::none(ray.t_max);
-    walk::<N, B, S, _>(nodes, ray, stats, |range, limit, stats| {
-        leaf_closest_hit(&tris[range.clone()], &ids[range], ray, &mut best, stats);
+    closest_from::<N, B, P, S>(nodes, tris, ids, ray, 0, &mut best, stats);
+    best.found()
+}
+
+/// Closest hit in the subtree of inner node `root`, improving on `best`, whose distance is
+/// the search limit.
+#[inline(always)]
+pub(super) fn closest_from<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
+    nodes: &[N],
+    tris: &[P],
+    ids: &[u32],
+    ray: &Ray,
+    root: usize,
+    best: &mut Hit,
+    stats: &mut S,
+) {
+    walk::<N, B, S, _>(nodes, ray, root, best.t, stats, |range, limit, stats| {
+        leaf_closest_hit(&tris[range.clone()], &ids[range], ray, best, stats);
         *limit = best.t;
         false
     });
-    best.found()
 }
 
 #[inline(always)]
@@ -221,8 +236,20 @@ pub(super) fn any<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
     ray: &Ray,
     stats: &mut S,
 ) -> bool {
+    any_from::<N, B, P, S>(nodes, tris, ray, 0, stats)
+}
+
+/// Any hit in the subtree of inner node `root`.
+#[inline(always)]
+pub(super) fn any_from<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
+    nodes: &[N],
+    tris: &[P],
+    ray: &Ray,
+    root: usize,
+    stats: &mut S,
+) -> bool {
     let mut hit = false;
-    walk::<N, B, S, _>(nodes, ray, stats, |range, _, stats| {
+    walk::<N, B, S, _>(nodes, ray, root, ray.t_max, stats, |range, _, stats| {
         hit = leaf_any_hit(&tris[range], ray, stats);
         hit
     });

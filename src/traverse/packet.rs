@@ -9,7 +9,9 @@
 //! mask, so searches shrink as the packet spreads out; a child no candidate enters is skipped.
 //! Before those searches an interval-arithmetic bound over all the packet's origins and
 //! directions (the cull test) rejects, in one 4-wide test, the children no ray of the packet
-//! can enter. Leaves test 8 rays per triangle in `f32x8` lanes.
+//! can enter. Leaves test 8 rays per triangle in `f32x8` lanes. A packet whose rays turn out
+//! to share almost no leaves (fewer than two rays per leaf visit on average) hands its
+//! remaining rays to the single-ray walk, each starting from the subtrees still stacked.
 //!
 //! Every per-ray computation (slab test, triangle test, tie break) is the single-ray kernel's
 //! operation for operation, so each ray gets exactly the single-ray answer. Incoherent rays
@@ -51,6 +53,13 @@ pub enum PacketMode {
     /// Always ray by ray (the single-ray kernel behind the packet interface).
     Never,
 }
+
+/// Leaves a packet visits before [`Packet::came_apart`] judges it.
+const PROBATION_LEAVES: u32 = 12;
+/// Average rays per leaf visit below which the rest of a packet goes ray by ray. Measured
+/// averages (512² eye rays in 8×8 tiles, shadow rays toward the first light): teapot12 20 and
+/// 13, balls3 in patch mode 9 and 4.3, tetra9 1.7 and 1.2; packets pay on the first two.
+const MIN_RAYS_PER_LEAF: u32 = 2;
 
 /// Smallest cosine between a packet ray and the packet's mean direction for
 /// [`PacketMode::Auto`] to take the packet path.
@@ -147,6 +156,9 @@ struct Packet {
     /// Bit `i`: ray `i` is still searching.
     active: u64,
     bound: Bound,
+    /// Leaves visited, and rays tested in them: how well the packet holds together.
+    leaf_visits: u32,
+    leaf_rays: u32,
 }
 
 impl Packet {
@@ -169,6 +181,8 @@ impl Packet {
                 t_min_lo: f32::INFINITY,
                 t_max_hi: f32::NEG_INFINITY,
             },
+            leaf_visits: 0,
+            leaf_rays: 0,
         };
         // Per axis: origin and reciprocal ranges, and whether every value suits the bound
         // (finite origins, finite non-zero reciprocals of one sign). Otherwise a product can be
@@ -309,18 +323,29 @@ impl Packet {
         (out, t)
     }
 
-    /// Masks, per chunk, of the active rays of `mask` that enter `b`.
+    /// Masks, per chunk, of the active rays of `mask` that enter leaf box `b`; counted toward
+    /// the packet's coherence record ([`Packet::came_apart`]).
     #[inline(always)]
-    fn entering<B: BoxTest>(&self, b: &[f32; 6], mask: u64) -> [u32; CHUNKS] {
+    fn entering<B: BoxTest>(&mut self, b: &[f32; 6], mask: u64) -> [u32; CHUNKS] {
         let mut out = [0; CHUNKS];
         let live = self.active & mask;
         for (k, o) in out.iter_mut().enumerate() {
             let bits = (live >> (LANES * k)) as u32 & 0xFF;
             if bits != 0 {
                 *o = bits & self.enter_chunk::<B>(k, b).0;
+                self.leaf_rays += o.count_ones();
             }
         }
+        self.leaf_visits += 1;
         out
+    }
+
+    /// True once the packet has shown, over enough leaves, that its rays go separate ways:
+    /// so few rays share each leaf that the packet's searches cost more than they share.
+    #[inline(always)]
+    fn came_apart(&self) -> bool {
+        self.leaf_visits >= PROBATION_LEAVES
+            && self.leaf_rays < MIN_RAYS_PER_LEAF * self.leaf_visits
     }
 
     /// Möller–Trumbore for the eight rays of chunk `k` against one triangle, operation for
@@ -414,20 +439,36 @@ fn above(i: usize) -> u64 {
     (u64::MAX << i) << 1
 }
 
-/// The packet walk over one 4-wide node format. `leaf(packet, range, box, mask, stats)`
-/// handles a leaf's primitives for the active rays of `mask` that enter `box`, and returns
-/// true once every ray is done (any-hit), which ends the walk.
+/// What the packet walk hands its caller.
+enum Visit<'b> {
+    /// A leaf's primitives, for the active rays of the mask that enter the box.
+    Leaf(Range<usize>, &'b [f32; 6], u64),
+    /// One ray alone, from its current limit, after the packet came apart.
+    Alone(usize, AloneIn),
+}
+
+/// Where a ray continues alone.
+enum AloneIn {
+    Leaf(Range<usize>),
+    Inner(usize),
+}
+
+/// The packet walk over one 4-wide node format. `visit(packet, what, stats)` handles a leaf
+/// for the packet or a subtree for one ray ([`Visit`]) and returns true once every ray is done
+/// (any-hit), which ends the walk.
 ///
 /// Each node is tested against its first ray alone. A child that ray misses is tested
 /// against the other candidate rays (those that may have entered the node), which gives
 /// the child's exact candidate set, so the deeper the walk, the fewer rays a search scans.
+/// When the packet comes apart ([`Packet::came_apart`]), each remaining ray finishes the
+/// stacked subtrees alone with the single-ray walk.
 #[inline(always)]
 fn walk<N, B, S, F>(nodes: &[N], pk: &mut Packet, stats: &mut S, mut leaf: F)
 where
     N: WideNode,
     B: BoxTest,
     S: Stats,
-    F: FnMut(&mut Packet, Range<usize>, &[f32; 6], u64, &mut S) -> bool,
+    F: FnMut(&mut Packet, Visit, &mut S) -> bool,
 {
     if pk.active == 0 {
         return;
@@ -527,11 +568,77 @@ where
             stats.node();
             stats.leaf();
             let range = e.child as usize..(e.child + count) as usize;
-            if leaf(pk, range, &b, e.mask & !((1u64 << f) - 1), stats) {
+            if leaf(
+                pk,
+                Visit::Leaf(range, &b, e.mask & !((1u64 << f) - 1)),
+                stats,
+            ) {
+                return;
+            }
+            if pk.came_apart() {
+                let mut rest = Vec::with_capacity(64);
+                while let Some(e) = stack.pop() {
+                    rest.push(e);
+                }
+                finish_alone::<N, B, S, F>(nodes, pk, &rest, stats, &mut leaf);
                 return;
             }
         }
     }
+}
+
+/// Each active ray works through the stacked entries `rest` (nearest first for the packet)
+/// on its own: the entries whose box it enters (tested exactly as the single-ray walk tests
+/// it), a leaf's primitives or an inner node's subtree with the single-ray walk.
+#[inline(never)]
+fn finish_alone<N, B, S, F>(
+    nodes: &[N],
+    pk: &mut Packet,
+    rest: &[Entry],
+    stats: &mut S,
+    visit: &mut F,
+) where
+    N: WideNode,
+    B: BoxTest,
+    S: Stats,
+    F: FnMut(&mut Packet, Visit, &mut S) -> bool,
+{
+    for i in bits64(pk.active) {
+        let r4 = pk.ray4(i);
+        for e in rest {
+            if e.mask >> i & 1 == 0 {
+                continue;
+            }
+            let planes = nodes[e.parent as usize].planes();
+            let limit = lane(&pk.limit, i);
+            if r4.enter::<B>(&planes, limit * B::SLACK).1 >> e.slot & 1 == 0 {
+                continue;
+            }
+            let at = match e.count & Bvh4Node::LEAF {
+                0 => AloneIn::Inner(e.child as usize),
+                _ => {
+                    let count = e.count & !Bvh4Node::LEAF;
+                    AloneIn::Leaf(e.child as usize..(e.child + count) as usize)
+                }
+            };
+            visit(pk, Visit::Alone(i, at), stats);
+            if pk.active >> i & 1 == 0 {
+                break;
+            }
+        }
+    }
+}
+
+/// Set bits of a packet mask, lowest first.
+#[inline(always)]
+fn bits64(mut m: u64) -> impl Iterator<Item = usize> {
+    std::iter::from_fn(move || {
+        (m != 0).then(|| {
+            let i = m.trailing_zeros() as usize;
+            m &= m - 1;
+            i
+        })
+    })
 }
 
 /// Lanes of a chunk mask, lowest first.
@@ -557,7 +664,28 @@ fn closest_packet<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
     best: &mut [Hit],
     stats: &mut S,
 ) {
-    walk::<N, B, S, _>(nodes, pk, stats, |pk, range, b, cand, stats| {
+    walk::<N, B, S, _>(nodes, pk, stats, |pk, visit, stats| {
+        let (range, b, cand) = match visit {
+            Visit::Leaf(range, b, cand) => (range, b, cand),
+            Visit::Alone(i, at) => {
+                match at {
+                    AloneIn::Leaf(r) => {
+                        leaf_closest_hit(&prims[r.clone()], &ids[r], &rays[i], &mut best[i], stats);
+                    }
+                    AloneIn::Inner(node) => bvh4::closest_from::<N, B, P, S>(
+                        nodes,
+                        prims,
+                        ids,
+                        &rays[i],
+                        node,
+                        &mut best[i],
+                        stats,
+                    ),
+                }
+                *lane_mut(&mut pk.limit, i) = best[i].t;
+                return false;
+            }
+        };
         let masks = pk.entering::<B>(b, cand);
         let mut changed = false;
         match P::as_triangles(&prims[range.clone()]) {
@@ -623,7 +751,23 @@ fn any_packet<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
     hit: &mut [bool],
     stats: &mut S,
 ) {
-    walk::<N, B, S, _>(nodes, pk, stats, |pk, range, b, cand, stats| {
+    walk::<N, B, S, _>(nodes, pk, stats, |pk, visit, stats| {
+        let (range, b, cand) = match visit {
+            Visit::Leaf(range, b, cand) => (range, b, cand),
+            Visit::Alone(i, at) => {
+                let found = match at {
+                    AloneIn::Leaf(r) => leaf_any_hit(&prims[r], &rays[i], stats),
+                    AloneIn::Inner(node) => {
+                        bvh4::any_from::<N, B, P, S>(nodes, prims, &rays[i], node, stats)
+                    }
+                };
+                if found {
+                    hit[i] = true;
+                    pk.retire(i);
+                }
+                return pk.active == 0;
+            }
+        };
         let mut masks = pk.entering::<B>(b, cand);
         let before = pk.active;
         match P::as_triangles(&prims[range.clone()]) {
