@@ -5,7 +5,7 @@ use glam::Vec3A;
 use quiver::build::{BuildConfig, Builder};
 use quiver::primitive::{Cone, PatchTriangle, Polygon, Prim, Sphere};
 use quiver::rng::Rng;
-use quiver::{rays, reference, Aabb, Bvh, Layout, Primitive, Triangle};
+use quiver::{rays, reference, Aabb, Bvh, Layout, Primitive, Ray, Triangle};
 use rayon::prelude::*;
 
 /// A seeded jumble of every primitive kind in the unit cube.
@@ -86,4 +86,57 @@ fn every_layout_matches_the_reference_on_mixed_primitives() {
                 });
         }
     }
+}
+
+/// A small sphere or cone seen from far away (the SPD tree's twigs: radius 0.002 at distance
+/// 5) is hit on its surface: the hit point's distance from the centre (sphere) or from the
+/// axis (cone), in f64, equals the radius to within f32 rounding of the point, and the point
+/// lies in the primitive's own box, which the BVH culls by.
+#[test]
+fn small_distant_spheres_and_cones_are_hit_on_their_surface() {
+    let mut rng = Rng::new(21);
+    let d64 = |v: Vec3A| glam::DVec3::new(v.x as f64, v.y as f64, v.z as f64);
+    let mut hits = 0;
+    for _ in 0..2000 {
+        let c = rng.in_box(Vec3A::splat(-1.0), Vec3A::ONE);
+        let r = rng.range(0.001, 0.003);
+        let axis = rng.unit_vector() * (4.0 * r);
+        let sphere = Prim::Sphere(Sphere {
+            center: c,
+            radius: r,
+        });
+        let cone = Prim::Cone(Cone {
+            base: c,
+            base_radius: r,
+            apex: c + axis,
+            apex_radius: r,
+        });
+        // From 5 units away, aimed within the radius of the centre.
+        let from = c + rng.unit_vector() * 5.0;
+        let aim = c + rng.in_box(Vec3A::splat(-r), Vec3A::splat(r)) * 0.9;
+        let ray = Ray::new(from, aim - from);
+        for prim in [&sphere, &cone] {
+            let Some(h) = prim.intersect(&ray) else {
+                continue;
+            };
+            hits += 1;
+            let p = ray.at(h.t);
+            // The point's own rounding: a few ulps of coordinates of size ~6.
+            let tol = 8.0 * 6.0 * f32::EPSILON as f64;
+            let off = match prim {
+                Prim::Sphere(_) => ((d64(p) - d64(c)).length() - r as f64).abs(),
+                _ => {
+                    let w = d64(axis).normalize();
+                    let q = d64(p) - d64(c);
+                    let s = q.dot(w);
+                    ((q - w * s).length() - r as f64).abs()
+                }
+            };
+            assert!(off <= tol, "{prim:?} {ray:?}: {off} off the surface");
+            let b = prim.bounds();
+            let inside = (p.cmpge(b.min - tol as f32) & p.cmple(b.max + tol as f32)).all();
+            assert!(inside, "{prim:?} {ray:?}: {p} outside {b:?}");
+        }
+    }
+    assert!(hits > 2000, "only {hits} hits");
 }

@@ -188,7 +188,7 @@ fn mount_counts_identical_across_layouts_and_threads() {
 /// packet and binary layouts, 1 and 2 threads, counters on and off.
 #[test]
 fn packets_on_and_off_trace_the_same_rays_and_draw_the_same_image() {
-    for spec in ["tetra5", "mount3", "balls2", "gears2", "teapot6"] {
+    for spec in ["tetra5", "mount3", "balls2", "gears2", "teapot6", "tree"] {
         let scene = Scene::load(spec).unwrap();
         // 100 x 100 pixels: 101 corners, so the last tile column and band are partial.
         let base = run_with(&scene, 100, Layout::Bvh4Dfs, 1, false, false);
