@@ -44,8 +44,10 @@ type Lanes = [f32x8; CHUNKS];
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum PacketMode {
     /// Packets of coherent rays (every direction within about 25° of the first active ray's,
-    /// at least four active rays) go down the packet kernel; others are traced ray by ray, so incoherent
-    /// input never runs slower than the single-ray kernel by more than the check.
+    /// at least four active rays) go down the packet kernel; others are traced ray by ray.
+    /// Rays that point alike but scatter anyway (shadow rays from far-apart points of fine
+    /// geometry) are handed to the single-ray walk once the packet sees it, which keeps them
+    /// near, though not always at, single-ray speed (README, "Packets").
     #[default]
     Auto,
     /// Always the packet kernel, however incoherent the rays (for tests and measurements).
