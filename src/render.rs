@@ -23,7 +23,7 @@
 use crate::accel::SceneBvh;
 use crate::geometry::{offset_ray_origin, Ray};
 use crate::scene::{Material, Scene};
-use crate::traverse::{Counters, NoStats};
+use crate::traverse::{Counters, NoStats, PacketMode, Stats};
 use glam::Vec3A;
 use rayon::prelude::*;
 use std::ops::AddAssign;
@@ -136,7 +136,8 @@ pub struct Rendered {
     /// Traversal work over all rays (zero unless [`RenderConfig::counters`]).
     pub work: Counters,
     /// Nodes visited by each eye ray, `(res + 1)^2` corners row by row (empty unless
-    /// [`RenderConfig::counters`]). With packets, each ray is charged its packet's node visits.
+    /// [`RenderConfig::counters`]). With packets, each eye ray is charged the node visits of
+    /// its eye packet.
     pub eye_nodes: Vec<u32>,
 }
 
@@ -236,6 +237,22 @@ struct Surface {
     n: Vec3A,
 }
 
+/// A packet query and where its answers go.
+enum Query<'o> {
+    Closest(&'o mut [Option<crate::Hit>]),
+    Any(&'o mut [bool]),
+}
+
+impl Query<'_> {
+    fn run<S: Stats>(self, bvh: &SceneBvh, rays: &[Ray], active: Option<&[bool]>, stats: &mut S) {
+        let mode = PacketMode::Auto;
+        match self {
+            Query::Closest(h) => bvh.closest_hit_packet_with(rays, active, mode, h, stats),
+            Query::Any(o) => bvh.any_hit_packet_with(rays, active, mode, o, stats),
+        }
+    }
+}
+
 /// Where a surface learns whether its shadow rays are blocked.
 enum Shadows<'s> {
     /// Trace each shadow ray now.
@@ -265,12 +282,15 @@ impl Tracer<'_> {
         if !self.config.packets {
             for j in rows.clone() {
                 for i in 0..n {
+                    let ray = eye(i, j);
                     let before = self.work.nodes;
+                    let hit = self.closest(&ray);
                     let k = (j - rows.start) * n + i;
-                    band.colors[k] = self.trace(&eye(i, j), 1);
                     if self.config.counters {
                         band.eye_nodes[k] = (self.work.nodes - before) as u32;
                     }
+                    let s = hit.map(|h| self.surface(&ray, &h));
+                    band.colors[k] = self.color(s, 1, Shadows::Trace);
                 }
             }
         } else {
@@ -281,13 +301,12 @@ impl Tracer<'_> {
                     .flat_map(|j| cols.clone().map(move |i| (i, j)))
                     .collect();
                 let rays: Vec<Ray> = slots.iter().map(|&(i, j)| eye(i, j)).collect();
-                let before = self.work.nodes;
-                let colors = self.trace_packet(&rays);
+                let (colors, eye_nodes) = self.trace_packet(&rays);
                 for (&(i, j), c) in slots.iter().zip(colors) {
                     let k = (j - rows.start) * n + i;
                     band.colors[k] = c;
                     if self.config.counters {
-                        band.eye_nodes[k] = (self.work.nodes - before) as u32;
+                        band.eye_nodes[k] = eye_nodes as u32;
                     }
                 }
             }
@@ -297,18 +316,14 @@ impl Tracer<'_> {
         band
     }
 
-    /// Colours seen along a packet of eye rays: the eye rays, and per light the shadow rays of
-    /// the corners facing it, go as packets; everything after that ray by ray.
-    fn trace_packet(&mut self, rays: &[Ray]) -> Vec<Vec3A> {
+    /// Colours seen along a packet of eye rays, and the nodes the eye packet visited (with
+    /// counters on): the eye rays, and per light the shadow rays of the corners facing it, go
+    /// as packets; everything after that ray by ray.
+    fn trace_packet(&mut self, rays: &[Ray]) -> (Vec<Vec3A>, u64) {
         let mut hits = vec![None; rays.len()];
-        let mode = crate::traverse::PacketMode::Auto;
-        if self.config.counters {
-            self.bvh
-                .closest_hit_packet_with(rays, None, mode, &mut hits, &mut self.work);
-        } else {
-            self.bvh
-                .closest_hit_packet_with(rays, None, mode, &mut hits, &mut NoStats);
-        }
+        let before = self.work.nodes;
+        self.packet_query(rays, None, Query::Closest(&mut hits));
+        let eye_nodes = self.work.nodes - before;
         let surfaces: Vec<Option<Surface>> = rays
             .iter()
             .zip(&hits)
@@ -328,40 +343,30 @@ impl Tracer<'_> {
                     shadow[k] = r;
                 }
             }
-            if self.config.counters {
-                self.bvh.any_hit_packet_with(
-                    &shadow,
-                    Some(&active),
-                    mode,
-                    &mut answer,
-                    &mut self.work,
-                );
-            } else {
-                self.bvh.any_hit_packet_with(
-                    &shadow,
-                    Some(&active),
-                    mode,
-                    &mut answer,
-                    &mut NoStats,
-                );
-            }
+            self.packet_query(&shadow, Some(&active), Query::Any(&mut answer));
             for (k, &a) in answer.iter().enumerate() {
                 blocked[k * lights + l] = a;
             }
         }
-        let mut out = Vec::with_capacity(rays.len());
-        for (k, s) in surfaces.into_iter().enumerate() {
-            self.rays.eye += 1;
-            out.push(match s {
-                None => self.scene.background,
-                Some(s) => {
-                    self.rays.eye_hit += 1;
-                    let known = &blocked[k * lights..(k + 1) * lights];
-                    self.shade_surface(&s, 1, Shadows::Known(known))
-                }
-            });
+        let colors = surfaces
+            .into_iter()
+            .enumerate()
+            .map(|(k, s)| {
+                let known = &blocked[k * lights..(k + 1) * lights];
+                self.color(s, 1, Shadows::Known(known))
+            })
+            .collect();
+        (colors, eye_nodes)
+    }
+
+    /// A packet query through the packet kernels, counting into `work` with counters on.
+    fn packet_query(&mut self, rays: &[Ray], active: Option<&[bool]>, query: Query) {
+        let bvh = self.bvh;
+        if self.config.counters {
+            query.run(bvh, rays, active, &mut self.work);
+        } else {
+            query.run(bvh, rays, active, &mut NoStats);
         }
-        out
     }
 
     /// Closest hit; with counters on, through the counting kernel (a per-ray choice: the plain
@@ -382,19 +387,23 @@ impl Tracer<'_> {
         }
     }
 
-    /// Colour seen along `ray`, a ray of generation `depth`.
+    /// Colour seen along `ray`, a secondary ray of generation `depth`.
     fn trace(&mut self, ray: &Ray, depth: u32) -> Vec3A {
+        let s = self.closest(ray).map(|h| self.surface(ray, &h));
+        self.color(s, depth, Shadows::Trace)
+    }
+
+    /// Colour seen by a ray of generation `depth` that found surface `s` (or nothing);
+    /// counts eye rays and their hits at depth 1.
+    fn color(&mut self, s: Option<Surface>, depth: u32, shadows: Shadows) -> Vec3A {
         if depth == 1 {
             self.rays.eye += 1;
+            self.rays.eye_hit += s.is_some() as u64;
         }
-        let Some(hit) = self.closest(ray) else {
-            return self.scene.background;
-        };
-        if depth == 1 {
-            self.rays.eye_hit += 1;
+        match s {
+            Some(s) => self.shade_surface(&s, depth, shadows),
+            None => self.scene.background,
         }
-        let s = self.surface(ray, &hit);
-        self.shade_surface(&s, depth, Shadows::Trace)
     }
 
     fn surface(&self, ray: &Ray, hit: &crate::Hit) -> Surface {
