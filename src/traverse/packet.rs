@@ -63,8 +63,8 @@ const PROBATION_LEAVES: u32 = 12;
 /// 13, balls3 in patch mode 9 and 4.3, tetra9 1.7 and 1.2; packets pay on the first two.
 const MIN_RAYS_PER_LEAF: u32 = 2;
 
-/// Smallest cosine between a packet ray and the packet's mean direction for
-/// [`PacketMode::Auto`] to take the packet path.
+/// Smallest cosine between a packet ray and the first active ray for [`PacketMode::Auto`] to
+/// take the packet path.
 const COHERENT_COS: f32 = 0.9;
 
 #[inline(always)]
@@ -291,11 +291,7 @@ impl Packet {
     /// The first active ray of `mask` that enters `b`, with its entry distance.
     #[inline(always)]
     fn find_first<B: BoxTest>(&self, b: &[f32; 6], mask: u64) -> Option<(usize, f32)> {
-        let mut rest = self.active & mask;
-        while rest != 0 {
-            let k = rest.trailing_zeros() as usize / LANES;
-            let bits = (rest >> (LANES * k)) as u32 & 0xFF;
-            rest &= !(0xFF << (LANES * k));
+        for (k, bits) in chunks(self.active & mask) {
             let (m, near) = self.enter_chunk::<B>(k, b);
             let m = m & bits;
             if m != 0 {
@@ -309,12 +305,8 @@ impl Packet {
     /// The active rays of `mask` that enter `b`, and the entry distance of the first.
     #[inline(always)]
     fn enter_all<B: BoxTest>(&self, b: &[f32; 6], mask: u64) -> (u64, f32) {
-        let mut rest = self.active & mask;
         let (mut out, mut t) = (0u64, 0.0);
-        while rest != 0 {
-            let k = rest.trailing_zeros() as usize / LANES;
-            let bits = (rest >> (LANES * k)) as u32 & 0xFF;
-            rest &= !(0xFF << (LANES * k));
+        for (k, bits) in chunks(self.active & mask) {
             let (m, near) = self.enter_chunk::<B>(k, b);
             let m = m & bits;
             if out == 0 && m != 0 {
@@ -330,13 +322,9 @@ impl Packet {
     #[inline(always)]
     fn entering<B: BoxTest>(&mut self, b: &[f32; 6], mask: u64) -> [u32; CHUNKS] {
         let mut out = [0; CHUNKS];
-        let live = self.active & mask;
-        for (k, o) in out.iter_mut().enumerate() {
-            let bits = (live >> (LANES * k)) as u32 & 0xFF;
-            if bits != 0 {
-                *o = bits & self.enter_chunk::<B>(k, b).0;
-                self.leaf_rays += o.count_ones();
-            }
+        for (k, bits) in chunks(self.active & mask) {
+            out[k] = bits & self.enter_chunk::<B>(k, b).0;
+            self.leaf_rays += out[k].count_ones();
         }
         self.leaf_visits += 1;
         out
@@ -414,8 +402,8 @@ impl TriSetup {
 }
 
 /// Stack entry: a child, where its box is (slot of a parent node), the first ray entering it
-/// and that ray's entry distance, and the rays that may enter it. The box is re-read only when needed (leaf, or a new first
-/// ray), which is cheaper than carrying it.
+/// and that ray's entry distance, and the rays that may enter it. The box is re-read only when
+/// needed (leaf, or a new first ray), which is cheaper than carrying it.
 #[derive(Clone, Copy)]
 struct Entry {
     child: u32,
@@ -428,6 +416,15 @@ struct Entry {
     /// The rays that may enter the child: every ray that enters it is in here. Searches for
     /// a first ray scan only these, so they get cheaper as the packet spreads out.
     mask: u64,
+}
+
+impl Entry {
+    /// The primitives of a leaf entry.
+    #[inline(always)]
+    fn leaf_range(&self) -> Range<usize> {
+        let count = self.count & !Bvh4Node::LEAF;
+        self.child as usize..(self.child + count) as usize
+    }
 }
 
 #[inline(always)]
@@ -566,15 +563,10 @@ where
                     break;
                 }
             }
-            let count = e.count & !Bvh4Node::LEAF;
             stats.node();
             stats.leaf();
-            let range = e.child as usize..(e.child + count) as usize;
-            if leaf(
-                pk,
-                Visit::Leaf(range, &b, e.mask & !((1u64 << f) - 1)),
-                stats,
-            ) {
+            let visit = Visit::Leaf(e.leaf_range(), &b, e.mask & !((1u64 << f) - 1));
+            if leaf(pk, visit, stats) {
                 return;
             }
             if pk.came_apart() {
@@ -605,7 +597,7 @@ fn finish_alone<N, B, S, F>(
     S: Stats,
     F: FnMut(&mut Packet, Visit, &mut S) -> bool,
 {
-    for i in bits64(pk.active) {
+    for i in bits(pk.active) {
         let r4 = pk.ray4(i);
         for e in rest {
             if e.mask >> i & 1 == 0 {
@@ -618,10 +610,7 @@ fn finish_alone<N, B, S, F>(
             }
             let at = match e.count & Bvh4Node::LEAF {
                 0 => AloneIn::Inner(e.child as usize),
-                _ => {
-                    let count = e.count & !Bvh4Node::LEAF;
-                    AloneIn::Leaf(e.child as usize..(e.child + count) as usize)
-                }
+                _ => AloneIn::Leaf(e.leaf_range()),
             };
             visit(pk, Visit::Alone(i, at), stats);
             if pk.active >> i & 1 == 0 {
@@ -631,9 +620,10 @@ fn finish_alone<N, B, S, F>(
     }
 }
 
-/// Set bits of a packet mask, lowest first.
+/// Set bits of a mask (packet or chunk), lowest first.
 #[inline(always)]
-fn bits64(mut m: u64) -> impl Iterator<Item = usize> {
+fn bits(mask: impl Into<u64>) -> impl Iterator<Item = usize> {
+    let mut m = mask.into();
     std::iter::from_fn(move || {
         (m != 0).then(|| {
             let i = m.trailing_zeros() as usize;
@@ -643,14 +633,15 @@ fn bits64(mut m: u64) -> impl Iterator<Item = usize> {
     })
 }
 
-/// Lanes of a chunk mask, lowest first.
+/// The chunks a packet mask touches: (chunk, its 8-lane mask), lowest first.
 #[inline(always)]
-fn bits(mut m: u32) -> impl Iterator<Item = usize> {
+fn chunks(mut m: u64) -> impl Iterator<Item = (usize, u32)> {
     std::iter::from_fn(move || {
         (m != 0).then(|| {
-            let j = m.trailing_zeros() as usize;
-            m &= m - 1;
-            j
+            let k = m.trailing_zeros() as usize / LANES;
+            let lanes = (m >> (LANES * k)) as u32 & 0xFF;
+            m &= !(0xFF << (LANES * k));
+            (k, lanes)
         })
     })
 }
@@ -942,11 +933,10 @@ macro_rules! packet_queries {
             /// # Panics
             /// When `hits` and `rays` differ in length.
             pub fn closest_hit_packet(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
-                let mode = PacketMode::Auto;
                 self.closest_hit_packet_with::<ConservativeBoxes, _>(
                     rays,
                     None,
-                    mode,
+                    PacketMode::Auto,
                     hits,
                     &mut NoStats,
                 )
@@ -957,11 +947,10 @@ macro_rules! packet_queries {
             /// # Panics
             /// When `occluded` and `rays` differ in length.
             pub fn any_hit_packet(&self, rays: &[Ray], occluded: &mut [bool]) {
-                let mode = PacketMode::Auto;
                 self.any_hit_packet_with::<ConservativeBoxes, _>(
                     rays,
                     None,
-                    mode,
+                    PacketMode::Auto,
                     occluded,
                     &mut NoStats,
                 )
