@@ -12,7 +12,7 @@ use quiver::build::{BuildConfig, Builder};
 use quiver::measure::{trace, trace_packets, Query};
 use quiver::scene::Scene;
 use quiver::traverse::PacketMode;
-use quiver::{rays, Bvh, Layout, Ray};
+use quiver::{rays, Bvh, Layout};
 use std::time::Duration;
 
 fn bench_packets(c: &mut Criterion) {
@@ -28,11 +28,7 @@ fn bench_packets(c: &mut Criterion) {
     .0;
     let eye = rays::camera_tiles(&scene.camera, 256, 8);
     let light = scene.lights.first().map_or(scene.camera.from, |l| l.pos);
-    let shadow: Vec<Ray> = eye
-        .iter()
-        .filter_map(|r| bvh.closest_hit(r).map(|h| r.at(h.t)))
-        .map(|p| Ray::segment(p, light - p, 1e-4, 1.0 - 1e-4))
-        .collect();
+    let shadow = rays::shadow_rays(&bvh, &eye, &[light]);
     let random = rays::random_rays(&scene.bounds(), 50_000, 7);
     let sets = [
         ("eye", &eye, Query::Closest),

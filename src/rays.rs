@@ -8,10 +8,12 @@
 //! assert_eq!(rays::random_rays(&s.bounds(), 100, 1).len(), 100);
 //! ```
 
-use crate::geometry::{Aabb, Ray};
+use crate::geometry::{Aabb, Primitive, Ray};
+use crate::layout::Bvh;
 use crate::rng::Rng;
 use crate::scene::Camera;
 use glam::Vec3A;
+use rayon::prelude::*;
 
 /// `n` incoherent rays: origins uniform in `bounds` grown by half its size on every side,
 /// directions uniform on the sphere. Many start inside the geometry, as secondary rays do.
@@ -64,4 +66,33 @@ pub fn camera_tiles(camera: &Camera, res: usize, tile: usize) -> Vec<Ray> {
         }
     }
     out
+}
+
+/// Shadow rays from every point where an `eye` ray hits `bvh` toward each light in turn (all
+/// rays toward the first light, then the second, …, keeping the eye rays' order): segments
+/// from the hit point over `[1e-4, 1 - 1e-4]` of the way to the light.
+///
+/// ```
+/// use glam::Vec3A;
+/// use quiver::build::{BuildConfig, Builder};
+/// use quiver::{rays, scene::Scene, Bvh, Layout};
+/// let s = Scene::load("tetra3").unwrap();
+/// let (bvh, _) = Bvh::build(&s.triangles(), &BuildConfig::default(), Builder::Binned, Layout::Bvh4Dfs);
+/// let eye = rays::camera_rays(&s.camera, 16);
+/// let hits = eye.iter().filter(|r| bvh.closest_hit(r).is_some()).count();
+/// assert_eq!(rays::shadow_rays(&bvh, &eye, &[Vec3A::Z, Vec3A::X]).len(), 2 * hits);
+/// ```
+pub fn shadow_rays<P: Primitive>(bvh: &Bvh<P>, eye: &[Ray], lights: &[Vec3A]) -> Vec<Ray> {
+    let points: Vec<Vec3A> = eye
+        .par_iter()
+        .filter_map(|r| bvh.closest_hit(r).map(|h| r.at(h.t)))
+        .collect();
+    lights
+        .iter()
+        .flat_map(|&l| {
+            points
+                .iter()
+                .map(move |&p| Ray::segment(p, l - p, 1e-4, 1.0 - 1e-4))
+        })
+        .collect()
 }

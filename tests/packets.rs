@@ -79,20 +79,10 @@ fn build<P: Primitive>(prims: &[P], layout: Layout) -> Bvh<P> {
     Bvh::build(prims, &BuildConfig::default(), Builder::Binned, layout).0
 }
 
-/// Shadow rays from the eye rays' hit points toward every light, as the renderer makes them
-/// (origin on the surface, `t_max` just short of the light).
+/// Shadow rays from the eye rays' hit points toward every light.
 fn shadow_rays<P: Primitive>(bvh: &Bvh<P>, scene: &Scene, eye: &[Ray]) -> Vec<Ray> {
-    let mut out = Vec::new();
-    for light in &scene.lights {
-        for r in eye {
-            if let Some(h) = bvh.closest_hit(r) {
-                let p = r.at(h.t);
-                let to = light.pos - p;
-                out.push(Ray::segment(p, to, 1e-4, 1.0 - 1e-4));
-            }
-        }
-    }
-    out
+    let lights: Vec<Vec3A> = scene.lights.iter().map(|l| l.pos).collect();
+    rays::shadow_rays(bvh, eye, &lights)
 }
 
 #[test]

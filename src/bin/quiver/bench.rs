@@ -10,7 +10,7 @@ use quiver::build::{BuildConfig, Builder};
 use quiver::layout::triangle_bounds;
 use quiver::measure::{median_times_interleaved, mrays_per_s};
 use quiver::scene::Scene;
-use quiver::{obvhs_bridge, rays, Bvh, Layout, Ray};
+use quiver::{obvhs_bridge, rays, Bvh, Layout};
 use rayon::prelude::*;
 use serde_json::{json, Value};
 use std::path::PathBuf;
@@ -137,11 +137,7 @@ pub fn cmd_bench(args: BenchArgs) -> Result<()> {
             .first()
             .map(|l| l.pos)
             .unwrap_or(scene.camera.from);
-        let shadow: Vec<Ray> = eye
-            .par_iter()
-            .filter_map(|r| bvhs[2].closest_hit(r).map(|h| r.at(h.t)))
-            .map(|p| Ray::segment(p, light - p, 1e-4, 1.0 - 1e-4))
-            .collect();
+        let shadow = rays::shadow_rays(&bvhs[2], &eye, &[light]);
         let incoherent = rays::random_rays(&scene.bounds(), args.rays, 11);
         let p = pool(Some(all as u16))?;
         for (kind, set, any) in [

@@ -8,8 +8,7 @@ use quiver::measure::{median_times_interleaved, mrays_per_s, trace, trace_packet
 use quiver::scene::tessellate::DEFAULT_RESOLUTION;
 use quiver::scene::Scene;
 use quiver::traverse::PacketMode;
-use quiver::{rays, Bvh, Layout, Primitive, Ray};
-use rayon::prelude::*;
+use quiver::{rays, Bvh, Layout, Primitive};
 use serde_json::{json, Value};
 use std::path::PathBuf;
 
@@ -92,19 +91,8 @@ fn measure<P: Primitive>(
     let bvh = pool(None)?
         .install(|| Bvh::build(prims, &BuildConfig::default(), Builder::Binned, args.layout).0);
     let eye = rays::camera_tiles(&scene.camera, args.res as usize, 8);
-    let points: Vec<_> = eye
-        .par_iter()
-        .filter_map(|r| bvh.closest_hit(r).map(|h| r.at(h.t)))
-        .collect();
-    let shadow: Vec<Ray> = scene
-        .lights
-        .iter()
-        .flat_map(|l| {
-            points
-                .iter()
-                .map(move |&p| Ray::segment(p, l.pos - p, 1e-4, 1.0 - 1e-4))
-        })
-        .collect();
+    let lights: Vec<_> = scene.lights.iter().map(|l| l.pos).collect();
+    let shadow = rays::shadow_rays(&bvh, &eye, &lights);
     let random = rays::random_rays(&scene.bounds(), args.rays, 11);
     for threads in [1, all] {
         let p = pool(Some(threads as u16))?;
