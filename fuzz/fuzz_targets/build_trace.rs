@@ -1,6 +1,6 @@
 #![no_main]
-//! Fuzz target: see `quiver::checks::build_and_trace`.
+//! Fuzz target: see `quiver_lab::checks::build_and_trace`.
 
 use libfuzzer_sys::fuzz_target;
 
-fuzz_target!(|data: &[u8]| quiver::checks::build_and_trace(data));
+fuzz_target!(|data: &[u8]| quiver_lab::checks::build_and_trace(data));

@@ -1,6 +1,6 @@
 #![no_main]
-//! Fuzz target: see `quiver::checks::nff_round_trip`.
+//! Fuzz target: see `quiver_lab::checks::nff_round_trip`.
 
 use libfuzzer_sys::fuzz_target;
 
-fuzz_target!(|data: &[u8]| quiver::checks::nff_round_trip(data));
+fuzz_target!(|data: &[u8]| quiver_lab::checks::nff_round_trip(data));

@@ -1,0 +1,276 @@
+//! `quiver bench`: quiver and obvhs 0.4 side by side in one process, on the same triangles and
+//! the same rays: build time and SAH cost, then Mrays/s for eye, shadow and incoherent rays.
+
+use super::{pool, write_json, Result};
+use obvhs::{
+    bvh2::builder::build_bvh2_from_tris, cwbvh::builder::build_cwbvh_from_tris, ray::RayHit,
+    BvhBuildParams,
+};
+use quiver::build::{BuildConfig, Builder};
+use quiver::layout::triangle_bounds;
+use quiver_lab::measure::{median_times_interleaved, mrays_per_s};
+use quiver_scenes::scene::Scene;
+use quiver::{Bvh, Layout};
+use quiver_lab::{obvhs_bridge, rays};
+use rayon::prelude::*;
+use serde_json::{json, Value};
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+#[derive(clap::Args)]
+pub struct BenchArgs {
+    /// Scenes, measured as triangles (SPD scenes in patch mode). Default: the bunny (3.7k),
+    /// teapot12 (9.4k), balls3 (158k) and tetra10 (1M).
+    scenes: Vec<String>,
+    /// Incoherent rays per scene (eye rays: a 256 x 256 image; shadow rays: one per eye hit).
+    #[arg(long, default_value_t = 200_000)]
+    rays: usize,
+    /// Timed rounds per measurement (median).
+    #[arg(long, default_value_t = 3)]
+    reps: usize,
+    /// Write the machine description and all rows as JSON.
+    #[arg(long)]
+    json: Option<PathBuf>,
+}
+
+const KERNELS: [Layout; 4] = [
+    Layout::Bvh2Dfs,
+    Layout::Bvh2Subtree,
+    Layout::Bvh4Dfs,
+    Layout::Bvh4Quant,
+];
+
+fn time<T>(f: impl FnOnce() -> T) -> (T, f64) {
+    let t = Instant::now();
+    let v = f();
+    (v, t.elapsed().as_secs_f64() * 1e3)
+}
+
+pub fn cmd_bench(args: BenchArgs) -> Result<()> {
+    let bunny = concat!(env!("CARGO_MANIFEST_DIR"), "/../lab/tests/data/bunny.obj");
+    let scenes = if args.scenes.is_empty() {
+        vec![
+            bunny.to_string(),
+            "teapot12".into(),
+            "balls3".into(),
+            "tetra10".into(),
+        ]
+    } else {
+        args.scenes.clone()
+    };
+    let all = rayon::current_num_threads().max(2);
+    let bar = indicatif::ProgressBar::new(scenes.len() as u64 * 2);
+    bar.set_style(indicatif::ProgressStyle::with_template(
+        "{bar:40} {pos}/{len} {msg} [{elapsed}]",
+    )?);
+    let mut rows: Vec<Value> = Vec::new();
+    let config = BuildConfig::default();
+    for name in &scenes {
+        bar.set_message(format!("{name}: building"));
+        let scene = Scene::load(name)?.into_patches(quiver_scenes::scene::tessellate::DEFAULT_RESOLUTION);
+        let tris = scene.triangles();
+        let ot = obvhs_bridge::triangles(&tris);
+        let row = |engine: &str,
+                   kernel: &str,
+                   rays: &str,
+                   threads: usize,
+                   mrays: Option<f64>,
+                   build_ms: Option<f64>,
+                   sah: Option<f64>| {
+            json!({"scene": scene.name, "primitives": tris.len(), "engine": engine, "kernel": kernel, "rays": rays,
+                   "threads": threads, "mrays_per_s": mrays, "build_ms": build_ms, "sah_cost": sah})
+        };
+        // Builds, 1 thread and all threads, warmed once so page faults do not count.
+        for threads in [1, all] {
+            let p = pool(Some(threads as u16))?;
+            p.install(|| {
+                let _ = Bvh::build(&tris, &config, Builder::Binned, Layout::Bvh2Dfs);
+                let ((_, tree), ms) =
+                    time(|| Bvh::build(&tris, &config, Builder::Binned, Layout::Bvh2Dfs));
+                rows.push(row(
+                    "quiver",
+                    "binned+bvh2-dfs",
+                    "build",
+                    threads,
+                    None,
+                    Some(ms),
+                    Some(tree.sah_cost(&config)),
+                ));
+                let medium = BvhBuildParams::medium_build();
+                let _ = build_bvh2_from_tris(&ot, medium, &mut Duration::default());
+                let (ob, ms) = time(|| build_bvh2_from_tris(&ot, medium, &mut Duration::default()));
+                rows.push(row(
+                    "obvhs",
+                    "bvh2-medium",
+                    "build",
+                    threads,
+                    None,
+                    Some(ms),
+                    Some(obvhs_bridge::sah_cost(&ob)),
+                ));
+                let (_, ms) = time(|| build_cwbvh_from_tris(&ot, medium, &mut Duration::default()));
+                rows.push(row(
+                    "obvhs",
+                    "cwbvh-medium",
+                    "build",
+                    threads,
+                    None,
+                    Some(ms),
+                    None,
+                ));
+            });
+        }
+        bar.inc(1);
+        bar.set_message(format!("{name}: tracing"));
+        let tree = quiver::build::build(&triangle_bounds(&tris), &config, Builder::Binned);
+        let bvhs: Vec<Bvh> = KERNELS
+            .iter()
+            .map(|&l| Bvh::from_tree(&tree, &tris, l))
+            .collect();
+        let obvh = build_bvh2_from_tris(
+            &ot,
+            BvhBuildParams::medium_build(),
+            &mut Duration::default(),
+        );
+        let eye = rays::camera_rays(&scene.camera, 256);
+        let light = scene
+            .lights
+            .first()
+            .map(|l| l.pos)
+            .unwrap_or(scene.camera.from);
+        let shadow = rays::shadow_rays(&bvhs[2], &eye, &[light]);
+        let incoherent = rays::random_rays(&scene.bounds(), args.rays, 11);
+        let p = pool(Some(all as u16))?;
+        for (kind, set, any) in [
+            ("eye", &eye, false),
+            ("shadow", &shadow, true),
+            ("incoherent", &incoherent, false),
+        ] {
+            let n = KERNELS.len() + 1;
+            let times = p.install(|| {
+                median_times_interleaved(args.reps, n, |i| {
+                    let hits: usize = if i < KERNELS.len() {
+                        let b = &bvhs[i];
+                        set.par_chunks(1024)
+                            .map(|c| {
+                                c.iter()
+                                    .filter(|r| {
+                                        if any {
+                                            b.any_hit(r)
+                                        } else {
+                                            b.closest_hit(r).is_some()
+                                        }
+                                    })
+                                    .count()
+                            })
+                            .sum()
+                    } else {
+                        set.par_chunks(1024)
+                            .map(|c| {
+                                c.iter()
+                                    .filter(|r| {
+                                        let or =
+                                            obvhs::ray::Ray::new(r.origin, r.dir, r.t_min, r.t_max);
+                                        let test = |ray: &obvhs::ray::Ray, slot: usize| {
+                                            ot[obvh.primitive_indices[slot] as usize].intersect(ray)
+                                        };
+                                        if any {
+                                            !obvh.ray_traverse_miss(or, test)
+                                        } else {
+                                            obvh.ray_traverse(or, &mut RayHit::none(), test)
+                                        }
+                                    })
+                                    .count()
+                            })
+                            .sum()
+                    };
+                    std::hint::black_box(hits);
+                })
+            });
+            for (i, t) in times.iter().enumerate() {
+                let mrays = mrays_per_s(set.len(), *t);
+                let (engine, kernel) = if i < KERNELS.len() {
+                    ("quiver", KERNELS[i].name())
+                } else {
+                    ("obvhs", "bvh2-medium")
+                };
+                rows.push(row(engine, kernel, kind, all, Some(mrays), None, None));
+            }
+        }
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    print_rows(&rows);
+    let machine = json!({
+        "threads": all,
+        "os": std::env::consts::OS,
+        "arch": std::env::consts::ARCH,
+        "target_features": {"sse2": cfg!(target_feature = "sse2"), "avx": cfg!(target_feature = "avx"), "avx2": cfg!(target_feature = "avx2")},
+    });
+    write_json(
+        args.json.as_ref(),
+        &json!({"machine": machine, "rows": rows}),
+    )
+}
+
+fn print_rows(rows: &[Value]) {
+    let s = |v: &Value| v.as_str().unwrap_or("").to_string();
+    let f = |v: &Value| v.as_f64();
+    super::outln!(
+        "{:<14} {:>9} {:<7} {:<17} {:<10} {:>3} {:>9} {:>9} {:>9} {:>8}",
+        "scene",
+        "prims",
+        "engine",
+        "kernel",
+        "rays",
+        "thr",
+        "build ms",
+        "SAH",
+        "Mrays/s",
+        "q/obvhs"
+    );
+    for r in rows {
+        let name = s(&r["scene"]);
+        let short = name.rsplit('/').next().unwrap_or(&name).to_string();
+        // Ratio against obvhs on the same scene, ray kind and thread count.
+        let ratio = if r["engine"] == "quiver" {
+            rows.iter()
+                .find(|o| {
+                    o["engine"] == "obvhs"
+                        && o["scene"] == r["scene"]
+                        && o["rays"] == r["rays"]
+                        && o["threads"] == r["threads"]
+                        && o["kernel"] == "bvh2-medium"
+                })
+                .and_then(|o| {
+                    match (
+                        f(&r["mrays_per_s"]),
+                        f(&o["mrays_per_s"]),
+                        f(&r["build_ms"]),
+                        f(&o["build_ms"]),
+                    ) {
+                        (Some(a), Some(b), _, _) => Some(a / b),
+                        (_, _, Some(a), Some(b)) => Some(b / a),
+                        _ => None,
+                    }
+                })
+        } else {
+            None
+        };
+        let num = |v: Option<f64>, p: usize| v.map_or("-".to_string(), |x| format!("{x:.p$}"));
+        super::outln!(
+            "{:<14} {:>9} {:<7} {:<17} {:<10} {:>3} {:>9} {:>9} {:>9} {:>8}",
+            short,
+            r["primitives"],
+            s(&r["engine"]),
+            s(&r["kernel"]),
+            s(&r["rays"]),
+            r["threads"],
+            num(f(&r["build_ms"]), 1),
+            num(f(&r["sah_cost"]), 2),
+            num(f(&r["mrays_per_s"]), 2),
+            num(ratio, 2)
+        );
+    }
+    super::outln!("(q/obvhs: quiver throughput over obvhs's, or obvhs build time over quiver's: above 1 means quiver is faster)");
+}

@@ -1,0 +1,255 @@
+//! What accuracy costs: every combination of triangle intersector (fast, watertight, f64),
+//! box test (plain, conservative) and secondary-ray offset (epsilon, ulps), measured in time
+//! and in errors on the same rays.
+//!
+//! - **Mrays/s**: closest-hit and any-hit throughput on incoherent rays through the scene.
+//! - **Leaks**: rays aimed exactly at the shared edges and vertices of a closed mesh (an
+//!   icosphere, from inside and outside) that hit nothing, per million.
+//! - **Self-hits**: reflection rays leaving a hit point that hit their own primitive first,
+//!   per million secondary rays.
+//! - **Reference mismatches**: rays whose hit (primitive, or hit/miss) differs from the f64
+//!   intersector with conservative boxes, per million.
+//!
+//! ```
+//! use quiver_lab::accuracy::evaluate;
+//! use quiver_scenes::scene::Scene;
+//! let tris = Scene::load("tetra3").unwrap().triangles();
+//! let rows = evaluate(&tris, 2000, 1, 1);
+//! assert_eq!(rows.len(), 12);
+//! let watertight = rows.iter().find(|r| r.intersector == "watertight" && r.box_test == "conservative").unwrap();
+//! assert_eq!(watertight.leaks_per_million, 0.0);
+//! ```
+
+use quiver::build::{BuildConfig, Builder};
+use quiver::geometry::{Primitive, Ray, Triangle};
+use quiver::intersect::{Exact, Watertight};
+use quiver::layout::{Bvh, Layout};
+use crate::measure;
+use quiver_scenes::render::Offset;
+use quiver_scenes::scene::Scene;
+use quiver::traverse::{BoxTest, ConservativeBoxes, FastBoxes, NoStats};
+use glam::Vec3A;
+use rayon::prelude::*;
+
+/// One combination's measurements.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Row {
+    /// `fast`, `watertight` or `f64`.
+    pub intersector: &'static str,
+    /// `plain` or `conservative`.
+    pub box_test: &'static str,
+    /// `epsilon` or `ulps`.
+    pub offset: &'static str,
+    /// Closest-hit throughput on incoherent rays.
+    pub mrays_per_s: f64,
+    /// Any-hit throughput on the same rays.
+    pub any_mrays_per_s: f64,
+    /// Closed-mesh edge/vertex rays that leaked, per million.
+    pub leaks_per_million: f64,
+    /// Secondary rays that re-hit their own primitive, per million.
+    pub self_hits_per_million: f64,
+    /// Rays answered differently from the f64 reference, per million.
+    pub ref_mismatch_per_million: f64,
+}
+
+/// Rays aimed exactly at every vertex and edge midpoint of a closed mesh around the origin,
+/// from a few interior points and from outside through the centre: each must hit.
+pub fn closed_mesh_rays(tris: &[Triangle]) -> Vec<Ray> {
+    let inside = [
+        Vec3A::ZERO,
+        Vec3A::new(0.2, -0.1, 0.3),
+        Vec3A::new(-0.3, 0.25, -0.1),
+        Vec3A::new(0.05, 0.4, 0.1),
+    ];
+    let mut rays = Vec::new();
+    for t in tris {
+        for p in [
+            t.v[0],
+            t.v[1],
+            t.v[2],
+            (t.v[0] + t.v[1]) * 0.5,
+            (t.v[1] + t.v[2]) * 0.5,
+            (t.v[2] + t.v[0]) * 0.5,
+        ] {
+            rays.extend(inside.iter().map(|&o| Ray::new(o, p - o)));
+            rays.push(Ray::new(p * 3.0, -p * 3.0));
+        }
+    }
+    rays
+}
+
+/// Measures all twelve combinations on `scene_tris` with `n_rays` incoherent rays, `reps`
+/// timed repetitions (median), and the leak test on an icosphere of `sphere_level`
+/// subdivisions. Runs on the current rayon pool.
+pub fn evaluate(
+    scene_tris: &[Triangle],
+    n_rays: usize,
+    reps: usize,
+    sphere_level: u32,
+) -> Vec<Row> {
+    let bounds = scene_tris
+        .iter()
+        .fold(quiver::Aabb::EMPTY, |b, t| b.union(&t.bounds()));
+    let rays = crate::rays::random_rays(&bounds, n_rays, 17);
+    let sphere = Scene::load(&format!("icosphere{sphere_level}"))
+        .map(|s| s.triangles())
+        .unwrap_or_default();
+    let closed = closed_mesh_rays(&sphere);
+    let exact: Vec<Exact> = scene_tris.iter().map(|&t| Exact(t)).collect();
+    let (reference, _) = Bvh::build(
+        &exact,
+        &BuildConfig::default(),
+        Builder::Binned,
+        Layout::Bvh4Dfs,
+    );
+    let want: Vec<Option<u32>> = rays
+        .par_iter()
+        .map(|r| reference.closest_hit(r).map(|h| h.prim))
+        .collect();
+    let ctx = Ctx {
+        tris: scene_tris,
+        rays: &rays,
+        want: &want,
+        closed: &closed,
+        reps,
+    };
+    let wt = |t: &[Triangle]| t.iter().map(|&t| Watertight(t)).collect::<Vec<_>>();
+    let ex = |t: &[Triangle]| t.iter().map(|&t| Exact(t)).collect::<Vec<_>>();
+    let mut rows = Vec::new();
+    rows.extend(combo::<_, FastBoxes>(
+        "fast", "plain", scene_tris, &sphere, &ctx,
+    ));
+    rows.extend(combo::<_, ConservativeBoxes>(
+        "fast",
+        "conservative",
+        scene_tris,
+        &sphere,
+        &ctx,
+    ));
+    rows.extend(combo::<_, FastBoxes>(
+        "watertight",
+        "plain",
+        &wt(scene_tris),
+        &wt(&sphere),
+        &ctx,
+    ));
+    rows.extend(combo::<_, ConservativeBoxes>(
+        "watertight",
+        "conservative",
+        &wt(scene_tris),
+        &wt(&sphere),
+        &ctx,
+    ));
+    rows.extend(combo::<_, FastBoxes>(
+        "f64",
+        "plain",
+        &ex(scene_tris),
+        &ex(&sphere),
+        &ctx,
+    ));
+    rows.extend(combo::<_, ConservativeBoxes>(
+        "f64",
+        "conservative",
+        &ex(scene_tris),
+        &ex(&sphere),
+        &ctx,
+    ));
+    rows
+}
+
+struct Ctx<'a> {
+    /// The scene's triangles (the primitives of every combination wrap them, same order).
+    tris: &'a [Triangle],
+    rays: &'a [Ray],
+    want: &'a [Option<u32>],
+    closed: &'a [Ray],
+    reps: usize,
+}
+
+fn per_million(count: usize, of: usize) -> f64 {
+    count as f64 * 1e6 / of.max(1) as f64
+}
+
+fn combo<P: Primitive, B: BoxTest>(
+    intersector: &'static str,
+    box_test: &'static str,
+    prims: &[P],
+    sphere: &[P],
+    ctx: &Ctx,
+) -> Vec<Row> {
+    let config = BuildConfig::default();
+    let (bvh, _) = Bvh::build(prims, &config, Builder::Binned, Layout::Bvh4Dfs);
+    let closest = |r: &Ray| bvh.closest_hit_with::<B, _>(r, &mut NoStats);
+    let time = |any: bool| {
+        let t = measure::median_time(ctx.reps, || {
+            let n: usize = ctx
+                .rays
+                .par_chunks(1024)
+                .map(|c| {
+                    c.iter()
+                        .filter(|r| {
+                            if any {
+                                bvh.any_hit_with::<B, _>(r, &mut NoStats)
+                            } else {
+                                closest(r).is_some()
+                            }
+                        })
+                        .count()
+                })
+                .sum();
+            std::hint::black_box(n);
+        });
+        measure::mrays_per_s(ctx.rays.len(), t)
+    };
+    let (mrays, any_mrays) = (time(false), time(true));
+    let (sphere_bvh, _) = Bvh::build(sphere, &config, Builder::Binned, Layout::Bvh4Dfs);
+    let leaks = ctx
+        .closed
+        .par_iter()
+        .filter(|r| !sphere_bvh.any_hit_with::<B, _>(r, &mut NoStats))
+        .count();
+    let hits: Vec<Option<quiver::Hit>> = ctx.rays.par_iter().map(closest).collect();
+    let mismatches = hits
+        .iter()
+        .zip(ctx.want)
+        .filter(|(h, w)| h.map(|h| h.prim) != **w)
+        .count();
+    [("epsilon", Offset::Epsilon), ("ulps", Offset::Ulps)]
+        .into_iter()
+        .map(|(offset, method)| {
+            // Mirror rays off every hit: the first thing they meet must not be where they start.
+            let (secondary, self_hits) = ctx
+                .rays
+                .par_iter()
+                .zip(&hits)
+                .filter_map(|(r, h)| h.map(|h| (r, h)))
+                .map(|(r, h)| {
+                    let p = r.at(h.t);
+                    let t = &ctx.tris[h.prim as usize];
+                    let normal = (t.v[1] - t.v[0]).cross(t.v[2] - t.v[0]).normalize_or_zero();
+                    let side = if normal.dot(r.dir) < 0.0 {
+                        normal
+                    } else {
+                        -normal
+                    };
+                    let d = r.dir - side * (2.0 * r.dir.dot(side));
+                    let s = method.ray(p, side, d, f32::INFINITY);
+                    (
+                        1usize,
+                        closest(&s).is_some_and(|s| s.prim == h.prim) as usize,
+                    )
+                })
+                .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
+            Row {
+                intersector,
+                box_test,
+                offset,
+                mrays_per_s: mrays,
+                any_mrays_per_s: any_mrays,
+                leaks_per_million: per_million(leaks, ctx.closed.len()),
+                self_hits_per_million: per_million(self_hits, secondary),
+                ref_mismatch_per_million: per_million(mismatches, ctx.rays.len()),
+            }
+        })
+        .collect()
+}

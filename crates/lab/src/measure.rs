@@ -1,0 +1,170 @@
+//! Throughput measurement shared by the CLI reports and benchmarks: trace a ray set through a
+//! [`Bvh`] on the current rayon pool and time it.
+//!
+//! ```
+//! use quiver_lab::measure::{trace, Query};
+//! use quiver::{Bvh, Layout};
+//! use quiver_scenes::{scene::Scene};
+//! use quiver_lab::{rays};
+//! use quiver::build::{BuildConfig, Builder};
+//! let s = Scene::load("tetra4").unwrap();
+//! let (bvh, _) = Bvh::build(&s.triangles(), &BuildConfig::default(), Builder::Binned, Layout::Bvh4Dfs);
+//! let rays = rays::camera_rays(&s.camera, 32);
+//! assert!(trace(&bvh, &rays, Query::Closest) > 0);
+//! ```
+
+use quiver::geometry::{Primitive, Ray};
+use quiver::layout::Bvh;
+use quiver::traverse::{ConservativeBoxes, Counters, NoStats, PacketMode};
+use rayon::prelude::*;
+use std::time::{Duration, Instant};
+
+/// Which query to run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Query {
+    /// Nearest hit.
+    Closest,
+    /// Any hit (shadow-ray style, stops at the first).
+    Any,
+}
+
+impl Query {
+    /// Report name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Query::Closest => "closest",
+            Query::Any => "any",
+        }
+    }
+}
+
+/// Rays per rayon task: big enough that scheduling is noise, small enough to balance.
+const RAYS_PER_TASK: usize = 1024;
+
+/// Traces every ray on the current thread pool; returns how many hit.
+pub fn trace<P: Primitive>(bvh: &Bvh<P>, rays: &[Ray], query: Query) -> usize {
+    rays.par_chunks(RAYS_PER_TASK)
+        .map(|chunk| match query {
+            Query::Closest => chunk
+                .iter()
+                .filter(|r| bvh.closest_hit(r).is_some())
+                .count(),
+            Query::Any => chunk.iter().filter(|r| bvh.any_hit(r)).count(),
+        })
+        .sum()
+}
+
+/// Traces the rays in packets of consecutive rays (see [`Bvh::closest_hit_packet`]) on the
+/// current thread pool; returns how many hit. Each task's rays are cut into packets in order,
+/// so coherent input must come packet-ordered (e.g. [`crate::rays::camera_tiles`]).
+///
+/// ```
+/// use quiver_lab::measure::{trace, trace_packets, Query};
+/// use quiver::traverse::PacketMode;
+/// use quiver::{Bvh, Layout};
+/// use quiver_scenes::{scene::Scene};
+/// use quiver_lab::{rays};
+/// use quiver::build::{BuildConfig, Builder};
+/// let s = Scene::load("tetra4").unwrap();
+/// let (bvh, _) = Bvh::build(&s.triangles(), &BuildConfig::default(), Builder::Binned, Layout::Bvh4Dfs);
+/// let rays = rays::camera_tiles(&s.camera, 32, 8);
+/// let hits = trace(&bvh, &rays, Query::Closest);
+/// assert_eq!(trace_packets(&bvh, &rays, Query::Closest, PacketMode::Always), hits);
+/// ```
+pub fn trace_packets<P: Primitive>(
+    bvh: &Bvh<P>,
+    rays: &[Ray],
+    query: Query,
+    mode: PacketMode,
+) -> usize {
+    rays.par_chunks(RAYS_PER_TASK)
+        .map(|chunk| match query {
+            Query::Closest => {
+                let mut hits = vec![None; chunk.len()];
+                bvh.closest_hit_packet_with::<ConservativeBoxes, _>(
+                    chunk,
+                    None,
+                    mode,
+                    &mut hits,
+                    &mut NoStats,
+                );
+                hits.iter().filter(|h| h.is_some()).count()
+            }
+            Query::Any => {
+                let mut hit = vec![false; chunk.len()];
+                bvh.any_hit_packet_with::<ConservativeBoxes, _>(
+                    chunk,
+                    None,
+                    mode,
+                    &mut hit,
+                    &mut NoStats,
+                );
+                hit.iter().filter(|&&h| h).count()
+            }
+        })
+        .sum()
+}
+
+/// Traces every ray with the counting kernels and returns the summed counters.
+pub fn count(bvh: &Bvh, rays: &[Ray], query: Query) -> Counters {
+    rays.par_chunks(RAYS_PER_TASK)
+        .map(|chunk| {
+            let mut c = Counters::default();
+            for r in chunk {
+                match query {
+                    Query::Closest => {
+                        bvh.closest_hit_counted(r, &mut c);
+                    }
+                    Query::Any => {
+                        bvh.any_hit_counted(r, &mut c);
+                    }
+                }
+            }
+            c
+        })
+        .reduce(Counters::default, |mut a, b| {
+            a += b;
+            a
+        })
+}
+
+/// The median of `reps` timings of `f` (after one untimed warm-up run).
+pub fn median_time(reps: usize, mut f: impl FnMut()) -> Duration {
+    f();
+    let mut times: Vec<Duration> = (0..reps.max(1))
+        .map(|_| {
+            let t = Instant::now();
+            f();
+            t.elapsed()
+        })
+        .collect();
+    times.sort();
+    times[times.len() / 2]
+}
+
+/// Million rays per second for `rays` traced in `time`.
+pub fn mrays_per_s(rays: usize, time: Duration) -> f64 {
+    rays as f64 / time.as_secs_f64() / 1e6
+}
+
+/// Times `n` alternatives side by side: after one warm-up run of each, `reps` rounds each run
+/// every alternative once (`f(i)`), so a slow spell on a shared machine hits all of them alike.
+/// Returns the median time of each.
+pub fn median_times_interleaved(reps: usize, n: usize, mut f: impl FnMut(usize)) -> Vec<Duration> {
+    (0..n).for_each(&mut f);
+    let mut times = vec![Vec::with_capacity(reps); n];
+    for _ in 0..reps.max(1) {
+        for (i, t) in times.iter_mut().enumerate() {
+            let start = Instant::now();
+            f(i);
+            t.push(start.elapsed());
+        }
+    }
+    times
+        .into_iter()
+        .map(|mut t| {
+            t.sort();
+            t[t.len() / 2]
+        })
+        .collect()
+}

@@ -1,0 +1,102 @@
+//! Ray workloads shared by tests, benchmarks and the CLI: seeded incoherent rays and camera
+//! rays.
+//!
+//! ```
+//! use quiver_scenes::{scene::Scene};
+//! use quiver_lab::{rays};
+//! let s = Scene::load("tetra3").unwrap();
+//! assert_eq!(rays::camera_rays(&s.camera, 8).len(), 64);
+//! assert_eq!(rays::random_rays(&s.bounds(), 100, 1).len(), 100);
+//! ```
+
+use quiver::geometry::{Aabb, Primitive, Ray};
+use quiver::layout::Bvh;
+use quiver_scenes::rng::Rng;
+use quiver_scenes::scene::Camera;
+use glam::Vec3A;
+use rayon::prelude::*;
+
+/// `n` incoherent rays: origins uniform in `bounds` grown by half its size on every side,
+/// directions uniform on the sphere. Many start inside the geometry, as secondary rays do.
+pub fn random_rays(bounds: &Aabb, n: usize, seed: u64) -> Vec<Ray> {
+    let mut rng = Rng::new(seed);
+    let (lo, hi) = if bounds.is_empty() {
+        (Vec3A::splat(-1.0), Vec3A::ONE)
+    } else {
+        let pad = bounds.extent() * 0.5;
+        (bounds.min - pad, bounds.max + pad)
+    };
+    (0..n)
+        .map(|_| Ray::new(rng.in_box(lo, hi), rng.unit_vector()))
+        .collect()
+}
+
+/// `res × res` eye rays through pixel centres, row by row from the top.
+pub fn camera_rays(camera: &Camera, res: usize) -> Vec<Ray> {
+    let step = 2.0 / res as f32;
+    (0..res * res)
+        .map(|i| {
+            let (x, y) = (i % res, i / res);
+            camera.ray(
+                -1.0 + (x as f32 + 0.5) * step,
+                1.0 - (y as f32 + 0.5) * step,
+            )
+        })
+        .collect()
+}
+
+/// The same eye rays as [`camera_rays`], ordered tile by tile: `tile × tile` pixel squares,
+/// left to right, top to bottom, each square row by row (partial squares at the right and
+/// bottom edges when `tile` does not divide `res`). Consecutive runs of `tile²` rays are
+/// coherent packets.
+///
+/// ```
+/// use quiver_scenes::{scene::Scene};
+/// use quiver_lab::{rays};
+/// let s = Scene::load("tetra3").unwrap();
+/// let (rows, tiles) = (rays::camera_rays(&s.camera, 16), rays::camera_tiles(&s.camera, 16, 8));
+/// assert_eq!(tiles[8], rows[16]); // the ninth ray of the first tile starts its second row
+/// ```
+pub fn camera_tiles(camera: &Camera, res: usize, tile: usize) -> Vec<Ray> {
+    let rows = camera_rays(camera, res);
+    let mut out = Vec::with_capacity(rows.len());
+    for ty in (0..res).step_by(tile) {
+        for tx in (0..res).step_by(tile) {
+            for y in ty..(ty + tile).min(res) {
+                out.extend_from_slice(&rows[y * res + tx..y * res + (tx + tile).min(res)]);
+            }
+        }
+    }
+    out
+}
+
+/// Shadow rays from every point where an `eye` ray hits `bvh` toward each light in turn (all
+/// rays toward the first light, then the second, …, keeping the eye rays' order): segments
+/// from the hit point over `[1e-4, 1 - 1e-4]` of the way to the light.
+///
+/// ```
+/// use glam::Vec3A;
+/// use quiver::build::{BuildConfig, Builder};
+/// use quiver::{Bvh, Layout};
+/// use quiver_scenes::{scene::Scene};
+/// use quiver_lab::{rays};
+/// let s = Scene::load("tetra3").unwrap();
+/// let (bvh, _) = Bvh::build(&s.triangles(), &BuildConfig::default(), Builder::Binned, Layout::Bvh4Dfs);
+/// let eye = rays::camera_rays(&s.camera, 16);
+/// let hits = eye.iter().filter(|r| bvh.closest_hit(r).is_some()).count();
+/// assert_eq!(rays::shadow_rays(&bvh, &eye, &[Vec3A::Z, Vec3A::X]).len(), 2 * hits);
+/// ```
+pub fn shadow_rays<P: Primitive>(bvh: &Bvh<P>, eye: &[Ray], lights: &[Vec3A]) -> Vec<Ray> {
+    let points: Vec<Vec3A> = eye
+        .par_iter()
+        .filter_map(|r| bvh.closest_hit(r).map(|h| r.at(h.t)))
+        .collect();
+    lights
+        .iter()
+        .flat_map(|&l| {
+            points
+                .iter()
+                .map(move |&p| Ray::segment(p, l - p, 1e-4, 1.0 - 1e-4))
+        })
+        .collect()
+}

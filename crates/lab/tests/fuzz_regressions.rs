@@ -1,0 +1,45 @@
+//! Replays every committed fuzz input — the seed corpora and any crash reproducers saved under
+//! fuzz/artifacts — through the same checks the cargo-fuzz targets run (`quiver_lab::checks`).
+
+use std::path::Path;
+
+fn replay(target: &str, check: fn(&[u8])) -> usize {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fuzz");
+    let mut n = 0;
+    for dir in [
+        root.join("corpus").join(target),
+        root.join("artifacts").join(target),
+    ] {
+        let Ok(entries) = std::fs::read_dir(&dir) else {
+            continue;
+        };
+        let mut files: Vec<_> = entries
+            .flatten()
+            .map(|e| e.path())
+            .filter(|p| p.is_file())
+            .collect();
+        files.sort();
+        for f in files {
+            let data = std::fs::read(&f).unwrap();
+            let r = std::panic::catch_unwind(|| check(&data));
+            assert!(r.is_ok(), "{} fails", f.display());
+            n += 1;
+        }
+    }
+    n
+}
+
+#[test]
+fn build_trace_inputs() {
+    assert!(replay("build_trace", quiver_lab::checks::build_and_trace) >= 3);
+}
+
+#[test]
+fn nff_inputs() {
+    assert!(replay("nff", quiver_lab::checks::nff_round_trip) >= 3);
+}
+
+#[test]
+fn obj_inputs() {
+    assert!(replay("obj", quiver_lab::checks::obj_load) >= 2);
+}

@@ -1,0 +1,510 @@
+//! A Whitted ray tracer that follows the SPD testing procedure (Haines, Readme.txt of the
+//! SPD): eye rays at pixel corners, depth limit 5 with the eye ray at depth 1, reflection rays
+//! from every hit on a reflective surface, Snell refraction through every transmitter (a
+//! reflection ray on total internal reflection), one shadow ray per light the surface faces,
+//! Phong highlights on reflective surfaces, an ambient term.
+//!
+//! It simulates only what the scene calls for: a scene without reflective materials spawns no
+//! secondary rays, one without transmitters no refraction rays, and a light behind a surface
+//! costs no shadow ray. Shadow rays use the any-hit query.
+//!
+//! ```
+//! use quiver_scenes::render::{render, RenderConfig};
+//! use quiver_scenes::accel::SceneBvh;
+//! use quiver::build::{BuildConfig, Builder};
+//! use quiver::{Layout};
+//! use quiver_scenes::{scene::Scene};
+//! let scene = Scene::load("tetra3").unwrap();
+//! let (bvh, _) = SceneBvh::build(&scene, &BuildConfig::default(), Builder::Binned, Layout::Bvh4Dfs);
+//! let out = render(&scene, &bvh, &RenderConfig { res: 16, ..Default::default() }, &|_| {});
+//! assert_eq!(out.rays.eye, 17 * 17);
+//! assert_eq!(out.rays.refract, 0); // tetra has no transmitters
+//! ```
+
+use crate::accel::SceneBvh;
+use quiver::geometry::{offset_ray_origin, Ray};
+use crate::scene::{Material, Scene};
+use quiver::traverse::{Counters, NoStats, PacketMode, Stats};
+use glam::Vec3A;
+use rayon::prelude::*;
+use std::ops::AddAssign;
+
+/// Render settings.
+#[derive(Clone, Debug)]
+pub struct RenderConfig {
+    /// Image width and height in pixels; `(res + 1)^2` eye rays are traced.
+    pub res: u32,
+    /// Deepest ray generation traced (the eye ray is depth 1).
+    pub max_depth: u32,
+    /// Objects whose material index is listed here are two-sided: their normal is turned to
+    /// face the incoming ray (the SPD asks this of the teapot).
+    pub two_sided: Vec<u32>,
+    /// Count traversal work (nodes, leaves, tests) and nodes visited per eye ray.
+    pub counters: bool,
+    /// How secondary rays leave the surface.
+    pub offset: Offset,
+    /// Trace eye rays in packets of 8 x 8 pixel corners, and each light's shadow rays from
+    /// those corners as a packet (see [`quiver::traverse::PacketMode::Auto`]); secondary rays
+    /// go one by one. The image and the ray counts are the same either way; only the
+    /// traversal work counted with [`RenderConfig::counters`] differs.
+    pub packets: bool,
+}
+
+/// How a secondary ray avoids re-hitting the surface it starts on.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Offset {
+    /// Start at the hit point and ignore hits closer than `1e-4 * (1 + max|p|)`: what the
+    /// classical tracers behind the SPD's published counts did, and the default. It skips
+    /// real geometry closer than that (balls: the contacts of touching spheres).
+    #[default]
+    Epsilon,
+    /// Move the origin a few ulps off the surface along the normal (Wächter & Binder): finds
+    /// geometry however close, at any scale.
+    Ulps,
+}
+
+impl Offset {
+    /// A ray leaving point `p` of a surface with normal `side` (pointing to where the ray
+    /// goes) in direction `dir`, up to `t_max`.
+    pub fn ray(self, p: Vec3A, side: Vec3A, dir: Vec3A, t_max: f32) -> Ray {
+        match self {
+            Offset::Epsilon => {
+                let eps = 1e-4 * (1.0 + p.abs().max_element());
+                Ray::segment(p, dir, eps / dir.length(), t_max)
+            }
+            Offset::Ulps => Ray::segment(offset_ray_origin(p, side), dir, 0.0, t_max),
+        }
+    }
+}
+
+impl Default for RenderConfig {
+    fn default() -> Self {
+        RenderConfig {
+            res: 512,
+            max_depth: 5,
+            two_sided: Vec::new(),
+            counters: false,
+            offset: Offset::Epsilon,
+            packets: true,
+        }
+    }
+}
+
+/// The rays a render traced, by kind.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct RayCounts {
+    /// Eye rays (one per pixel corner).
+    pub eye: u64,
+    /// Eye rays that hit an object.
+    pub eye_hit: u64,
+    /// Reflection rays (from reflective surfaces, and on total internal reflection).
+    pub reflect: u64,
+    /// Refraction rays.
+    pub refract: u64,
+    /// Shadow rays.
+    pub shadow: u64,
+    /// Shadow rays that found an occluder.
+    pub shadow_blocked: u64,
+}
+
+impl RayCounts {
+    /// All rays traced.
+    pub fn total(&self) -> u64 {
+        self.eye + self.reflect + self.refract + self.shadow
+    }
+}
+
+impl AddAssign for RayCounts {
+    fn add_assign(&mut self, o: RayCounts) {
+        self.eye += o.eye;
+        self.eye_hit += o.eye_hit;
+        self.reflect += o.reflect;
+        self.refract += o.refract;
+        self.shadow += o.shadow;
+        self.shadow_blocked += o.shadow_blocked;
+    }
+}
+
+/// What a render produced.
+#[derive(Clone, Debug)]
+pub struct Rendered {
+    /// Width = height in pixels.
+    pub res: u32,
+    /// Pixels row by row from the top, 8-bit sRGB-less RGB (the SPD's colours are used as is).
+    pub rgb: Vec<[u8; 3]>,
+    /// Rays traced, by kind.
+    pub rays: RayCounts,
+    /// Traversal work over all rays (zero unless [`RenderConfig::counters`]).
+    pub work: Counters,
+    /// Nodes visited by each eye ray, `(res + 1)^2` corners row by row (empty unless
+    /// [`RenderConfig::counters`]). With packets, each eye ray is charged the node visits of
+    /// its eye packet.
+    pub eye_nodes: Vec<u32>,
+}
+
+/// Corner rows a render task handles, and the side of a packet's square of corners.
+const TILE: usize = 8;
+
+/// One band of [`TILE`] corner rows.
+#[derive(Default)]
+struct Band {
+    /// Colours of the band's corners, row by row.
+    colors: Vec<Vec3A>,
+    rays: RayCounts,
+    work: Counters,
+    eye_nodes: Vec<u32>,
+}
+
+/// Renders `scene` through `bvh` on the current rayon pool. `progress(rows)` is called as
+/// corner rows complete (from worker threads). The result does not depend on the number of
+/// threads: every corner is traced independently and the counts are integer sums.
+pub fn render(
+    scene: &Scene,
+    bvh: &SceneBvh,
+    config: &RenderConfig,
+    progress: &(dyn Fn(usize) + Sync),
+) -> Rendered {
+    let n = config.res as usize + 1;
+    let bands: Vec<Band> = (0..n.div_ceil(TILE))
+        .into_par_iter()
+        .map(|b| {
+            let rows = b * TILE..((b + 1) * TILE).min(n);
+            let mut tracer = Tracer {
+                scene,
+                bvh,
+                config,
+                rays: RayCounts::default(),
+                work: Counters::default(),
+            };
+            let band = tracer.band(rows.clone(), n);
+            progress(rows.len());
+            band
+        })
+        .collect();
+    let mut rays = RayCounts::default();
+    let mut work = Counters::default();
+    let mut eye_nodes = Vec::new();
+    let mut corners = Vec::with_capacity(n * n);
+    for b in &bands {
+        rays += b.rays;
+        work += b.work;
+        eye_nodes.extend_from_slice(&b.eye_nodes);
+        corners.extend_from_slice(&b.colors);
+    }
+    let res = config.res as usize;
+    let at = |x: usize, y: usize| corners[y * n + x];
+    let mut rgb = Vec::with_capacity(res * res);
+    for y in 0..res {
+        for x in 0..res {
+            let c = (at(x, y) + at(x + 1, y) + at(x, y + 1) + at(x + 1, y + 1)) * 0.25;
+            rgb.push(to_rgb8(c));
+        }
+    }
+    Rendered {
+        res: config.res,
+        rgb,
+        rays,
+        work,
+        eye_nodes,
+    }
+}
+
+fn to_rgb8(c: Vec3A) -> [u8; 3] {
+    let q = |x: f32| (x.clamp(0.0, 1.0) * 255.0 + 0.5) as u8;
+    [q(c.x), q(c.y), q(c.z)]
+}
+
+/// Ambient light as a fraction of each surface's colour.
+const AMBIENT: f32 = 0.1;
+
+struct Tracer<'a> {
+    scene: &'a Scene,
+    bvh: &'a SceneBvh,
+    config: &'a RenderConfig,
+    rays: RayCounts,
+    work: Counters,
+}
+
+/// What shading needs to know about a hit.
+struct Surface {
+    /// Hit point.
+    p: Vec3A,
+    /// Unit direction of the incoming ray.
+    d: Vec3A,
+    material: Material,
+    /// Geometric normal pointing out of the object.
+    outward: Vec3A,
+    /// Shading normal: `outward`, turned toward the viewer on two-sided surfaces.
+    n: Vec3A,
+}
+
+/// A packet query and where its answers go.
+enum Query<'o> {
+    Closest(&'o mut [Option<quiver::Hit>]),
+    Any(&'o mut [bool]),
+}
+
+impl Query<'_> {
+    fn run<S: Stats>(self, bvh: &SceneBvh, rays: &[Ray], active: Option<&[bool]>, stats: &mut S) {
+        let mode = PacketMode::Auto;
+        match self {
+            Query::Closest(h) => bvh.closest_hit_packet_with(rays, active, mode, h, stats),
+            Query::Any(o) => bvh.any_hit_packet_with(rays, active, mode, o, stats),
+        }
+    }
+}
+
+/// Where a surface learns whether its shadow rays are blocked.
+enum Shadows<'s> {
+    /// Trace each shadow ray now.
+    Trace,
+    /// Already traced (as a packet): the answer per light, for the lights the surface faces.
+    Known(&'s [bool]),
+}
+
+impl Tracer<'_> {
+    /// The corners of rows `rows` (of `n` corners each): eye rays in packets of
+    /// `TILE x TILE` corners, or one by one.
+    fn band(&mut self, rows: std::ops::Range<usize>, n: usize) -> Band {
+        let mut band = Band {
+            colors: vec![Vec3A::ZERO; rows.len() * n],
+            ..Default::default()
+        };
+        if self.config.counters {
+            band.eye_nodes = vec![0; rows.len() * n];
+        }
+        let eye = |i: usize, j: usize| {
+            let sx = -1.0 + 2.0 * i as f32 / self.config.res as f32;
+            let sy = 1.0 - 2.0 * j as f32 / self.config.res as f32;
+            let mut ray = self.scene.camera.ray(sx, sy);
+            ray.t_min = self.scene.hither.max(0.0);
+            ray
+        };
+        if !self.config.packets {
+            for j in rows.clone() {
+                for i in 0..n {
+                    let ray = eye(i, j);
+                    let before = self.work.nodes;
+                    let hit = self.closest(&ray);
+                    let k = (j - rows.start) * n + i;
+                    if self.config.counters {
+                        band.eye_nodes[k] = (self.work.nodes - before) as u32;
+                    }
+                    let s = hit.map(|h| self.surface(&ray, &h));
+                    band.colors[k] = self.color(s, 1, Shadows::Trace);
+                }
+            }
+        } else {
+            for x0 in (0..n).step_by(TILE) {
+                let cols = x0..(x0 + TILE).min(n);
+                let slots: Vec<(usize, usize)> = rows
+                    .clone()
+                    .flat_map(|j| cols.clone().map(move |i| (i, j)))
+                    .collect();
+                let rays: Vec<Ray> = slots.iter().map(|&(i, j)| eye(i, j)).collect();
+                let (colors, eye_nodes) = self.trace_packet(&rays);
+                for (&(i, j), c) in slots.iter().zip(colors) {
+                    let k = (j - rows.start) * n + i;
+                    band.colors[k] = c;
+                    if self.config.counters {
+                        band.eye_nodes[k] = eye_nodes as u32;
+                    }
+                }
+            }
+        }
+        band.rays = self.rays;
+        band.work = self.work;
+        band
+    }
+
+    /// Colours seen along a packet of eye rays, and the nodes the eye packet visited (with
+    /// counters on): the eye rays, and per light the shadow rays of the corners facing it, go
+    /// as packets; everything after that ray by ray.
+    fn trace_packet(&mut self, rays: &[Ray]) -> (Vec<Vec3A>, u64) {
+        let mut hits = vec![None; rays.len()];
+        let before = self.work.nodes;
+        self.packet_query(rays, None, Query::Closest(&mut hits));
+        let eye_nodes = self.work.nodes - before;
+        let surfaces: Vec<Option<Surface>> = rays
+            .iter()
+            .zip(&hits)
+            .map(|(r, h)| h.map(|h| self.surface(r, &h)))
+            .collect();
+        let lights = self.scene.lights.len();
+        // blocked[corner * lights + light]
+        let mut blocked = vec![false; rays.len() * lights];
+        let mut shadow = vec![Ray::new(Vec3A::ZERO, Vec3A::Z); rays.len()];
+        let mut active = vec![false; rays.len()];
+        let mut answer = vec![false; rays.len()];
+        for (l, light) in self.scene.lights.iter().enumerate() {
+            for (k, s) in surfaces.iter().enumerate() {
+                let ray = s.as_ref().and_then(|s| self.shadow_ray(s, light.pos));
+                active[k] = ray.is_some();
+                if let Some(r) = ray {
+                    shadow[k] = r;
+                }
+            }
+            self.packet_query(&shadow, Some(&active), Query::Any(&mut answer));
+            for (k, &a) in answer.iter().enumerate() {
+                blocked[k * lights + l] = a;
+            }
+        }
+        let colors = surfaces
+            .into_iter()
+            .enumerate()
+            .map(|(k, s)| {
+                let known = &blocked[k * lights..(k + 1) * lights];
+                self.color(s, 1, Shadows::Known(known))
+            })
+            .collect();
+        (colors, eye_nodes)
+    }
+
+    /// A packet query through the packet kernels, counting into `work` with counters on.
+    fn packet_query(&mut self, rays: &[Ray], active: Option<&[bool]>, query: Query) {
+        let bvh = self.bvh;
+        if self.config.counters {
+            query.run(bvh, rays, active, &mut self.work);
+        } else {
+            query.run(bvh, rays, active, &mut NoStats);
+        }
+    }
+
+    /// Closest hit; with counters on, through the counting kernel (a per-ray choice: the plain
+    /// kernel itself carries no counting code).
+    fn closest(&mut self, ray: &Ray) -> Option<quiver::Hit> {
+        if self.config.counters {
+            self.bvh.closest_hit_counted(ray, &mut self.work)
+        } else {
+            self.bvh.closest_hit(ray)
+        }
+    }
+
+    fn occluded(&mut self, ray: &Ray) -> bool {
+        if self.config.counters {
+            self.bvh.any_hit_counted(ray, &mut self.work)
+        } else {
+            self.bvh.any_hit(ray)
+        }
+    }
+
+    /// Colour seen along `ray`, a secondary ray of generation `depth`.
+    fn trace(&mut self, ray: &Ray, depth: u32) -> Vec3A {
+        let s = self.closest(ray).map(|h| self.surface(ray, &h));
+        self.color(s, depth, Shadows::Trace)
+    }
+
+    /// Colour seen by a ray of generation `depth` that found surface `s` (or nothing);
+    /// counts eye rays and their hits at depth 1.
+    fn color(&mut self, s: Option<Surface>, depth: u32, shadows: Shadows) -> Vec3A {
+        if depth == 1 {
+            self.rays.eye += 1;
+            self.rays.eye_hit += s.is_some() as u64;
+        }
+        match s {
+            Some(s) => self.shade_surface(&s, depth, shadows),
+            None => self.scene.background,
+        }
+    }
+
+    fn surface(&self, ray: &Ray, hit: &quiver::Hit) -> Surface {
+        let object = &self.scene.objects[self.bvh.object_of(hit.prim) as usize];
+        let material = self.scene.materials[object.material as usize];
+        let d = ray.dir.normalize();
+        // The outward normal decides entering or leaving a transmitter; the shading normal
+        // turns toward the viewer on two-sided surfaces: transmitters (NFF: "objects with
+        // T > 0 are two-sided") and the materials the config lists (the teapot).
+        let outward = self.bvh.normal(ray, hit);
+        let two_sided = material.t > 0.0 || self.config.two_sided.contains(&object.material);
+        let n = if two_sided && outward.dot(d) > 0.0 {
+            -outward
+        } else {
+            outward
+        };
+        Surface {
+            p: ray.at(hit.t),
+            d,
+            material,
+            outward,
+            n,
+        }
+    }
+
+    /// The shadow ray from `s` toward a light at `light`, up to just short of it; `None` when
+    /// the light is behind the surface (SPD rule 10, transmitters too).
+    fn shadow_ray(&self, s: &Surface, light: Vec3A) -> Option<Ray> {
+        let to_light = light - s.p;
+        (s.n.dot(to_light) > 0.0).then(|| self.config.offset.ray(s.p, s.n, to_light, 1.0))
+    }
+
+    /// Colour leaving `s` toward the viewer: lights, then reflection and refraction rays.
+    fn shade_surface(&mut self, s: &Surface, depth: u32, shadows: Shadows) -> Vec3A {
+        let m = s.material;
+        let (p, d, n, outward) = (s.p, s.d, s.n, s.outward);
+        let offset = self.config.offset;
+        let mut color = m.color * AMBIENT;
+        let intensity = 1.0 / (self.scene.lights.len().max(1) as f32).sqrt();
+        for (i, l) in self.scene.lights.iter().enumerate() {
+            let Some(shadow) = self.shadow_ray(s, l.pos) else {
+                continue;
+            };
+            self.rays.shadow += 1;
+            let blocked = match shadows {
+                Shadows::Trace => self.occluded(&shadow),
+                Shadows::Known(b) => b[i],
+            };
+            if blocked {
+                self.rays.shadow_blocked += 1;
+                continue;
+            }
+            color += shade(&m, n, (l.pos - p).normalize(), d) * l.color * intensity;
+        }
+        if depth >= self.config.max_depth {
+            return color;
+        }
+        // Facing the incoming ray, for reflection and refraction.
+        let (nf, entering) = if outward.dot(d) < 0.0 {
+            (outward, true)
+        } else {
+            (-outward, false)
+        };
+        let reflect_dir = d - nf * (2.0 * d.dot(nf));
+        // Reflective and transmitting surfaces both spawn reflection rays (SPD rule 8; the
+        // gears' glass has Ks = 0 and still reflects).
+        let reflect = m.ks > 0.0 || m.t > 0.0;
+        // The reflected ray carries Ks, and on total internal reflection also the T the
+        // refracted ray would have carried.
+        let mut reflect_weight = m.ks;
+        if m.t > 0.0 {
+            let eta = if entering { 1.0 / m.ior } else { m.ior };
+            let cos_i = -d.dot(nf);
+            let k = 1.0 - eta * eta * (1.0 - cos_i * cos_i);
+            if k >= 0.0 {
+                self.rays.refract += 1;
+                let dir = d * eta + nf * (eta * cos_i - k.sqrt());
+                let r = offset.ray(p, -nf, dir, f32::INFINITY);
+                color += self.trace(&r, depth + 1) * m.t;
+            } else {
+                // Total internal reflection: the reflection ray takes the transmitted share.
+                reflect_weight += m.t;
+            }
+        }
+        if reflect {
+            self.rays.reflect += 1;
+            let r = offset.ray(p, nf, reflect_dir, f32::INFINITY);
+            color += self.trace(&r, depth + 1) * reflect_weight;
+        }
+        color
+    }
+}
+
+/// Diffuse plus, on reflective surfaces, a Phong highlight.
+fn shade(m: &Material, n: Vec3A, l: Vec3A, d: Vec3A) -> Vec3A {
+    let mut c = m.color * (m.kd * n.dot(l).max(0.0));
+    if m.ks > 0.0 {
+        let r = l - n * (2.0 * l.dot(n));
+        let spec = r.dot(d).max(0.0).powf(m.shine.max(1.0));
+        c += Vec3A::splat(m.ks * spec);
+    }
+    c
+}

@@ -1,0 +1,455 @@
+//! Scene sources: the SPD generators (so far `tetra`), a seeded random triangle soup, and OBJ
+//! files. A scene argument is either a generator name with an optional size (`tetra6`,
+//! `tetra`, `soup100000`) or a path ending in `.obj`.
+//!
+//! ```
+//! use quiver_scenes::scene::Scene;
+//! let s = Scene::load("tetra2").unwrap();
+//! assert_eq!((s.objects.len(), s.triangles().len()), (16, 16));
+//! assert!(Scene::load("nosuchscene").unwrap_err().to_string().contains("tetra"));
+//! ```
+
+mod camera;
+pub mod nff;
+#[cfg(feature = "obj")]
+mod obj;
+mod soup;
+mod spd;
+pub mod tessellate;
+
+pub use camera::Camera;
+
+use quiver::geometry::{Aabb, Primitive, Triangle};
+use crate::primitive::{Cone, PatchTriangle, Polygon, Prim, Sphere};
+use glam::Vec3A;
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+/// A surface description in NFF terms (`f r g b Kd Ks Shine T index_of_refraction`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Material {
+    /// Base colour, linear RGB in 0..1.
+    pub color: Vec3A,
+    /// Diffuse coefficient.
+    pub kd: f32,
+    /// Specular coefficient; above 0 the surface reflects (and gets Phong highlights).
+    pub ks: f32,
+    /// Phong exponent.
+    pub shine: f32,
+    /// Transmittance; above 0 the surface refracts.
+    pub t: f32,
+    /// Index of refraction.
+    pub ior: f32,
+}
+
+impl Material {
+    /// The material of files that bring none: white, diffuse, not reflective.
+    pub const DEFAULT: Material = Material {
+        color: Vec3A::ONE,
+        kd: 0.8,
+        ks: 0.0,
+        shine: 0.0,
+        t: 0.0,
+        ior: 1.0,
+    };
+}
+
+/// One object as the SPD counts it: a sphere, a cone or cylinder, a polygon or a polygonal
+/// patch.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Shape {
+    /// NFF `s`.
+    Sphere(Sphere),
+    /// NFF `c`.
+    Cone(Cone),
+    /// NFF `p` with three vertices.
+    Triangle(Triangle),
+    /// NFF `p` with more vertices (planar, possibly concave).
+    Polygon(Vec<Vec3A>),
+    /// NFF `pp`: a planar polygon with a normal per vertex.
+    Patch {
+        /// Vertices.
+        verts: Vec<Vec3A>,
+        /// One normal per vertex.
+        normals: Vec<Vec3A>,
+    },
+}
+
+/// A shape and the index of its material in [`Scene::materials`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct Object {
+    /// The geometry.
+    pub shape: Shape,
+    /// Index into [`Scene::materials`].
+    pub material: u32,
+}
+
+/// A positional light.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Light {
+    /// Position.
+    pub pos: Vec3A,
+    /// Colour (white unless the scene says otherwise).
+    pub color: Vec3A,
+}
+
+/// Geometry plus the viewpoint, lights and materials that go with it: an NFF file's content.
+#[derive(Clone, Debug)]
+pub struct Scene {
+    /// The name it was loaded by (`tetra6`, a file path, ...).
+    pub name: String,
+    /// The objects, in output order.
+    pub objects: Vec<Object>,
+    /// Materials the objects refer to.
+    pub materials: Vec<Material>,
+    /// The viewpoint.
+    pub camera: Camera,
+    /// Positional lights.
+    pub lights: Vec<Light>,
+    /// Background colour (linear RGB).
+    pub background: Vec3A,
+    /// Distance of the near clipping plane (NFF `hither`); eye rays start there.
+    pub hither: f32,
+    /// Image size the scene was designed for (NFF `resolution`).
+    pub resolution: [u32; 2],
+}
+
+/// A procedural scene: its name, the size it gets without one, and how to make it.
+pub struct Generator {
+    /// Name prefix on the command line.
+    pub name: &'static str,
+    /// Size used when the name has no number.
+    pub default_size: u32,
+    /// Largest size accepted (keeps a typo from exhausting memory).
+    pub max_size: u32,
+    /// One line for `--help` and error messages.
+    pub about: &'static str,
+    /// Makes the scene of a given size.
+    pub make: fn(u32) -> Scene,
+}
+
+/// Every built-in generator.
+pub const GENERATORS: &[Generator] = &[
+    Generator {
+        name: "balls",
+        default_size: 4,
+        max_size: 6,
+        about: "SPD sphereflake: (9^(size+1)-1)/8 mirrored spheres on a floor",
+        make: spd::balls::make,
+    },
+    Generator {
+        name: "gears",
+        default_size: 4,
+        max_size: 12,
+        about: "SPD gears: size^3 gear pairs with 144-vertex concave faces, some transparent",
+        make: spd::gears::make,
+    },
+    Generator {
+        name: "jacks",
+        default_size: 1,
+        max_size: 6,
+        about: "SPD jacks: recursive jacks of spheres and cylinders",
+        make: spd::jacks::make,
+    },
+    Generator {
+        name: "lattice",
+        default_size: 12,
+        max_size: 60,
+        about: "SPD lattice: (size+1)^3 spheres joined by cylinders",
+        make: spd::lattice::make,
+    },
+    Generator {
+        name: "mount",
+        default_size: 6,
+        max_size: 10,
+        about: "SPD fractal mountain: 2*4^size triangles and 4 glass spheres",
+        make: spd::mount::make,
+    },
+    Generator {
+        name: "rings",
+        default_size: 7,
+        max_size: 40,
+        about: "SPD rings: pentagonal rings of spheres and cylinders",
+        make: spd::rings::make,
+    },
+    Generator {
+        name: "sombrero",
+        default_size: 1,
+        max_size: 6,
+        about: "SPD sombrero: a height field of 2*(2^(size+4)-1)^2 triangles",
+        make: spd::sombrero::make,
+    },
+    Generator {
+        name: "teapot",
+        default_size: 6,
+        max_size: 128,
+        about:
+            "SPD teapot: Bezier patches tessellated to 64*size^2-8*size triangles on a checkerboard",
+        make: spd::teapot::make,
+    },
+    Generator {
+        name: "tetra",
+        default_size: 6,
+        max_size: 12,
+        about: "SPD tetra: recursive tetrahedron, 4^size triangles",
+        make: spd::tetra::make,
+    },
+    Generator {
+        name: "tree",
+        default_size: 11,
+        max_size: 18,
+        about: "SPD tree: a branching tree of 2^(size+1)-1 cones and spheres",
+        make: spd::tree::make,
+    },
+    Generator {
+        name: "icosphere",
+        default_size: 4,
+        max_size: 9,
+        about: "a closed unit sphere: an icosahedron subdivided size times, 20*4^size triangles",
+        make: soup::icosphere,
+    },
+    Generator {
+        name: "soup",
+        default_size: 10_000,
+        max_size: 50_000_000,
+        about: "seeded random triangle soup, size = triangle count",
+        make: soup::soup,
+    },
+];
+
+/// Why a scene could not be loaded.
+#[derive(Debug)]
+pub enum SceneError {
+    /// A name that is neither a known generator nor a supported file.
+    Unknown(String),
+    /// A generator size outside its range.
+    Size {
+        /// The generator.
+        name: String,
+        /// The size asked for.
+        size: String,
+        /// The largest accepted.
+        max: u32,
+    },
+    /// A file that could not be read or parsed.
+    File {
+        /// The file.
+        path: PathBuf,
+        /// What went wrong, with a line number where known.
+        message: String,
+    },
+}
+
+impl fmt::Display for SceneError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            SceneError::Unknown(s) => {
+                let names: Vec<_> = GENERATORS.iter().map(|g| g.name).collect();
+                write!(
+                    f,
+                    "unknown scene '{s}': expected a generator name with an optional size ({}), a .nff or a .obj file",
+                    names.join(", ")
+                )
+            }
+            SceneError::Size { name, size, max } => {
+                write!(
+                    f,
+                    "scene '{name}': size '{size}' must be a number from 0 to {max}"
+                )
+            }
+            SceneError::File { path, message } => write!(f, "{}: {message}", path.display()),
+        }
+    }
+}
+
+impl std::error::Error for SceneError {}
+
+impl Scene {
+    /// Loads a scene by name (`tetra6`, `soup1000`) or from an `.obj` path.
+    pub fn load(spec: &str) -> Result<Scene, SceneError> {
+        let lower = spec.to_ascii_lowercase();
+        if lower.ends_with(".obj") {
+            return load_obj(Path::new(spec));
+        }
+        if lower.ends_with(".nff") {
+            let text = std::fs::read_to_string(spec).map_err(|e| SceneError::File {
+                path: spec.into(),
+                message: format!("cannot read: {e}"),
+            })?;
+            return nff::parse(&text, spec);
+        }
+        let split = spec
+            .find(|c: char| c.is_ascii_digit())
+            .unwrap_or(spec.len());
+        let (name, size) = spec.split_at(split);
+        let gen = GENERATORS
+            .iter()
+            .find(|g| g.name == name)
+            .ok_or_else(|| SceneError::Unknown(spec.to_string()))?;
+        let size = if size.is_empty() {
+            gen.default_size
+        } else {
+            size.parse::<u32>()
+                .ok()
+                .filter(|&s| s <= gen.max_size)
+                .ok_or_else(|| SceneError::Size {
+                    name: name.into(),
+                    size: size.into(),
+                    max: gen.max_size,
+                })?
+        };
+        Ok((gen.make)(size))
+    }
+
+    /// Bounds of all finite objects.
+    pub fn bounds(&self) -> Aabb {
+        let (prims, _) = self.prims();
+        prims
+            .iter()
+            .map(|p| p.bounds())
+            .filter(|b| b.is_finite())
+            .fold(Aabb::EMPTY, |a, b| a.union(&b))
+    }
+
+    /// A scene of triangles with one default material (soups, meshes).
+    pub fn from_triangles(
+        name: String,
+        tris: Vec<Triangle>,
+        camera: Camera,
+        lights: Vec<Vec3A>,
+        background: Vec3A,
+    ) -> Scene {
+        Scene {
+            name,
+            objects: tris
+                .into_iter()
+                .map(|t| Object {
+                    shape: Shape::Triangle(t),
+                    material: 0,
+                })
+                .collect(),
+            materials: vec![Material::DEFAULT],
+            camera,
+            lights: lights
+                .into_iter()
+                .map(|pos| Light {
+                    pos,
+                    color: Vec3A::ONE,
+                })
+                .collect(),
+            background,
+            hither: 1e-3,
+            resolution: [512, 512],
+        }
+    }
+
+    /// The primitives a curve-mode BVH holds, and for each the index of its object: spheres
+    /// and cones stay analytic, a polygon stays one n-gon, a patch becomes a fan of patch
+    /// triangles.
+    pub fn prims(&self) -> (Vec<Prim>, Vec<u32>) {
+        let mut prims = Vec::with_capacity(self.objects.len());
+        let mut owner = Vec::with_capacity(self.objects.len());
+        for (i, o) in self.objects.iter().enumerate() {
+            let before = prims.len();
+            match &o.shape {
+                Shape::Sphere(s) => prims.push(Prim::Sphere(*s)),
+                Shape::Cone(c) => prims.push(Prim::Cone(*c)),
+                Shape::Triangle(t) => prims.push(Prim::Triangle(*t)),
+                Shape::Polygon(v) => prims.push(Prim::Polygon(Polygon::new(v.clone()))),
+                Shape::Patch { verts, normals } => {
+                    for k in 1..verts.len().saturating_sub(1) {
+                        prims.push(Prim::Patch(PatchTriangle {
+                            tri: Triangle::new(verts[0], verts[k], verts[k + 1]),
+                            normals: [normals[0], normals[k], normals[k + 1]],
+                        }));
+                    }
+                }
+            }
+            owner.resize(owner.len() + prims.len() - before, i as u32);
+        }
+        (prims, owner)
+    }
+
+    /// Every object as triangles: polygons triangulated (concave ones by ear clipping),
+    /// patches as fans, spheres and cones tessellated as the SPD's patch mode does at its
+    /// default resolution. The all-triangle fast path's input.
+    pub fn triangles(&self) -> Vec<Triangle> {
+        self.triangles_with_owner().0
+    }
+
+    /// [`Scene::triangles`] and, for each triangle, the index of its object.
+    pub fn triangles_with_owner(&self) -> (Vec<Triangle>, Vec<u32>) {
+        let (tris, owner, _) = self.triangles_with_normals();
+        (tris, owner)
+    }
+
+    /// [`Scene::triangles_with_owner`] plus, per triangle, the vertex normals of triangles cut
+    /// from patches (or from spheres and cones), `None` for flat ones.
+    pub fn triangles_with_normals(&self) -> (Vec<Triangle>, Vec<u32>, Vec<Option<[Vec3A; 3]>>) {
+        let mut out = Vec::with_capacity(self.objects.len());
+        let mut owner = Vec::with_capacity(self.objects.len());
+        let mut normals = Vec::with_capacity(self.objects.len());
+        for (i, o) in self.objects.iter().enumerate() {
+            tessellate::shape_triangles(&o.shape, &mut out, &mut normals);
+            owner.resize(out.len(), i as u32);
+        }
+        (out, owner, normals)
+    }
+
+    /// The scene in the SPD's patch mode: every sphere and cone replaced by the polygonal
+    /// patches [`tessellate`] makes of it at `resolution`; polygons and patches unchanged.
+    pub fn into_patches(mut self, resolution: u32) -> Scene {
+        let mut objects = Vec::with_capacity(self.objects.len());
+        for o in self.objects {
+            let patches = match &o.shape {
+                Shape::Sphere(s) => tessellate::sphere_patches(s, resolution),
+                Shape::Cone(c) => tessellate::cone_patches(c, resolution),
+                _ => {
+                    objects.push(o);
+                    continue;
+                }
+            };
+            objects.extend(patches.into_iter().map(|(verts, normals)| Object {
+                shape: Shape::Patch { verts, normals },
+                material: o.material,
+            }));
+        }
+        self.objects = objects;
+        self
+    }
+
+    /// Materials whose surfaces are two-sided: those of polygonal patches (the SPD asks for a
+    /// two-sided teapot, whose lid lets the viewer see back faces; patches elsewhere are
+    /// closed surfaces where it makes no difference).
+    pub fn two_sided_materials(&self) -> Vec<u32> {
+        let mut m: Vec<u32> = self
+            .objects
+            .iter()
+            .filter(|o| matches!(o.shape, Shape::Patch { .. }))
+            .map(|o| o.material)
+            .collect();
+        m.sort_unstable();
+        m.dedup();
+        m
+    }
+
+    /// True when every object is a triangle (no analytic shape, polygon or patch).
+    pub fn is_all_triangles(&self) -> bool {
+        self.objects
+            .iter()
+            .all(|o| matches!(o.shape, Shape::Triangle(_)))
+    }
+}
+
+#[cfg(feature = "obj")]
+fn load_obj(path: &Path) -> Result<Scene, SceneError> {
+    obj::load(path)
+}
+
+#[cfg(not(feature = "obj"))]
+fn load_obj(path: &Path) -> Result<Scene, SceneError> {
+    Err(SceneError::File {
+        path: path.into(),
+        message: "OBJ support needs quiver's `obj` feature".into(),
+    })
+}
