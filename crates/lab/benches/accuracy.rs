@@ -5,12 +5,11 @@
 //! picks the scene (default tetra8, 65,536 triangles). `quiver accuracy` adds the error side.
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use quiver::build::{BuildConfig, Builder};
 use quiver::intersect::{Exact, Watertight};
-use quiver_scenes::scene::Scene;
 use quiver::traverse::{BoxTest, ConservativeBoxes, FastBoxes, NoStats};
-use quiver::{Bvh, Layout, Primitive, Ray, Triangle};
-use quiver_lab::{rays};
+use quiver::{Bvh, Primitive, Ray, RayQuery, Triangle};
+use quiver_lab::rays;
+use quiver_scenes::Scene;
 use std::time::Duration;
 
 fn one<P: Primitive, B: BoxTest>(
@@ -19,12 +18,7 @@ fn one<P: Primitive, B: BoxTest>(
     prims: &[P],
     rays: &[Ray],
 ) {
-    let (bvh, _) = Bvh::build(
-        prims,
-        &BuildConfig::default(),
-        Builder::Binned,
-        Layout::Bvh4Dfs,
-    );
+    let bvh = Bvh::new(prims);
     c.bench_function(name, |b| {
         b.iter(|| {
             rays.iter()

@@ -7,9 +7,9 @@
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use obvhs::{bvh2::builder::build_bvh2_from_tris, BvhBuildParams};
 use quiver::build::{BuildConfig, Builder};
+use quiver::{BuildOptions, Layout};
 use quiver_lab::obvhs_bridge::{sah_cost as obvhs_sah, triangles as obvhs_tris};
-use quiver_scenes::scene::Scene;
-use quiver::Bvh2;
+use quiver_scenes::Scene;
 use std::time::Duration;
 
 fn pool(threads: usize) -> rayon::ThreadPool {
@@ -37,15 +37,17 @@ fn bench_builds(c: &mut Criterion) {
         for threads in [1, 2] {
             let pool = pool(threads);
             for &builder in builders {
-                let sah = pool.install(|| Bvh2::build(tris, &config, builder).1.sah_cost(&config));
+                let options = BuildOptions::default()
+                    .builder(builder)
+                    .layout(Layout::Bvh2Dfs)
+                    .thread_pool(&pool);
+                let sah = options.build_with_tree(tris).1.sah_cost(&config);
                 println!(
                     "{name} ({} tris) quiver {builder} threads {threads}: SAH cost {sah:.3}",
                     tris.len()
                 );
                 let id = BenchmarkId::new(format!("quiver-{builder}/{threads}t"), name);
-                group.bench_function(id, |b| {
-                    b.iter(|| pool.install(|| Bvh2::build(tris, &config, builder)))
-                });
+                group.bench_function(id, |b| b.iter(|| options.build_with_tree(tris)));
             }
             let medium = BvhBuildParams::medium_build();
             let sah = pool.install(|| {

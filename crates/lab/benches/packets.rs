@@ -8,25 +8,18 @@
 //! measures the same comparison on several scenes, curve and patch mode, in one table.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
-use quiver::build::{BuildConfig, Builder};
-use quiver_lab::measure::{trace, trace_packets, Query};
-use quiver_scenes::scene::Scene;
 use quiver::traverse::PacketMode;
-use quiver::{Bvh, Layout};
-use quiver_lab::{rays};
+use quiver::Bvh;
+use quiver_lab::measure::{trace, trace_packets, Query};
+use quiver_lab::rays;
+use quiver_scenes::Scene;
 use std::time::Duration;
 
 fn bench_packets(c: &mut Criterion) {
     let name = std::env::var("QUIVER_BENCH_SCENE").unwrap_or_else(|_| "teapot12".into());
     let scene = Scene::load(&name).expect("scene");
     let tris = scene.triangles();
-    let bvh = Bvh::build(
-        &tris,
-        &BuildConfig::default(),
-        Builder::Binned,
-        Layout::Bvh4Dfs,
-    )
-    .0;
+    let bvh = Bvh::new(&tris);
     let eye = rays::camera_tiles(&scene.camera, 256, 8);
     let light = scene.lights.first().map_or(scene.camera.from, |l| l.pos);
     let shadow = rays::shadow_rays(&bvh, &eye, &[light]);

@@ -6,12 +6,12 @@
 //! `quiver layouts` command measures the same matrix on several scenes in one table.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+use quiver::build::prim_bounds;
 use quiver::build::{build, BuildConfig, Builder};
-use quiver::layout::triangle_bounds;
-use quiver_lab::measure::{trace, Query};
-use quiver_scenes::scene::Scene;
 use quiver::{Bvh, Layout};
-use quiver_lab::{rays};
+use quiver_lab::measure::{trace, Query};
+use quiver_lab::rays;
+use quiver_scenes::scene::Scene;
 use std::time::Duration;
 
 fn bench_layouts(c: &mut Criterion) {
@@ -19,7 +19,7 @@ fn bench_layouts(c: &mut Criterion) {
     let scene = Scene::load(&name).expect("scene");
     let tris = scene.triangles();
     let tree = build(
-        &triangle_bounds(&tris),
+        &prim_bounds(&tris),
         &BuildConfig::default(),
         Builder::Binned,
     );

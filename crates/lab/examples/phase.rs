@@ -1,9 +1,8 @@
 //! Times the phases of a BVH2 build (primitive bounds, SAH build, layout) on tetra10 at 1 and
 //! 2 threads; prints the fastest of five runs of each. `cargo run --release --example phase`
-use quiver::build::{build, BuildConfig, Builder};
-use quiver::layout::triangle_bounds;
-use quiver_scenes::scene::Scene;
+use quiver::build::{build, prim_bounds, BuildConfig, Builder};
 use quiver::Bvh2;
+use quiver_scenes::Scene;
 use std::time::{Duration, Instant};
 
 fn main() {
@@ -19,7 +18,7 @@ fn main() {
         pool.install(|| {
             for _ in 0..5 {
                 let t0 = Instant::now();
-                let bounds = triangle_bounds(&tris);
+                let bounds = prim_bounds(&tris);
                 let t1 = Instant::now();
                 let tree = build(&bounds, &BuildConfig::default(), Builder::Binned);
                 let t2 = Instant::now();

@@ -20,15 +20,13 @@
 //! assert_eq!(watertight.leaks_per_million, 0.0);
 //! ```
 
-use quiver::build::{BuildConfig, Builder};
-use quiver::geometry::{Primitive, Ray, Triangle};
-use quiver::intersect::{Exact, Watertight};
-use quiver::layout::{Bvh, Layout};
 use crate::measure;
-use quiver_scenes::render::Offset;
-use quiver_scenes::scene::Scene;
-use quiver::traverse::{BoxTest, ConservativeBoxes, FastBoxes, NoStats};
 use glam::Vec3A;
+use quiver::intersect::{Exact, Watertight};
+use quiver::traverse::{BoxTest, ConservativeBoxes, FastBoxes, NoStats};
+use quiver::{Bvh, Primitive, Ray, RayQuery, Triangle};
+use quiver_scenes::render::Offset;
+use quiver_scenes::Scene;
 use rayon::prelude::*;
 
 /// One combination's measurements.
@@ -96,12 +94,7 @@ pub fn evaluate(
         .unwrap_or_default();
     let closed = closed_mesh_rays(&sphere);
     let exact: Vec<Exact> = scene_tris.iter().map(|&t| Exact(t)).collect();
-    let (reference, _) = Bvh::build(
-        &exact,
-        &BuildConfig::default(),
-        Builder::Binned,
-        Layout::Bvh4Dfs,
-    );
+    let reference = Bvh::new(&exact);
     let want: Vec<Option<u32>> = rays
         .par_iter()
         .map(|r| reference.closest_hit(r).map(|h| h.prim))
@@ -177,8 +170,7 @@ fn combo<P: Primitive, B: BoxTest>(
     sphere: &[P],
     ctx: &Ctx,
 ) -> Vec<Row> {
-    let config = BuildConfig::default();
-    let (bvh, _) = Bvh::build(prims, &config, Builder::Binned, Layout::Bvh4Dfs);
+    let bvh = Bvh::new(prims);
     let closest = |r: &Ray| bvh.closest_hit_with::<B, _>(r, &mut NoStats);
     let time = |any: bool| {
         let t = measure::median_time(ctx.reps, || {
@@ -202,7 +194,7 @@ fn combo<P: Primitive, B: BoxTest>(
         measure::mrays_per_s(ctx.rays.len(), t)
     };
     let (mrays, any_mrays) = (time(false), time(true));
-    let (sphere_bvh, _) = Bvh::build(sphere, &config, Builder::Binned, Layout::Bvh4Dfs);
+    let sphere_bvh = Bvh::new(sphere);
     let leaks = ctx
         .closed
         .par_iter()

@@ -8,12 +8,10 @@
 //! quiver_lab::checks::nff_round_trip(b"f 1 1 1 1 0 0 0 1\ns 0 0 0 1\n");
 //! ```
 
-use quiver::build::{BuildConfig, Builder};
-use quiver::geometry::{Primitive, Ray, Triangle};
-use quiver::layout::{Bvh, Layout};
-use quiver::reference;
-use quiver::traverse::{ConservativeBoxes, NoStats, PacketMode};
 use glam::Vec3A;
+use quiver::build::{BuildConfig, Builder};
+use quiver::traverse::{ConservativeBoxes, NoStats, PacketMode};
+use quiver::{reference, BuildOptions, Bvh, Layout, Primitive, Ray, RayQuery, Triangle};
 
 /// Reads little-endian f32s from the bytes; NaN, infinities, huge and subnormal values all
 /// come through as they are.
@@ -63,8 +61,14 @@ pub fn build_and_trace(data: &[u8]) {
             max_leaf_size: 1 + data[1] as usize % 8,
             ..BuildConfig::default()
         };
-        let (bvh, tree) = Bvh::build(&tris, &config, builder, layout);
-        let bounds = quiver::layout::triangle_bounds(&tris);
+        let (bvh, tree) = BuildOptions {
+            builder,
+            layout,
+            config: config.clone(),
+            pool: None,
+        }
+        .build_with_tree(&tris);
+        let bounds = quiver::build::prim_bounds(&tris);
         tree.validate(&bounds, &config).expect("tree invariants");
         for r in &rays {
             let finite =
@@ -172,8 +176,9 @@ pub fn nff_round_trip(data: &[u8]) {
     if let Ok(scene) = quiver_scenes::scene::nff::parse(&text, "fuzz.nff") {
         let mut out = Vec::new();
         quiver_scenes::scene::nff::write(&scene, &mut out).expect("writing to memory");
-        let back = quiver_scenes::scene::nff::parse(std::str::from_utf8(&out).expect("utf-8"), "back.nff")
-            .expect("own output parses");
+        let back =
+            quiver_scenes::scene::nff::parse(std::str::from_utf8(&out).expect("utf-8"), "back.nff")
+                .expect("own output parses");
         assert_eq!(back.objects.len(), scene.objects.len());
         for (a, b) in back.objects.iter().zip(&scene.objects) {
             // The writer writes the materials objects use, so compare them through the objects.
@@ -205,12 +210,7 @@ pub fn obj_load(data: &[u8]) {
     let _ = std::fs::remove_file(&path);
     if let Ok(scene) = loaded {
         let tris = scene.triangles();
-        let (bvh, _) = Bvh::build(
-            &tris,
-            &BuildConfig::default(),
-            Builder::Binned,
-            Layout::Bvh4Dfs,
-        );
+        let bvh = Bvh::new(&tris);
         let ray = scene.camera.ray(0.0, 0.0);
         if ray.origin.is_finite() && ray.dir.is_finite() {
             assert_eq!(bvh.closest_hit(&ray), reference::closest_hit(&tris, &ray));

@@ -1,21 +1,19 @@
-//! Throughput measurement shared by the CLI reports and benchmarks: trace a ray set through a
-//! [`Bvh`] on the current rayon pool and time it.
+//! Throughput measurement shared by the CLI reports and benchmarks: trace a ray set through
+//! anything that answers [`RayQuery`] on the current rayon pool and time it.
 //!
 //! ```
+//! use quiver::Bvh;
 //! use quiver_lab::measure::{trace, Query};
-//! use quiver::{Bvh, Layout};
-//! use quiver_scenes::{scene::Scene};
-//! use quiver_lab::{rays};
-//! use quiver::build::{BuildConfig, Builder};
+//! use quiver_lab::rays;
+//! use quiver_scenes::Scene;
 //! let s = Scene::load("tetra4").unwrap();
-//! let (bvh, _) = Bvh::build(&s.triangles(), &BuildConfig::default(), Builder::Binned, Layout::Bvh4Dfs);
+//! let bvh = Bvh::new(&s.triangles());
 //! let rays = rays::camera_rays(&s.camera, 32);
 //! assert!(trace(&bvh, &rays, Query::Closest) > 0);
 //! ```
 
-use quiver::geometry::{Primitive, Ray};
-use quiver::layout::Bvh;
-use quiver::traverse::{ConservativeBoxes, Counters, NoStats, PacketMode};
+use quiver::traverse::{ConservativeBoxes, Counters, NoStats, PacketMode, RayQuery};
+use quiver::Ray;
 use rayon::prelude::*;
 use std::time::{Duration, Instant};
 
@@ -42,7 +40,7 @@ impl Query {
 const RAYS_PER_TASK: usize = 1024;
 
 /// Traces every ray on the current thread pool; returns how many hit.
-pub fn trace<P: Primitive>(bvh: &Bvh<P>, rays: &[Ray], query: Query) -> usize {
+pub fn trace<Q: RayQuery + Sync>(bvh: &Q, rays: &[Ray], query: Query) -> usize {
     rays.par_chunks(RAYS_PER_TASK)
         .map(|chunk| match query {
             Query::Closest => chunk
@@ -54,25 +52,23 @@ pub fn trace<P: Primitive>(bvh: &Bvh<P>, rays: &[Ray], query: Query) -> usize {
         .sum()
 }
 
-/// Traces the rays in packets of consecutive rays (see [`Bvh::closest_hit_packet`]) on the
+/// Traces the rays in packets of consecutive rays (see [`RayQuery::closest_hit_packet`]) on the
 /// current thread pool; returns how many hit. Each task's rays are cut into packets in order,
 /// so coherent input must come packet-ordered (e.g. [`crate::rays::camera_tiles`]).
 ///
 /// ```
+/// use quiver::{traverse::PacketMode, Bvh};
 /// use quiver_lab::measure::{trace, trace_packets, Query};
-/// use quiver::traverse::PacketMode;
-/// use quiver::{Bvh, Layout};
-/// use quiver_scenes::{scene::Scene};
-/// use quiver_lab::{rays};
-/// use quiver::build::{BuildConfig, Builder};
+/// use quiver_lab::rays;
+/// use quiver_scenes::Scene;
 /// let s = Scene::load("tetra4").unwrap();
-/// let (bvh, _) = Bvh::build(&s.triangles(), &BuildConfig::default(), Builder::Binned, Layout::Bvh4Dfs);
+/// let bvh = Bvh::new(&s.triangles());
 /// let rays = rays::camera_tiles(&s.camera, 32, 8);
 /// let hits = trace(&bvh, &rays, Query::Closest);
 /// assert_eq!(trace_packets(&bvh, &rays, Query::Closest, PacketMode::Always), hits);
 /// ```
-pub fn trace_packets<P: Primitive>(
-    bvh: &Bvh<P>,
+pub fn trace_packets<Q: RayQuery + Sync>(
+    bvh: &Q,
     rays: &[Ray],
     query: Query,
     mode: PacketMode,
@@ -106,7 +102,7 @@ pub fn trace_packets<P: Primitive>(
 }
 
 /// Traces every ray with the counting kernels and returns the summed counters.
-pub fn count(bvh: &Bvh, rays: &[Ray], query: Query) -> Counters {
+pub fn count<Q: RayQuery + Sync>(bvh: &Q, rays: &[Ray], query: Query) -> Counters {
     rays.par_chunks(RAYS_PER_TASK)
         .map(|chunk| {
             let mut c = Counters::default();

@@ -3,7 +3,7 @@
 //! obvhs in.
 //!
 //! ```
-//! use quiver_scenes::{scene::Scene};
+//! use quiver_scenes::Scene;
 //! use quiver_lab::{obvhs_bridge};
 //! let tris = Scene::load("tetra3").unwrap().triangles();
 //! assert_eq!(obvhs_bridge::triangles(&tris).len(), 64);

@@ -2,18 +2,17 @@
 //! rays.
 //!
 //! ```
-//! use quiver_scenes::{scene::Scene};
-//! use quiver_lab::{rays};
+//! use quiver_lab::rays;
+//! use quiver_scenes::Scene;
 //! let s = Scene::load("tetra3").unwrap();
 //! assert_eq!(rays::camera_rays(&s.camera, 8).len(), 64);
 //! assert_eq!(rays::random_rays(&s.bounds(), 100, 1).len(), 100);
 //! ```
 
-use quiver::geometry::{Aabb, Primitive, Ray};
-use quiver::layout::Bvh;
+use glam::Vec3A;
+use quiver::{Aabb, Ray, RayQuery};
 use quiver_scenes::rng::Rng;
 use quiver_scenes::scene::Camera;
-use glam::Vec3A;
 use rayon::prelude::*;
 
 /// `n` incoherent rays: origins uniform in `bounds` grown by half its size on every side,
@@ -51,8 +50,8 @@ pub fn camera_rays(camera: &Camera, res: usize) -> Vec<Ray> {
 /// coherent packets.
 ///
 /// ```
-/// use quiver_scenes::{scene::Scene};
-/// use quiver_lab::{rays};
+/// use quiver_lab::rays;
+/// use quiver_scenes::Scene;
 /// let s = Scene::load("tetra3").unwrap();
 /// let (rows, tiles) = (rays::camera_rays(&s.camera, 16), rays::camera_tiles(&s.camera, 16, 8));
 /// assert_eq!(tiles[8], rows[16]); // the ninth ray of the first tile starts its second row
@@ -76,17 +75,16 @@ pub fn camera_tiles(camera: &Camera, res: usize, tile: usize) -> Vec<Ray> {
 ///
 /// ```
 /// use glam::Vec3A;
-/// use quiver::build::{BuildConfig, Builder};
-/// use quiver::{Bvh, Layout};
-/// use quiver_scenes::{scene::Scene};
-/// use quiver_lab::{rays};
+/// use quiver::{Bvh, RayQuery};
+/// use quiver_lab::rays;
+/// use quiver_scenes::Scene;
 /// let s = Scene::load("tetra3").unwrap();
-/// let (bvh, _) = Bvh::build(&s.triangles(), &BuildConfig::default(), Builder::Binned, Layout::Bvh4Dfs);
+/// let bvh = Bvh::new(&s.triangles());
 /// let eye = rays::camera_rays(&s.camera, 16);
 /// let hits = eye.iter().filter(|r| bvh.closest_hit(r).is_some()).count();
 /// assert_eq!(rays::shadow_rays(&bvh, &eye, &[Vec3A::Z, Vec3A::X]).len(), 2 * hits);
 /// ```
-pub fn shadow_rays<P: Primitive>(bvh: &Bvh<P>, eye: &[Ray], lights: &[Vec3A]) -> Vec<Ray> {
+pub fn shadow_rays<Q: RayQuery + Sync>(bvh: &Q, eye: &[Ray], lights: &[Vec3A]) -> Vec<Ray> {
     let points: Vec<Vec3A> = eye
         .par_iter()
         .filter_map(|r| bvh.closest_hit(r).map(|h| r.at(h.t)))

@@ -8,6 +8,8 @@
 //! - a primitive with a non-finite vertex is invisible: builds drop it (and count it), the
 //!   reference skips it.
 
+use crate::traverse::simd::bits;
+use crate::traverse::PacketLeaf;
 use glam::Vec3A;
 
 /// A ray `origin + t * dir` restricted to `t_min <= t <= t_max`.
@@ -156,14 +158,15 @@ pub struct Triangle {
     pub v: [Vec3A; 3],
 }
 
-/// The result of one ray/triangle test: distance and barycentrics.
+/// What one primitive test found: the distance and two surface parameters (barycentrics for
+/// triangles; each shape documents its own).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct TriHit {
+pub struct PrimHit {
     /// Hit distance along the ray.
     pub t: f32,
-    /// Barycentric weight of the second vertex.
+    /// First surface parameter (a triangle: barycentric weight of the second vertex).
     pub u: f32,
-    /// Barycentric weight of the third vertex.
+    /// Second surface parameter (a triangle: barycentric weight of the third vertex).
     pub v: f32,
 }
 
@@ -200,7 +203,7 @@ impl Triangle {
     /// Degenerate triangles (zero area) never hit: their determinant is zero. Every comparison
     /// is written so that a NaN rejects the hit.
     #[inline(always)]
-    pub fn intersect(&self, ray: &Ray) -> Option<TriHit> {
+    pub fn intersect(&self, ray: &Ray) -> Option<PrimHit> {
         let e1 = self.v[0] - self.v[1];
         let e2 = self.v[2] - self.v[0];
         let n = e1.cross(e2);
@@ -218,7 +221,7 @@ impl Triangle {
         }
         let t = n.dot(c) * inv;
         if t >= ray.t_min && t <= ray.t_max {
-            Some(TriHit { t, u, v })
+            Some(PrimHit { t, u, v })
         } else {
             None
         }
@@ -226,28 +229,74 @@ impl Triangle {
 }
 
 /// Anything a BVH can hold: it has bounds and a ray test. Triangles are the fast path; the
-/// mixed [`crate::primitive::Prim`] covers the SPD's analytic shapes.
+/// quiver-scenes crate adds the SPD's analytic shapes (spheres, cones, polygons, patches).
+///
+/// A new primitive type needs [`Primitive::bounds`] and [`Primitive::intersect`]; its packet
+/// test then goes ray by ray unless it overrides [`Primitive::intersect_packet`].
+///
+/// ```
+/// use quiver::{Aabb, Bvh, PrimHit, Primitive, Ray, RayQuery};
+/// use glam::Vec3A;
+///
+/// /// A point-like target: a tiny axis-aligned cube.
+/// #[derive(Clone)]
+/// struct Cube(Vec3A);
+///
+/// impl Primitive for Cube {
+///     fn bounds(&self) -> Aabb {
+///         Aabb::new(self.0 - 0.5, self.0 + 0.5)
+///     }
+///     fn intersect(&self, ray: &Ray) -> Option<PrimHit> {
+///         // Slab test against the cube's own box.
+///         let b = self.bounds();
+///         let (t0, t1) = ((b.min - ray.origin) / ray.dir, (b.max - ray.origin) / ray.dir);
+///         let (near, far) = (t0.min(t1).max_element(), t0.max(t1).min_element());
+///         let t = near.max(ray.t_min);
+///         (t <= far && t <= ray.t_max).then_some(PrimHit { t, u: 0.0, v: 0.0 })
+///     }
+/// }
+///
+/// let cubes: Vec<Cube> = (0..10).map(|i| Cube(Vec3A::new(3.0 * i as f32, 0.0, 0.0))).collect();
+/// let bvh = Bvh::new(&cubes);
+/// let hit = bvh.closest_hit(&Ray::new(Vec3A::new(6.0, 0.0, -5.0), Vec3A::Z)).unwrap();
+/// assert_eq!((hit.prim, hit.t), (2, 4.5));
+/// ```
 pub trait Primitive: Clone + Send + Sync {
     /// Bounding box. A primitive with a non-finite coordinate must return a box with a NaN
     /// (see [`Aabb::is_finite`]) so the builders drop it.
     fn bounds(&self) -> Aabb;
     /// The hit within `[ray.t_min, ray.t_max]`, if any: distance and two surface parameters
     /// (barycentrics for triangles).
-    fn intersect(&self, ray: &Ray) -> Option<TriHit>;
+    fn intersect(&self, ray: &Ray) -> Option<PrimHit>;
     /// True when every coordinate is finite; others are invisible (builds drop them).
     fn is_finite(&self) -> bool {
         self.bounds().is_finite()
     }
-    /// `Some` when the slice holds plain (fast Möller–Trumbore) triangles: the packet kernels
-    /// then test eight rays per triangle with SIMD instead of one at a time. Other primitive
-    /// types keep the default `None` and are tested ray by ray.
-    #[doc(hidden)]
+    /// The packet kernels' test of a leaf of these primitives against the rays of a packet
+    /// that enter it: for every ray of [`PacketLeaf::rays`] (within its current interval,
+    /// [`PacketLeaf::ray`]) and primitive `j` of `leaf` it hits, call
+    /// [`PacketLeaf::report`]. Each ray's hits must be exactly what
+    /// [`Primitive::intersect`] finds for it.
+    ///
+    /// The default goes ray by ray; [`Triangle`] tests eight rays at a time with SIMD.
     #[inline(always)]
-    fn as_triangles(_prims: &[Self]) -> Option<&[Triangle]>
+    fn intersect_packet<F>(leaf: &[Self], rays: &mut PacketLeaf<'_, F>)
     where
         Self: Sized,
+        F: FnMut(usize, usize, PrimHit) -> Option<f32>,
     {
-        None
+        for i in bits(rays.rays()) {
+            let mut ray = rays.ray(i);
+            for (j, p) in leaf.iter().enumerate() {
+                if let Some(h) = p.intersect(&ray) {
+                    rays.report(i, j, h);
+                    if rays.rays() >> i & 1 == 0 {
+                        break;
+                    }
+                    ray = rays.ray(i);
+                }
+            }
+        }
     }
 }
 
@@ -262,7 +311,7 @@ impl Primitive for Triangle {
     }
 
     #[inline(always)]
-    fn intersect(&self, ray: &Ray) -> Option<TriHit> {
+    fn intersect(&self, ray: &Ray) -> Option<PrimHit> {
         Triangle::intersect(self, ray)
     }
 
@@ -272,8 +321,11 @@ impl Primitive for Triangle {
     }
 
     #[inline(always)]
-    fn as_triangles(prims: &[Self]) -> Option<&[Triangle]> {
-        Some(prims)
+    fn intersect_packet<F>(leaf: &[Self], rays: &mut PacketLeaf<'_, F>)
+    where
+        F: FnMut(usize, usize, PrimHit) -> Option<f32>,
+    {
+        crate::traverse::packet::triangles_packet(leaf, rays)
     }
 }
 

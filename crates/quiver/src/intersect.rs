@@ -21,7 +21,7 @@
 //! assert_eq!(Exact(a).intersect(&ray).unwrap().t, 1.0);
 //! ```
 
-use crate::geometry::{Aabb, Primitive, Ray, TriHit, Triangle};
+use crate::geometry::{Aabb, PrimHit, Primitive, Ray, Triangle};
 use glam::{DVec3, Vec3A};
 
 /// A triangle tested with the watertight algorithm.
@@ -56,7 +56,7 @@ fn shear_axes(d: Vec3A) -> (usize, usize, usize) {
 /// Turns edge functions and the scaled distance into a hit, two-sided, honouring the ray's
 /// interval. `u` weighs the second vertex and `v` the third, as everywhere in quiver.
 #[inline(always)]
-fn finish<T: Into<f64> + Copy>(u: T, v: T, w: T, t_scaled: T, ray: &Ray) -> Option<TriHit> {
+fn finish<T: Into<f64> + Copy>(u: T, v: T, w: T, t_scaled: T, ray: &Ray) -> Option<PrimHit> {
     let (u, v, w, ts) = (u.into(), v.into(), w.into(), t_scaled.into());
     if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
         return None;
@@ -69,7 +69,7 @@ fn finish<T: Into<f64> + Copy>(u: T, v: T, w: T, t_scaled: T, ray: &Ray) -> Opti
     if !(t >= ray.t_min && t <= ray.t_max) {
         return None;
     }
-    Some(TriHit {
+    Some(PrimHit {
         t,
         u: (v / det) as f32,
         v: (w / det) as f32,
@@ -86,7 +86,7 @@ impl Primitive for Watertight {
     }
 
     #[inline(always)]
-    fn intersect(&self, ray: &Ray) -> Option<TriHit> {
+    fn intersect(&self, ray: &Ray) -> Option<PrimHit> {
         let d = ray.dir;
         let (kx, ky, kz) = shear_axes(d);
         let sz = 1.0 / d[kz];
@@ -121,7 +121,7 @@ impl Primitive for Watertight {
         if !(t >= ray.t_min && t <= ray.t_max) {
             return None;
         }
-        Some(TriHit {
+        Some(PrimHit {
             t,
             u: v * inv,
             v: w * inv,
@@ -138,7 +138,7 @@ impl Primitive for Exact {
         self.0.is_finite()
     }
 
-    fn intersect(&self, ray: &Ray) -> Option<TriHit> {
+    fn intersect(&self, ray: &Ray) -> Option<PrimHit> {
         let f = |p: Vec3A| DVec3::new(p.x as f64, p.y as f64, p.z as f64);
         let d = f(ray.dir);
         let (kx, ky, kz) = shear_axes(ray.dir);

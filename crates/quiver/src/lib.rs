@@ -1,14 +1,50 @@
-//! quiver: ray shooting on CPUs.
+//! quiver: BVH construction and ray shooting on CPUs.
+//!
+//! Give it triangles (or any [`Primitive`]), get a [`Bvh`]; ask it for the closest hit or
+//! any hit along a ray, one ray at a time or 64 at once ([`RayQuery`]).
+//!
+//! ```
+//! use quiver::{Bvh, Ray, RayQuery};
+//! use glam::Vec3A;
+//!
+//! // A unit square in the z = 0 plane: four vertices, two triangles.
+//! let positions = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]];
+//! let indices = [[0, 1, 2], [0, 2, 3]];
+//! let bvh = Bvh::from_mesh(&positions, &indices).expect("every index names a vertex");
+//!
+//! // A ray straight down onto the upper-left half.
+//! let ray = Ray::new(Vec3A::new(0.25, 0.75, 2.0), Vec3A::new(0.0, 0.0, -1.0));
+//! let hit = bvh.closest_hit(&ray).expect("the ray hits the square");
+//! assert_eq!((hit.prim, hit.t), (1, 2.0)); // the second triangle, two units away
+//! assert!(bvh.any_hit(&ray));
+//! ```
+//!
+//! The pipeline, one module per stage: [`build`] (SAH trees over primitive bounds) →
+//! [`layout`] (compact node arrays: binary, 4-wide, quantized; in several memory orders) →
+//! [`traverse`] (single-ray and packet kernels, closest and any hit, statistics).
+//! [`Bvh::new`] and [`BuildOptions`] run the first two; [`geometry`] holds rays, boxes,
+//! triangles and hit records, [`intersect`] the watertight and exact triangle tests, and
+//! [`reference`] the brute-force oracle every kernel is tested against.
+//!
+//! This crate depends only on glam, wide, rayon and bytemuck. Scenes (the SPD generators,
+//! NFF and OBJ files), analytic shapes and the SPD renderer live in `quiver-scenes`; the
+//! measurement harness in `quiver-lab`; the command line in `quiver-cli`.
+
+#![warn(missing_docs)]
 
 pub mod build;
+mod bvh;
 pub mod geometry;
 pub mod intersect;
 pub mod layout;
+mod mesh;
 mod rng;
 #[cfg(test)]
 mod testing;
 pub mod traverse;
 
-pub use geometry::{Aabb, Hit, Primitive, Ray, TriHit, Triangle};
-pub use layout::{Bvh, Bvh2, Layout};
-pub use traverse::reference;
+pub use bvh::{BuildOptions, Bvh};
+pub use geometry::{Aabb, Hit, PrimHit, Primitive, Ray, Triangle};
+pub use layout::{Bvh2, Layout};
+pub use mesh::MeshError;
+pub use traverse::{reference, RayQuery};

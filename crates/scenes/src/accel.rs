@@ -3,23 +3,21 @@
 //! the primitive; [`SceneBvh::object_of`] maps it back to the scene object (and material).
 //!
 //! ```
-//! use quiver_scenes::accel::SceneBvh;
-//! use quiver::build::{BuildConfig, Builder};
-//! use quiver::{Layout};
-//! use quiver_scenes::{scene::Scene};
+//! use quiver::{BuildOptions, RayQuery};
+//! use quiver_scenes::{accel::SceneBvh, Scene};
 //! let scene = Scene::load("tetra3").unwrap();
-//! let (bvh, _) = SceneBvh::build(&scene, &BuildConfig::default(), Builder::Binned, Layout::Bvh4Dfs);
+//! let bvh = SceneBvh::build(&scene, &BuildOptions::default());
 //! let hit = bvh.closest_hit(&scene.camera.ray(0.0, 0.0)).unwrap();
 //! assert!((bvh.object_of(hit.prim) as usize) < scene.objects.len());
 //! ```
 
-use quiver::build::{BuildConfig, BuildTree, Builder};
-use quiver::geometry::{Hit, Ray, TriHit, Triangle};
-use quiver::layout::{Bvh, Layout};
 use crate::primitive::{PatchTriangle, Prim};
 use crate::scene::Scene;
-use quiver::traverse::{ConservativeBoxes, Counters, PacketMode, Stats};
 use glam::Vec3A;
+use quiver::build::BuildTree;
+use quiver::layout::Footprint;
+use quiver::traverse::{BoxTest, PacketMode, RayQuery, Stats};
+use quiver::{BuildOptions, Bvh, Hit, PrimHit, Ray, Triangle};
 
 /// The BVH of one scene.
 #[derive(Clone, Debug)]
@@ -36,29 +34,20 @@ enum Kind {
     Mixed(Bvh<Prim>, Vec<Prim>),
 }
 
-macro_rules! each {
-    ($self:expr, $b:ident => $e:expr) => {
-        match &$self.kind {
-            Kind::Triangles($b, ..) => $e,
-            Kind::Mixed($b, _) => $e,
-        }
-    };
-}
-
 impl SceneBvh {
     /// Builds over the scene's primitives: triangles when every object is one, the mixed
     /// path otherwise.
-    pub fn build(
-        scene: &Scene,
-        config: &BuildConfig,
-        builder: Builder,
-        layout: Layout,
-    ) -> (SceneBvh, BuildTree) {
+    pub fn build(scene: &Scene, options: &BuildOptions) -> SceneBvh {
+        Self::build_with_tree(scene, options).0
+    }
+
+    /// [`SceneBvh::build`], also returning the build tree.
+    pub fn build_with_tree(scene: &Scene, options: &BuildOptions) -> (SceneBvh, BuildTree) {
         if scene.is_all_triangles() {
-            Self::build_triangles(scene, config, builder, layout)
+            Self::build_triangles_with_tree(scene, options)
         } else {
             let (prims, owner) = scene.prims();
-            let (bvh, tree) = Bvh::build(&prims, config, builder, layout);
+            let (bvh, tree) = options.build_with_tree(&prims);
             (
                 SceneBvh {
                     kind: Kind::Mixed(bvh, prims),
@@ -71,14 +60,17 @@ impl SceneBvh {
 
     /// Builds over triangles only (patch mode): polygons triangulated, patches kept as
     /// triangles with their vertex normals for smooth shading, spheres and cones tessellated.
-    pub fn build_triangles(
+    pub fn build_triangles(scene: &Scene, options: &BuildOptions) -> SceneBvh {
+        Self::build_triangles_with_tree(scene, options).0
+    }
+
+    /// [`SceneBvh::build_triangles`], also returning the build tree.
+    pub fn build_triangles_with_tree(
         scene: &Scene,
-        config: &BuildConfig,
-        builder: Builder,
-        layout: Layout,
+        options: &BuildOptions,
     ) -> (SceneBvh, BuildTree) {
         let (tris, owner, normals) = scene.triangles_with_normals();
-        let (bvh, tree) = Bvh::build(&tris, config, builder, layout);
+        let (bvh, tree) = options.build_with_tree(&tris);
         (
             SceneBvh {
                 kind: Kind::Triangles(bvh, tris, normals),
@@ -105,7 +97,7 @@ impl SceneBvh {
 
     /// Shading normal at a hit (see [`Prim::normal`]).
     pub fn normal(&self, ray: &Ray, hit: &Hit) -> Vec3A {
-        let th = TriHit {
+        let th = PrimHit {
             t: hit.t,
             u: hit.u,
             v: hit.v,
@@ -122,47 +114,33 @@ impl SceneBvh {
         }
     }
 
-    /// Node slots.
-    pub fn nodes(&self) -> usize {
-        each!(self, b => b.nodes())
+    /// What the nodes and leaves occupy.
+    pub fn footprint(&self) -> Footprint {
+        match &self.kind {
+            Kind::Triangles(b, ..) => b.footprint(),
+            Kind::Mixed(b, _) => b.footprint(),
+        }
+    }
+}
+
+impl RayQuery for SceneBvh {
+    #[inline]
+    fn closest_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> Option<Hit> {
+        match &self.kind {
+            Kind::Triangles(b, ..) => b.closest_hit_with::<B, S>(ray, stats),
+            Kind::Mixed(b, _) => b.closest_hit_with::<B, S>(ray, stats),
+        }
     }
 
-    /// Bytes of the node array.
-    pub fn node_bytes(&self) -> usize {
-        each!(self, b => b.node_bytes())
+    #[inline]
+    fn any_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> bool {
+        match &self.kind {
+            Kind::Triangles(b, ..) => b.any_hit_with::<B, S>(ray, stats),
+            Kind::Mixed(b, _) => b.any_hit_with::<B, S>(ray, stats),
+        }
     }
 
-    /// Bytes of node and leaf data.
-    pub fn bytes(&self) -> usize {
-        each!(self, b => b.bytes())
-    }
-
-    /// Nearest hit.
-    pub fn closest_hit(&self, ray: &Ray) -> Option<Hit> {
-        each!(self, b => b.closest_hit(ray))
-    }
-
-    /// Whether anything is hit.
-    pub fn any_hit(&self, ray: &Ray) -> bool {
-        each!(self, b => b.any_hit(ray))
-    }
-
-    /// Nearest hit, counting.
-    pub fn closest_hit_counted(&self, ray: &Ray, c: &mut Counters) -> Option<Hit> {
-        each!(self, b => b.closest_hit_counted(ray, c))
-    }
-
-    /// Any hit, counting.
-    pub fn any_hit_counted(&self, ray: &Ray, c: &mut Counters) -> bool {
-        each!(self, b => b.any_hit_counted(ray, c))
-    }
-
-    /// Nearest hits of `rays` in packets (see [`Bvh::closest_hit_packet_with`]); only rays
-    /// flagged in `active` are traced.
-    ///
-    /// # Panics
-    /// When `hits` or `active` differ in length from `rays`.
-    pub fn closest_hit_packet_with<S: Stats>(
+    fn closest_hit_packet_with<B: BoxTest, S: Stats>(
         &self,
         rays: &[Ray],
         active: Option<&[bool]>,
@@ -170,14 +148,15 @@ impl SceneBvh {
         hits: &mut [Option<Hit>],
         stats: &mut S,
     ) {
-        each!(self, b => b.closest_hit_packet_with::<ConservativeBoxes, S>(rays, active, mode, hits, stats))
+        match &self.kind {
+            Kind::Triangles(b, ..) => {
+                b.closest_hit_packet_with::<B, S>(rays, active, mode, hits, stats)
+            }
+            Kind::Mixed(b, _) => b.closest_hit_packet_with::<B, S>(rays, active, mode, hits, stats),
+        }
     }
 
-    /// Any-hit answers of `rays` in packets (see [`Bvh::any_hit_packet_with`]).
-    ///
-    /// # Panics
-    /// When `occluded` or `active` differ in length from `rays`.
-    pub fn any_hit_packet_with<S: Stats>(
+    fn any_hit_packet_with<B: BoxTest, S: Stats>(
         &self,
         rays: &[Ray],
         active: Option<&[bool]>,
@@ -185,6 +164,11 @@ impl SceneBvh {
         occluded: &mut [bool],
         stats: &mut S,
     ) {
-        each!(self, b => b.any_hit_packet_with::<ConservativeBoxes, S>(rays, active, mode, occluded, stats))
+        match &self.kind {
+            Kind::Triangles(b, ..) => {
+                b.any_hit_packet_with::<B, S>(rays, active, mode, occluded, stats)
+            }
+            Kind::Mixed(b, _) => b.any_hit_packet_with::<B, S>(rays, active, mode, occluded, stats),
+        }
     }
 }

@@ -13,8 +13,8 @@
 // Comparisons are written as `!(x >= 0.0)` on purpose: a NaN must reject a hit.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
-use quiver::geometry::{Aabb, Primitive, Ray, TriHit, Triangle};
 use glam::Vec3A;
+use quiver::geometry::{Aabb, PrimHit, Primitive, Ray, Triangle};
 
 /// A sphere.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -118,7 +118,7 @@ impl Primitive for Sphere {
         Aabb::new(self.center - self.radius, self.center + self.radius)
     }
 
-    fn intersect(&self, ray: &Ray) -> Option<TriHit> {
+    fn intersect(&self, ray: &Ray) -> Option<PrimHit> {
         // Roots of |o + t d - c|^2 = r^2, with the half-b form and the smaller root computed
         // without cancellation, solved from the ray's point nearest the centre: from the
         // origin, b^2 - ac cancels catastrophically for a small sphere far away (a radius of
@@ -144,7 +144,7 @@ impl Primitive for Sphere {
         [t0 + shift, t1 + shift]
             .into_iter()
             .find(|&t| t >= ray.t_min && t <= ray.t_max)
-            .map(|t| TriHit { t, u: 0.0, v: 0.0 })
+            .map(|t| PrimHit { t, u: 0.0, v: 0.0 })
     }
 }
 
@@ -179,7 +179,7 @@ impl Primitive for Cone {
         a.union(&b)
     }
 
-    fn intersect(&self, ray: &Ray) -> Option<TriHit> {
+    fn intersect(&self, ray: &Ray) -> Option<PrimHit> {
         let axis = self.apex - self.base;
         let h = axis.length();
         if !(h > 0.0) {
@@ -223,7 +223,7 @@ impl Primitive for Cone {
                 let (s, tt) = (os + t * ds, t + shift);
                 tt >= ray.t_min && tt <= ray.t_max && (0.0..=h).contains(&s) && r0 + r1 * t >= 0.0
             })
-            .map(|t| TriHit {
+            .map(|t| PrimHit {
                 t: t + shift,
                 u: 0.0,
                 v: 0.0,
@@ -244,7 +244,7 @@ impl Primitive for Polygon {
         self.verts.iter().all(|v| v.is_finite())
     }
 
-    fn intersect(&self, ray: &Ray) -> Option<TriHit> {
+    fn intersect(&self, ray: &Ray) -> Option<PrimHit> {
         let denom = self.normal.dot(ray.dir);
         if denom == 0.0 {
             return None;
@@ -273,7 +273,7 @@ impl Primitive for Polygon {
             }
             prev = cur;
         }
-        inside.then_some(TriHit { t, u: 0.0, v: 0.0 })
+        inside.then_some(PrimHit { t, u: 0.0, v: 0.0 })
     }
 }
 
@@ -287,7 +287,7 @@ impl Primitive for PatchTriangle {
     }
 
     #[inline]
-    fn intersect(&self, ray: &Ray) -> Option<TriHit> {
+    fn intersect(&self, ray: &Ray) -> Option<PrimHit> {
         self.tri.intersect(ray)
     }
 }
@@ -309,7 +309,7 @@ impl Primitive for Prim {
     }
 
     #[inline]
-    fn intersect(&self, ray: &Ray) -> Option<TriHit> {
+    fn intersect(&self, ray: &Ray) -> Option<PrimHit> {
         match self {
             Prim::Triangle(t) => t.intersect(ray),
             Prim::Patch(p) => p.intersect(ray),
@@ -323,7 +323,7 @@ impl Primitive for Prim {
 impl Prim {
     /// The shading normal at the hit `(t, u, v)` of `ray` (not normalised to face the ray):
     /// the geometric normal, or for patch triangles the interpolated vertex normal.
-    pub fn normal(&self, ray: &Ray, hit: &TriHit) -> Vec3A {
+    pub fn normal(&self, ray: &Ray, hit: &PrimHit) -> Vec3A {
         let p = ray.at(hit.t);
         match self {
             Prim::Triangle(t) => (t.v[1] - t.v[0]).cross(t.v[2] - t.v[0]).normalize_or_zero(),

@@ -9,23 +9,21 @@
 //! costs no shadow ray. Shadow rays use the any-hit query.
 //!
 //! ```
+//! use quiver::BuildOptions;
 //! use quiver_scenes::render::{render, RenderConfig};
-//! use quiver_scenes::accel::SceneBvh;
-//! use quiver::build::{BuildConfig, Builder};
-//! use quiver::{Layout};
-//! use quiver_scenes::{scene::Scene};
+//! use quiver_scenes::{accel::SceneBvh, Scene};
 //! let scene = Scene::load("tetra3").unwrap();
-//! let (bvh, _) = SceneBvh::build(&scene, &BuildConfig::default(), Builder::Binned, Layout::Bvh4Dfs);
+//! let bvh = SceneBvh::build(&scene, &BuildOptions::default());
 //! let out = render(&scene, &bvh, &RenderConfig { res: 16, ..Default::default() }, &|_| {});
 //! assert_eq!(out.rays.eye, 17 * 17);
 //! assert_eq!(out.rays.refract, 0); // tetra has no transmitters
 //! ```
 
 use crate::accel::SceneBvh;
-use quiver::geometry::{offset_ray_origin, Ray};
 use crate::scene::{Material, Scene};
-use quiver::traverse::{Counters, NoStats, PacketMode, Stats};
 use glam::Vec3A;
+use quiver::geometry::{offset_ray_origin, Hit, Ray};
+use quiver::traverse::{ConservativeBoxes, Counters, NoStats, PacketMode, RayQuery, Stats};
 use rayon::prelude::*;
 use std::ops::AddAssign;
 
@@ -164,6 +162,43 @@ pub fn render(
     config: &RenderConfig,
     progress: &(dyn Fn(usize) + Sync),
 ) -> Rendered {
+    // The one place counting is decided: each choice compiles its own tracer.
+    if config.counters {
+        render_with::<Counters>(scene, bvh, config, progress)
+    } else {
+        render_with::<NoStats>(scene, bvh, config, progress)
+    }
+}
+
+/// What a render records of the traversal: nothing ([`NoStats`]: the plain kernels) or the
+/// work counts ([`Counters`]).
+trait Work: Stats + Copy + Default + Send {
+    /// Whether anything is counted (a constant, so uncounted renders skip the bookkeeping).
+    const COUNTS: bool;
+    /// The counts so far.
+    fn counters(&self) -> Counters;
+}
+
+impl Work for NoStats {
+    const COUNTS: bool = false;
+    fn counters(&self) -> Counters {
+        Counters::default()
+    }
+}
+
+impl Work for Counters {
+    const COUNTS: bool = true;
+    fn counters(&self) -> Counters {
+        *self
+    }
+}
+
+fn render_with<W: Work>(
+    scene: &Scene,
+    bvh: &SceneBvh,
+    config: &RenderConfig,
+    progress: &(dyn Fn(usize) + Sync),
+) -> Rendered {
     let n = config.res as usize + 1;
     let bands: Vec<Band> = (0..n.div_ceil(TILE))
         .into_par_iter()
@@ -174,7 +209,7 @@ pub fn render(
                 bvh,
                 config,
                 rays: RayCounts::default(),
-                work: Counters::default(),
+                work: W::default(),
             };
             let band = tracer.band(rows.clone(), n);
             progress(rows.len());
@@ -217,12 +252,12 @@ fn to_rgb8(c: Vec3A) -> [u8; 3] {
 /// Ambient light as a fraction of each surface's colour.
 const AMBIENT: f32 = 0.1;
 
-struct Tracer<'a> {
+struct Tracer<'a, W> {
     scene: &'a Scene,
     bvh: &'a SceneBvh,
     config: &'a RenderConfig,
     rays: RayCounts,
-    work: Counters,
+    work: W,
 }
 
 /// What shading needs to know about a hit.
@@ -240,7 +275,7 @@ struct Surface {
 
 /// A packet query and where its answers go.
 enum Query<'o> {
-    Closest(&'o mut [Option<quiver::Hit>]),
+    Closest(&'o mut [Option<Hit>]),
     Any(&'o mut [bool]),
 }
 
@@ -248,8 +283,12 @@ impl Query<'_> {
     fn run<S: Stats>(self, bvh: &SceneBvh, rays: &[Ray], active: Option<&[bool]>, stats: &mut S) {
         let mode = PacketMode::Auto;
         match self {
-            Query::Closest(h) => bvh.closest_hit_packet_with(rays, active, mode, h, stats),
-            Query::Any(o) => bvh.any_hit_packet_with(rays, active, mode, o, stats),
+            Query::Closest(h) => {
+                bvh.closest_hit_packet_with::<ConservativeBoxes, S>(rays, active, mode, h, stats)
+            }
+            Query::Any(o) => {
+                bvh.any_hit_packet_with::<ConservativeBoxes, S>(rays, active, mode, o, stats)
+            }
         }
     }
 }
@@ -262,7 +301,7 @@ enum Shadows<'s> {
     Known(&'s [bool]),
 }
 
-impl Tracer<'_> {
+impl<W: Work> Tracer<'_, W> {
     /// The corners of rows `rows` (of `n` corners each): eye rays in packets of
     /// `TILE x TILE` corners, or one by one.
     fn band(&mut self, rows: std::ops::Range<usize>, n: usize) -> Band {
@@ -270,7 +309,7 @@ impl Tracer<'_> {
             colors: vec![Vec3A::ZERO; rows.len() * n],
             ..Default::default()
         };
-        if self.config.counters {
+        if W::COUNTS {
             band.eye_nodes = vec![0; rows.len() * n];
         }
         let eye = |i: usize, j: usize| {
@@ -284,11 +323,11 @@ impl Tracer<'_> {
             for j in rows.clone() {
                 for i in 0..n {
                     let ray = eye(i, j);
-                    let before = self.work.nodes;
+                    let before = self.work.counters().nodes;
                     let hit = self.closest(&ray);
                     let k = (j - rows.start) * n + i;
-                    if self.config.counters {
-                        band.eye_nodes[k] = (self.work.nodes - before) as u32;
+                    if W::COUNTS {
+                        band.eye_nodes[k] = (self.work.counters().nodes - before) as u32;
                     }
                     let s = hit.map(|h| self.surface(&ray, &h));
                     band.colors[k] = self.color(s, 1, Shadows::Trace);
@@ -306,14 +345,14 @@ impl Tracer<'_> {
                 for (&(i, j), c) in slots.iter().zip(colors) {
                     let k = (j - rows.start) * n + i;
                     band.colors[k] = c;
-                    if self.config.counters {
+                    if W::COUNTS {
                         band.eye_nodes[k] = eye_nodes as u32;
                     }
                 }
             }
         }
         band.rays = self.rays;
-        band.work = self.work;
+        band.work = self.work.counters();
         band
     }
 
@@ -322,9 +361,9 @@ impl Tracer<'_> {
     /// as packets; everything after that ray by ray.
     fn trace_packet(&mut self, rays: &[Ray]) -> (Vec<Vec3A>, u64) {
         let mut hits = vec![None; rays.len()];
-        let before = self.work.nodes;
+        let before = self.work.counters().nodes;
         self.packet_query(rays, None, Query::Closest(&mut hits));
-        let eye_nodes = self.work.nodes - before;
+        let eye_nodes = self.work.counters().nodes - before;
         let surfaces: Vec<Option<Surface>> = rays
             .iter()
             .zip(&hits)
@@ -360,32 +399,21 @@ impl Tracer<'_> {
         (colors, eye_nodes)
     }
 
-    /// A packet query through the packet kernels, counting into `work` with counters on.
+    /// A packet query through the packet kernels, recording into `work`.
     fn packet_query(&mut self, rays: &[Ray], active: Option<&[bool]>, query: Query) {
-        let bvh = self.bvh;
-        if self.config.counters {
-            query.run(bvh, rays, active, &mut self.work);
-        } else {
-            query.run(bvh, rays, active, &mut NoStats);
-        }
+        query.run(self.bvh, rays, active, &mut self.work);
     }
 
-    /// Closest hit; with counters on, through the counting kernel (a per-ray choice: the plain
-    /// kernel itself carries no counting code).
-    fn closest(&mut self, ray: &Ray) -> Option<quiver::Hit> {
-        if self.config.counters {
-            self.bvh.closest_hit_counted(ray, &mut self.work)
-        } else {
-            self.bvh.closest_hit(ray)
-        }
+    /// Closest hit, recording into `work`.
+    fn closest(&mut self, ray: &Ray) -> Option<Hit> {
+        self.bvh
+            .closest_hit_with::<ConservativeBoxes, W>(ray, &mut self.work)
     }
 
+    /// Whether anything blocks `ray`, recording into `work`.
     fn occluded(&mut self, ray: &Ray) -> bool {
-        if self.config.counters {
-            self.bvh.any_hit_counted(ray, &mut self.work)
-        } else {
-            self.bvh.any_hit(ray)
-        }
+        self.bvh
+            .any_hit_with::<ConservativeBoxes, W>(ray, &mut self.work)
     }
 
     /// Colour seen along `ray`, a secondary ray of generation `depth`.
@@ -407,7 +435,7 @@ impl Tracer<'_> {
         }
     }
 
-    fn surface(&self, ray: &Ray, hit: &quiver::Hit) -> Surface {
+    fn surface(&self, ray: &Ray, hit: &Hit) -> Surface {
         let object = &self.scene.objects[self.bvh.object_of(hit.prim) as usize];
         let material = self.scene.materials[object.material as usize];
         let d = ray.dir.normalize();

@@ -21,7 +21,7 @@ mod binned;
 mod recurse;
 mod sweep;
 
-use crate::geometry::Aabb;
+use crate::geometry::{Aabb, Primitive};
 use glam::Vec3A;
 use std::fmt;
 
@@ -54,15 +54,25 @@ impl Default for BuildConfig {
 }
 
 /// Which algorithm builds the tree.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+///
+/// ```
+/// use quiver::build::Builder;
+/// assert_eq!(Builder::default(), Builder::Binned);
+/// assert_eq!("sweep".parse::<Builder>(), Ok(Builder::Sweep));
+/// ```
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum Builder {
-    /// Parallel binned SAH (horizontal near the root, vertical below).
+    /// Parallel binned SAH (horizontal near the root, vertical below). The default.
+    #[default]
     Binned,
     /// Full-sweep SAH: every primitive boundary is a candidate plane. The quality reference.
     Sweep,
 }
 
 impl Builder {
+    /// Every builder, in the order reports list them.
+    pub const ALL: [Builder; 2] = [Builder::Binned, Builder::Sweep];
+
     /// The name used on the command line and in reports.
     pub fn name(self) -> &'static str {
         match self {
@@ -75,6 +85,24 @@ impl Builder {
 impl fmt::Display for Builder {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for Builder {
+    type Err = String;
+
+    /// A builder by its [`Builder::name`]; the error lists the names.
+    fn from_str(s: &str) -> Result<Self, String> {
+        Builder::ALL
+            .into_iter()
+            .find(|b| b.name() == s)
+            .ok_or_else(|| {
+                let names: Vec<&str> = Builder::ALL.iter().map(|b| b.name()).collect();
+                format!(
+                    "unknown builder '{s}': expected one of {}",
+                    names.join(", ")
+                )
+            })
     }
 }
 
@@ -169,6 +197,13 @@ pub fn build(bounds: &[Aabb], config: &BuildConfig, builder: Builder) -> BuildTr
 
 fn is_finite(b: &Aabb) -> bool {
     b.is_finite()
+}
+
+/// One bounding box per primitive, the builders' input (computed in parallel). A primitive
+/// with a non-finite coordinate gets a NaN box, so the build drops it.
+pub fn prim_bounds<P: Primitive>(prims: &[P]) -> Vec<Aabb> {
+    use rayon::prelude::*;
+    prims.par_iter().map(|p| p.bounds()).collect()
 }
 
 /// Depth below which builders stop trusting the SAH and split at the object median, so that a

@@ -1,5 +1,6 @@
 use super::order::{self, Shape, HOLE};
-use crate::build::{build, BuildConfig, BuildTree, Builder, NodeKind};
+use super::Footprint;
+use crate::build::{BuildTree, NodeKind};
 use crate::geometry::{Aabb, Primitive, Triangle};
 use bytemuck::{Pod, Zeroable};
 
@@ -129,11 +130,11 @@ impl Bvh2Mapping {
 /// into leaf order so a leaf is a contiguous run the intersector reads directly.
 ///
 /// ```
-/// use quiver::{Bvh2, Ray, Triangle};
-/// use quiver::build::{BuildConfig, Builder};
+/// use quiver::{BuildOptions, Bvh2, Ray, RayQuery, Triangle};
 /// use glam::Vec3A;
 /// let tris = vec![Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y)];
-/// let bvh = Bvh2::build(&tris, &BuildConfig::default(), Builder::Binned).0;
+/// let (_, tree) = BuildOptions::default().build_with_tree(&tris);
+/// let bvh = Bvh2::from_tree(&tree, &tris);
 /// let hit = bvh.closest_hit(&Ray::new(Vec3A::new(0.2, 0.2, 1.0), -Vec3A::Z)).unwrap();
 /// assert_eq!((hit.prim, hit.t), (0, 1.0));
 /// ```
@@ -143,24 +144,21 @@ pub struct Bvh2<P = Triangle> {
     pub nodes: Vec<Bvh2Node>,
     /// Primitives in leaf order.
     pub prims: Vec<P>,
-    /// For each entry of `tris`, its index in the input.
+    /// For each entry of `prims`, its index in the input.
     pub prim_ids: Vec<u32>,
     /// How the nodes are ordered and linked.
     pub mapping: Bvh2Mapping,
 }
 
 impl<P: Primitive> Bvh2<P> {
-    /// Builds the tree over `tris` and lays it out depth-first; also returns the intermediate
-    /// tree (for SAH cost and statistics).
-    pub fn build(prims: &[P], config: &BuildConfig, builder: Builder) -> (Self, BuildTree) {
-        let bounds = prim_bounds(prims);
-        let tree = build(&bounds, config, builder);
-        (Bvh2::from_tree(&tree, prims), tree)
+    /// Lays out a built tree over `prims` (the build's input) depth-first.
+    pub fn from_tree(tree: &BuildTree, prims: &[P]) -> Self {
+        Self::from_leaf_prims(tree, leaf_order(tree, prims), Bvh2Mapping::DepthFirst)
     }
 
-    /// Lays out a built tree depth-first. The build tree is already in preorder with each left
-    /// child right after its parent, so this is a straight (parallel) conversion.
-    pub fn from_tree(tree: &BuildTree, prims: &[P]) -> Self {
+    /// The build tree is already in preorder with each left child right after its parent, so
+    /// the depth-first layout is a straight (parallel) conversion.
+    fn depth_first(tree: &BuildTree, prims: Vec<P>) -> Self {
         use rayon::prelude::*;
         let nodes = tree
             .nodes
@@ -179,7 +177,7 @@ impl<P: Primitive> Bvh2<P> {
             .collect();
         Bvh2 {
             nodes,
-            prims: leaf_order(tree, prims),
+            prims,
             prim_ids: tree.prim_indices.clone(),
             mapping: Bvh2Mapping::DepthFirst,
         }
@@ -189,20 +187,30 @@ impl<P: Primitive> Bvh2<P> {
     ///
     /// ```
     /// use quiver::layout::{Bvh2, Bvh2Mapping};
-    /// use quiver::build::{build, BuildConfig, Builder};
-    /// use quiver::{layout::triangle_bounds};
-    /// use quiver_scenes::{scene::Scene};
-    /// let scene = Scene::load("tetra4").unwrap();
-    /// let tris = scene.triangles();
-    /// let tree = build(&triangle_bounds(&tris), &BuildConfig::default(), Builder::Binned);
+    /// use quiver::build::{build, prim_bounds, BuildConfig, Builder};
+    /// use quiver::{Ray, RayQuery, Triangle};
+    /// use glam::Vec3A;
+    /// let tris: Vec<Triangle> = (0..64)
+    ///     .map(|i| {
+    ///         let o = Vec3A::new((i % 8) as f32, (i / 8) as f32, 0.0);
+    ///         Triangle::new(o, o + Vec3A::X, o + Vec3A::Y)
+    ///     })
+    ///     .collect();
+    /// let tree = build(&prim_bounds(&tris), &BuildConfig::default(), Builder::Binned);
     /// let dfs = Bvh2::from_tree(&tree, &tris);
     /// let sub = Bvh2::from_tree_mapped(&tree, &tris, Bvh2Mapping::Subtree);
-    /// let ray = scene.camera.ray(0.0, 0.0);
+    /// let ray = Ray::new(Vec3A::new(3.2, 5.1, 1.0), -Vec3A::Z);
+    /// assert_eq!(dfs.closest_hit(&ray).map(|h| h.prim), Some(43));
     /// assert_eq!(dfs.closest_hit(&ray), sub.closest_hit(&ray));
     /// ```
     pub fn from_tree_mapped(tree: &BuildTree, prims: &[P], mapping: Bvh2Mapping) -> Self {
+        Self::from_leaf_prims(tree, leaf_order(tree, prims), mapping)
+    }
+
+    /// [`Bvh2::from_tree_mapped`] with the primitives already in the tree's leaf order.
+    pub(crate) fn from_leaf_prims(tree: &BuildTree, prims: Vec<P>, mapping: Bvh2Mapping) -> Self {
         if mapping == Bvh2Mapping::DepthFirst {
-            return Bvh2::from_tree(tree, prims);
+            return Bvh2::depth_first(tree, prims);
         }
         let shape = Shape {
             kids: tree
@@ -246,22 +254,15 @@ impl<P: Primitive> Bvh2<P> {
             .collect();
         Bvh2 {
             nodes,
-            prims: leaf_order(tree, prims),
+            prims,
             prim_ids: tree.prim_indices.clone(),
             mapping,
         }
     }
 
-    /// Bytes of node and leaf data the traversal reads.
-    pub fn bytes(&self) -> usize {
-        self.node_bytes()
-            + std::mem::size_of_val(self.prims.as_slice())
-            + std::mem::size_of_val(self.prim_ids.as_slice())
-    }
-
-    /// Bytes of the node array alone (padding slots included).
-    pub fn node_bytes(&self) -> usize {
-        std::mem::size_of_val(self.nodes.as_slice())
+    /// What the nodes and leaves occupy (padding slots included).
+    pub fn footprint(&self) -> Footprint {
+        Footprint::of(&self.nodes, &self.prims, &self.prim_ids)
     }
 }
 
@@ -280,16 +281,4 @@ pub(crate) fn leaf_order<P: Primitive>(tree: &BuildTree, prims: &[P]) -> Vec<P> 
         .par_iter()
         .map(|&i| prims[i as usize].clone())
         .collect()
-}
-
-/// One bounding box per primitive, the builders' input (computed in parallel). A primitive
-/// with a non-finite coordinate gets a NaN box, so the build drops it.
-pub fn prim_bounds<P: Primitive>(prims: &[P]) -> Vec<Aabb> {
-    use rayon::prelude::*;
-    prims.par_iter().map(|p| p.bounds()).collect()
-}
-
-/// [`prim_bounds`] for triangles.
-pub fn triangle_bounds(tris: &[Triangle]) -> Vec<Aabb> {
-    prim_bounds(tris)
 }

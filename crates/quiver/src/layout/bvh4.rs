@@ -4,28 +4,51 @@
 
 use super::bvh2::leaf_order;
 use super::order::{self, Shape, HOLE};
+use super::Footprint;
 use crate::build::{BuildTree, NodeKind};
 use crate::geometry::{Aabb, Primitive, Triangle};
 use bytemuck::{Pod, Zeroable};
+use wide::f32x4;
 
-/// A child of a node in the collapsed tree.
-#[derive(Clone, Copy, Debug, PartialEq)]
-enum Child {
-    Empty,
-    /// Index of a wide node.
-    Inner(u32),
-    /// A run of triangles in leaf order.
-    Leaf {
-        first: u32,
-        count: u32,
-    },
+/// The collapsed tree before encoding. Its types are `pub` inside a private module so that
+/// [`Node4::encode`] can name them while nobody outside the crate can.
+mod collapsed {
+    use crate::geometry::Aabb;
+
+    /// A child of a node in the collapsed tree.
+    #[derive(Clone, Copy, Debug, PartialEq)]
+    pub enum Child {
+        /// An unused slot.
+        Empty,
+        /// Index of a wide node.
+        Inner(u32),
+        /// A run of primitives in leaf order.
+        Leaf {
+            /// First primitive.
+            first: u32,
+            /// Number of primitives.
+            count: u32,
+        },
+    }
+
+    /// A node of the collapsed tree before it is encoded.
+    pub struct Wide {
+        /// Child boxes.
+        pub boxes: [Aabb; 4],
+        /// Children.
+        pub kids: [Child; 4],
+    }
+
+    impl Wide {
+        /// A node with four unused slots (also what padding slots encode).
+        pub const EMPTY: Wide = Wide {
+            boxes: [Aabb::EMPTY; 4],
+            kids: [Child::Empty; 4],
+        };
+    }
 }
 
-/// A node of the collapsed tree before it is encoded.
-struct Wide {
-    boxes: [Aabb; 4],
-    kids: [Child; 4],
-}
+use collapsed::{Child, Wide};
 
 /// Collapses a binary tree into a 4-wide one in preorder. Each wide node starts from a binary
 /// node's two children and repeatedly opens the inner child of largest surface area (the one a
@@ -39,10 +62,7 @@ fn collapse(tree: &BuildTree) -> Vec<Wide> {
             collapse_node(tree, 0, &mut out);
         }
         NodeKind::Leaf { first, count } => {
-            let mut w = Wide {
-                boxes: [Aabb::EMPTY; 4],
-                kids: [Child::Empty; 4],
-            };
+            let mut w = Wide::EMPTY;
             if count > 0 {
                 w.boxes[0] = root.bounds;
                 w.kids[0] = Child::Leaf { first, count };
@@ -55,10 +75,7 @@ fn collapse(tree: &BuildTree) -> Vec<Wide> {
 
 fn collapse_node(tree: &BuildTree, node: u32, out: &mut Vec<Wide>) -> u32 {
     let me = out.len() as u32;
-    out.push(Wide {
-        boxes: [Aabb::EMPTY; 4],
-        kids: [Child::Empty; 4],
-    });
+    out.push(Wide::EMPTY);
     let is_inner = |n: u32| matches!(tree.nodes[n as usize].kind, NodeKind::Inner { .. });
     let kids_of = |n: u32| match tree.nodes[n as usize].kind {
         NodeKind::Inner { left, right } => (left, right),
@@ -156,6 +173,34 @@ const _: () = assert!(std::mem::align_of::<Bvh4Node>() == 64);
 impl Bvh4Node {
     /// Flag bit marking a leaf child in [`Bvh4Node::count`].
     pub const LEAF: u32 = 1 << 31;
+}
+
+/// A 4-wide node format: [`Bvh4Node`] (exact boxes) or [`QBvh4Node`] (quantized boxes).
+/// [`Bvh4`] and the 4-wide traversal kernels are generic over it, so a new format is one
+/// implementation of this trait.
+pub trait Node4: Pod + Send + Sync {
+    /// The child boxes as `[min_x, min_y, min_z, max_x, max_y, max_z]` rows, one lane per
+    /// child, as the traversal's slab test reads them.
+    fn planes(&self) -> [f32x4; 6];
+    /// Child `i` as (node index or first primitive, `Bvh4Node::LEAF | count` for a leaf, 0
+    /// for an inner node). Unused slots are empty leaves: a ray whose every slab distance is
+    /// NaN (all direction components subnormal) "enters" every box, so they must be harmless.
+    fn child(&self, i: usize) -> (u32, u32);
+    /// Encodes a collapsed node; `pos` maps collapsed node indices to array positions.
+    #[doc(hidden)]
+    fn encode(w: &Wide, pos: &[u32]) -> Self;
+}
+
+impl Node4 for Bvh4Node {
+    #[inline(always)]
+    fn planes(&self) -> [f32x4; 6] {
+        *bytemuck::cast_ref::<[[f32; 4]; 6], [f32x4; 6]>(&self.planes)
+    }
+
+    #[inline(always)]
+    fn child(&self, i: usize) -> (u32, u32) {
+        (self.child[i], self.count[i])
+    }
 
     fn encode(w: &Wide, pos: &[u32]) -> Self {
         let mut n = Bvh4Node::zeroed();
@@ -174,63 +219,82 @@ impl Bvh4Node {
     }
 }
 
-/// A 4-wide BVH with exact f32 child boxes (over triangles unless `P` says otherwise).
+/// A 4-wide BVH: the build tree collapsed so each node holds up to four children, in the
+/// node format `N` (exact [`Bvh4Node`]s by default; [`QBvh4`] for quantized ones), over
+/// triangles unless `P` says otherwise. (Name the type where it is built, as below: a
+/// default type parameter does not pick the node format in an expression.)
 ///
 /// ```
-/// use quiver::layout::{Bvh4, Bvh4Mapping};
-/// use quiver::build::{build, BuildConfig, Builder};
-/// use quiver::{reference, layout::triangle_bounds};
-/// use quiver_scenes::{scene::Scene};
-/// let scene = Scene::load("tetra4").unwrap();
-/// let tris = scene.triangles();
-/// let tree = build(&triangle_bounds(&tris), &BuildConfig::default(), Builder::Binned);
-/// let bvh = Bvh4::from_tree(&tree, &tris, Bvh4Mapping::DepthFirst);
-/// let ray = scene.camera.ray(0.1, 0.0);
-/// assert_eq!(bvh.closest_hit(&ray), reference::closest_hit(&tris, &ray));
+/// use quiver::layout::{Bvh4, Bvh4Mapping, QBvh4};
+/// use quiver::{reference, BuildOptions, Ray, RayQuery, Triangle};
+/// use glam::Vec3A;
+/// let tris: Vec<Triangle> = (0..100)
+///     .map(|i| {
+///         let o = Vec3A::new(i as f32, 0.0, 0.0);
+///         Triangle::new(o, o + Vec3A::X, o + Vec3A::Y)
+///     })
+///     .collect();
+/// let (_, tree) = BuildOptions::default().build_with_tree(&tris);
+/// let exact: Bvh4 = Bvh4::from_tree(&tree, &tris, Bvh4Mapping::DepthFirst);
+/// let quantized: QBvh4 = QBvh4::from_tree(&tree, &tris, Bvh4Mapping::Subtree);
+/// let ray = Ray::new(Vec3A::new(41.2, 0.3, 1.0), -Vec3A::Z);
+/// assert_eq!(exact.closest_hit(&ray), reference::closest_hit(&tris, &ray));
+/// assert_eq!(quantized.closest_hit(&ray), exact.closest_hit(&ray));
+/// assert!(quantized.footprint().node_bytes < exact.footprint().node_bytes);
 /// ```
 #[derive(Clone, Debug)]
-pub struct Bvh4<P = Triangle> {
+pub struct Bvh4<P = Triangle, N = Bvh4Node> {
     /// Nodes; the root is node 0. Padding slots are nodes with four empty children.
-    pub nodes: Vec<Bvh4Node>,
+    pub nodes: Vec<N>,
     /// Primitives in leaf order.
     pub prims: Vec<P>,
-    /// For each entry of `tris`, its index in the input.
+    /// For each entry of `prims`, its index in the input.
     pub prim_ids: Vec<u32>,
     /// Node order.
     pub mapping: Bvh4Mapping,
 }
 
-impl<P: Primitive> Bvh4<P> {
-    /// Collapses and lays out a built binary tree.
+/// A 4-wide BVH with quantized 64-byte nodes ([`QBvh4Node`]).
+pub type QBvh4<P = Triangle> = Bvh4<P, QBvh4Node>;
+
+impl<P: Primitive, N: Node4> Bvh4<P, N> {
+    /// Collapses, encodes and lays out a built binary tree over `prims` (the build's input).
+    ///
+    /// # Panics
+    /// For [`QBvh4`], if a leaf holds more than 65535 primitives (a
+    /// [`crate::build::BuildConfig::max_leaf_size`] above that).
     pub fn from_tree(tree: &BuildTree, prims: &[P], mapping: Bvh4Mapping) -> Self {
+        Self::from_leaf_prims(tree, leaf_order(tree, prims), mapping)
+    }
+
+    /// [`Bvh4::from_tree`] with the primitives already in the tree's leaf order.
+    pub(crate) fn from_leaf_prims(tree: &BuildTree, prims: Vec<P>, mapping: Bvh4Mapping) -> Self {
         let wide = collapse(tree);
-        let (slots, pos) = arrange(&wide, mapping, std::mem::size_of::<Bvh4Node>());
-        let empty = Wide {
-            boxes: [Aabb::EMPTY; 4],
-            kids: [Child::Empty; 4],
-        };
+        let (slots, pos) = arrange(&wide, mapping, std::mem::size_of::<N>());
         let nodes = slots
             .iter()
-            .map(|&s| Bvh4Node::encode(if s == HOLE { &empty } else { &wide[s as usize] }, &pos))
+            .map(|&s| {
+                N::encode(
+                    if s == HOLE {
+                        &Wide::EMPTY
+                    } else {
+                        &wide[s as usize]
+                    },
+                    &pos,
+                )
+            })
             .collect();
         Bvh4 {
             nodes,
-            prims: leaf_order(tree, prims),
+            prims,
             prim_ids: tree.prim_indices.clone(),
             mapping,
         }
     }
 
-    /// Bytes of the node array.
-    pub fn node_bytes(&self) -> usize {
-        std::mem::size_of_val(self.nodes.as_slice())
-    }
-
-    /// Bytes of node and leaf data the traversal reads.
-    pub fn bytes(&self) -> usize {
-        self.node_bytes()
-            + std::mem::size_of_val(self.prims.as_slice())
-            + std::mem::size_of_val(self.prim_ids.as_slice())
+    /// What the nodes and leaves occupy.
+    pub fn footprint(&self) -> Footprint {
+        Footprint::of(&self.nodes, &self.prims, &self.prim_ids)
     }
 }
 
@@ -264,7 +328,7 @@ const _: () = assert!(std::mem::align_of::<QBvh4Node>() == 64);
 
 /// `2^e` for a normal exponent.
 #[inline(always)]
-pub(crate) fn pow2(e: i8) -> f32 {
+fn pow2(e: i8) -> f32 {
     f32::from_bits(((e as i32 + 127) as u32) << 23)
 }
 
@@ -274,7 +338,35 @@ fn decode(origin: f32, step: f32, q: u8) -> f32 {
     origin + q as f32 * step
 }
 
-impl QBvh4Node {
+impl Node4 for QBvh4Node {
+    #[inline(always)]
+    fn planes(&self) -> [f32x4; 6] {
+        let mut out = [f32x4::ZERO; 6];
+        for (row, q) in out.iter_mut().zip(&self.q) {
+            *row = f32x4::new([q[0] as f32, q[1] as f32, q[2] as f32, q[3] as f32]);
+        }
+        for a in 0..3 {
+            // Multiply, then add: the arithmetic the encoder verified as conservative.
+            let (o, step) = (
+                f32x4::splat(self.origin[a]),
+                f32x4::splat(pow2(self.exp[a])),
+            );
+            out[a] = out[a] * step + o;
+            out[3 + a] = out[3 + a] * step + o;
+        }
+        out
+    }
+
+    #[inline(always)]
+    fn child(&self, i: usize) -> (u32, u32) {
+        match self.count[i] {
+            // Inner, unless this is an unused slot (marked by an impossible node index).
+            0 if self.child[i] == u32::MAX => (0, Bvh4Node::LEAF),
+            0 => (self.child[i], 0),
+            n => (self.child[i], Bvh4Node::LEAF | n as u32),
+        }
+    }
+
     fn encode(w: &Wide, pos: &[u32]) -> Self {
         let frame = w.boxes.iter().fold(Aabb::EMPTY, |a, b| a.union(b));
         let mut n = QBvh4Node::zeroed();
@@ -328,7 +420,9 @@ impl QBvh4Node {
         }
         n
     }
+}
 
+impl QBvh4Node {
     /// The decoded box of child `i` (conservative: contains the exact box).
     pub fn child_bounds(&self, i: usize) -> Aabb {
         let mut b = Aabb::EMPTY;
@@ -338,67 +432,6 @@ impl QBvh4Node {
             b.max[a] = decode(o, step, self.q[3 + a][i]);
         }
         b
-    }
-}
-
-/// A 4-wide BVH with quantized 64-byte nodes, laid out depth-first.
-///
-/// ```
-/// use quiver::layout::QBvh4;
-/// use quiver::build::{build, BuildConfig, Builder};
-/// use quiver::{reference, layout::triangle_bounds};
-/// use quiver_scenes::{scene::Scene};
-/// let scene = Scene::load("tetra4").unwrap();
-/// let tris = scene.triangles();
-/// let tree = build(&triangle_bounds(&tris), &BuildConfig::default(), Builder::Binned);
-/// let bvh = QBvh4::from_tree(&tree, &tris);
-/// let ray = scene.camera.ray(0.1, 0.0);
-/// assert_eq!(bvh.closest_hit(&ray), reference::closest_hit(&tris, &ray));
-/// ```
-#[derive(Clone, Debug)]
-pub struct QBvh4<P = Triangle> {
-    /// Nodes in depth-first order; the root is node 0.
-    pub nodes: Vec<QBvh4Node>,
-    /// Primitives in leaf order.
-    pub prims: Vec<P>,
-    /// For each entry of `tris`, its index in the input.
-    pub prim_ids: Vec<u32>,
-}
-
-impl<P: Primitive> QBvh4<P> {
-    /// Collapses, quantizes and lays out a built binary tree.
-    ///
-    /// # Panics
-    /// If a leaf holds more than 65535 triangles (a [`crate::build::BuildConfig::max_leaf_size`]
-    /// above that).
-    pub fn from_tree(tree: &BuildTree, prims: &[P]) -> Self {
-        let wide = collapse(tree);
-        let (slots, pos) = arrange(
-            &wide,
-            Bvh4Mapping::DepthFirst,
-            std::mem::size_of::<QBvh4Node>(),
-        );
-        let nodes = slots
-            .iter()
-            .map(|&s| QBvh4Node::encode(&wide[s as usize], &pos))
-            .collect();
-        QBvh4 {
-            nodes,
-            prims: leaf_order(tree, prims),
-            prim_ids: tree.prim_indices.clone(),
-        }
-    }
-
-    /// Bytes of the node array.
-    pub fn node_bytes(&self) -> usize {
-        std::mem::size_of_val(self.nodes.as_slice())
-    }
-
-    /// Bytes of node and leaf data the traversal reads.
-    pub fn bytes(&self) -> usize {
-        self.node_bytes()
-            + std::mem::size_of_val(self.prims.as_slice())
-            + std::mem::size_of_val(self.prim_ids.as_slice())
     }
 }
 

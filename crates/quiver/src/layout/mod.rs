@@ -5,25 +5,33 @@
 //! - [`Bvh4`]: the tree collapsed to 4-wide 128-byte nodes (depth-first or page subtrees).
 //! - [`QBvh4`]: 4-wide nodes with 8-bit quantized boxes, 64 bytes (one line) each.
 //!
-//! In every layout the triangles are copied into leaf order, so a leaf is a contiguous run the
-//! intersector reads directly. [`Bvh`] holds any of them behind one interface, chosen by
-//! [`Layout`].
+//! In every layout the primitives are copied into leaf order, so a leaf is a contiguous run
+//! the intersector reads directly. [`crate::Bvh`] holds any of them behind one interface,
+//! chosen by [`Layout`].
 
 pub(crate) mod bvh2;
 pub(crate) mod bvh4;
 pub(crate) mod order;
 
-pub use bvh2::{prim_bounds, triangle_bounds, Bvh2, Bvh2Mapping, Bvh2Node};
-pub use bvh4::{Bvh4, Bvh4Mapping, Bvh4Node, QBvh4, QBvh4Node};
+pub use bvh2::{Bvh2, Bvh2Mapping, Bvh2Node};
+pub use bvh4::{Bvh4, Bvh4Mapping, Bvh4Node, Node4, QBvh4, QBvh4Node};
 
-use crate::build::{build, BuildConfig, BuildTree, Builder};
-use crate::geometry::{Hit, Primitive, Ray, Triangle};
-use crate::traverse::{BoxTest, Counters, Stats};
+use crate::build::BuildTree;
+use crate::geometry::Primitive;
+use crate::Bvh;
 use std::fmt;
 use std::str::FromStr;
 
 /// Every layout quiver can build, by its command-line name.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+///
+/// The default, `bvh4-dfs`, is the fastest on eye rays and the packet kernels in our
+/// measurements (README, "Layout performance"); `bvh4-quant` needs half its node memory.
+///
+/// ```
+/// use quiver::Layout;
+/// assert_eq!(Layout::default(), Layout::Bvh4Dfs);
+/// ```
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum Layout {
     /// `bvh2-dfs`: binary, depth-first.
     Bvh2Dfs,
@@ -39,7 +47,8 @@ pub enum Layout {
     Bvh2Compact,
     /// `bvh2-compact-page`: binary, compact page blocks.
     Bvh2CompactPage,
-    /// `bvh4-dfs`: 4-wide, depth-first.
+    /// `bvh4-dfs`: 4-wide, depth-first. The default.
+    #[default]
     Bvh4Dfs,
     /// `bvh4-subtree`: 4-wide, page subtree blocks.
     Bvh4Subtree,
@@ -104,138 +113,49 @@ impl FromStr for Layout {
     }
 }
 
-/// A laid-out BVH in any [`Layout`], with the queries every layout answers.
-///
-/// ```
-/// use quiver::layout::{Bvh, Layout};
-/// use quiver::build::{BuildConfig, Builder};
-/// use quiver::{reference};
-/// use quiver_scenes::{scene::Scene};
-/// let scene = Scene::load("tetra4").unwrap();
-/// let tris = scene.triangles();
-/// let ray = scene.camera.ray(0.0, 0.1);
-/// for layout in Layout::ALL {
-///     let (bvh, _) = Bvh::build(&tris, &BuildConfig::default(), Builder::Binned, layout);
-///     assert_eq!(bvh.closest_hit(&ray), reference::closest_hit(&tris, &ray));
-/// }
-/// ```
-#[derive(Clone, Debug)]
-pub enum Bvh<P = Triangle> {
-    /// Binary nodes.
-    Bvh2(Bvh2<P>),
-    /// 4-wide exact nodes.
-    Bvh4(Bvh4<P>),
-    /// 4-wide quantized nodes.
-    QBvh4(QBvh4<P>),
+impl Layout {
+    /// Lays out `tree` with `prims` already in the tree's leaf order.
+    pub(crate) fn lay_out<P: Primitive>(self, tree: &BuildTree, prims: Vec<P>) -> Bvh<P> {
+        let bvh2 = match self {
+            Layout::Bvh2Dfs => Bvh2Mapping::DepthFirst,
+            Layout::Bvh2Bfs => Bvh2Mapping::BreadthFirst,
+            Layout::Bvh2Shuffled => Bvh2Mapping::Shuffled,
+            Layout::Bvh2Subtree => Bvh2Mapping::Subtree,
+            Layout::Bvh2SubtreePage => Bvh2Mapping::SubtreePage,
+            Layout::Bvh2Compact => Bvh2Mapping::Compact,
+            Layout::Bvh2CompactPage => Bvh2Mapping::CompactPage,
+            Layout::Bvh4Dfs => {
+                return Bvh::Bvh4(Bvh4::from_leaf_prims(tree, prims, Bvh4Mapping::DepthFirst))
+            }
+            Layout::Bvh4Subtree => {
+                return Bvh::Bvh4(Bvh4::from_leaf_prims(tree, prims, Bvh4Mapping::Subtree))
+            }
+            Layout::Bvh4Quant => {
+                return Bvh::QBvh4(QBvh4::from_leaf_prims(tree, prims, Bvh4Mapping::DepthFirst))
+            }
+        };
+        Bvh::Bvh2(Bvh2::from_leaf_prims(tree, prims, bvh2))
+    }
 }
 
-impl<P: Primitive> Bvh<P> {
-    /// Builds over `prims` and lays the tree out as `layout`; also returns the build tree.
-    pub fn build(
-        prims: &[P],
-        config: &BuildConfig,
-        builder: Builder,
-        layout: Layout,
-    ) -> (Self, BuildTree) {
-        let tree = build(&prim_bounds(prims), config, builder);
-        (Bvh::from_tree(&tree, prims, layout), tree)
-    }
-
-    /// Lays out a built tree.
-    pub fn from_tree(tree: &BuildTree, prims: &[P], layout: Layout) -> Self {
-        let b2 = |m| Bvh::Bvh2(Bvh2::from_tree_mapped(tree, prims, m));
-        match layout {
-            Layout::Bvh2Dfs => b2(Bvh2Mapping::DepthFirst),
-            Layout::Bvh2Bfs => b2(Bvh2Mapping::BreadthFirst),
-            Layout::Bvh2Shuffled => b2(Bvh2Mapping::Shuffled),
-            Layout::Bvh2Subtree => b2(Bvh2Mapping::Subtree),
-            Layout::Bvh2SubtreePage => b2(Bvh2Mapping::SubtreePage),
-            Layout::Bvh2Compact => b2(Bvh2Mapping::Compact),
-            Layout::Bvh2CompactPage => b2(Bvh2Mapping::CompactPage),
-            Layout::Bvh4Dfs => Bvh::Bvh4(Bvh4::from_tree(tree, prims, Bvh4Mapping::DepthFirst)),
-            Layout::Bvh4Subtree => Bvh::Bvh4(Bvh4::from_tree(tree, prims, Bvh4Mapping::Subtree)),
-            Layout::Bvh4Quant => Bvh::QBvh4(QBvh4::from_tree(tree, prims)),
-        }
-    }
-
-    /// Node slots in the array (padding included).
-    pub fn nodes(&self) -> usize {
-        match self {
-            Bvh::Bvh2(b) => b.nodes.len(),
-            Bvh::Bvh4(b) => b.nodes.len(),
-            Bvh::QBvh4(b) => b.nodes.len(),
-        }
-    }
-
+/// What a laid-out BVH occupies in memory.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Footprint {
+    /// Node slots in the node array (padding included).
+    pub nodes: usize,
     /// Bytes of the node array.
-    pub fn node_bytes(&self) -> usize {
-        match self {
-            Bvh::Bvh2(b) => b.node_bytes(),
-            Bvh::Bvh4(b) => b.node_bytes(),
-            Bvh::QBvh4(b) => b.node_bytes(),
-        }
-    }
+    pub node_bytes: usize,
+    /// Bytes of node and leaf data the traversal reads: nodes, primitives, primitive ids.
+    pub bytes: usize,
+}
 
-    /// Bytes of node and leaf data the traversal reads.
-    pub fn bytes(&self) -> usize {
-        match self {
-            Bvh::Bvh2(b) => b.bytes(),
-            Bvh::Bvh4(b) => b.bytes(),
-            Bvh::QBvh4(b) => b.bytes(),
-        }
-    }
-
-    /// The nearest hit (lowest primitive index on ties).
-    pub fn closest_hit(&self, ray: &Ray) -> Option<Hit> {
-        match self {
-            Bvh::Bvh2(b) => b.closest_hit(ray),
-            Bvh::Bvh4(b) => b.closest_hit(ray),
-            Bvh::QBvh4(b) => b.closest_hit(ray),
-        }
-    }
-
-    /// Whether anything is hit.
-    pub fn any_hit(&self, ray: &Ray) -> bool {
-        match self {
-            Bvh::Bvh2(b) => b.any_hit(ray),
-            Bvh::Bvh4(b) => b.any_hit(ray),
-            Bvh::QBvh4(b) => b.any_hit(ray),
-        }
-    }
-
-    /// Closest hit, counting into `c`.
-    pub fn closest_hit_counted(&self, ray: &Ray, c: &mut Counters) -> Option<Hit> {
-        match self {
-            Bvh::Bvh2(b) => b.closest_hit_counted(ray, c),
-            Bvh::Bvh4(b) => b.closest_hit_counted(ray, c),
-            Bvh::QBvh4(b) => b.closest_hit_counted(ray, c),
-        }
-    }
-
-    /// Closest hit with a chosen box test and statistics sink.
-    pub fn closest_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> Option<Hit> {
-        match self {
-            Bvh::Bvh2(b) => b.closest_hit_with::<B, S>(ray, stats),
-            Bvh::Bvh4(b) => b.closest_hit_with::<B, S>(ray, stats),
-            Bvh::QBvh4(b) => b.closest_hit_with::<B, S>(ray, stats),
-        }
-    }
-
-    /// Any hit with a chosen box test and statistics sink.
-    pub fn any_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> bool {
-        match self {
-            Bvh::Bvh2(b) => b.any_hit_with::<B, S>(ray, stats),
-            Bvh::Bvh4(b) => b.any_hit_with::<B, S>(ray, stats),
-            Bvh::QBvh4(b) => b.any_hit_with::<B, S>(ray, stats),
-        }
-    }
-
-    /// Any hit, counting into `c`.
-    pub fn any_hit_counted(&self, ray: &Ray, c: &mut Counters) -> bool {
-        match self {
-            Bvh::Bvh2(b) => b.any_hit_counted(ray, c),
-            Bvh::Bvh4(b) => b.any_hit_counted(ray, c),
-            Bvh::QBvh4(b) => b.any_hit_counted(ray, c),
+impl Footprint {
+    pub(crate) fn of<N, P>(nodes: &[N], prims: &[P], ids: &[u32]) -> Footprint {
+        let node_bytes = std::mem::size_of_val(nodes);
+        Footprint {
+            nodes: nodes.len(),
+            node_bytes,
+            bytes: node_bytes + std::mem::size_of_val(prims) + std::mem::size_of_val(ids),
         }
     }
 }

@@ -1,7 +1,8 @@
 //! Single-ray traversal of a [`Bvh2`] in any of its memory mappings.
 
-use super::stats::{Counters, NoStats, Stats};
-use super::{leaf_any_hit, leaf_closest_hit, BoxTest, ConservativeBoxes, SlabRay, Stack};
+use super::packet::{any_ray_by_ray, closest_ray_by_ray};
+use super::stats::Stats;
+use super::{leaf_any_hit, leaf_closest_hit, BoxTest, PacketMode, RayQuery, SlabRay, Stack};
 use crate::build::MAX_DEPTH;
 use crate::geometry::{Hit, Primitive, Ray};
 use crate::layout::bvh2::{compact_children, Addressing};
@@ -47,32 +48,11 @@ impl Children for Compact {
     }
 }
 
-impl<P: Primitive> Bvh2<P> {
-    /// The nearest hit along `ray` (lowest primitive index on ties): exactly what
-    /// [`crate::reference::closest_hit`] returns for the same triangles.
-    pub fn closest_hit(&self, ray: &Ray) -> Option<Hit> {
-        self.closest_hit_with::<ConservativeBoxes, _>(ray, &mut NoStats)
-    }
-
-    /// [`Bvh2::closest_hit`], adding what the traversal did to `counters`.
-    pub fn closest_hit_counted(&self, ray: &Ray, counters: &mut Counters) -> Option<Hit> {
-        self.closest_hit_with::<ConservativeBoxes, _>(ray, counters)
-    }
-
-    /// True when anything is hit within the ray's interval; stops at the first hit.
-    pub fn any_hit(&self, ray: &Ray) -> bool {
-        self.any_hit_with::<ConservativeBoxes, _>(ray, &mut NoStats)
-    }
-
-    /// [`Bvh2::any_hit`], adding what the traversal did to `counters`.
-    pub fn any_hit_counted(&self, ray: &Ray, counters: &mut Counters) -> bool {
-        self.any_hit_with::<ConservativeBoxes, _>(ray, counters)
-    }
-
-    /// Closest hit with any box test and statistics sink.
-    pub fn closest_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> Option<Hit> {
+/// Binary nodes have no packet kernel: packet queries go ray by ray.
+impl<P: Primitive> RayQuery for Bvh2<P> {
+    fn closest_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> Option<Hit> {
         let mut best = Hit::none(ray.t_max);
-        self.traverse::<B, S, _>(ray, stats, |range, limit, stats| {
+        traverse::<P, B, S, _>(self, ray, stats, |range, limit, stats| {
             leaf_closest_hit(
                 &self.prims[range.clone()],
                 &self.prim_ids[range],
@@ -86,28 +66,50 @@ impl<P: Primitive> Bvh2<P> {
         best.found()
     }
 
-    /// Any hit with any box test and statistics sink.
-    pub fn any_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> bool {
+    fn any_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> bool {
         let mut hit = false;
-        self.traverse::<B, S, _>(ray, stats, |range, _, stats| {
+        traverse::<P, B, S, _>(self, ray, stats, |range, _, stats| {
             hit = leaf_any_hit(&self.prims[range], ray, stats);
             hit
         });
         hit
     }
 
-    #[inline(always)]
-    fn traverse<B, S, F>(&self, ray: &Ray, stats: &mut S, leaf: F)
-    where
-        B: BoxTest,
-        S: Stats,
-        F: FnMut(Range<usize>, &mut f32, &mut S) -> bool,
-    {
-        match self.mapping.addressing() {
-            Addressing::DepthFirst => walk::<DepthFirst, B, S, F>(&self.nodes, ray, stats, leaf),
-            Addressing::Explicit => walk::<Explicit, B, S, F>(&self.nodes, ray, stats, leaf),
-            Addressing::Compact => walk::<Compact, B, S, F>(&self.nodes, ray, stats, leaf),
-        }
+    fn closest_hit_packet_with<B: BoxTest, S: Stats>(
+        &self,
+        rays: &[Ray],
+        active: Option<&[bool]>,
+        _: PacketMode,
+        hits: &mut [Option<Hit>],
+        stats: &mut S,
+    ) {
+        closest_ray_by_ray::<_, B, S>(self, rays, active, hits, stats)
+    }
+
+    fn any_hit_packet_with<B: BoxTest, S: Stats>(
+        &self,
+        rays: &[Ray],
+        active: Option<&[bool]>,
+        _: PacketMode,
+        occluded: &mut [bool],
+        stats: &mut S,
+    ) {
+        any_ray_by_ray::<_, B, S>(self, rays, active, occluded, stats)
+    }
+}
+
+/// The walk compiled for the BVH's child-addressing rule.
+#[inline(always)]
+fn traverse<P, B, S, F>(bvh: &Bvh2<P>, ray: &Ray, stats: &mut S, leaf: F)
+where
+    B: BoxTest,
+    S: Stats,
+    F: FnMut(Range<usize>, &mut f32, &mut S) -> bool,
+{
+    match bvh.mapping.addressing() {
+        Addressing::DepthFirst => walk::<DepthFirst, B, S, F>(&bvh.nodes, ray, stats, leaf),
+        Addressing::Explicit => walk::<Explicit, B, S, F>(&bvh.nodes, ray, stats, leaf),
+        Addressing::Compact => walk::<Compact, B, S, F>(&bvh.nodes, ray, stats, leaf),
     }
 }
 

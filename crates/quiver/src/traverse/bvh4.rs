@@ -1,95 +1,22 @@
 //! Single-ray traversal of 4-wide BVHs: the four child boxes of a node are tested at once
 //! with `wide::f32x4`, hit children are visited nearest first, any-hit exits at the first hit.
 
-use super::stats::{Counters, NoStats, Stats};
-use super::{leaf_any_hit, leaf_closest_hit, slab_reciprocal, BoxTest, ConservativeBoxes, Stack};
+use super::packet::{any_rays, closest_rays};
+use super::simd::{bits, insert_farthest_first, NanFirst};
+use super::stats::Stats;
+use super::{
+    leaf_any_hit, leaf_closest_hit, slab_reciprocal, BoxTest, PacketMode, RayQuery, Stack,
+};
 use crate::build::MAX_DEPTH;
-use crate::geometry::Primitive;
-use crate::geometry::{Hit, Ray};
-use crate::layout::bvh4::pow2;
-use crate::layout::{Bvh4, Bvh4Node, QBvh4, QBvh4Node};
+use crate::geometry::{Hit, Primitive, Ray};
+use crate::layout::{Bvh4, Bvh4Node, Node4};
 use wide::f32x4;
 
-/// What the kernel needs from a 4-wide node format.
-pub(super) trait WideNode {
-    /// Child boxes as `[min_x, min_y, min_z, max_x, max_y, max_z]` rows.
-    fn planes(&self) -> [f32x4; 6];
-    /// Child `i` as (node index or first primitive, `LEAF | count` for a leaf, 0 for an inner
-    /// node). Unused slots are empty leaves: a ray whose every slab distance is NaN (all
-    /// direction components subnormal) "enters" every box, so they must be harmless.
-    fn child(&self, i: usize) -> (u32, u32);
-}
-
-impl WideNode for Bvh4Node {
-    #[inline(always)]
-    fn planes(&self) -> [f32x4; 6] {
-        *bytemuck::cast_ref::<[[f32; 4]; 6], [f32x4; 6]>(&self.planes)
-    }
-    #[inline(always)]
-    fn child(&self, i: usize) -> (u32, u32) {
-        (self.child[i], self.count[i])
-    }
-}
-
-impl WideNode for QBvh4Node {
-    #[inline(always)]
-    fn planes(&self) -> [f32x4; 6] {
-        let mut out = [f32x4::ZERO; 6];
-        for (row, q) in out.iter_mut().zip(&self.q) {
-            *row = f32x4::new([q[0] as f32, q[1] as f32, q[2] as f32, q[3] as f32]);
-        }
-        for a in 0..3 {
-            // Multiply, then add: the arithmetic the encoder verified as conservative.
-            let (o, step) = (
-                f32x4::splat(self.origin[a]),
-                f32x4::splat(pow2(self.exp[a])),
-            );
-            out[a] = out[a] * step + o;
-            out[3 + a] = out[3 + a] * step + o;
-        }
-        out
-    }
-    #[inline(always)]
-    fn child(&self, i: usize) -> (u32, u32) {
-        match self.count[i] {
-            // Inner, unless this is an unused slot (marked by an impossible node index).
-            0 if self.child[i] == u32::MAX => (0, Bvh4Node::LEAF),
-            0 => (self.child[i], 0),
-            n => (self.child[i], Bvh4Node::LEAF | n as u32),
-        }
-    }
-}
-
-/// `max(a, b)` where `a` may be NaN and `b` never is; returns `b` for a NaN `a`, so a NaN slab
-/// distance (a zero direction with the origin on the plane) never limits the interval.
-#[inline(always)]
-pub(super) fn max_nan_first(a: f32x4, b: f32x4) -> f32x4 {
-    #[cfg(target_feature = "sse")]
-    {
-        // MAXPS returns its second operand when either is NaN.
-        a.fast_max(b)
-    }
-    #[cfg(not(target_feature = "sse"))]
-    {
-        b.max(a)
-    }
-}
-
-/// `min(a, b)` with the same NaN rule as [`max_nan_first`].
-#[inline(always)]
-pub(super) fn min_nan_first(a: f32x4, b: f32x4) -> f32x4 {
-    #[cfg(target_feature = "sse")]
-    {
-        a.fast_min(b)
-    }
-    #[cfg(not(target_feature = "sse"))]
-    {
-        b.min(a)
-    }
-}
+/// The kernels' name for a 4-wide node format.
+pub(crate) use crate::layout::Node4 as WideNode;
 
 /// A ray prepared for 4-wide slab tests.
-pub(super) struct Ray4 {
+pub(crate) struct Ray4 {
     origin: [f32x4; 3],
     inv: [f32x4; 3],
     /// Per axis, the plane row entered first (min row, or max row for a negative direction).
@@ -107,7 +34,7 @@ impl Ray4 {
 
     /// From an origin, the slab reciprocals of the direction and `t_min`.
     #[inline(always)]
-    pub(super) fn from_parts(origin: [f32; 3], inv: [f32; 3], t_min: f32) -> Self {
+    pub(crate) fn from_parts(origin: [f32; 3], inv: [f32; 3], t_min: f32) -> Self {
         let neg = inv.map(|x| x.is_sign_negative() as usize);
         Ray4 {
             origin: origin.map(f32x4::splat),
@@ -121,14 +48,14 @@ impl Ray4 {
     /// Entry distances of the four boxes and the mask of those entered within
     /// `[t_min, t_max]` (boundaries included).
     #[inline(always)]
-    pub(super) fn enter<B: BoxTest>(&self, p: &[f32x4; 6], t_max: f32) -> ([f32; 4], u32) {
+    pub(crate) fn enter<B: BoxTest>(&self, p: &[f32x4; 6], t_max: f32) -> ([f32; 4], u32) {
         let mut near = self.t_min;
         let mut far = f32x4::splat(t_max);
         for a in 0..3 {
             let tn = (p[self.near[a]] - self.origin[a]) * self.inv[a];
             let tf = (p[self.far[a]] - self.origin[a]) * self.inv[a];
-            near = max_nan_first(tn, near);
-            far = min_nan_first(tf * f32x4::splat(B::SLACK), far);
+            near = tn.max_nan_first(near);
+            far = (tf * f32x4::splat(B::SLACK)).min_nan_first(far);
         }
         (near.to_array(), near.simd_le(far).to_bitmask())
     }
@@ -155,19 +82,12 @@ where
         let n = &nodes[node];
         stats.node();
         stats.boxes(4);
-        let (t, mut mask) = r4.enter::<B>(&n.planes(), limit * B::SLACK);
+        let (t, mask) = r4.enter::<B>(&n.planes(), limit * B::SLACK);
         // Push hit children farthest first, so the nearest is popped next.
-        let mut hits: [(f32, usize); 4] = [(0.0, 0); 4];
+        let mut hits = [(0.0f32, 0usize); 4];
         let mut k = 0;
-        while mask != 0 {
-            let i = mask.trailing_zeros() as usize;
-            mask &= mask - 1;
-            let mut j = k;
-            while j > 0 && hits[j - 1].0 < t[i] {
-                hits[j] = hits[j - 1];
-                j -= 1;
-            }
-            hits[j] = (t[i], i);
+        for i in bits(mask) {
+            insert_farthest_first(&mut hits, k, t[i], i);
             k += 1;
         }
         for &(ti, i) in &hits[..k] {
@@ -198,7 +118,7 @@ where
 
 /// Closest-hit and any-hit over one 4-wide node format.
 #[inline(always)]
-pub(super) fn closest<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
+pub(crate) fn closest<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
     nodes: &[N],
     tris: &[P],
     ids: &[u32],
@@ -213,7 +133,7 @@ pub(super) fn closest<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
 /// Closest hit in the subtree of inner node `root`, improving on `best`, whose distance is
 /// the search limit.
 #[inline(always)]
-pub(super) fn closest_from<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
+pub(crate) fn closest_from<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
     nodes: &[N],
     tris: &[P],
     ids: &[u32],
@@ -230,7 +150,7 @@ pub(super) fn closest_from<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
 }
 
 #[inline(always)]
-pub(super) fn any<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
+pub(crate) fn any<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
     nodes: &[N],
     tris: &[P],
     ray: &Ray,
@@ -241,7 +161,7 @@ pub(super) fn any<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
 
 /// Any hit in the subtree of inner node `root`.
 #[inline(always)]
-pub(super) fn any_from<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
+pub(crate) fn any_from<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
     nodes: &[N],
     tris: &[P],
     ray: &Ray,
@@ -256,58 +176,51 @@ pub(super) fn any_from<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
     hit
 }
 
-macro_rules! wide_queries {
-    ($t:ident) => {
-        impl<P: Primitive> $t<P> {
-            /// The nearest hit along `ray` (lowest primitive index on ties): exactly what
-            /// [`crate::reference::closest_hit`] returns for the same triangles.
-            pub fn closest_hit(&self, ray: &Ray) -> Option<Hit> {
-                closest::<_, ConservativeBoxes, _, _>(
-                    &self.nodes,
-                    &self.prims,
-                    &self.prim_ids,
-                    ray,
-                    &mut NoStats,
-                )
-            }
+impl<P: Primitive, N: Node4> RayQuery for Bvh4<P, N> {
+    fn closest_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> Option<Hit> {
+        closest::<N, B, P, S>(&self.nodes, &self.prims, &self.prim_ids, ray, stats)
+    }
 
-            /// Closest hit, adding what the traversal did to `counters`.
-            pub fn closest_hit_counted(&self, ray: &Ray, counters: &mut Counters) -> Option<Hit> {
-                closest::<_, ConservativeBoxes, _, _>(
-                    &self.nodes,
-                    &self.prims,
-                    &self.prim_ids,
-                    ray,
-                    counters,
-                )
-            }
+    fn any_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> bool {
+        any::<N, B, P, S>(&self.nodes, &self.prims, ray, stats)
+    }
 
-            /// True when anything is hit within the ray's interval; stops at the first hit.
-            pub fn any_hit(&self, ray: &Ray) -> bool {
-                any::<_, ConservativeBoxes, _, _>(&self.nodes, &self.prims, ray, &mut NoStats)
-            }
+    fn closest_hit_packet_with<B: BoxTest, S: Stats>(
+        &self,
+        rays: &[Ray],
+        active: Option<&[bool]>,
+        mode: PacketMode,
+        hits: &mut [Option<Hit>],
+        stats: &mut S,
+    ) {
+        closest_rays::<N, B, P, S>(
+            &self.nodes,
+            &self.prims,
+            &self.prim_ids,
+            rays,
+            active,
+            mode,
+            hits,
+            stats,
+        )
+    }
 
-            /// Any hit, adding what the traversal did to `counters`.
-            pub fn any_hit_counted(&self, ray: &Ray, counters: &mut Counters) -> bool {
-                any::<_, ConservativeBoxes, _, _>(&self.nodes, &self.prims, ray, counters)
-            }
-
-            /// Closest hit with any box test and statistics sink.
-            pub fn closest_hit_with<B: BoxTest, S: Stats>(
-                &self,
-                ray: &Ray,
-                stats: &mut S,
-            ) -> Option<Hit> {
-                closest::<_, B, _, _>(&self.nodes, &self.prims, &self.prim_ids, ray, stats)
-            }
-
-            /// Any hit with any box test and statistics sink.
-            pub fn any_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> bool {
-                any::<_, B, _, _>(&self.nodes, &self.prims, ray, stats)
-            }
-        }
-    };
+    fn any_hit_packet_with<B: BoxTest, S: Stats>(
+        &self,
+        rays: &[Ray],
+        active: Option<&[bool]>,
+        mode: PacketMode,
+        occluded: &mut [bool],
+        stats: &mut S,
+    ) {
+        any_rays::<N, B, P, S>(
+            &self.nodes,
+            &self.prims,
+            rays,
+            active,
+            mode,
+            occluded,
+            stats,
+        )
+    }
 }
-
-wide_queries!(Bvh4);
-wide_queries!(QBvh4);

@@ -1,13 +1,21 @@
-//! Ray queries: the brute-force [`reference`] every kernel is checked against, and BVH
-//! traversal kernels.
+//! Ray queries: the [`RayQuery`] trait, the BVH traversal kernels behind it, and the
+//! brute-force [`reference`] every kernel is checked against.
+//!
+//! - `bvh2`: single rays over binary nodes in any memory mapping;
+//! - `bvh4`: single rays over 4-wide nodes (exact or quantized), four boxes per SIMD test;
+//! - [`packet`]: up to 64 coherent rays at once over 4-wide nodes;
+//! - `simd`: the helpers they share; [`Stats`] sinks that compile away when unused.
 
 mod bvh2;
 mod bvh4;
-mod packet;
+pub mod packet;
+mod query;
 pub mod reference;
+pub(crate) mod simd;
 mod stats;
 
-pub use packet::{PacketMode, PACKET_RAYS};
+pub use packet::{PacketLeaf, PacketMode, PACKET_RAYS};
+pub use query::RayQuery;
 pub use stats::{Counters, NoStats, Stats};
 
 use crate::geometry::{Hit, Primitive, Ray};
@@ -203,6 +211,7 @@ mod tests {
         }
         assert_eq!(s.pop(), Some((3, 3.0)));
         s.push((9, 9.0));
+
         let rest: Vec<u32> = std::iter::from_fn(|| s.pop()).map(|x| x.0).collect();
         assert_eq!(rest, vec![9, 2, 1, 0]);
     }

@@ -1,5 +1,5 @@
-use quiver::geometry::{Aabb, Ray};
 use glam::Vec3A;
+use quiver::geometry::{Aabb, Ray};
 
 /// A pinhole camera in the SPD/NFF convention.
 ///

@@ -19,9 +19,9 @@ pub mod tessellate;
 
 pub use camera::Camera;
 
-use quiver::geometry::{Aabb, Primitive, Triangle};
 use crate::primitive::{Cone, PatchTriangle, Polygon, Prim, Sphere};
 use glam::Vec3A;
+use quiver::geometry::{Aabb, Primitive, Triangle};
 use std::fmt;
 use std::path::{Path, PathBuf};
 

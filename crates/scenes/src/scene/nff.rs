@@ -19,8 +19,8 @@
 
 use super::{Camera, Light, Material, Object, Scene, SceneError, Shape};
 use crate::primitive::{Cone, Sphere};
-use quiver::Triangle;
 use glam::Vec3A;
+use quiver::Triangle;
 use std::io::{self, Write};
 use std::path::Path;
 

@@ -1,8 +1,8 @@
 //! Wavefront OBJ through tobj: every face triangulated, one object per triangle.
 
 use super::{Camera, Scene, SceneError};
-use quiver::geometry::{Aabb, Triangle};
 use glam::Vec3A;
+use quiver::geometry::{Aabb, Triangle};
 use std::path::Path;
 
 pub(super) fn load(path: &Path) -> Result<Scene, SceneError> {

@@ -4,9 +4,9 @@
 //! keeps their total area roughly independent of N. Seed fixed, so `soupN` is always the same.
 
 use super::{Camera, Scene};
-use quiver::geometry::{Aabb, Triangle};
 use crate::rng::Rng;
 use glam::Vec3A;
+use quiver::geometry::{Aabb, Triangle};
 
 pub(super) fn soup(n: u32) -> Scene {
     let mut rng = Rng::new(0x5EED_0000 ^ n as u64);

@@ -2,9 +2,9 @@
 //! by fans, and spheres and cones into polygonal patches the way the SPD's patch mode does.
 
 use super::Shape;
-use quiver::geometry::Triangle;
 use crate::primitive::{Cone, Polygon, Sphere};
 use glam::{DVec3, Vec3A};
+use quiver::geometry::Triangle;
 
 /// Appends the triangles of one shape to `out`, and to `normals` the vertex normals of each
 /// (patches, and spheres and cones through their SPD tessellation, at `DEFAULT_RESOLUTION`)

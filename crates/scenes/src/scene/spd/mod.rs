@@ -20,8 +20,8 @@ pub(crate) mod tree;
 
 use super::{Camera, Light, Material, Object, Scene, Shape};
 use crate::primitive::{Cone, Sphere};
-use quiver::Triangle;
 use glam::{DVec3, Vec3A};
+use quiver::Triangle;
 
 /// The SPD's "UNC sky blue" background.
 pub(crate) const SKY: [f64; 3] = [0.078, 0.361, 0.753];

@@ -2,19 +2,19 @@
 //! same rays: eye rays (8 x 8 pixel tiles), shadow rays (one per eye hit and light, in tile
 //! order) and incoherent rays, SPD scenes in curve and patch mode, 1 thread and all threads.
 
-use super::{outln, pool, write_json, Result};
-use quiver::build::{BuildConfig, Builder};
-use quiver_lab::measure::{median_times_interleaved, mrays_per_s, trace, trace_packets, Query};
-use quiver_scenes::scene::tessellate::DEFAULT_RESOLUTION;
-use quiver_scenes::scene::Scene;
+use super::{parse_layout, pool, Result};
+use crate::output::{outln, write_json};
 use quiver::traverse::PacketMode;
-use quiver::{Bvh, Layout, Primitive};
-use quiver_lab::{rays};
+use quiver::{BuildOptions, Layout, Primitive};
+use quiver_lab::measure::{median_times_interleaved, mrays_per_s, trace, trace_packets, Query};
+use quiver_lab::rays;
+use quiver_scenes::scene::tessellate::DEFAULT_RESOLUTION;
+use quiver_scenes::Scene;
 use serde_json::{json, Value};
 use std::path::PathBuf;
 
 #[derive(clap::Args)]
-pub struct PacketsArgs {
+pub(crate) struct PacketsArgs {
     /// Scenes; SPD scenes with analytic shapes are measured in curve and in patch mode.
     /// Default: balls3 (158k triangles in patch mode), gears3, teapot12 and tetra9 (262k).
     scenes: Vec<String>,
@@ -28,7 +28,7 @@ pub struct PacketsArgs {
     #[arg(long, default_value_t = 5)]
     reps: usize,
     /// Memory layout (a 4-wide one: binary layouts have no packet kernel).
-    #[arg(long, default_value = "bvh4-dfs", value_parser = super::parse_layout)]
+    #[arg(long, default_value = "bvh4-dfs", value_parser = parse_layout)]
     layout: Layout,
     /// Write all rows as JSON.
     #[arg(long)]
@@ -42,7 +42,8 @@ const KERNELS: [(&str, Option<PacketMode>); 3] = [
     ("packet-always", Some(PacketMode::Always)),
 ];
 
-pub fn cmd_packets(args: PacketsArgs) -> Result<()> {
+/// Runs `quiver packets`.
+pub(crate) fn run(args: PacketsArgs) -> Result<()> {
     if args.layout.name().starts_with("bvh2") {
         return Err(format!("--layout {}: packets need a 4-wide layout", args.layout).into());
     }
@@ -89,8 +90,7 @@ fn measure<P: Primitive>(
     all: usize,
     rows: &mut Vec<Value>,
 ) -> Result<()> {
-    let bvh = pool(None)?
-        .install(|| Bvh::build(prims, &BuildConfig::default(), Builder::Binned, args.layout).0);
+    let bvh = BuildOptions::default().layout(args.layout).build(prims);
     let eye = rays::camera_tiles(&scene.camera, args.res as usize, 8);
     let lights: Vec<_> = scene.lights.iter().map(|l| l.pos).collect();
     let shadow = rays::shadow_rays(&bvh, &eye, &lights);

@@ -1,12 +1,13 @@
 //! The mixed-primitive path (spheres, cones, n-gons, patch triangles in one BVH) against the
 //! brute-force reference, for every layout.
 
+use crate::common::reference_hits;
 use glam::Vec3A;
-use quiver::build::{BuildConfig, Builder};
+use quiver::build::Builder;
+use quiver::{Aabb, BuildOptions, Layout, Primitive, Ray, RayQuery, Triangle};
+use quiver_lab::rays;
 use quiver_scenes::primitive::{Cone, PatchTriangle, Polygon, Prim, Sphere};
 use quiver_scenes::rng::Rng;
-use quiver::{reference, Aabb, Bvh, Layout, Primitive, Ray, Triangle};
-use quiver_lab::{rays};
 use rayon::prelude::*;
 
 /// A seeded jumble of every primitive kind in the unit cube.
@@ -65,15 +66,15 @@ fn every_layout_matches_the_reference_on_mixed_primitives() {
     let prims = jumble(5000, 11);
     let bounds = prims.iter().fold(Aabb::EMPTY, |a, p| a.union(&p.bounds()));
     let rays = rays::random_rays(&bounds, 30_000, 5);
-    let want: Vec<_> = rays
-        .par_iter()
-        .map(|r| reference::closest_hit(&prims, r))
-        .collect();
+    let want = reference_hits(&prims, &rays);
     let hits = want.iter().filter(|h| h.is_some()).count();
     assert!(hits > rays.len() / 20, "only {hits} hits");
-    for builder in [Builder::Binned, Builder::Sweep] {
+    for builder in Builder::ALL {
         for layout in Layout::ALL {
-            let (bvh, _) = Bvh::build(&prims, &BuildConfig::default(), builder, layout);
+            let bvh = BuildOptions::default()
+                .builder(builder)
+                .layout(layout)
+                .build(&prims);
             rays.par_iter()
                 .zip(&want)
                 .enumerate()

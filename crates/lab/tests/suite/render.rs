@@ -1,11 +1,11 @@
 //! The renderer traces exactly the rays a scene calls for, the same rays for every layout and
 //! thread count, and matches the SPD Readme's published counts.
 
+use crate::common::in_pool;
+use quiver::{BuildOptions, Layout};
 use quiver_scenes::accel::SceneBvh;
-use quiver::build::{BuildConfig, Builder};
 use quiver_scenes::render::{render, RayCounts, RenderConfig};
 use quiver_scenes::scene::{nff, Scene};
-use quiver::Layout;
 
 fn run(
     scene: &Scene,
@@ -25,12 +25,8 @@ fn run_with(
     counters: bool,
     packets: bool,
 ) -> quiver_scenes::render::Rendered {
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .unwrap();
-    pool.install(|| {
-        let (bvh, _) = SceneBvh::build(scene, &BuildConfig::default(), Builder::Binned, layout);
+    in_pool(threads, || {
+        let bvh = SceneBvh::build(scene, &BuildOptions::default().layout(layout));
         let config = RenderConfig {
             res,
             two_sided: scene.two_sided_materials(),

@@ -2,13 +2,13 @@
 //! same t for every ray, any-hit agreeing with closest-hit, and the counting kernels giving the
 //! plain kernels' answers.
 
+use crate::common::{hit_fraction, reference_hits};
 use glam::Vec3A;
-use quiver::build::{build, BuildConfig, Builder};
-use quiver::layout::triangle_bounds;
-use quiver_scenes::scene::Scene;
+use quiver::build::{build, prim_bounds, BuildConfig, Builder};
 use quiver::traverse::Counters;
-use quiver::{reference, Bvh, Hit, Layout, Ray, Triangle};
-use quiver_lab::{rays};
+use quiver::{Bvh, Hit, Layout, Ray, RayQuery, Triangle};
+use quiver_lab::rays;
+use quiver_scenes::Scene;
 use rayon::prelude::*;
 
 /// Checks every ray against `want` (the reference's answers), with the plain and the counting
@@ -50,8 +50,8 @@ type RaySet<'a> = (&'a str, &'a [Ray], &'a [Option<Hit>]);
 
 /// Builds once per builder and checks every layout.
 fn check_layouts(tris: &[Triangle], sets: &[RaySet], what: &str) {
-    let bounds = triangle_bounds(tris);
-    for builder in [Builder::Binned, Builder::Sweep] {
+    let bounds = prim_bounds(tris);
+    for builder in Builder::ALL {
         let tree = build(&bounds, &BuildConfig::default(), builder);
         for layout in Layout::ALL {
             let bvh = Bvh::from_tree(&tree, tris, layout);
@@ -65,12 +65,6 @@ fn check_layouts(tris: &[Triangle], sets: &[RaySet], what: &str) {
             }
         }
     }
-}
-
-fn reference_hits(tris: &[Triangle], rays: &[Ray]) -> Vec<Option<Hit>> {
-    rays.par_iter()
-        .map(|r| reference::closest_hit(tris, r))
-        .collect()
 }
 
 /// Both builders and every layout against the reference on random and camera rays; returns
@@ -88,8 +82,7 @@ fn check_scene(scene: &Scene, n_random: usize, cam_res: usize) -> (f64, f64) {
         ],
         &scene.name,
     );
-    let frac = |w: &[Option<Hit>]| w.iter().filter(|h| h.is_some()).count() as f64 / w.len() as f64;
-    (frac(&want_random), frac(&want_cam))
+    (hit_fraction(&want_random), hit_fraction(&want_cam))
 }
 
 #[test]

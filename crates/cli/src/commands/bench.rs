@@ -1,24 +1,24 @@
 //! `quiver bench`: quiver and obvhs 0.4 side by side in one process, on the same triangles and
 //! the same rays: build time and SAH cost, then Mrays/s for eye, shadow and incoherent rays.
 
-use super::{pool, write_json, Result};
+use super::{pool, Result};
+use crate::output::{outln, write_json};
 use obvhs::{
     bvh2::builder::build_bvh2_from_tris, cwbvh::builder::build_cwbvh_from_tris, ray::RayHit,
     BvhBuildParams,
 };
-use quiver::build::{BuildConfig, Builder};
-use quiver::layout::triangle_bounds;
+use quiver::build::{build, prim_bounds, BuildConfig, Builder};
+use quiver::{BuildOptions, Bvh, Layout, RayQuery};
 use quiver_lab::measure::{median_times_interleaved, mrays_per_s};
-use quiver_scenes::scene::Scene;
-use quiver::{Bvh, Layout};
 use quiver_lab::{obvhs_bridge, rays};
+use quiver_scenes::scene::{tessellate, Scene};
 use rayon::prelude::*;
 use serde_json::{json, Value};
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 #[derive(clap::Args)]
-pub struct BenchArgs {
+pub(crate) struct BenchArgs {
     /// Scenes, measured as triangles (SPD scenes in patch mode). Default: the bunny (3.7k),
     /// teapot12 (9.4k), balls3 (158k) and tetra10 (1M).
     scenes: Vec<String>,
@@ -46,7 +46,8 @@ fn time<T>(f: impl FnOnce() -> T) -> (T, f64) {
     (v, t.elapsed().as_secs_f64() * 1e3)
 }
 
-pub fn cmd_bench(args: BenchArgs) -> Result<()> {
+/// Runs `quiver bench`.
+pub(crate) fn run(args: BenchArgs) -> Result<()> {
     let bunny = concat!(env!("CARGO_MANIFEST_DIR"), "/../lab/tests/data/bunny.obj");
     let scenes = if args.scenes.is_empty() {
         vec![
@@ -67,7 +68,7 @@ pub fn cmd_bench(args: BenchArgs) -> Result<()> {
     let config = BuildConfig::default();
     for name in &scenes {
         bar.set_message(format!("{name}: building"));
-        let scene = Scene::load(name)?.into_patches(quiver_scenes::scene::tessellate::DEFAULT_RESOLUTION);
+        let scene = Scene::load(name)?.into_patches(tessellate::DEFAULT_RESOLUTION);
         let tris = scene.triangles();
         let ot = obvhs_bridge::triangles(&tris);
         let row = |engine: &str,
@@ -84,9 +85,9 @@ pub fn cmd_bench(args: BenchArgs) -> Result<()> {
         for threads in [1, all] {
             let p = pool(Some(threads as u16))?;
             p.install(|| {
-                let _ = Bvh::build(&tris, &config, Builder::Binned, Layout::Bvh2Dfs);
-                let ((_, tree), ms) =
-                    time(|| Bvh::build(&tris, &config, Builder::Binned, Layout::Bvh2Dfs));
+                let options = BuildOptions::default().layout(Layout::Bvh2Dfs);
+                let _ = options.build(&tris);
+                let ((_, tree), ms) = time(|| options.build_with_tree(&tris));
                 rows.push(row(
                     "quiver",
                     "binned+bvh2-dfs",
@@ -122,7 +123,7 @@ pub fn cmd_bench(args: BenchArgs) -> Result<()> {
         }
         bar.inc(1);
         bar.set_message(format!("{name}: tracing"));
-        let tree = quiver::build::build(&triangle_bounds(&tris), &config, Builder::Binned);
+        let tree = build(&prim_bounds(&tris), &config, Builder::Binned);
         let bvhs: Vec<Bvh> = KERNELS
             .iter()
             .map(|&l| Bvh::from_tree(&tree, &tris, l))
@@ -216,7 +217,7 @@ pub fn cmd_bench(args: BenchArgs) -> Result<()> {
 fn print_rows(rows: &[Value]) {
     let s = |v: &Value| v.as_str().unwrap_or("").to_string();
     let f = |v: &Value| v.as_f64();
-    super::outln!(
+    outln!(
         "{:<14} {:>9} {:<7} {:<17} {:<10} {:>3} {:>9} {:>9} {:>9} {:>8}",
         "scene",
         "prims",
@@ -258,7 +259,7 @@ fn print_rows(rows: &[Value]) {
             None
         };
         let num = |v: Option<f64>, p: usize| v.map_or("-".to_string(), |x| format!("{x:.p$}"));
-        super::outln!(
+        outln!(
             "{:<14} {:>9} {:<7} {:<17} {:<10} {:>3} {:>9} {:>9} {:>9} {:>8}",
             short,
             r["primitives"],
@@ -272,5 +273,5 @@ fn print_rows(rows: &[Value]) {
             num(ratio, 2)
         );
     }
-    super::outln!("(q/obvhs: quiver throughput over obvhs's, or obvhs build time over quiver's: above 1 means quiver is faster)");
+    outln!("(q/obvhs: quiver throughput over obvhs's, or obvhs build time over quiver's: above 1 means quiver is faster)");
 }

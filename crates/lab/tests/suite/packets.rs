@@ -3,16 +3,14 @@
 //! direction signs, short and boundary t_max, inactive lanes, partial packets and axis-parallel
 //! rays, on every 4-wide layout and on triangles and mixed primitives alike.
 
+use crate::common::{build, WIDE};
 use glam::Vec3A;
-use quiver::build::{BuildConfig, Builder};
-use quiver_scenes::rng::Rng;
-use quiver_scenes::scene::Scene;
 use quiver::traverse::{BoxTest, ConservativeBoxes, FastBoxes, NoStats, PacketMode};
-use quiver::{reference, Bvh, Hit, Layout, Primitive, Ray};
-use quiver_lab::{rays};
+use quiver::{reference, Bvh, Hit, Layout, Primitive, Ray, RayQuery};
+use quiver_lab::rays;
+use quiver_scenes::rng::Rng;
+use quiver_scenes::Scene;
 use rayon::prelude::*;
-
-const WIDE: [Layout; 3] = [Layout::Bvh4Dfs, Layout::Bvh4Subtree, Layout::Bvh4Quant];
 
 /// Packet answers of `rays` (with an optional active mask) against the single-ray kernel with
 /// the same box test, for both packet modes that use packets.
@@ -74,10 +72,6 @@ fn check<P: Primitive>(
     for (i, (h, w)) in hits.iter().zip(&want).enumerate() {
         assert_eq!(h, w, "{what}: reference, ray {i} {:?}", rays[i]);
     }
-}
-
-fn build<P: Primitive>(prims: &[P], layout: Layout) -> Bvh<P> {
-    Bvh::build(prims, &BuildConfig::default(), Builder::Binned, layout).0
 }
 
 /// Shadow rays from the eye rays' hit points toward every light.

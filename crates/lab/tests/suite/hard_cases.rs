@@ -2,12 +2,12 @@
 //! shared edges and vertices, boundary intervals, rays on faces and planes, far-off and tiny
 //! scenes, degenerate triangles, flat scenes.
 
+use crate::common::{build, unit_tri};
 use glam::Vec3A;
-use quiver::build::{BuildConfig, Builder};
 use quiver::intersect::{Exact, Watertight};
-use quiver_scenes::scene::Scene;
 use quiver::traverse::{ConservativeBoxes, FastBoxes, NoStats};
-use quiver::{reference, Bvh, Layout, Primitive, Ray, Triangle};
+use quiver::{reference, Layout, Primitive, Ray, RayQuery, Triangle};
+use quiver_scenes::Scene;
 use rayon::prelude::*;
 
 fn icosphere(n: u32) -> Vec<Triangle> {
@@ -61,12 +61,7 @@ fn edge_vertex_rays(tris: &[Triangle], center: Vec3A, inside: &[Vec3A]) -> Vec<R
 }
 
 fn leaks<P: Primitive>(prims: &[P], rays: &[Ray]) -> usize {
-    let (bvh, _) = Bvh::build(
-        prims,
-        &BuildConfig::default(),
-        Builder::Binned,
-        Layout::Bvh4Dfs,
-    );
+    let bvh = build(prims, Layout::Bvh4Dfs);
     rays.par_iter().filter(|r| !bvh.any_hit(r)).count()
 }
 
@@ -139,16 +134,12 @@ fn watertight_never_leaks_through_tetra_cells() {
     assert_eq!(leaks(&wt, &rays), 0);
 }
 
-fn unit_tri() -> Triangle {
-    Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y)
-}
-
 fn all_layout_hits(tris: &[Triangle], ray: &Ray) -> Vec<Option<f32>> {
     let mut out = Vec::new();
     let wt: Vec<Watertight> = tris.iter().map(|&t| Watertight(t)).collect();
     for layout in Layout::ALL {
-        let (a, _) = Bvh::build(tris, &BuildConfig::default(), Builder::Binned, layout);
-        let (b, _) = Bvh::build(&wt, &BuildConfig::default(), Builder::Binned, layout);
+        let a = build(tris, layout);
+        let b = build(&wt, layout);
         out.push(a.closest_hit(ray).map(|h| h.t));
         out.push(b.closest_hit(ray).map(|h| h.t));
         out.push(
@@ -262,12 +253,7 @@ fn degenerate_triangles_never_hit_and_never_make_nan() {
     // Mixed into a real scene, the BVH answers exactly as the reference (which skips nothing).
     let mut tris = Scene::load("tetra3").unwrap().triangles();
     tris.extend(degenerate);
-    let (bvh, _) = Bvh::build(
-        &tris,
-        &BuildConfig::default(),
-        Builder::Binned,
-        Layout::Bvh2Dfs,
-    );
+    let bvh = build(&tris, Layout::Bvh2Dfs);
     for r in quiver_lab::rays::random_rays(
         &quiver::Aabb::new(Vec3A::splat(-1.0), Vec3A::ONE),
         20_000,
@@ -304,7 +290,7 @@ fn flat_scenes_and_zero_thickness_boxes() {
         ));
     }
     for layout in Layout::ALL {
-        let (bvh, _) = Bvh::build(&tris, &BuildConfig::default(), Builder::Binned, layout);
+        let bvh = build(&tris, layout);
         for r in &rays {
             let want = reference::closest_hit(&tris, r);
             assert_eq!(bvh.closest_hit(r), want, "{layout} {r:?}");
@@ -347,18 +333,8 @@ fn far_from_origin_and_tiny_scenes() {
             .iter()
             .map(|r| Ray::new(r.origin * scale + shift, r.dir))
             .collect();
-        let (fast, _) = Bvh::build(
-            &tris,
-            &BuildConfig::default(),
-            Builder::Binned,
-            Layout::Bvh4Dfs,
-        );
-        let (water, _) = Bvh::build(
-            &wt,
-            &BuildConfig::default(),
-            Builder::Binned,
-            Layout::Bvh4Dfs,
-        );
+        let fast = build(&tris, Layout::Bvh4Dfs);
+        let water = build(&wt, Layout::Bvh4Dfs);
         let tol = 1e-5 * (offset + 4.0 * scale);
         let mut hits = 0;
         for r in &rays {
@@ -425,7 +401,7 @@ fn all_subnormal_direction() {
         let ray = Ray::new(Vec3A::new(0.1, 0.2, -3.0), d);
         let want = reference::closest_hit(&tris, &ray);
         for layout in Layout::ALL {
-            let (bvh, _) = Bvh::build(&tris, &BuildConfig::default(), Builder::Binned, layout);
+            let bvh = build(&tris, layout);
             assert_eq!(bvh.closest_hit(&ray), want, "{layout}");
             assert_eq!(bvh.any_hit(&ray), want.is_some(), "{layout}");
         }

@@ -5,10 +5,9 @@
 
 use glam::{DVec3, Vec3A};
 use obvhs::{bvh2::builder::build_bvh2_from_tris, ray::RayHit, BvhBuildParams};
-use quiver::build::{BuildConfig, Builder};
-use quiver_scenes::scene::Scene;
-use quiver::{Bvh2, Hit, Ray, Triangle};
-use quiver_lab::{rays};
+use quiver::{Bvh, Hit, Ray, RayQuery, Triangle};
+use quiver_lab::rays;
+use quiver_scenes::Scene;
 use rayon::prelude::*;
 use std::time::Duration;
 
@@ -109,7 +108,7 @@ fn judge(tris: &[Triangle], ray: &Ray, q: Option<Hit>, o: Option<(u32, f32)>) ->
 
 fn compare(scene: &Scene, rays: &[Ray]) -> (usize, usize, usize) {
     let tris = &scene.triangles();
-    let (bvh, _) = Bvh2::build(tris, &BuildConfig::default(), Builder::Binned);
+    let bvh = Bvh::new(tris);
     let otris = quiver_lab::obvhs_bridge::triangles(tris);
     let obvh = build_bvh2_from_tris(
         &otris,

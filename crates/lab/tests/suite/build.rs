@@ -1,27 +1,19 @@
 //! Build invariants: identical trees for any thread count, degenerate inputs, exact SAH cost.
 
+use crate::common::{in_pool, tri};
 use glam::Vec3A;
-use quiver::build::{build, BuildConfig, BuildTree, Builder, NodeKind, MAX_DEPTH};
-use quiver::layout::triangle_bounds;
+use quiver::build::{build, prim_bounds, BuildConfig, BuildTree, Builder, NodeKind, MAX_DEPTH};
+use quiver::{reference, Aabb, Bvh2, RayQuery, Triangle};
+use quiver_lab::rays;
 use quiver_scenes::rng::Rng;
-use quiver_scenes::scene::Scene;
-use quiver::{reference, Aabb, Bvh2, Triangle};
-use quiver_lab::{rays};
+use quiver_scenes::Scene;
 
-const BUILDERS: [Builder; 2] = [Builder::Binned, Builder::Sweep];
-
-fn in_pool<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
-    rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .unwrap()
-        .install(f)
-}
+const BUILDERS: [Builder; 2] = Builder::ALL;
 
 #[test]
 fn same_tree_for_one_and_two_threads() {
     let scene = Scene::load("soup150000").unwrap();
-    let bounds = triangle_bounds(&scene.triangles());
+    let bounds = prim_bounds(&scene.triangles());
     // A low threshold sends many nodes through the horizontal (shared-node) path as well.
     for horizontal_threshold in [1 << 16, 2_000] {
         let config = BuildConfig {
@@ -43,7 +35,7 @@ fn same_tree_for_one_and_two_threads() {
 #[test]
 fn horizontal_and_vertical_give_the_same_tree() {
     let scene = Scene::load("tetra8").unwrap();
-    let bounds = triangle_bounds(&scene.triangles());
+    let bounds = prim_bounds(&scene.triangles());
     let build_with = |horizontal_threshold| {
         let config = BuildConfig {
             horizontal_threshold,
@@ -57,14 +49,10 @@ fn horizontal_and_vertical_give_the_same_tree() {
     );
 }
 
-fn tri(a: [f32; 3], b: [f32; 3], c: [f32; 3]) -> Triangle {
-    Triangle::new(a.into(), b.into(), c.into())
-}
-
 /// Builds with both builders and several leaf sizes, validates, and checks traversal against
 /// the reference on rays aimed at the geometry.
 fn check_degenerate(name: &str, tris: &[Triangle]) -> Vec<BuildTree> {
-    let bounds = triangle_bounds(tris);
+    let bounds = prim_bounds(tris);
     let mut trees = Vec::new();
     for max_leaf_size in [1, 4, 8] {
         let config = BuildConfig {
@@ -272,7 +260,7 @@ fn binned_sah_within_3_percent_of_sweep() {
     let config = BuildConfig::default();
     for name in ["tetra7", "soup20000"] {
         let scene = Scene::load(name).unwrap();
-        let bounds = triangle_bounds(&scene.triangles());
+        let bounds = prim_bounds(&scene.triangles());
         let binned = build(&bounds, &config, Builder::Binned).sah_cost(&config);
         let sweep = build(&bounds, &config, Builder::Sweep).sah_cost(&config);
         println!(

@@ -1,0 +1,122 @@
+//! `quiver accuracy`: what accuracy costs: intersector x box test x offset, in time and in
+//! errors, as a table and a scatter plot.
+
+use super::{pool, scene_help, Result};
+use crate::output::{outln, scatter_svg, write_json, Point};
+use quiver_lab::accuracy::{evaluate, Row};
+use quiver_scenes::Scene;
+use serde_json::{json, Value};
+use std::path::PathBuf;
+
+#[derive(clap::Args)]
+pub(crate) struct AccuracyArgs {
+    /// Scene (triangulated for the measurement).
+    #[arg(default_value = "teapot12", long_help = scene_help())]
+    scene: String,
+    /// Incoherent rays for throughput, reference mismatches and secondary rays.
+    #[arg(long, default_value_t = 300_000)]
+    rays: usize,
+    /// Timed repetitions (median).
+    #[arg(long, default_value_t = 3)]
+    reps: usize,
+    /// Subdivisions of the icosphere the leak test shoots at (20*4^n triangles).
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(0..=8))]
+    sphere: u32,
+    /// Worker threads (default: all cores).
+    #[arg(long, value_parser = clap::value_parser!(u16).range(1..=1024))]
+    threads: Option<u16>,
+    /// Write the time-against-error plot (SVG) here.
+    #[arg(long, default_value = "accuracy.svg")]
+    plot: PathBuf,
+    /// Write the rows as JSON to this file.
+    #[arg(long)]
+    json: Option<PathBuf>,
+}
+
+/// Runs `quiver accuracy`.
+pub(crate) fn run(args: AccuracyArgs) -> Result<()> {
+    if args.rays == 0 {
+        return Err("--rays must be at least 1".into());
+    }
+    let scene = Scene::load(&args.scene)?;
+    let tris = scene.triangles();
+    let pool = pool(args.threads)?;
+    let bar = indicatif::ProgressBar::new_spinner();
+    bar.set_message(format!("measuring 12 combinations on {}", scene.name));
+    bar.enable_steady_tick(std::time::Duration::from_millis(200));
+    let rows = pool.install(|| evaluate(&tris, args.rays, args.reps, args.sphere));
+    bar.finish_and_clear();
+    outln!(
+        "{:<11} {:<13} {:<8} {:>9} {:>9} {:>12} {:>12} {:>12}",
+        "intersector",
+        "box test",
+        "offset",
+        "Mrays/s",
+        "any M/s",
+        "leaks/M",
+        "self-hits/M",
+        "ref diff/M"
+    );
+    for r in &rows {
+        outln!(
+            "{:<11} {:<13} {:<8} {:>9.2} {:>9.2} {:>12.1} {:>12.1} {:>12.1}",
+            r.intersector,
+            r.box_test,
+            r.offset,
+            r.mrays_per_s,
+            r.any_mrays_per_s,
+            r.leaks_per_million,
+            r.self_hits_per_million,
+            r.ref_mismatch_per_million
+        );
+    }
+    outln!(
+        "({} triangles, {} rays, {} threads; leaks on icosphere{})",
+        tris.len(),
+        args.rays,
+        pool.current_num_threads(),
+        args.sphere
+    );
+    let json_rows: Vec<Value> = rows
+        .iter()
+        .map(|r| {
+            json!({
+                "scene": scene.name,
+                "intersector": r.intersector,
+                "box_test": r.box_test,
+                "offset": r.offset,
+                "mrays_per_s": r.mrays_per_s,
+                "any_mrays_per_s": r.any_mrays_per_s,
+                "leaks_per_million": r.leaks_per_million,
+                "self_hits_per_million": r.self_hits_per_million,
+                "ref_mismatch_per_million": r.ref_mismatch_per_million,
+            })
+        })
+        .collect();
+    std::fs::write(&args.plot, plot(&rows, &scene.name))
+        .map_err(|e| format!("cannot write {}: {e}", args.plot.display()))?;
+    write_json(args.json.as_ref(), &Value::Array(json_rows))
+}
+
+/// Time per ray against errors per million (log scale), one labelled point per combination.
+fn plot(rows: &[Row], scene: &str) -> String {
+    let points: Vec<Point> = rows
+        .iter()
+        .map(|r| Point {
+            x: 1e3 / r.mrays_per_s.max(1e-9),
+            y: r.leaks_per_million + r.self_hits_per_million + r.ref_mismatch_per_million,
+            label: format!("{} / {} / {}", r.intersector, r.box_test, r.offset),
+            color: match r.intersector {
+                "fast" => "#d62728",
+                "watertight" => "#1f77b4",
+                _ => "#2ca02c",
+            },
+        })
+        .collect();
+    scatter_svg(
+        &format!("What accuracy costs on {scene}: time per closest-hit ray vs errors"),
+        "ns per ray (closest hit, incoherent)",
+        "leaks + self-hits + reference mismatches per million (log)",
+        &points,
+    )
+}

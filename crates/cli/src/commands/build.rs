@@ -1,0 +1,89 @@
+//! `quiver build`: one layout's size, tree shape, SAH cost and build time.
+
+use super::{
+    finite_cost, layout_help, load_and_build, parse_builder, parse_layout, pool, scene_help, Result,
+};
+use crate::output::{print_table, write_json};
+use quiver::build::{BuildConfig, Builder};
+use quiver::{BuildOptions, Layout};
+use serde_json::json;
+use std::path::PathBuf;
+
+#[derive(clap::Args)]
+pub(crate) struct BuildArgs {
+    /// A generator name with optional size (see `--help`), or a .obj file.
+    #[arg(long_help = scene_help())]
+    scene: String,
+    /// Which SAH builder.
+    #[arg(long, default_value = "binned", value_parser = parse_builder)]
+    builder: Builder,
+    /// Memory layout of the nodes.
+    #[arg(long, default_value = "bvh2-dfs", value_parser = parse_layout, long_help = layout_help())]
+    layout: Layout,
+    /// Tessellate spheres and cones (the SPD's patch mode).
+    #[arg(long)]
+    patches: bool,
+    /// Worker threads (default: all cores).
+    #[arg(long, value_parser = clap::value_parser!(u16).range(1..=1024))]
+    threads: Option<u16>,
+    /// Bins per axis for the binned builder.
+    #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u16).range(2..=1024))]
+    bins: u16,
+    /// Largest leaf the build may make.
+    #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u16).range(1..=255))]
+    max_leaf: u16,
+    /// SAH cost of an inner-node visit (c_T).
+    #[arg(long, default_value_t = 1.0)]
+    traversal_cost: f32,
+    /// SAH cost of one primitive test (c_I).
+    #[arg(long, default_value_t = 1.0)]
+    intersection_cost: f32,
+    /// Write the report as JSON to this file.
+    #[arg(long)]
+    json: Option<PathBuf>,
+}
+
+/// Runs `quiver build`.
+pub(crate) fn run(args: BuildArgs) -> Result<()> {
+    let config = BuildConfig {
+        bins: args.bins as usize,
+        max_leaf_size: args.max_leaf as usize,
+        traversal_cost: finite_cost("--traversal-cost", args.traversal_cost)?,
+        intersection_cost: finite_cost("--intersection-cost", args.intersection_cost)?,
+        ..BuildConfig::default()
+    };
+    let builder = args.builder;
+    let pool = pool(args.threads)?;
+    let options = BuildOptions {
+        builder,
+        layout: args.layout,
+        config: config.clone(),
+        pool: Some(&pool),
+    };
+    let (scene, bvh, tree, build_ms) = load_and_build(&args.scene, args.patches, &options)?;
+    let footprint = bvh.footprint();
+    let stats = tree.stats();
+    let prims = bvh.primitives().max(1) as f64;
+    let report = json!({
+        "scene": scene.name,
+        "objects": scene.objects.len(),
+        "primitives": bvh.primitives(),
+        "primitive_kind": if bvh.is_triangles() { "triangles" } else { "mixed" },
+        "dropped": tree.dropped,
+        "builder": builder.name(),
+        "layout": args.layout.name(),
+        "threads": pool.current_num_threads(),
+        "nodes": footprint.nodes,
+        "tree_nodes": stats.nodes,
+        "leaves": stats.leaves,
+        "depth": stats.depth,
+        "sah_cost": tree.sah_cost(&config),
+        "build_ms": build_ms,
+        "bytes": footprint.bytes,
+        "node_bytes": footprint.node_bytes,
+        "node_bytes_per_prim": footprint.node_bytes as f64 / prims,
+        "bytes_per_prim": footprint.bytes as f64 / prims,
+    });
+    print_table(&report);
+    write_json(args.json.as_ref(), &report)
+}

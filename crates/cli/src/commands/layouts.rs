@@ -1,0 +1,271 @@
+//! `quiver layouts`: traversal throughput of every memory layout side by side, with
+//! Havran-style time ratios.
+
+use super::{parse_layout, pool, Result};
+use crate::output::{out, outln, write_json};
+use quiver::build::{build, prim_bounds, BuildConfig, Builder};
+use quiver::{Bvh, Layout};
+use quiver_lab::measure::{self, Query};
+use quiver_lab::rays;
+use quiver_scenes::Scene;
+use serde_json::{json, Value};
+use std::path::PathBuf;
+
+#[derive(clap::Args)]
+pub(crate) struct LayoutsArgs {
+    /// Scenes (generator names or .obj files).
+    #[arg(default_values_t = ["tetra9".to_string(), "soup200000".to_string(), "tetra10".to_string()])]
+    scenes: Vec<String>,
+    /// Layouts to measure (default: all).
+    #[arg(long = "layout", value_parser = parse_layout)]
+    layouts: Vec<Layout>,
+    /// Incoherent rays per measurement.
+    #[arg(long, default_value_t = 300_000)]
+    rays: usize,
+    /// Camera rays per measurement: a RES × RES image.
+    #[arg(long, default_value_t = 512)]
+    res: usize,
+    /// Thread counts to measure.
+    #[arg(long, value_delimiter = ',', default_values_t = [1u16, 2])]
+    threads: Vec<u16>,
+    /// Timed rounds (each runs every layout once; the median per layout is reported).
+    #[arg(long, default_value_t = 5)]
+    reps: usize,
+    /// Write the rows and ratios as JSON to this file.
+    #[arg(long)]
+    json: Option<PathBuf>,
+}
+
+/// One throughput measurement.
+struct Row {
+    scene: String,
+    layout: Layout,
+    threads: usize,
+    rays: &'static str,
+    query: Query,
+    mrays: f64,
+}
+
+/// Runs `quiver layouts`.
+pub(crate) fn run(args: LayoutsArgs) -> Result<()> {
+    let layouts = if args.layouts.is_empty() {
+        Layout::ALL.to_vec()
+    } else {
+        args.layouts.clone()
+    };
+    if args.rays == 0 || args.res == 0 {
+        return Err("--rays and --res must be at least 1".into());
+    }
+    let config = BuildConfig::default();
+    let per_scene = layouts.len() * args.threads.len() * 4;
+    let bar = indicatif::ProgressBar::new((args.scenes.len() * per_scene) as u64);
+    bar.set_style(indicatif::ProgressStyle::with_template(
+        "{bar:40} {pos}/{len} {msg} [{elapsed}]",
+    )?);
+    let mut rows = Vec::new();
+    let mut sizes = Vec::new();
+    for name in &args.scenes {
+        bar.set_message(format!("loading {name}"));
+        let scene = Scene::load(name)?;
+        let tris = scene.triangles();
+        let tree = build(&prim_bounds(&tris), &config, Builder::Binned);
+        let sets = [
+            ("random", rays::random_rays(&scene.bounds(), args.rays, 7)),
+            ("camera", rays::camera_rays(&scene.camera, args.res)),
+        ];
+        let mut bvhs = Vec::new();
+        for &layout in &layouts {
+            bar.set_message(format!("{name}: laying out {layout}"));
+            let bvh = Bvh::from_tree(&tree, &tris, layout);
+            // What each layout's boxes cost in work: counters over the random rays.
+            let work = pool(None)?.install(|| measure::count(&bvh, &sets[0].1, Query::Closest));
+            let per_ray = |x: u64| x as f64 / sets[0].1.len() as f64;
+            sizes.push(json!({
+                "scene": scene.name,
+                "primitives": tris.len(),
+                "layout": layout.name(),
+                "nodes": bvh.footprint().nodes,
+                "node_bytes": bvh.footprint().node_bytes,
+                "node_bytes_per_prim": bvh.footprint().node_bytes as f64 / tris.len().max(1) as f64,
+                "nodes_per_ray": per_ray(work.nodes),
+                "box_tests_per_ray": per_ray(work.box_tests),
+                "prim_tests_per_ray": per_ray(work.prim_tests),
+            }));
+            bvhs.push(bvh);
+        }
+        for &threads in &args.threads {
+            let pool = pool(Some(threads))?;
+            for (kind, rays) in &sets {
+                for query in [Query::Closest, Query::Any] {
+                    bar.set_message(format!(
+                        "{name}: {threads} threads, {kind} rays, {}",
+                        query.name()
+                    ));
+                    // All layouts side by side, round after round.
+                    let times = pool.install(|| {
+                        measure::median_times_interleaved(args.reps, bvhs.len(), |i| {
+                            std::hint::black_box(measure::trace(&bvhs[i], rays, query));
+                        })
+                    });
+                    for (&layout, t) in layouts.iter().zip(times) {
+                        rows.push(Row {
+                            scene: scene.name.clone(),
+                            layout,
+                            threads: threads as usize,
+                            rays: kind,
+                            query,
+                            mrays: measure::mrays_per_s(rays.len(), t),
+                        });
+                    }
+                    bar.inc(layouts.len() as u64);
+                }
+            }
+        }
+    }
+    bar.finish_and_clear();
+    print_layout_tables(&sizes, &rows, &layouts);
+    let ratios = layout_ratios(&rows);
+    let report = json!({
+        "sizes": sizes,
+        "rows": rows.iter().map(|r| json!({
+            "scene": r.scene, "layout": r.layout.name(), "threads": r.threads,
+            "rays": r.rays, "query": r.query.name(), "mrays_per_s": r.mrays,
+        })).collect::<Vec<_>>(),
+        "ratios": ratios,
+    });
+    write_json(args.json.as_ref(), &report)
+}
+
+/// Time ratios (slower layout's time over the faster's, Havran's convention) between pairs of
+/// layouts, per scene, threads, ray kind and query.
+const RATIOS: [(&str, Layout, Layout); 5] = [
+    ("BFS/DFS", Layout::Bvh2Bfs, Layout::Bvh2Dfs),
+    ("BFS/subtree", Layout::Bvh2Bfs, Layout::Bvh2Subtree),
+    ("DFS/subtree", Layout::Bvh2Dfs, Layout::Bvh2Subtree),
+    ("DFS/subtree-page", Layout::Bvh2Dfs, Layout::Bvh2SubtreePage),
+    ("BVH2/BVH4", Layout::Bvh2Dfs, Layout::Bvh4Dfs),
+];
+
+fn find(rows: &[Row], like: &Row, layout: Layout) -> Option<f64> {
+    rows.iter()
+        .find(|r| {
+            r.scene == like.scene
+                && r.threads == like.threads
+                && r.rays == like.rays
+                && r.query == like.query
+                && r.layout == layout
+        })
+        .map(|r| r.mrays)
+}
+
+fn layout_ratios(rows: &[Row]) -> Vec<Value> {
+    let mut out = Vec::new();
+    for r in rows.iter().filter(|r| r.layout == rows[0].layout) {
+        let mut entry = json!({"scene": r.scene, "threads": r.threads, "rays": r.rays, "query": r.query.name()});
+        for (name, slow, fast) in RATIOS {
+            if let (Some(s), Some(f)) = (find(rows, r, slow), find(rows, r, fast)) {
+                // T_slow / T_fast = throughput_fast / throughput_slow.
+                entry[name] = json!(f / s);
+            }
+        }
+        out.push(entry);
+    }
+    out
+}
+
+fn print_layout_tables(sizes: &[Value], rows: &[Row], layouts: &[Layout]) {
+    outln!(
+        "{:<12} {:<18} {:>10} {:>12} {:>8} {:>10} {:>10} {:>10}",
+        "scene",
+        "layout",
+        "nodes",
+        "node bytes",
+        "B/prim",
+        "nodes/ray",
+        "boxes/ray",
+        "prims/ray"
+    );
+    let f = |v: &Value| v.as_f64().unwrap_or(f64::NAN);
+    for s in sizes {
+        outln!(
+            "{:<12} {:<18} {:>10} {:>12} {:>8.2} {:>10.1} {:>10.1} {:>10.1}",
+            s["scene"].as_str().unwrap_or(""),
+            s["layout"].as_str().unwrap_or(""),
+            s["nodes"],
+            s["node_bytes"],
+            f(&s["node_bytes_per_prim"]),
+            f(&s["nodes_per_ray"]),
+            f(&s["box_tests_per_ray"]),
+            f(&s["prim_tests_per_ray"]),
+        );
+    }
+    outln!("(work per random closest-hit ray; node visits include leaves)");
+    outln!();
+    out!(
+        "{:<12} {:>3} {:<7} {:<8}",
+        "Mrays/s",
+        "thr",
+        "rays",
+        "query"
+    );
+    for l in layouts {
+        out!(" {:>8}", short(*l));
+    }
+    outln!();
+    for r in rows.iter().filter(|r| r.layout == layouts[0]) {
+        row_head(r);
+        for &l in layouts {
+            out!(" {:>8.2}", find(rows, r, l).unwrap_or(f64::NAN));
+        }
+        outln!();
+    }
+    outln!();
+    out!(
+        "{:<12} {:>3} {:<7} {:<8}",
+        "time ratio",
+        "thr",
+        "rays",
+        "query"
+    );
+    for (name, ..) in RATIOS {
+        out!(" {name:>16}");
+    }
+    outln!();
+    for r in rows.iter().filter(|r| r.layout == layouts[0]) {
+        row_head(r);
+        for (_, slow, fast) in RATIOS {
+            match (find(rows, r, slow), find(rows, r, fast)) {
+                (Some(s), Some(f)) => out!(" {:>16.3}", f / s),
+                _ => out!(" {:>16}", "-"),
+            }
+        }
+        outln!();
+    }
+}
+
+/// The scene, threads, ray kind and query that start each row of the layout tables.
+fn row_head(r: &Row) {
+    out!(
+        "{:<12} {:>3} {:<7} {:<8}",
+        r.scene,
+        r.threads,
+        r.rays,
+        r.query.name()
+    );
+}
+
+/// Column header for a layout: its name without the common prefix noise.
+fn short(l: Layout) -> &'static str {
+    match l {
+        Layout::Bvh2Dfs => "2-dfs",
+        Layout::Bvh2Bfs => "2-bfs",
+        Layout::Bvh2Shuffled => "2-shuf",
+        Layout::Bvh2Subtree => "2-sub",
+        Layout::Bvh2SubtreePage => "2-subpg",
+        Layout::Bvh2Compact => "2-cmp",
+        Layout::Bvh2CompactPage => "2-cmppg",
+        Layout::Bvh4Dfs => "4-dfs",
+        Layout::Bvh4Subtree => "4-sub",
+        Layout::Bvh4Quant => "4-quant",
+    }
+}

@@ -1,0 +1,44 @@
+//! Helpers every test module shares: thread pools, builds, reference answers, small inputs.
+
+use glam::Vec3A;
+use quiver::{reference, BuildOptions, Bvh, Hit, Layout, Primitive, Ray, Triangle};
+use rayon::prelude::*;
+
+/// The 4-wide layouts: the ones with a packet kernel.
+pub const WIDE: [Layout; 3] = [Layout::Bvh4Dfs, Layout::Bvh4Subtree, Layout::Bvh4Quant];
+
+/// Runs `f` on a fresh pool of `threads` threads.
+pub fn in_pool<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .expect("a thread pool")
+        .install(f)
+}
+
+/// A BVH over `prims` in `layout`, every other option default.
+pub fn build<P: Primitive>(prims: &[P], layout: Layout) -> Bvh<P> {
+    BuildOptions::default().layout(layout).build(prims)
+}
+
+/// The brute-force reference's closest hit for every ray (in parallel).
+pub fn reference_hits<P: Primitive>(prims: &[P], rays: &[Ray]) -> Vec<Option<Hit>> {
+    rays.par_iter()
+        .map(|r| reference::closest_hit(prims, r))
+        .collect()
+}
+
+/// The fraction of answers that are hits.
+pub fn hit_fraction(hits: &[Option<Hit>]) -> f64 {
+    hits.iter().filter(|h| h.is_some()).count() as f64 / hits.len().max(1) as f64
+}
+
+/// A triangle from three coordinate triples.
+pub fn tri(a: [f32; 3], b: [f32; 3], c: [f32; 3]) -> Triangle {
+    Triangle::new(a.into(), b.into(), c.into())
+}
+
+/// The triangle (0,0,0), (1,0,0), (0,1,0).
+pub fn unit_tri() -> Triangle {
+    Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y)
+}

@@ -1,0 +1,15 @@
+//! quiver's integration tests, one crate: every module below tests one part of the pipeline
+//! against an oracle (the brute-force reference, the single-ray kernel, obvhs, the SPD's
+//! published counts, exact geometry). Shared helpers live in `common`.
+
+mod common;
+
+mod build;
+mod equivalence;
+mod fuzz_regressions;
+mod hard_cases;
+mod mixed;
+mod obvhs;
+mod packets;
+mod render;
+mod scenes;

@@ -1,0 +1,292 @@
+//! Packet traversal of 4-wide BVHs: up to [`PACKET_RAYS`] coherent rays walk the tree
+//! together, so a node is fetched once per packet instead of once per ray.
+//!
+//! The walk follows the *first active ray* (Wald, Boulos and Shirley, "Ray Tracing Deformable
+//! Scenes Using Dynamic Bounding Volume Hierarchies", 2007): every stack entry carries the
+//! index of the first ray that enters its box, and a mask of the rays that may. A node's
+//! children are tested against the first ray alone (one 4-wide test); a child it misses is
+//! tested against the node's other candidate rays, which yields the child's exact candidate
+//! mask, so searches shrink as the packet spreads out; a child no candidate enters is skipped.
+//! Before those searches an interval-arithmetic bound over all the packet's origins and
+//! directions (the cull test) rejects, in one 4-wide test, the children no ray of the packet
+//! can enter. At a leaf each primitive runs its own packet test over the rays that enter it
+//! (triangles: 8 rays at a time in `f32x8` lanes). A packet whose rays turn out to share
+//! almost no leaves (fewer than two rays per leaf visit on average) hands its remaining rays
+//! to the single-ray walk, each starting from the subtrees still stacked.
+//!
+//! Every per-ray computation (slab test, triangle test, tie break) is the single-ray kernel's
+//! operation for operation, so each ray gets exactly the single-ray answer. Incoherent rays
+//! gain nothing from sharing nodes and pay for the searches; [`PacketMode::Auto`] sends such
+//! packets down the single-ray kernel instead.
+//!
+//! The pieces, one idea a file: [`bound`] (the cull test), [`lanes`] (rays in SIMD lanes and
+//! their slab tests), [`walk`] (the first-active-ray walk and the hand-over to single rays),
+//! [`leaves`] (leaf tests, the triangle's 8-lane test); this file is the entry point.
+
+mod bound;
+mod lanes;
+mod leaves;
+mod walk;
+
+pub(crate) use lanes::RayPacket;
+pub(crate) use leaves::triangles_packet;
+pub use leaves::PacketLeaf;
+
+use super::bvh4::{self, WideNode};
+use super::query::RayQuery;
+use super::{BoxTest, Stats};
+use crate::geometry::{Hit, Primitive, Ray};
+
+/// Rays per packet. Longer inputs are cut into packets of this size.
+pub const PACKET_RAYS: usize = 64;
+/// Rays per SIMD chunk.
+const LANES: usize = 8;
+/// SIMD chunks per packet.
+const CHUNKS: usize = PACKET_RAYS / LANES;
+
+/// How a packet query chooses between packet and single-ray traversal.
+///
+/// ```
+/// use quiver::traverse::PacketMode;
+/// assert_eq!(PacketMode::default(), PacketMode::Auto);
+/// ```
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum PacketMode {
+    /// Packets of coherent rays (every direction within about 25° of the first active ray's,
+    /// at least four active rays) go down the packet kernel; others are traced ray by ray.
+    /// Rays that point alike but scatter anyway (shadow rays from far-apart points of fine
+    /// geometry) are handed to the single-ray walk once the packet sees it, which keeps them
+    /// near, though not always at, single-ray speed (README, "Packets").
+    #[default]
+    Auto,
+    /// Always the packet kernel, however incoherent the rays (for tests and measurements).
+    Always,
+    /// Always ray by ray (the single-ray kernel behind the packet interface).
+    Never,
+}
+
+/// Smallest cosine between a packet ray and the first active ray for [`PacketMode::Auto`] to
+/// take the packet path.
+const COHERENT_COS: f32 = 0.9;
+
+/// Bit mask of the rays to trace in one packet of `n` rays.
+fn active_bits(n: usize, active: Option<&[bool]>) -> u64 {
+    match active {
+        None if n == 64 => u64::MAX,
+        None => (1u64 << n) - 1,
+        Some(a) => a
+            .iter()
+            .enumerate()
+            .fold(0, |m, (i, &on)| m | (on as u64) << i),
+    }
+}
+
+/// Whether the active rays point closely enough the same way for a packet to pay: sampled
+/// directions within `acos(COHERENT_COS)` of the first active ray's, tested without square
+/// roots or divisions (the check runs once per packet, on the fast path).
+fn coherent(rays: &[Ray], active: u64) -> bool {
+    if active.count_ones() < 4 {
+        return false;
+    }
+    let d0 = rays[active.trailing_zeros() as usize].dir;
+    let (l0, c2) = (d0.length_squared(), COHERENT_COS * COHERENT_COS);
+    // Every fourth ray and the last: the answer only picks the faster path (both give the
+    // same hits), so a sample suffices and keeps the check cheap.
+    (0..rays.len())
+        .filter(|&i| active >> i & 1 == 1 && (i % 4 == 0 || i + 1 == rays.len()))
+        .all(|i| {
+            let d = rays[i].dir;
+            let dot = d.dot(d0);
+            // False for NaN: such packets go ray by ray.
+            dot > 0.0 && dot * dot >= c2 * l0 * d.length_squared()
+        })
+}
+
+/// Cuts `rays` into packets and hands each to `run(rays, active bits, use packets, out)`,
+/// after checking lengths and deciding by `mode` whether the packet path pays.
+#[inline(always)]
+fn each_packet<T>(
+    rays: &[Ray],
+    active: Option<&[bool]>,
+    mode: PacketMode,
+    out: &mut [T],
+    mut run: impl FnMut(&[Ray], u64, bool, &mut [T]),
+) {
+    assert_eq!(rays.len(), out.len(), "one answer slot per ray");
+    if let Some(a) = active {
+        assert_eq!(rays.len(), a.len(), "one active flag per ray");
+    }
+    for (c, (rays, out)) in rays
+        .chunks(PACKET_RAYS)
+        .zip(out.chunks_mut(PACKET_RAYS))
+        .enumerate()
+    {
+        let from = c * PACKET_RAYS;
+        let on = active_bits(rays.len(), active.map(|a| &a[from..from + rays.len()]));
+        let packet = match mode {
+            PacketMode::Always => true,
+            PacketMode::Never => false,
+            PacketMode::Auto => coherent(rays, on),
+        };
+        run(rays, on, packet, out);
+    }
+}
+
+/// Closest hits of any number of rays, packet by packet, over one 4-wide node format.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+pub(crate) fn closest_rays<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
+    nodes: &[N],
+    prims: &[P],
+    ids: &[u32],
+    rays: &[Ray],
+    active: Option<&[bool]>,
+    mode: PacketMode,
+    hits: &mut [Option<Hit>],
+    stats: &mut S,
+) {
+    each_packet(rays, active, mode, hits, |rays, on, packet, hits| {
+        if packet {
+            let mut pk = RayPacket::new(rays, on);
+            let mut best = [Hit::none(0.0); PACKET_RAYS];
+            for (b, r) in best.iter_mut().zip(rays) {
+                *b = Hit::none(r.t_max);
+            }
+            leaves::closest_packet::<N, B, P, S>(
+                nodes, prims, ids, rays, &mut pk, &mut best, stats,
+            );
+            for (i, (h, b)) in hits.iter_mut().zip(best).enumerate() {
+                *h = if on >> i & 1 == 1 { b.found() } else { None };
+            }
+        } else {
+            for (i, (h, r)) in hits.iter_mut().zip(rays).enumerate() {
+                *h = if on >> i & 1 == 1 {
+                    bvh4::closest::<N, B, P, S>(nodes, prims, ids, r, stats)
+                } else {
+                    None
+                };
+            }
+        }
+    });
+}
+
+/// Any-hit answers of any number of rays, packet by packet, over one 4-wide node format.
+#[inline(always)]
+pub(crate) fn any_rays<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
+    nodes: &[N],
+    prims: &[P],
+    rays: &[Ray],
+    active: Option<&[bool]>,
+    mode: PacketMode,
+    occluded: &mut [bool],
+    stats: &mut S,
+) {
+    each_packet(rays, active, mode, occluded, |rays, on, packet, out| {
+        out.fill(false);
+        if packet {
+            let mut pk = RayPacket::new(rays, on);
+            leaves::any_packet::<N, B, P, S>(nodes, prims, rays, &mut pk, out, stats);
+        } else {
+            for (i, (o, r)) in out.iter_mut().zip(rays).enumerate() {
+                *o = on >> i & 1 == 1 && bvh4::any::<N, B, P, S>(nodes, prims, r, stats);
+            }
+        }
+    });
+}
+
+/// The packet closest-hit query of a structure without a packet kernel: each active ray
+/// through `q`'s single-ray query, inactive ones `None`. `mode` is ignored.
+///
+/// # Panics
+/// When `hits` or `active` differ in length from `rays`.
+#[inline]
+pub fn closest_ray_by_ray<Q: RayQuery + ?Sized, B: BoxTest, S: Stats>(
+    q: &Q,
+    rays: &[Ray],
+    active: Option<&[bool]>,
+    hits: &mut [Option<Hit>],
+    stats: &mut S,
+) {
+    each_packet(
+        rays,
+        active,
+        PacketMode::Never,
+        hits,
+        |rays, on, _, hits| {
+            for (i, (h, r)) in hits.iter_mut().zip(rays).enumerate() {
+                *h = (on >> i & 1 == 1)
+                    .then(|| q.closest_hit_with::<B, S>(r, stats))
+                    .flatten();
+            }
+        },
+    );
+}
+
+/// The packet any-hit query of a structure without a packet kernel (see
+/// [`closest_ray_by_ray`]).
+///
+/// # Panics
+/// When `occluded` or `active` differ in length from `rays`.
+#[inline]
+pub fn any_ray_by_ray<Q: RayQuery + ?Sized, B: BoxTest, S: Stats>(
+    q: &Q,
+    rays: &[Ray],
+    active: Option<&[bool]>,
+    occluded: &mut [bool],
+    stats: &mut S,
+) {
+    each_packet(
+        rays,
+        active,
+        PacketMode::Never,
+        occluded,
+        |rays, on, _, out| {
+            for (i, (o, r)) in out.iter_mut().zip(rays).enumerate() {
+                *o = on >> i & 1 == 1 && q.any_hit_with::<B, S>(r, stats);
+            }
+        },
+    );
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec3A;
+
+    fn fan(n: usize, spread: f32) -> Vec<Ray> {
+        (0..n)
+            .map(|i| {
+                let a = spread * (i as f32 / n as f32 - 0.5);
+                Ray::new(Vec3A::ZERO, Vec3A::new(a.sin(), 0.0, a.cos()))
+            })
+            .collect()
+    }
+
+    #[test]
+    fn active_bits_cover_partial_and_full_packets() {
+        assert_eq!(active_bits(64, None), u64::MAX);
+        assert_eq!(active_bits(63, None), u64::MAX >> 1);
+        assert_eq!(active_bits(1, None), 1);
+        let flags: Vec<bool> = (0..64).map(|i| i == 0 || i == 63).collect();
+        assert_eq!(active_bits(64, Some(&flags)), 1 | 1 << 63);
+    }
+
+    #[test]
+    fn the_coherence_threshold_is_about_25_degrees_from_the_first_ray() {
+        // acos(0.9) = 25.8°. The last ray of a fan of spread s is s · 63/64 from the first.
+        let deg = std::f32::consts::PI / 180.0;
+        assert!(coherent(&fan(64, 25.0 * deg), u64::MAX));
+        assert!(!coherent(&fan(64, 27.0 * deg), u64::MAX));
+        // Measured from the first active ray: rays 24..=40 of an 80° fan span 20°.
+        let wide = fan(64, 80.0 * deg);
+        assert!(!coherent(&wide, u64::MAX));
+        assert!(coherent(&wide, ((1u64 << 17) - 1) << 24));
+        // Fewer than four active rays never pay; opposite and NaN directions are incoherent.
+        assert!(!coherent(&fan(64, 0.0), 0b111));
+        let mut back = fan(64, 0.0);
+        back[4].dir = -back[4].dir;
+        assert!(!coherent(&back, u64::MAX));
+        back[4].dir = Vec3A::NAN;
+        assert!(!coherent(&back, u64::MAX));
+    }
+}

@@ -1,0 +1,125 @@
+//! [`RayQuery`]: the one interface every traversable structure answers.
+
+use super::{BoxTest, ConservativeBoxes, Counters, NoStats, PacketMode, Stats};
+use crate::geometry::{Hit, Ray};
+
+/// Ray queries: closest hit and any hit, one ray at a time or in packets.
+///
+/// Every layout ([`crate::Bvh2`], [`crate::layout::Bvh4`], [`crate::layout::QBvh4`]), the
+/// layout-erased [`crate::Bvh`], and quiver-scenes' `SceneBvh` implement it. An implementor
+/// writes the four `*_with` methods, generic over the box test ([`BoxTest`]) and a statistics
+/// sink ([`Stats`]); the short forms (`closest_hit`, `any_hit`, the counted and packet forms)
+/// come with the trait and use the conservative box test.
+///
+/// Answers follow the rules in [`crate::geometry`]: the interval `[t_min, t_max]` is closed,
+/// and among hits at equal distance the lowest primitive index wins, so every implementor
+/// returns the same hit for the same ray.
+///
+/// ```
+/// use quiver::{Bvh, Ray, RayQuery, Triangle};
+/// use quiver::traverse::Counters;
+/// use glam::Vec3A;
+/// let tris = [Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y)];
+/// let bvh = Bvh::new(&tris);
+/// let ray = Ray::new(Vec3A::new(0.25, 0.25, 1.0), -Vec3A::Z);
+/// assert_eq!(bvh.closest_hit(&ray).map(|h| h.t), Some(1.0));
+/// assert!(bvh.any_hit(&ray));
+/// let mut work = Counters::default();
+/// bvh.closest_hit_counted(&ray, &mut work);
+/// assert_eq!(work.prim_tests, 1);
+/// ```
+pub trait RayQuery {
+    /// The nearest hit along `ray`, with the box test `B`, reporting work to `stats`.
+    fn closest_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> Option<Hit>;
+
+    /// Whether anything is hit within the ray's interval (stops at the first hit), with the
+    /// box test `B`, reporting work to `stats`.
+    fn any_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> bool;
+
+    /// Closest hits of `rays` into `hits` (same length), in packets of
+    /// [`super::PACKET_RAYS`] where `mode` and the layout allow: only rays whose `active` flag
+    /// is set are traced (the others get `None`). Each answer is exactly
+    /// [`RayQuery::closest_hit_with`]'s for that ray. `stats` counts packet node visits, not
+    /// per-ray ones.
+    ///
+    /// # Panics
+    /// When `hits` or `active` differ in length from `rays`.
+    fn closest_hit_packet_with<B: BoxTest, S: Stats>(
+        &self,
+        rays: &[Ray],
+        active: Option<&[bool]>,
+        mode: PacketMode,
+        hits: &mut [Option<Hit>],
+        stats: &mut S,
+    );
+
+    /// Any-hit answers of `rays` into `occluded` (inactive rays get `false`); see
+    /// [`RayQuery::closest_hit_packet_with`].
+    ///
+    /// # Panics
+    /// When `occluded` or `active` differ in length from `rays`.
+    fn any_hit_packet_with<B: BoxTest, S: Stats>(
+        &self,
+        rays: &[Ray],
+        active: Option<&[bool]>,
+        mode: PacketMode,
+        occluded: &mut [bool],
+        stats: &mut S,
+    );
+
+    /// The nearest hit along `ray` (lowest primitive index on ties).
+    #[inline]
+    fn closest_hit(&self, ray: &Ray) -> Option<Hit> {
+        self.closest_hit_with::<ConservativeBoxes, _>(ray, &mut NoStats)
+    }
+
+    /// True when anything is hit within the ray's interval; stops at the first hit.
+    #[inline]
+    fn any_hit(&self, ray: &Ray) -> bool {
+        self.any_hit_with::<ConservativeBoxes, _>(ray, &mut NoStats)
+    }
+
+    /// [`RayQuery::closest_hit`], adding what the traversal did to `counters`.
+    #[inline]
+    fn closest_hit_counted(&self, ray: &Ray, counters: &mut Counters) -> Option<Hit> {
+        self.closest_hit_with::<ConservativeBoxes, _>(ray, counters)
+    }
+
+    /// [`RayQuery::any_hit`], adding what the traversal did to `counters`.
+    #[inline]
+    fn any_hit_counted(&self, ray: &Ray, counters: &mut Counters) -> bool {
+        self.any_hit_with::<ConservativeBoxes, _>(ray, counters)
+    }
+
+    /// Closest hits of `rays` into `hits` (same length), traced in packets where they are
+    /// coherent ([`PacketMode::Auto`]).
+    ///
+    /// # Panics
+    /// When `hits` and `rays` differ in length.
+    #[inline]
+    fn closest_hit_packet(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
+        self.closest_hit_packet_with::<ConservativeBoxes, _>(
+            rays,
+            None,
+            PacketMode::Auto,
+            hits,
+            &mut NoStats,
+        )
+    }
+
+    /// Whether each ray hits anything within its interval, into `occluded`, in packets where
+    /// the rays are coherent.
+    ///
+    /// # Panics
+    /// When `occluded` and `rays` differ in length.
+    #[inline]
+    fn any_hit_packet(&self, rays: &[Ray], occluded: &mut [bool]) {
+        self.any_hit_packet_with::<ConservativeBoxes, _>(
+            rays,
+            None,
+            PacketMode::Auto,
+            occluded,
+            &mut NoStats,
+        )
+    }
+}
