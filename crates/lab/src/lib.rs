@@ -1,4 +1,10 @@
-//! quiver-lab: quiver's harness.
+//! quiver-lab: quiver's harness, apart from the library an embedder uses. Deterministic ray
+//! sets ([`rays`]), parallel tracing and interleaved median timing ([`measure`]), the
+//! accuracy study ([`accuracy`]), the checks the fuzz targets run ([`checks`]) and quiver's
+//! data in obvhs's terms ([`obvhs_bridge`]). The integration tests (`tests/suite`) and the
+//! criterion benches (`benches/`) live in this crate.
+
+#![warn(missing_docs)]
 
 pub mod accuracy;
 pub mod checks;

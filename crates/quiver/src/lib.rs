@@ -24,7 +24,7 @@
 //! [`traverse`] (single-ray and packet kernels, closest and any hit, statistics).
 //! [`Bvh::new`] and [`BuildOptions`] run the first two; [`geometry`] holds rays, boxes,
 //! triangles and hit records, [`intersect`] the watertight and exact triangle tests, and
-//! [`reference`] the brute-force oracle every kernel is tested against.
+//! [`mod@reference`] the brute-force oracle every kernel is tested against.
 //!
 //! This crate depends only on glam, wide, rayon and bytemuck. Scenes (the SPD generators,
 //! NFF and OBJ files), analytic shapes and the SPD renderer live in `quiver-scenes`; the

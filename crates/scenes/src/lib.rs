@@ -1,4 +1,23 @@
-//! quiver-scenes: scenes for quiver.
+//! quiver-scenes: what quiver traces. Eric Haines' Standard Procedural Databases (all ten
+//! generators, curve and patch mode), NFF and OBJ files, a seeded triangle soup; the SPD's
+//! analytic shapes as quiver primitives; a scene's BVH ([`accel::SceneBvh`]); and the
+//! Whitted renderer that follows the SPD testing procedure ([`render`]).
+//!
+//! ```
+//! use quiver::{BuildOptions, RayQuery};
+//! use quiver_scenes::{accel::SceneBvh, Scene};
+//! let scene = Scene::load("balls2").unwrap(); // 91 spheres and a floor polygon
+//! let bvh = SceneBvh::build(&scene, &BuildOptions::default());
+//! let ray = scene.camera.ray(0.0, 0.0);
+//! let hit = bvh.closest_hit(&ray).unwrap();
+//! let object = &scene.objects[bvh.object_of(hit.prim) as usize];
+//! assert!(bvh.normal(&ray, &hit).is_normalized());
+//! # let _ = object;
+//! ```
+//!
+//! OBJ loading needs the default `obj` feature (tobj).
+
+#![warn(missing_docs)]
 
 pub mod accel;
 pub mod primitive;

@@ -6,7 +6,7 @@ use bytemuck::{Pod, Zeroable};
 
 /// A binary BVH node: 32 bytes, two to a 64-byte cache line.
 ///
-/// Leaf: `link` is the first triangle, `count` is [`Bvh2Node::LEAF`] | triangle count. Inner
+/// Leaf: `link` is the first primitive, `count` is [`Bvh2Node::LEAF`] | primitive count. Inner
 /// node, by [`Bvh2Mapping`]: depth-first stores the right child in `link` (the left child
 /// follows its parent) and 0 in `count`; the other mappings store the left child in `link` and
 /// the right in `count`, except that inside a compact block `count` is 0 and `link` holds the
@@ -16,7 +16,7 @@ use bytemuck::{Pod, Zeroable};
 pub struct Bvh2Node {
     /// Lower corner of the box.
     pub min: [f32; 3],
-    /// Right child (inner) or first triangle (leaf).
+    /// Right child (inner) or first primitive (leaf).
     pub link: u32,
     /// Upper corner of the box.
     pub max: [f32; 3],
@@ -58,7 +58,7 @@ impl Bvh2Node {
     }
 }
 
-/// Where a [`Bvh2`]'s nodes sit in memory (Havran's mappings; see [`super::order`]).
+/// Where a [`Bvh2`]'s nodes sit in memory (Havran's mappings).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Bvh2Mapping {
     /// Depth-first preorder: the left child follows its parent; only the right child's index
@@ -126,7 +126,7 @@ impl Bvh2Mapping {
     }
 }
 
-/// A binary BVH over triangles: 32-byte nodes in the chosen [`Bvh2Mapping`], triangles copied
+/// A binary BVH over triangles (or any `P`): 32-byte nodes in the chosen [`Bvh2Mapping`], primitives copied
 /// into leaf order so a leaf is a contiguous run the intersector reads directly.
 ///
 /// ```
@@ -274,7 +274,7 @@ pub(crate) fn compact_children(i: usize, h: u32) -> (usize, usize) {
     (i + p, i + p + 1)
 }
 
-/// The input triangles in the order the leaves reference them.
+/// The input primitives in the order the leaves reference them.
 pub(crate) fn leaf_order<P: Primitive>(tree: &BuildTree, prims: &[P]) -> Vec<P> {
     use rayon::prelude::*;
     tree.prim_indices

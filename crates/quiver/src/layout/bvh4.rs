@@ -154,16 +154,16 @@ fn arrange(wide: &[Wide], mapping: Bvh4Mapping, node_size: usize) -> (Vec<u32>, 
 ///
 /// The four child boxes are stored as six SIMD rows (min x, y, z, then max x, y, z; one lane
 /// per child). Child `i`: `count[i] == 0` means an inner child at node index `child[i]`;
-/// otherwise it is a leaf of `count[i] & !LEAF` triangles from `child[i]`. Unused slots are
+/// otherwise it is a leaf of `count[i] & !LEAF` primitives from `child[i]`. Unused slots are
 /// empty leaves with an empty (inverted) box that no ray enters.
 #[repr(C, align(64))]
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 pub struct Bvh4Node {
     /// `[min_x, min_y, min_z, max_x, max_y, max_z]`, one lane per child.
     pub planes: [[f32; 4]; 6],
-    /// Child node index (inner) or first triangle (leaf).
+    /// Child node index (inner) or first primitive (leaf).
     pub child: [u32; 4],
-    /// 0 for an inner child, [`Bvh4Node::LEAF`] | triangle count for a leaf.
+    /// 0 for an inner child, [`Bvh4Node::LEAF`] | primitive count for a leaf.
     pub count: [u32; 4],
 }
 
@@ -304,7 +304,7 @@ impl<P: Primitive, N: Node4> Bvh4<P, N> {
 /// outward and is checked in the same f32 arithmetic the traversal uses, so a decoded box
 /// always contains the exact one: traversal may enter more boxes, never fewer. Child `i`:
 /// `count[i] == 0` is an inner child at node `child[i]`, otherwise a leaf of `count[i]`
-/// triangles from `child[i]`. Unused slots decode to an inverted box no ray enters, and carry
+/// primitives from `child[i]`. Unused slots decode to an inverted box no ray enters, and carry
 /// `child[i] == u32::MAX`.
 #[repr(C, align(64))]
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
@@ -317,9 +317,9 @@ pub struct QBvh4Node {
     pub pad: u8,
     /// `[min_x, min_y, min_z, max_x, max_y, max_z]` in steps from `origin`, one byte per child.
     pub q: [[u8; 4]; 6],
-    /// Child node index (inner) or first triangle (leaf).
+    /// Child node index (inner) or first primitive (leaf).
     pub child: [u32; 4],
-    /// 0 for an inner child, else the leaf's triangle count.
+    /// 0 for an inner child, else the leaf's primitive count.
     pub count: [u16; 4],
 }
 
@@ -466,6 +466,78 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// A hand-made binary tree: root → A (inner: leaf 0, A2) and B (inner: leaves 3, 4), with
+    /// A2 (inner: leaves 1, 2). `a2` and `b` are the edge lengths of A2's and B's cubes.
+    fn tree(a2: f32, b: f32) -> BuildTree {
+        use crate::build::BuildNode;
+        let cube = |e: f32| Aabb::new(Vec3A::ZERO, Vec3A::splat(e));
+        let inner = |e: f32, left: u32, right: u32| BuildNode {
+            bounds: cube(e),
+            kind: NodeKind::Inner { left, right },
+        };
+        let leaf = |first: u32| BuildNode {
+            bounds: cube(0.1 * (first + 1) as f32),
+            kind: NodeKind::Leaf { first, count: 1 },
+        };
+        BuildTree {
+            nodes: vec![
+                inner(10.0, 1, 6),
+                inner(9.0, 2, 3),
+                leaf(0),
+                inner(a2, 4, 5),
+                leaf(1),
+                leaf(2),
+                inner(b, 7, 8),
+                leaf(3),
+                leaf(4),
+            ],
+            prim_indices: (0..5).collect(),
+            dropped: 0,
+        }
+    }
+
+    fn leaf(first: u32) -> Child {
+        Child::Leaf { first, count: 1 }
+    }
+
+    #[test]
+    fn collapse_opens_the_inner_child_of_largest_area_first() {
+        // Root's children A (area 9²) and B: A is opened first. Then A2 or B, whichever is
+        // larger, is opened; the other stays an inner child with its own wide node.
+        let wide = collapse(&tree(5.0, 2.0));
+        assert_eq!(wide.len(), 2);
+        assert_eq!(wide[0].kids, [leaf(0), leaf(1), leaf(2), Child::Inner(1)]);
+        assert_eq!(wide[1].kids, [leaf(3), leaf(4), Child::Empty, Child::Empty]);
+        let wide = collapse(&tree(2.0, 5.0));
+        assert_eq!(wide[0].kids, [leaf(0), Child::Inner(1), leaf(3), leaf(4)]);
+        assert_eq!(wide[1].kids, [leaf(1), leaf(2), Child::Empty, Child::Empty]);
+        // Each slot's box is its binary node's box; unused slots are empty boxes.
+        let t = tree(2.0, 5.0);
+        let b = |n: usize| t.nodes[n].bounds;
+        assert_eq!(wide[0].boxes, [b(2), b(3), b(7), b(8)]);
+        assert_eq!(wide[1].boxes, [b(4), b(5), Aabb::EMPTY, Aabb::EMPTY]);
+    }
+
+    #[test]
+    fn a_leaf_root_collapses_to_one_node_and_an_empty_tree_to_an_empty_node() {
+        let one = BuildTree {
+            nodes: vec![crate::build::BuildNode {
+                bounds: Aabb::new(Vec3A::ZERO, Vec3A::ONE),
+                kind: NodeKind::Leaf { first: 0, count: 3 },
+            }],
+            prim_indices: vec![0, 1, 2],
+            dropped: 0,
+        };
+        let wide = collapse(&one);
+        assert_eq!(wide.len(), 1);
+        assert_eq!(wide[0].kids[0], Child::Leaf { first: 0, count: 3 });
+        assert_eq!(wide[0].kids[1..], [Child::Empty; 3]);
+        let empty = crate::build::build(&[], &Default::default(), crate::build::Builder::Binned);
+        let wide = collapse(&empty);
+        assert_eq!(wide.len(), 1);
+        assert_eq!(wide[0].kids, [Child::Empty; 4]);
     }
 
     #[test]

@@ -113,7 +113,7 @@ where
     }
 }
 
-/// Visits the leaves the ray may hit, nearer child first. `leaf(triangles, t_limit, stats)`
+/// Visits the leaves the ray may hit, nearer child first. `leaf(primitives, t_limit, stats)`
 /// tests a leaf, may lower `t_limit` (boxes entered beyond it are skipped; a box entered
 /// exactly at it is still visited, so ties are seen) and returns true to stop.
 #[inline(always)]

@@ -61,7 +61,7 @@ impl Ray4 {
     }
 }
 
-/// Stack entry: (node or first triangle, leaf count or 0, entry distance).
+/// Stack entry: (node or first primitive, leaf count or 0, entry distance).
 type Entry = (u32, u32, f32);
 
 /// The 4-wide walk, shared by both node formats, over the subtree of inner node `root`,

@@ -1,5 +1,5 @@
 //! Ray queries: the [`RayQuery`] trait, the BVH traversal kernels behind it, and the
-//! brute-force [`reference`] every kernel is checked against.
+//! brute-force [`mod@reference`] every kernel is checked against.
 //!
 //! - `bvh2`: single rays over binary nodes in any memory mapping;
 //! - `bvh4`: single rays over 4-wide nodes (exact or quantized), four boxes per SIMD test;
@@ -20,8 +20,8 @@ pub use stats::{Counters, NoStats, Stats};
 
 use crate::geometry::{Hit, Primitive, Ray};
 
-/// Tests a leaf's triangles for the closest hit, updating `best`; `prim_ids` gives each
-/// triangle's input index. Returns true when `best` changed.
+/// Tests a leaf's primitives for the closest hit, updating `best`; `prim_ids` gives each
+/// primitive's input index. Returns true when `best` changed.
 #[inline(always)]
 pub(crate) fn leaf_closest_hit<P: Primitive, S: Stats>(
     tris: &[P],
@@ -55,7 +55,7 @@ pub(crate) fn leaf_closest_hit<P: Primitive, S: Stats>(
     found
 }
 
-/// Tests a leaf's triangles until one is hit.
+/// Tests a leaf's primitives until one is hit.
 #[inline(always)]
 pub(crate) fn leaf_any_hit<P: Primitive, S: Stats>(tris: &[P], ray: &Ray, stats: &mut S) -> bool {
     for (i, tri) in tris.iter().enumerate() {

@@ -92,7 +92,29 @@ pub trait RayQuery {
     }
 
     /// Closest hits of `rays` into `hits` (same length), traced in packets where they are
-    /// coherent ([`PacketMode::Auto`]).
+    /// coherent ([`PacketMode::Auto`]). Each answer is exactly [`RayQuery::closest_hit`]'s.
+    ///
+    /// ```
+    /// use quiver::{reference, Bvh, Ray, RayQuery, Triangle};
+    /// use glam::Vec3A;
+    /// let tris: Vec<Triangle> = (0..64)
+    ///     .map(|i| {
+    ///         let o = Vec3A::new((i % 8) as f32, (i / 8) as f32, 0.0);
+    ///         Triangle::new(o, o + Vec3A::X, o + Vec3A::Y)
+    ///     })
+    ///     .collect();
+    /// let bvh = Bvh::new(&tris);
+    /// // 64 parallel rays over the grid: one coherent packet.
+    /// let rays: Vec<Ray> = (0..64)
+    ///     .map(|i| Ray::new(Vec3A::new(i as f32 / 8.0, 3.3, 1.0), -Vec3A::Z))
+    ///     .collect();
+    /// let mut hits = vec![None; rays.len()];
+    /// bvh.closest_hit_packet(&rays, &mut hits);
+    /// for (ray, hit) in rays.iter().zip(&hits) {
+    ///     assert_eq!(*hit, reference::closest_hit(&tris, ray));
+    /// }
+    /// assert!(hits.iter().filter(|h| h.is_some()).count() > 10);
+    /// ```
     ///
     /// # Panics
     /// When `hits` and `rays` differ in length.

@@ -1,6 +1,6 @@
-//! Scene sources: the SPD generators (so far `tetra`), a seeded random triangle soup, and OBJ
-//! files. A scene argument is either a generator name with an optional size (`tetra6`,
-//! `tetra`, `soup100000`) or a path ending in `.obj`.
+//! Scene sources: the ten SPD generators ([`GENERATORS`]), a seeded random triangle soup,
+//! NFF files and OBJ files. A scene argument is either a generator name with an optional size
+//! (`tetra6`, `balls`, `soup100000`) or a path ending in `.nff` or `.obj`.
 //!
 //! ```
 //! use quiver_scenes::scene::Scene;

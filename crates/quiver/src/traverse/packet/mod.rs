@@ -19,9 +19,9 @@
 //! gain nothing from sharing nodes and pay for the searches; [`PacketMode::Auto`] sends such
 //! packets down the single-ray kernel instead.
 //!
-//! The pieces, one idea a file: [`bound`] (the cull test), [`lanes`] (rays in SIMD lanes and
-//! their slab tests), [`walk`] (the first-active-ray walk and the hand-over to single rays),
-//! [`leaves`] (leaf tests, the triangle's 8-lane test); this file is the entry point.
+//! The pieces, one idea a file: `bound` (the cull test), `lanes` (rays in SIMD lanes and
+//! their slab tests), `walk` (the first-active-ray walk and the hand-over to single rays),
+//! `leaves` (leaf tests, the triangle's 8-lane test); `mod.rs` is the entry point.
 
 mod bound;
 mod lanes;
