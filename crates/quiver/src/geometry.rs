@@ -37,11 +37,13 @@ pub struct Ray {
 
 impl Ray {
     /// A ray over `[0, +inf]`.
+    #[inline]
     pub fn new(origin: Vec3A, dir: Vec3A) -> Self {
         Self::segment(origin, dir, 0.0, f32::INFINITY)
     }
 
     /// A ray over `[t_min, t_max]`.
+    #[inline]
     pub fn segment(origin: Vec3A, dir: Vec3A, t_min: f32, t_max: f32) -> Self {
         Ray {
             origin,
@@ -52,6 +54,7 @@ impl Ray {
     }
 
     /// The point at distance `t`.
+    #[inline]
     pub fn at(&self, t: f32) -> Vec3A {
         self.origin + self.dir * t
     }
@@ -83,6 +86,7 @@ impl Aabb {
     };
 
     /// The box spanned by two corners.
+    #[inline]
     pub fn new(min: Vec3A, max: Vec3A) -> Self {
         Aabb { min, max }
     }
@@ -104,11 +108,13 @@ impl Aabb {
     }
 
     /// True when both corners are finite (no NaN, no infinity).
+    #[inline]
     pub fn is_finite(&self) -> bool {
         self.min.is_finite() && self.max.is_finite()
     }
 
     /// True when the box contains no point.
+    #[inline]
     pub fn is_empty(&self) -> bool {
         self.min.cmpgt(self.max).any()
     }
@@ -134,6 +140,7 @@ impl Aabb {
 
     /// True when `other` lies inside this box (boundaries included). The empty box lies in
     /// every box.
+    #[inline]
     pub fn contains(&self, other: &Aabb) -> bool {
         other.is_empty() || (self.min.cmple(other.min).all() && other.max.cmple(self.max).all())
     }
@@ -172,6 +179,7 @@ pub struct PrimHit {
 
 impl Triangle {
     /// A triangle from its vertices.
+    #[inline]
     pub fn new(a: Vec3A, b: Vec3A, c: Vec3A) -> Self {
         Triangle { v: [a, b, c] }
     }
@@ -381,6 +389,7 @@ impl Hit {
 /// let q = offset_ray_origin(p, Vec3A::Z);
 /// assert!(q.z > p.z && q.x == p.x);
 /// ```
+#[inline]
 pub fn offset_ray_origin(p: Vec3A, n: Vec3A) -> Vec3A {
     const ORIGIN: f32 = 1.0 / 32.0;
     const FLOAT_SCALE: f32 = 1.0 / 65536.0;

@@ -138,6 +138,7 @@ impl Primitive for Exact {
         self.0.is_finite()
     }
 
+    #[inline]
     fn intersect(&self, ray: &Ray) -> Option<PrimHit> {
         let f = |p: Vec3A| DVec3::new(p.x as f64, p.y as f64, p.z as f64);
         let d = f(ray.dir);
