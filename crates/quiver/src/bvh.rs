@@ -4,8 +4,9 @@
 
 use crate::build::{build, prim_bounds, BuildConfig, BuildTree, Builder};
 use crate::geometry::{Hit, Primitive, Ray, Triangle};
+use crate::isa::Isa;
 use crate::layout::bvh2::leaf_order;
-use crate::layout::{Bvh2, Bvh4, Footprint, Layout, QBvh4};
+use crate::layout::{Bvh2, Bvh4, Bvh8, Footprint, Layout, QBvh4};
 use crate::mesh::{Mesh, MeshError};
 use crate::traverse::{BoxTest, PacketMode, RayQuery, Stats};
 use rayon::ThreadPool;
@@ -37,6 +38,8 @@ pub enum Bvh<P = Triangle> {
     Bvh4(Bvh4<P>),
     /// 4-wide quantized nodes.
     QBvh4(QBvh4<P>),
+    /// 8-wide exact nodes.
+    Bvh8(Bvh8<P>),
 }
 
 impl<P: Primitive> Bvh<P> {
@@ -47,9 +50,32 @@ impl<P: Primitive> Bvh<P> {
         BuildOptions::default().build(prims)
     }
 
-    /// Lays out a built tree over `prims` (the build's input) as `layout`.
+    /// Lays out a built tree over `prims` (the build's input) as `layout`, for the
+    /// instruction set [`Isa::detect`] picks.
     pub fn from_tree(tree: &BuildTree, prims: &[P], layout: Layout) -> Self {
-        layout.lay_out(tree, leaf_order(tree, prims))
+        layout.lay_out(
+            tree,
+            leaf_order(tree, prims),
+            Isa::detect(),
+            &BuildConfig::default(),
+        )
+    }
+
+    /// The instruction set queries run on: the BVH's own for 8-wide nodes, portable for the
+    /// others (they have no AVX2 kernels).
+    pub fn isa(&self) -> Isa {
+        match self {
+            Bvh::Bvh8(b) => b.isa,
+            _ => Isa::Portable,
+        }
+    }
+
+    /// The same BVH traversed with `isa` where it has kernels for it (see [`Bvh::isa`]).
+    pub fn with_isa(self, isa: Isa) -> Self {
+        match self {
+            Bvh::Bvh8(b) => Bvh::Bvh8(b.with_isa(isa)),
+            other => other,
+        }
     }
 
     /// What the nodes and leaves occupy.
@@ -58,6 +84,7 @@ impl<P: Primitive> Bvh<P> {
             Bvh::Bvh2(b) => b.footprint(),
             Bvh::Bvh4(b) => b.footprint(),
             Bvh::QBvh4(b) => b.footprint(),
+            Bvh::Bvh8(b) => b.footprint(),
         }
     }
 }
@@ -82,6 +109,7 @@ impl<P: Primitive> RayQuery for Bvh<P> {
             Bvh::Bvh2(b) => b.closest_hit_with::<B, S>(ray, stats),
             Bvh::Bvh4(b) => b.closest_hit_with::<B, S>(ray, stats),
             Bvh::QBvh4(b) => b.closest_hit_with::<B, S>(ray, stats),
+            Bvh::Bvh8(b) => b.closest_hit_with::<B, S>(ray, stats),
         }
     }
 
@@ -91,6 +119,7 @@ impl<P: Primitive> RayQuery for Bvh<P> {
             Bvh::Bvh2(b) => b.any_hit_with::<B, S>(ray, stats),
             Bvh::Bvh4(b) => b.any_hit_with::<B, S>(ray, stats),
             Bvh::QBvh4(b) => b.any_hit_with::<B, S>(ray, stats),
+            Bvh::Bvh8(b) => b.any_hit_with::<B, S>(ray, stats),
         }
     }
 
@@ -106,6 +135,7 @@ impl<P: Primitive> RayQuery for Bvh<P> {
             Bvh::Bvh2(b) => b.closest_hit_packet_with::<B, S>(rays, active, mode, hits, stats),
             Bvh::Bvh4(b) => b.closest_hit_packet_with::<B, S>(rays, active, mode, hits, stats),
             Bvh::QBvh4(b) => b.closest_hit_packet_with::<B, S>(rays, active, mode, hits, stats),
+            Bvh::Bvh8(b) => b.closest_hit_packet_with::<B, S>(rays, active, mode, hits, stats),
         }
     }
 
@@ -121,6 +151,7 @@ impl<P: Primitive> RayQuery for Bvh<P> {
             Bvh::Bvh2(b) => b.any_hit_packet_with::<B, S>(rays, active, mode, occluded, stats),
             Bvh::Bvh4(b) => b.any_hit_packet_with::<B, S>(rays, active, mode, occluded, stats),
             Bvh::QBvh4(b) => b.any_hit_packet_with::<B, S>(rays, active, mode, occluded, stats),
+            Bvh::Bvh8(b) => b.any_hit_packet_with::<B, S>(rays, active, mode, occluded, stats),
         }
     }
 }
@@ -154,6 +185,10 @@ pub struct BuildOptions<'p> {
     /// The rayon pool to build on; `None` for the current one (the global pool, or the pool
     /// this is called from inside).
     pub pool: Option<&'p ThreadPool>,
+    /// The instruction set the BVH's kernels run on; `None` for [`Isa::detect`] (the best
+    /// the CPU has, unless `QUIVER_ISA=portable`). One not supported here falls back to
+    /// [`Isa::Portable`]. Only 8-wide layouts have AVX2 kernels so far.
+    pub isa: Option<Isa>,
 }
 
 impl BuildOptions<'static> {
@@ -211,6 +246,15 @@ impl<'p> BuildOptions<'p> {
             layout: self.layout,
             config: self.config,
             pool: Some(pool),
+            isa: self.isa,
+        }
+    }
+
+    /// Runs the BVH's queries on `isa` (where supported; see [`BuildOptions::isa`]).
+    pub fn isa(self, isa: Isa) -> Self {
+        BuildOptions {
+            isa: Some(isa),
+            ..self
         }
     }
 
@@ -231,7 +275,13 @@ impl<'p> BuildOptions<'p> {
     pub fn build_with_tree<P: Primitive>(&self, prims: &[P]) -> (Bvh<P>, BuildTree) {
         self.run(|| {
             let tree = build(&prim_bounds(prims), &self.config, self.builder);
-            (Bvh::from_tree(&tree, prims, self.layout), tree)
+            let bvh = self.layout.lay_out(
+                &tree,
+                leaf_order(&tree, prims),
+                self.chosen_isa(),
+                &self.config,
+            );
+            (bvh, tree)
         })
     }
 
@@ -272,8 +322,16 @@ impl<'p> BuildOptions<'p> {
                 .par_iter()
                 .map(|&i| mesh.triangle(i))
                 .collect();
-            (self.layout.lay_out(&tree, leaf_tris), tree)
+            let bvh = self
+                .layout
+                .lay_out(&tree, leaf_tris, self.chosen_isa(), &self.config);
+            (bvh, tree)
         }))
+    }
+
+    /// The instruction set asked for, or the detected one.
+    fn chosen_isa(&self) -> Isa {
+        self.isa.unwrap_or_else(Isa::detect)
     }
 
     /// Runs `f` on the chosen pool.

@@ -36,6 +36,7 @@ pub mod build;
 mod bvh;
 pub mod geometry;
 pub mod intersect;
+mod isa;
 pub mod layout;
 mod mesh;
 mod rng;
@@ -45,6 +46,7 @@ pub mod traverse;
 
 pub use bvh::{BuildOptions, Bvh};
 pub use geometry::{Aabb, Hit, PrimHit, Primitive, Ray, Triangle};
+pub use isa::{Isa, ISA_ENV};
 pub use layout::{Bvh2, Layout};
 pub use mesh::MeshError;
 pub use traverse::{reference, RayQuery};

@@ -59,6 +59,7 @@ pub(crate) fn run(args: BuildArgs) -> Result<()> {
         layout: args.layout,
         config: config.clone(),
         pool: Some(&pool),
+        isa: None,
     };
     let (scene, bvh, tree, build_ms) = load_and_build(&args.scene, args.patches, &options)?;
     let footprint = bvh.footprint();

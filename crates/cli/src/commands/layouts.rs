@@ -267,5 +267,6 @@ fn short(l: Layout) -> &'static str {
         Layout::Bvh4Dfs => "4-dfs",
         Layout::Bvh4Subtree => "4-sub",
         Layout::Bvh4Quant => "4-quant",
+        Layout::Bvh8Dfs => "8-dfs",
     }
 }

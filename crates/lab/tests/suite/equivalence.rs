@@ -6,7 +6,7 @@ use crate::common::{hit_fraction, reference_hits};
 use glam::Vec3A;
 use quiver::build::{build, prim_bounds, BuildConfig, Builder};
 use quiver::traverse::Counters;
-use quiver::{Bvh, Hit, Layout, Ray, RayQuery, Triangle};
+use quiver::{Bvh, Hit, Isa, Layout, Ray, RayQuery, Triangle};
 use quiver_lab::rays;
 use quiver_scenes::Scene;
 use rayon::prelude::*;
@@ -54,14 +54,21 @@ fn check_layouts(tris: &[Triangle], sets: &[RaySet], what: &str) {
     for builder in Builder::ALL {
         let tree = build(&bounds, &BuildConfig::default(), builder);
         for layout in Layout::ALL {
-            let bvh = Bvh::from_tree(&tree, tris, layout);
-            for (name, rays, want) in sets {
-                check(
-                    &bvh,
-                    rays,
-                    want,
-                    &format!("{what} {builder} {layout} {name}"),
-                );
+            let laid_out = Bvh::from_tree(&tree, tris, layout);
+            // Every instruction set the layout has kernels for (and this CPU runs).
+            for isa in Isa::ALL {
+                let bvh = laid_out.clone().with_isa(isa);
+                if bvh.isa() != isa {
+                    continue;
+                }
+                for (name, rays, want) in sets {
+                    check(
+                        &bvh,
+                        rays,
+                        want,
+                        &format!("{what} {builder} {layout} {isa} {name}"),
+                    );
+                }
             }
         }
     }

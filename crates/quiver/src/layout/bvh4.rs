@@ -3,111 +3,16 @@
 //! [`QBvh4Node`] (boxes quantized to 8 bits in a per-node frame, 64 bytes: one cache line).
 
 use super::bvh2::leaf_order;
+use super::collapse::{self, collapse, Child};
 use super::order::{self, Shape, HOLE};
 use super::Footprint;
-use crate::build::{BuildTree, NodeKind};
+use crate::build::BuildTree;
 use crate::geometry::{Aabb, Primitive, Triangle};
 use bytemuck::{Pod, Zeroable};
 use wide::f32x4;
 
-/// The collapsed tree before encoding. Its types are `pub` inside a private module so that
-/// [`Node4::encode`] can name them while nobody outside the crate can.
-mod collapsed {
-    use crate::geometry::Aabb;
-
-    /// A child of a node in the collapsed tree.
-    #[derive(Clone, Copy, Debug, PartialEq)]
-    pub enum Child {
-        /// An unused slot.
-        Empty,
-        /// Index of a wide node.
-        Inner(u32),
-        /// A run of primitives in leaf order.
-        Leaf {
-            /// First primitive.
-            first: u32,
-            /// Number of primitives.
-            count: u32,
-        },
-    }
-
-    /// A node of the collapsed tree before it is encoded.
-    pub struct Wide {
-        /// Child boxes.
-        pub boxes: [Aabb; 4],
-        /// Children.
-        pub kids: [Child; 4],
-    }
-
-    impl Wide {
-        /// A node with four unused slots (also what padding slots encode).
-        pub const EMPTY: Wide = Wide {
-            boxes: [Aabb::EMPTY; 4],
-            kids: [Child::Empty; 4],
-        };
-    }
-}
-
-use collapsed::{Child, Wide};
-
-/// Collapses a binary tree into a 4-wide one in preorder. Each wide node starts from a binary
-/// node's two children and repeatedly opens the inner child of largest surface area (the one a
-/// ray is most likely to enter, so pulling its children up saves the most visits) until it has
-/// four children or only leaves.
-fn collapse(tree: &BuildTree) -> Vec<Wide> {
-    let mut out = Vec::with_capacity(tree.nodes.len() / 3 + 1);
-    let root = &tree.nodes[0];
-    match root.kind {
-        NodeKind::Inner { .. } => {
-            collapse_node(tree, 0, &mut out);
-        }
-        NodeKind::Leaf { first, count } => {
-            let mut w = Wide::EMPTY;
-            if count > 0 {
-                w.boxes[0] = root.bounds;
-                w.kids[0] = Child::Leaf { first, count };
-            }
-            out.push(w);
-        }
-    }
-    out
-}
-
-fn collapse_node(tree: &BuildTree, node: u32, out: &mut Vec<Wide>) -> u32 {
-    let me = out.len() as u32;
-    out.push(Wide::EMPTY);
-    let is_inner = |n: u32| matches!(tree.nodes[n as usize].kind, NodeKind::Inner { .. });
-    let kids_of = |n: u32| match tree.nodes[n as usize].kind {
-        NodeKind::Inner { left, right } => (left, right),
-        NodeKind::Leaf { .. } => unreachable!("only inner nodes are opened"),
-    };
-    let (l, r) = kids_of(node);
-    let mut list = vec![l, r];
-    while list.len() < 4 {
-        let widest = list
-            .iter()
-            .enumerate()
-            .filter(|(_, &n)| is_inner(n))
-            .max_by(|(_, &a), (_, &b)| {
-                let area = |n: u32| tree.nodes[n as usize].bounds.half_area();
-                area(a).total_cmp(&area(b)).then(b.cmp(&a))
-            })
-            .map(|(i, _)| i);
-        let Some(i) = widest else { break };
-        let (a, b) = kids_of(list[i]);
-        list.splice(i..=i, [a, b]);
-    }
-    for (slot, &n) in list.iter().enumerate() {
-        let bn = &tree.nodes[n as usize];
-        let kid = match bn.kind {
-            NodeKind::Inner { .. } => Child::Inner(collapse_node(tree, n, out)),
-            NodeKind::Leaf { first, count } => Child::Leaf { first, count },
-        };
-        out[me as usize].boxes[slot] = bn.bounds;
-        out[me as usize].kids[slot] = kid;
-    }
-    me
-}
+/// A collapsed 4-wide node.
+type Wide = collapse::Wide<4>;
 
 /// Where a 4-wide BVH's nodes sit in memory.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -188,7 +93,7 @@ pub trait Node4: Pod + Send + Sync {
     fn child(&self, i: usize) -> (u32, u32);
     /// Encodes a collapsed node; `pos` maps collapsed node indices to array positions.
     #[doc(hidden)]
-    fn encode(w: &Wide, pos: &[u32]) -> Self;
+    fn encode(w: &collapse::types::Wide<4>, pos: &[u32]) -> Self;
 }
 
 impl Node4 for Bvh4Node {
@@ -465,109 +370,6 @@ mod tests {
                     );
                 }
             }
-        }
-    }
-
-    /// A hand-made binary tree: root → A (inner: leaf 0, A2) and B (inner: leaves 3, 4), with
-    /// A2 (inner: leaves 1, 2). `a2` and `b` are the edge lengths of A2's and B's cubes.
-    fn tree(a2: f32, b: f32) -> BuildTree {
-        use crate::build::BuildNode;
-        let cube = |e: f32| Aabb::new(Vec3A::ZERO, Vec3A::splat(e));
-        let inner = |e: f32, left: u32, right: u32| BuildNode {
-            bounds: cube(e),
-            kind: NodeKind::Inner { left, right },
-        };
-        let leaf = |first: u32| BuildNode {
-            bounds: cube(0.1 * (first + 1) as f32),
-            kind: NodeKind::Leaf { first, count: 1 },
-        };
-        BuildTree {
-            nodes: vec![
-                inner(10.0, 1, 6),
-                inner(9.0, 2, 3),
-                leaf(0),
-                inner(a2, 4, 5),
-                leaf(1),
-                leaf(2),
-                inner(b, 7, 8),
-                leaf(3),
-                leaf(4),
-            ],
-            prim_indices: (0..5).collect(),
-            dropped: 0,
-        }
-    }
-
-    fn leaf(first: u32) -> Child {
-        Child::Leaf { first, count: 1 }
-    }
-
-    #[test]
-    fn collapse_opens_the_inner_child_of_largest_area_first() {
-        // Root's children A (area 9²) and B: A is opened first. Then A2 or B, whichever is
-        // larger, is opened; the other stays an inner child with its own wide node.
-        let wide = collapse(&tree(5.0, 2.0));
-        assert_eq!(wide.len(), 2);
-        assert_eq!(wide[0].kids, [leaf(0), leaf(1), leaf(2), Child::Inner(1)]);
-        assert_eq!(wide[1].kids, [leaf(3), leaf(4), Child::Empty, Child::Empty]);
-        let wide = collapse(&tree(2.0, 5.0));
-        assert_eq!(wide[0].kids, [leaf(0), Child::Inner(1), leaf(3), leaf(4)]);
-        assert_eq!(wide[1].kids, [leaf(1), leaf(2), Child::Empty, Child::Empty]);
-        // Each slot's box is its binary node's box; unused slots are empty boxes.
-        let t = tree(2.0, 5.0);
-        let b = |n: usize| t.nodes[n].bounds;
-        assert_eq!(wide[0].boxes, [b(2), b(3), b(7), b(8)]);
-        assert_eq!(wide[1].boxes, [b(4), b(5), Aabb::EMPTY, Aabb::EMPTY]);
-    }
-
-    #[test]
-    fn a_leaf_root_collapses_to_one_node_and_an_empty_tree_to_an_empty_node() {
-        let one = BuildTree {
-            nodes: vec![crate::build::BuildNode {
-                bounds: Aabb::new(Vec3A::ZERO, Vec3A::ONE),
-                kind: NodeKind::Leaf { first: 0, count: 3 },
-            }],
-            prim_indices: vec![0, 1, 2],
-            dropped: 0,
-        };
-        let wide = collapse(&one);
-        assert_eq!(wide.len(), 1);
-        assert_eq!(wide[0].kids[0], Child::Leaf { first: 0, count: 3 });
-        assert_eq!(wide[0].kids[1..], [Child::Empty; 3]);
-        let empty = crate::build::build(&[], &Default::default(), crate::build::Builder::Binned);
-        let wide = collapse(&empty);
-        assert_eq!(wide.len(), 1);
-        assert_eq!(wide[0].kids, [Child::Empty; 4]);
-    }
-
-    #[test]
-    fn collapse_keeps_every_leaf_once() {
-        let bounds = crate::testing::soup_bounds(3000, 1);
-        let tree = crate::build::build(&bounds, &Default::default(), crate::build::Builder::Binned);
-        let wide = collapse(&tree);
-        let mut covered = vec![false; tree.prim_indices.len()];
-        for w in &wide {
-            for k in &w.kids {
-                if let Child::Leaf { first, count } = *k {
-                    for c in &mut covered[first as usize..(first + count) as usize] {
-                        assert!(!std::mem::replace(c, true));
-                    }
-                }
-            }
-        }
-        assert!(covered.iter().all(|&c| c));
-        // A wide node has fewer than four children only when none of them could be opened.
-        for w in &wide {
-            let used = w.kids.iter().filter(|k| **k != Child::Empty).count();
-            let inner = w
-                .kids
-                .iter()
-                .filter(|k| matches!(k, Child::Inner(_)))
-                .count();
-            assert!(
-                used == 4 || inner == 0,
-                "{used} children, {inner} of them inner"
-            );
         }
     }
 }

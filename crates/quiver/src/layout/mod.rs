@@ -11,13 +11,17 @@
 
 pub(crate) mod bvh2;
 pub(crate) mod bvh4;
+pub(crate) mod bvh8;
+pub(crate) mod collapse;
 pub(crate) mod order;
 
 pub use bvh2::{Bvh2, Bvh2Mapping, Bvh2Node};
 pub use bvh4::{Bvh4, Bvh4Mapping, Bvh4Node, Node4, QBvh4, QBvh4Node};
+pub use bvh8::{Bvh8, Bvh8Node};
 
-use crate::build::BuildTree;
+use crate::build::{BuildConfig, BuildTree};
 use crate::geometry::Primitive;
+use crate::isa::Isa;
 use crate::Bvh;
 use std::fmt;
 use std::str::FromStr;
@@ -54,11 +58,14 @@ pub enum Layout {
     Bvh4Subtree,
     /// `bvh4-quant`: 4-wide quantized 64-byte nodes, depth-first.
     Bvh4Quant,
+    /// `bvh8-dfs`: 8-wide 256-byte nodes, depth-first, with AVX2 kernels where the CPU has
+    /// them ([`crate::Isa`]).
+    Bvh8Dfs,
 }
 
 impl Layout {
     /// All layouts, in the order reports list them.
-    pub const ALL: [Layout; 10] = [
+    pub const ALL: [Layout; 11] = [
         Layout::Bvh2Dfs,
         Layout::Bvh2Bfs,
         Layout::Bvh2Shuffled,
@@ -69,6 +76,7 @@ impl Layout {
         Layout::Bvh4Dfs,
         Layout::Bvh4Subtree,
         Layout::Bvh4Quant,
+        Layout::Bvh8Dfs,
     ];
 
     /// The command-line and report name.
@@ -84,6 +92,7 @@ impl Layout {
             Layout::Bvh4Dfs => "bvh4-dfs",
             Layout::Bvh4Subtree => "bvh4-subtree",
             Layout::Bvh4Quant => "bvh4-quant",
+            Layout::Bvh8Dfs => "bvh8-dfs",
         }
     }
 }
@@ -115,7 +124,13 @@ impl FromStr for Layout {
 
 impl Layout {
     /// Lays out `tree` with `prims` already in the tree's leaf order.
-    pub(crate) fn lay_out<P: Primitive>(self, tree: &BuildTree, prims: Vec<P>) -> Bvh<P> {
+    pub(crate) fn lay_out<P: Primitive>(
+        self,
+        tree: &BuildTree,
+        prims: Vec<P>,
+        isa: Isa,
+        config: &BuildConfig,
+    ) -> Bvh<P> {
         let bvh2 = match self {
             Layout::Bvh2Dfs => Bvh2Mapping::DepthFirst,
             Layout::Bvh2Bfs => Bvh2Mapping::BreadthFirst,
@@ -133,6 +148,7 @@ impl Layout {
             Layout::Bvh4Quant => {
                 return Bvh::QBvh4(QBvh4::from_leaf_prims(tree, prims, Bvh4Mapping::DepthFirst))
             }
+            Layout::Bvh8Dfs => return Bvh::Bvh8(Bvh8::from_leaf_prims(tree, prims, isa, config)),
         };
         Bvh::Bvh2(Bvh2::from_leaf_prims(tree, prims, bvh2))
     }

@@ -3,11 +3,13 @@
 //!
 //! - `bvh2`: single rays over binary nodes in any memory mapping;
 //! - `bvh4`: single rays over 4-wide nodes (exact or quantized), four boxes per SIMD test;
+//! - `bvh8`: single rays over 8-wide nodes, portable or AVX2 ([`crate::Isa`]);
 //! - [`packet`]: up to 64 coherent rays at once over 4-wide nodes;
 //! - `simd`: the helpers they share; [`Stats`] sinks that compile away when unused.
 
 mod bvh2;
 mod bvh4;
+mod bvh8;
 pub mod packet;
 mod query;
 pub mod reference;
