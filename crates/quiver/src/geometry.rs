@@ -270,6 +270,17 @@ impl Triangle {
 /// assert_eq!((hit.prim, hit.t), (2, 4.5));
 /// ```
 pub trait Primitive: Clone + Send + Sync {
+    /// How the wide layouts store leaves of this type: as they are ([`LeafFormat::Plain`],
+    /// the default), or, for triangles, as SIMD groups of four with precomputed terms that one
+    /// test intersects at once. Non-plain formats must also give [`Primitive::triangle`].
+    const LEAF_FORMAT: LeafFormat = LeafFormat::Plain;
+
+    /// The triangle behind a primitive whose [`Primitive::LEAF_FORMAT`] is a triangle format.
+    #[inline]
+    fn triangle(&self) -> Option<Triangle> {
+        None
+    }
+
     /// Bounding box. A primitive with a non-finite coordinate must return a box with a NaN
     /// (see [`Aabb::is_finite`]) so the builders drop it.
     fn bounds(&self) -> Aabb;
@@ -308,7 +319,29 @@ pub trait Primitive: Clone + Send + Sync {
     }
 }
 
+/// How the wide layouts (`bvh8-dfs`) store a leaf's primitives: see
+/// [`Primitive::LEAF_FORMAT`]. Every format gives every ray exactly the answer
+/// [`Primitive::intersect`] gives.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LeafFormat {
+    /// The primitives themselves, tested one by one.
+    Plain,
+    /// Four triangles per group in SoA with precomputed edges and normal, tested at once with
+    /// the arithmetic of [`Triangle::intersect`].
+    FastTriangles,
+    /// Four triangles per group in SoA (their vertices), tested at once with the arithmetic
+    /// of [`crate::intersect::Watertight`], falling back to it for a lane on an edge.
+    WatertightTriangles,
+}
+
 impl Primitive for Triangle {
+    const LEAF_FORMAT: LeafFormat = LeafFormat::FastTriangles;
+
+    #[inline]
+    fn triangle(&self) -> Option<Triangle> {
+        Some(*self)
+    }
+
     #[inline]
     fn bounds(&self) -> Aabb {
         if self.is_finite() {

@@ -37,7 +37,7 @@ pub struct Exact(pub Triangle);
 /// The ray-space shear of Woop et al.: the axis of largest direction component becomes z, and
 /// x and y keep the winding.
 #[inline(always)]
-fn shear_axes(d: Vec3A) -> (usize, usize, usize) {
+pub(crate) fn shear_axes(d: Vec3A) -> (usize, usize, usize) {
     let a = d.abs();
     let kz = if a.x >= a.y && a.x >= a.z {
         0
@@ -77,6 +77,14 @@ fn finish<T: Into<f64> + Copy>(u: T, v: T, w: T, t_scaled: T, ray: &Ray) -> Opti
 }
 
 impl Primitive for Watertight {
+    const LEAF_FORMAT: crate::geometry::LeafFormat =
+        crate::geometry::LeafFormat::WatertightTriangles;
+
+    #[inline]
+    fn triangle(&self) -> Option<Triangle> {
+        Some(self.0)
+    }
+
     fn bounds(&self) -> Aabb {
         Primitive::bounds(&self.0)
     }

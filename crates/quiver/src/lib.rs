@@ -45,7 +45,7 @@ mod testing;
 pub mod traverse;
 
 pub use bvh::{BuildOptions, Bvh};
-pub use geometry::{Aabb, Hit, PrimHit, Primitive, Ray, Triangle};
+pub use geometry::{Aabb, Hit, LeafFormat, PrimHit, Primitive, Ray, Triangle};
 pub use isa::{Isa, ISA_ENV};
 pub use layout::{Bvh2, Layout};
 pub use mesh::MeshError;

@@ -122,15 +122,15 @@ enum Choice {
 /// Ylitie, Karras and Laine, "Efficient Incoherent Ray Traversal on GPUs Through Compressed
 /// Wide BVHs", HPG 2017, section 4.1). For every binary node and every slot budget `i ≤ W` it
 /// finds the cheapest way to hand the subtree to its parent in at most `i` slots, each slot a
-/// leaf or a wide node of its own, by the wide SAH: `c_T · area` per wide node plus
-/// `c_I · area · primitives` per leaf. Unlike the greedy collapse it fills wide nodes at the
+/// leaf or a wide node of its own, by the wide SAH: `traversal_cost · area` per wide node
+/// plus `area · leaf_cost(primitives)` per leaf. Unlike the greedy collapse it fills wide nodes at the
 /// bottom of the tree too, and it may merge small binary leaves into one leaf of up to
 /// `max_leaf` primitives (a subtree's primitives are contiguous in leaf order).
 pub(crate) fn collapse_sah<const W: usize>(
     tree: &BuildTree,
     max_leaf: usize,
     traversal_cost: f32,
-    intersection_cost: f32,
+    leaf_cost: impl Fn(u32) -> f32,
 ) -> Vec<Wide<W>> {
     let n = tree.nodes.len();
     let root = &tree.nodes[0];
@@ -171,7 +171,7 @@ pub(crate) fn collapse_sah<const W: usize>(
         };
         let count = range[i].1;
         let leaf = if count <= max_leaf {
-            intersection_cost * area * count as f32
+            area * leaf_cost(count)
         } else {
             f32::INFINITY
         };
@@ -460,7 +460,7 @@ mod tests {
             let tree =
                 crate::build::build(&bounds, &Default::default(), crate::build::Builder::Binned);
             for max_leaf in [1usize, 4, 8] {
-                let dp = collapse_sah::<8>(&tree, max_leaf, 1.0, 1.0);
+                let dp = collapse_sah::<8>(&tree, max_leaf, 1.0, |n| n as f32);
                 let limit = max_leaf.max(tree.stats().max_leaf) as u32;
                 check_cover(&dp, n, limit);
                 let greedy = collapse::<8>(&tree);
@@ -469,7 +469,7 @@ mod tests {
                     c_dp <= c_greedy * (1.0 + 1e-5),
                     "{n} {max_leaf}: {c_dp} > {c_greedy}"
                 );
-                let dp4 = collapse_sah::<4>(&tree, max_leaf, 1.0, 1.0);
+                let dp4 = collapse_sah::<4>(&tree, max_leaf, 1.0, |n| n as f32);
                 check_cover(&dp4, n, limit);
                 let c4 = (
                     wide_cost(&dp4, 1.0, 1.0),
@@ -498,12 +498,12 @@ mod tests {
             ..Default::default()
         };
         let tree = crate::build::build(&bounds, &config, crate::build::Builder::Binned);
-        let dp = collapse_sah::<8>(&tree, 1, 1.0, 1.0);
+        let dp = collapse_sah::<8>(&tree, 1, 1.0, |n| n as f32);
         check_cover(&dp, 64, 1);
         assert_eq!(dp.len(), 9, "a root and eight full nodes");
         assert!(dp.iter().all(|w| w.kids.iter().all(|k| *k != Child::Empty)));
         // With cheap primitive tests, leaves of up to eight merge: one node of eight leaves.
-        let merged = collapse_sah::<8>(&tree, 8, 1.0, 0.01);
+        let merged = collapse_sah::<8>(&tree, 8, 1.0, |n| 0.01 * n as f32);
         check_cover(&merged, 64, 8);
         assert_eq!(merged.len(), 1);
     }

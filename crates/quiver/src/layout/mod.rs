@@ -14,10 +14,12 @@ pub(crate) mod bvh4;
 pub(crate) mod bvh8;
 pub(crate) mod collapse;
 pub(crate) mod order;
+pub(crate) mod tri4;
 
 pub use bvh2::{Bvh2, Bvh2Mapping, Bvh2Node};
 pub use bvh4::{Bvh4, Bvh4Mapping, Bvh4Node, Node4, QBvh4, QBvh4Node};
 pub use bvh8::{Bvh8, Bvh8Node};
+pub use tri4::Tri4;
 
 use crate::build::{BuildConfig, BuildTree};
 use crate::geometry::Primitive;

@@ -8,12 +8,14 @@
 use super::packet::{any_ray_by_ray, closest_ray_by_ray};
 use super::simd::{bits, insert_farthest_first, NanFirst};
 use super::stats::Stats;
+use super::tri4::{self, Ray4Tri};
 use super::{
     leaf_any_hit, leaf_closest_hit, slab_reciprocal, BoxTest, PacketMode, RayQuery, Stack,
 };
 use crate::build::MAX_DEPTH;
-use crate::geometry::{Hit, Primitive, Ray};
+use crate::geometry::{Hit, LeafFormat, Primitive, Ray};
 use crate::isa::Isa;
+use crate::layout::tri4::groups;
 use crate::layout::{Bvh8, Bvh8Node};
 use std::ops::Range;
 use wide::f32x8;
@@ -76,8 +78,9 @@ impl Test8 for Portable8 {
     }
 }
 
-/// The walk over the subtree of inner node `root`, searching up to `limit`: `leaf(range,
-/// limit, stats)` tests a leaf, may lower the limit, and returns true to stop. `ORDERED`:
+/// The walk over the subtree of inner node `root`, searching up to `limit`: `leaf(first,
+/// count, limit, stats)` tests a leaf (its first primitive or group, and its primitive
+/// count), may lower the limit, and returns true to stop. `ORDERED`:
 /// visit hit children nearest first (closest hit) or in slot order (any hit, which stops at
 /// the first hit and gains nothing from sorting).
 #[inline(always)]
@@ -91,7 +94,7 @@ fn walk<T, B, S, F, const ORDERED: bool>(
     T: Test8,
     B: BoxTest,
     S: Stats,
-    F: FnMut(Range<usize>, &mut f32, &mut S) -> bool,
+    F: FnMut(usize, u32, &mut f32, &mut S) -> bool,
 {
     // Each node pushes at most seven entries beyond the one it continues with.
     let mut stack: Stack<(u32, u32, f32), { 7 * MAX_DEPTH + 8 }> = Stack::new();
@@ -132,11 +135,17 @@ fn walk<T, B, S, F, const ORDERED: bool>(
             let count = count & !Bvh8Node::LEAF;
             stats.node();
             stats.leaf();
-            if leaf(c as usize..(c + count) as usize, &mut limit, stats) {
+            if leaf(c as usize, count, &mut limit, stats) {
                 return;
             }
         }
     }
+}
+
+/// A plain leaf's primitives.
+#[inline(always)]
+fn leaf_range(first: usize, count: u32) -> Range<usize> {
+    first..first + count as usize
 }
 
 /// Closest hit over any 8-lane test.
@@ -148,17 +157,29 @@ fn closest<T: Test8, B: BoxTest, P: Primitive, S: Stats>(
     stats: &mut S,
 ) -> Option<Hit> {
     let mut best = Hit::none(ray.t_max);
-    walk::<T, B, S, _, true>(&bvh.nodes, t8, ray.t_max, stats, |range, limit, stats| {
-        leaf_closest_hit(
-            &bvh.prims[range.clone()],
-            &bvh.prim_ids[range],
-            ray,
-            &mut best,
-            stats,
-        );
-        *limit = best.t;
-        false
-    });
+    let format = P::LEAF_FORMAT;
+    let r4 = (format != LeafFormat::Plain).then(|| Ray4Tri::new(ray, format));
+    walk::<T, B, S, _, true>(
+        &bvh.nodes,
+        t8,
+        ray.t_max,
+        stats,
+        |first, count, limit, stats| {
+            match &r4 {
+                Some(r4) => {
+                    let g = &bvh.tri4[first..first + groups(count) as usize];
+                    tri4::closest(g, count, ray, r4, format, &mut best, stats);
+                }
+                None => {
+                    let range = leaf_range(first, count);
+                    let (prims, ids) = (&bvh.prims[range.clone()], &bvh.prim_ids[range]);
+                    leaf_closest_hit(prims, ids, ray, &mut best, stats);
+                }
+            }
+            *limit = best.t;
+            false
+        },
+    );
     best.found()
 }
 
@@ -171,10 +192,24 @@ fn any<T: Test8, B: BoxTest, P: Primitive, S: Stats>(
     stats: &mut S,
 ) -> bool {
     let mut hit = false;
-    walk::<T, B, S, _, false>(&bvh.nodes, t8, ray.t_max, stats, |range, _, stats| {
-        hit = leaf_any_hit(&bvh.prims[range], ray, stats);
-        hit
-    });
+    let format = P::LEAF_FORMAT;
+    let r4 = (format != LeafFormat::Plain).then(|| Ray4Tri::new(ray, format));
+    walk::<T, B, S, _, false>(
+        &bvh.nodes,
+        t8,
+        ray.t_max,
+        stats,
+        |first, count, _, stats| {
+            hit = match &r4 {
+                Some(r4) => {
+                    let g = &bvh.tri4[first..first + groups(count) as usize];
+                    tri4::any(g, count, ray, r4, format, stats)
+                }
+                None => leaf_any_hit(&bvh.prims[leaf_range(first, count)], ray, stats),
+            };
+            hit
+        },
+    );
     hit
 }
 

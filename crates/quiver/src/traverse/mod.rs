@@ -15,6 +15,7 @@ mod query;
 pub mod reference;
 pub(crate) mod simd;
 mod stats;
+mod tri4;
 
 pub use packet::{PacketLeaf, PacketMode, PACKET_RAYS};
 pub use query::RayQuery;

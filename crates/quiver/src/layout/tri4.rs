@@ -1,0 +1,80 @@
+//! SIMD triangle leaves: a leaf's triangles in groups of four, structure of arrays, with the
+//! terms of the triangle test that do not depend on the ray computed once, when the BVH is
+//! laid out ([`crate::LeafFormat`]).
+
+use crate::geometry::{LeafFormat, Primitive, Triangle};
+use bytemuck::{Pod, Zeroable};
+use glam::Vec3A;
+
+/// Four triangles, one per SIMD lane: 208 bytes.
+///
+/// `rows` holds four vectors, each as x, y and z rows of four lanes. For
+/// [`LeafFormat::FastTriangles`]: `v0`, `e1 = v0 - v1`, `e2 = v2 - v0` and `n = e1 × e2`,
+/// computed with the same glam arithmetic as [`Triangle::intersect`]; for
+/// [`LeafFormat::WatertightTriangles`]: `v0`, `v1`, `v2` and zeros. An unused lane is all
+/// zeros (a degenerate triangle no ray hits) with id `u32::MAX`.
+#[repr(C, align(16))]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct Tri4 {
+    /// Four vectors as `[x, y, z]` rows of four lanes.
+    pub rows: [[[f32; 4]; 3]; 4],
+    /// Each lane's primitive index in the input; `u32::MAX` for an unused lane.
+    pub id: [u32; 4],
+}
+
+const _: () = assert!(std::mem::size_of::<Tri4>() == 208);
+
+/// Groups of four needed for `count` triangles.
+#[inline(always)]
+pub(crate) fn groups(count: u32) -> u32 {
+    count.div_ceil(4)
+}
+
+/// Appends the groups of one leaf (`prims` and their input `ids`) in `format` to `out`.
+pub(crate) fn pack<P: Primitive>(
+    prims: &[P],
+    ids: &[u32],
+    format: LeafFormat,
+    out: &mut Vec<Tri4>,
+) {
+    for (chunk, chunk_ids) in prims.chunks(4).zip(ids.chunks(4)) {
+        let mut g = Tri4::zeroed();
+        g.id = [u32::MAX; 4];
+        for (lane, (p, &id)) in chunk.iter().zip(chunk_ids).enumerate() {
+            let t: Triangle = p
+                .triangle()
+                .expect("a triangle leaf format gives its triangle");
+            let vectors: [Vec3A; 4] = match format {
+                LeafFormat::FastTriangles => {
+                    let e1 = t.v[0] - t.v[1];
+                    let e2 = t.v[2] - t.v[0];
+                    [t.v[0], e1, e2, e1.cross(e2)]
+                }
+                LeafFormat::WatertightTriangles => [t.v[0], t.v[1], t.v[2], Vec3A::ZERO],
+                LeafFormat::Plain => unreachable!("plain leaves are not packed"),
+            };
+            for (row, v) in g.rows.iter_mut().zip(vectors) {
+                for a in 0..3 {
+                    row[a][lane] = v[a];
+                }
+            }
+            g.id[lane] = id;
+        }
+        out.push(g);
+    }
+}
+
+impl Tri4 {
+    /// Lane `lane`'s triangle as a watertight group stores it.
+    #[inline]
+    pub(crate) fn watertight_triangle(&self, lane: usize) -> Triangle {
+        let v = |k: usize| {
+            Vec3A::new(
+                self.rows[k][0][lane],
+                self.rows[k][1][lane],
+                self.rows[k][2][lane],
+            )
+        };
+        Triangle::new(v(0), v(1), v(2))
+    }
+}

@@ -1,0 +1,213 @@
+//! Leaf tests over [`Tri4`] groups: four triangles per SIMD test, each lane computing exactly
+//! what the scalar test ([`crate::Triangle::intersect`] or
+//! [`crate::intersect::Watertight`]) computes for that triangle, so the answers are the
+//! scalar leaf test's, ties by primitive index included.
+
+use super::simd::bits;
+use super::Stats;
+use crate::geometry::{Hit, LeafFormat, PrimHit, Primitive, Ray};
+use crate::intersect::Watertight;
+use crate::layout::Tri4;
+use wide::f32x4;
+
+/// A ray's terms for the group tests, splatted once per leaf.
+pub(crate) struct Ray4Tri {
+    o: [f32x4; 3],
+    d: [f32x4; 3],
+    /// Watertight: the shear (largest axis last) and its factors.
+    k: [usize; 3],
+    s: [f32x4; 3],
+    t_min: f32x4,
+}
+
+impl Ray4Tri {
+    #[inline(always)]
+    pub(crate) fn new(ray: &Ray, format: LeafFormat) -> Self {
+        let o: [f32; 3] = ray.origin.into();
+        let d: [f32; 3] = ray.dir.into();
+        let (k, s) = if format == LeafFormat::WatertightTriangles {
+            let (kx, ky, kz) = crate::intersect::shear_axes(ray.dir);
+            let sz = 1.0 / d[kz];
+            ([kx, ky, kz], [d[kx] * sz, d[ky] * sz, sz])
+        } else {
+            ([0, 1, 2], [0.0; 3])
+        };
+        Ray4Tri {
+            o: o.map(f32x4::splat),
+            d: d.map(f32x4::splat),
+            k,
+            s: s.map(f32x4::splat),
+            t_min: f32x4::splat(ray.t_min),
+        }
+    }
+}
+
+#[inline(always)]
+fn row(g: &Tri4, v: usize, a: usize) -> f32x4 {
+    f32x4::from(g.rows[v][a])
+}
+
+/// The fast test of one group: the mask of lanes hit within `[t_min, t_max]` and their
+/// `t`, `u`, `v`, in [`crate::Triangle::intersect`]'s operations (glam's dot and cross orders).
+#[inline(always)]
+fn fast4(g: &Tri4, r: &Ray4Tri, t_max: f32) -> (u32, [f32; 4], [f32; 4], [f32; 4]) {
+    let [dx, dy, dz] = r.d;
+    let (nx, ny, nz) = (row(g, 3, 0), row(g, 3, 1), row(g, 3, 2));
+    let det = (nx * dx + ny * dy) + nz * dz;
+    let inv = f32x4::ONE / det;
+    let [cx, cy, cz] = [0, 1, 2].map(|a| row(g, 0, a) - r.o[a]);
+    // d × c as glam computes it: each component a product minus a product.
+    let rx = dy * cz - cy * dz;
+    let ry = dz * cx - cz * dx;
+    let rz = dx * cy - cx * dy;
+    let (e1x, e1y, e1z) = (row(g, 1, 0), row(g, 1, 1), row(g, 1, 2));
+    let (e2x, e2y, e2z) = (row(g, 2, 0), row(g, 2, 1), row(g, 2, 2));
+    let u = ((rx * e2x + ry * e2y) + rz * e2z) * inv;
+    let v = ((rx * e1x + ry * e1y) + rz * e1z) * inv;
+    let t = ((nx * cx + ny * cy) + nz * cz) * inv;
+    let ok = det.simd_ne(f32x4::ZERO)
+        & u.simd_ge(f32x4::ZERO)
+        & v.simd_ge(f32x4::ZERO)
+        & (u + v).simd_le(f32x4::ONE)
+        & t.simd_ge(r.t_min)
+        & t.simd_le(f32x4::splat(t_max));
+    (ok.to_bitmask(), t.to_array(), u.to_array(), v.to_array())
+}
+
+/// The watertight test of one group, in [`Watertight`]'s operations: the mask of lanes hit
+/// and their `t`, `u`, `v`, plus the mask of lanes on an edge in f32 (some edge function
+/// exactly zero), which the caller decides with the scalar test (its f64 fallback).
+#[inline(always)]
+fn watertight4(g: &Tri4, r: &Ray4Tri, t_max: f32) -> (u32, u32, [f32; 4], [f32; 4], [f32; 4]) {
+    let [kx, ky, kz] = r.k;
+    let [sx, sy, sz] = r.s;
+    let rel = |v: usize, a: usize| row(g, v, a) - r.o[a];
+    let x = [0, 1, 2].map(|v| rel(v, kx) - sx * rel(v, kz));
+    let y = [0, 1, 2].map(|v| rel(v, ky) - sy * rel(v, kz));
+    let u = x[2] * y[1] - y[2] * x[1];
+    let v = x[0] * y[2] - y[0] * x[2];
+    let w = x[1] * y[0] - y[1] * x[0];
+    let zero = f32x4::ZERO;
+    let used = f32x4::from(g.id.map(|id| if id == u32::MAX { 0.0 } else { 1.0 })).simd_ne(zero);
+    let edge = (u.simd_eq(zero) | v.simd_eq(zero) | w.simd_eq(zero)) & used;
+    let neg = u.simd_lt(zero) | v.simd_lt(zero) | w.simd_lt(zero);
+    let pos = u.simd_gt(zero) | v.simd_gt(zero) | w.simd_gt(zero);
+    let det = u + v + w;
+    let z = [0, 1, 2].map(|v| sz * rel(v, kz));
+    let t_scaled = u * z[0] + v * z[1] + w * z[2];
+    let inv = f32x4::ONE / det;
+    let t = t_scaled * inv;
+    let ok = !(neg & pos)
+        & det.simd_ne(zero)
+        & t.simd_ge(r.t_min)
+        & t.simd_le(f32x4::splat(t_max))
+        & !edge
+        & used;
+    let (hu, hv) = (v * inv, w * inv);
+    (
+        ok.to_bitmask(),
+        edge.to_bitmask(),
+        t.to_array(),
+        hu.to_array(),
+        hv.to_array(),
+    )
+}
+
+/// Hits of one group in `format` within `[t_min, t_max]`: `(lane, hit)` for each.
+#[inline(always)]
+fn group_hits(
+    g: &Tri4,
+    r: &Ray4Tri,
+    ray: &Ray,
+    t_max: f32,
+    format: LeafFormat,
+    mut hit: impl FnMut(usize, PrimHit),
+) {
+    if format == LeafFormat::WatertightTriangles {
+        let (ok, edge, t, u, v) = watertight4(g, r, t_max);
+        for l in bits(ok) {
+            hit(
+                l,
+                PrimHit {
+                    t: t[l],
+                    u: u[l],
+                    v: v[l],
+                },
+            );
+        }
+        for l in bits(edge) {
+            let limited = Ray { t_max, ..*ray };
+            if let Some(h) = Watertight(g.watertight_triangle(l)).intersect(&limited) {
+                hit(l, h);
+            }
+        }
+    } else {
+        let (ok, t, u, v) = fast4(g, r, t_max);
+        for l in bits(ok) {
+            hit(
+                l,
+                PrimHit {
+                    t: t[l],
+                    u: u[l],
+                    v: v[l],
+                },
+            );
+        }
+    }
+}
+
+/// Closest hit among a leaf's groups, improving `best`; `count` triangles in the leaf.
+/// Returns true when `best` changed.
+#[inline(always)]
+pub(crate) fn closest<S: Stats>(
+    groups: &[Tri4],
+    count: u32,
+    ray: &Ray,
+    r: &Ray4Tri,
+    format: LeafFormat,
+    best: &mut Hit,
+    stats: &mut S,
+) -> bool {
+    stats.prims(count);
+    let mut found = false;
+    for g in groups {
+        group_hits(g, r, ray, best.t, format, |l, h| {
+            if best.is_beaten_by(h.t, g.id[l]) {
+                *best = Hit {
+                    t: h.t,
+                    prim: g.id[l],
+                    u: h.u,
+                    v: h.v,
+                };
+                found = true;
+            }
+        });
+    }
+    if !found {
+        stats.empty_leaf();
+    }
+    found
+}
+
+/// Whether anything in a leaf's groups is hit within the ray's interval.
+#[inline(always)]
+pub(crate) fn any<S: Stats>(
+    groups: &[Tri4],
+    count: u32,
+    ray: &Ray,
+    r: &Ray4Tri,
+    format: LeafFormat,
+    stats: &mut S,
+) -> bool {
+    for (i, g) in groups.iter().enumerate() {
+        let mut hit = false;
+        group_hits(g, r, ray, ray.t_max, format, |_, _| hit = true);
+        if hit {
+            stats.prims((4 * (i as u32 + 1)).min(count));
+            return true;
+        }
+    }
+    stats.prims(count);
+    stats.empty_leaf();
+    false
+}
