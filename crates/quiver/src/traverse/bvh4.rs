@@ -65,10 +65,17 @@ impl Ray4 {
 type Entry = (u32, u32, f32);
 
 /// The 4-wide walk, shared by both node formats, over the subtree of inner node `root`,
-/// searching up to `limit`. See `Bvh2`'s walk for the `leaf` contract.
+/// searching up to `limit`. See `Bvh2`'s walk for the `leaf` contract. `ORDERED`: visit hit
+/// children nearest first (closest hit) or in slot order (any hit).
 #[inline(always)]
-fn walk<N, B, S, F>(nodes: &[N], ray: &Ray, root: usize, mut limit: f32, stats: &mut S, mut leaf: F)
-where
+fn walk<N, B, S, F, const ORDERED: bool>(
+    nodes: &[N],
+    ray: &Ray,
+    root: usize,
+    mut limit: f32,
+    stats: &mut S,
+    mut leaf: F,
+) where
     N: WideNode,
     B: BoxTest,
     S: Stats,
@@ -83,16 +90,24 @@ where
         stats.node();
         stats.boxes(4);
         let (t, mask) = r4.enter::<B>(&n.planes(), limit * B::SLACK);
-        // Push hit children farthest first, so the nearest is popped next.
-        let mut hits = [(0.0f32, 0usize); 4];
-        let mut k = 0;
-        for i in bits(mask) {
-            insert_farthest_first(&mut hits, k, t[i], i);
-            k += 1;
-        }
-        for &(ti, i) in &hits[..k] {
-            let (c, count) = n.child(i);
-            stack.push((c, count, ti));
+        if ORDERED {
+            // Push hit children farthest first, so the nearest is popped next.
+            let mut hits = [(0.0f32, 0usize); 4];
+            let mut k = 0;
+            for i in bits(mask) {
+                insert_farthest_first(&mut hits, k, t[i], i);
+                k += 1;
+            }
+            for &(ti, i) in &hits[..k] {
+                let (c, count) = n.child(i);
+                stack.push((c, count, ti));
+            }
+        } else {
+            // Any hit stops at the first hit wherever it is: no ordering to pay for.
+            for i in bits(mask) {
+                let (c, count) = n.child(i);
+                stack.push((c, count, t[i]));
+            }
         }
         // Pop until an inner node worth entering; leaves are handled on the way.
         loop {
@@ -142,7 +157,7 @@ pub(crate) fn closest_from<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
     best: &mut Hit,
     stats: &mut S,
 ) {
-    walk::<N, B, S, _>(nodes, ray, root, best.t, stats, |range, limit, stats| {
+    walk::<N, B, S, _, true>(nodes, ray, root, best.t, stats, |range, limit, stats| {
         leaf_closest_hit(&tris[range.clone()], &ids[range], ray, best, stats);
         *limit = best.t;
         false
@@ -169,7 +184,7 @@ pub(crate) fn any_from<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
     stats: &mut S,
 ) -> bool {
     let mut hit = false;
-    walk::<N, B, S, _>(nodes, ray, root, ray.t_max, stats, |range, _, stats| {
+    walk::<N, B, S, _, false>(nodes, ray, root, ray.t_max, stats, |range, _, stats| {
         hit = leaf_any_hit(&tris[range], ray, stats);
         hit
     });
