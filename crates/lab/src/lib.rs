@@ -1,13 +1,16 @@
 //! quiver-lab: quiver's harness, apart from the library an embedder uses. Deterministic ray
 //! sets ([`rays`]), parallel tracing and interleaved median timing ([`measure`]), the
 //! accuracy study ([`accuracy`]), the checks the fuzz targets run ([`checks`]) and quiver's
-//! data in obvhs's terms ([`obvhs_bridge`]). The integration tests (`tests/suite`) and the
-//! criterion benches (`benches/`) live in this crate.
+//! data in obvhs's terms ([`obvhs_bridge`]); with the `embree` feature, Intel Embree 3 as a
+//! second comparison engine (`embree`, which links `libembree3`). The integration tests
+//! (`tests/suite`) and the criterion benches (`benches/`) live in this crate.
 
 #![warn(missing_docs)]
 
 pub mod accuracy;
 pub mod checks;
+#[cfg(feature = "embree")]
+pub mod embree;
 pub mod measure;
 pub mod obvhs_bridge;
 pub mod rays;

@@ -1,14 +1,18 @@
 //! `quiver bench`: quiver and obvhs 0.4 side by side in one process, on the same triangles and
 //! the same rays: build time and SAH cost, then Mrays/s for eye, shadow and incoherent rays.
+//! Built with the `embree` feature, Intel Embree 3 joins them (`rtcIntersect1` / `rtcOccluded1`
+//! in the same interleaved rounds, and its build time).
 
 use super::{pool, Result};
-use crate::output::{outln, write_json};
+use crate::output::{out, outln, write_json};
 use obvhs::{
     bvh2::builder::build_bvh2_from_tris, cwbvh::builder::build_cwbvh_from_tris, ray::RayHit,
     BvhBuildParams,
 };
 use quiver::build::{build, prim_bounds, BuildConfig, Builder};
 use quiver::{BuildOptions, Bvh, Layout, RayQuery};
+#[cfg(feature = "embree")]
+use quiver_lab::embree::{EmbreeDevice, EmbreeScene};
 use quiver_lab::measure::{median_times_interleaved, mrays_per_s};
 use quiver_lab::{obvhs_bridge, rays};
 use quiver_scenes::scene::{tessellate, Scene};
@@ -33,11 +37,12 @@ pub(crate) struct BenchArgs {
     json: Option<PathBuf>,
 }
 
-const KERNELS: [Layout; 4] = [
+const KERNELS: [Layout; 5] = [
     Layout::Bvh2Dfs,
     Layout::Bvh2Subtree,
     Layout::Bvh4Dfs,
     Layout::Bvh4Quant,
+    Layout::Bvh8Dfs,
 ];
 
 fn time<T>(f: impl FnOnce() -> T) -> (T, f64) {
@@ -120,6 +125,25 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
                     None,
                 ));
             });
+            // Embree builds on its own TBB threads, not on the rayon pool: `threads=N` on the
+            // device sets how many (Embree takes the largest count of all live devices, and
+            // none other is alive here). Device creation is not timed, as the pool's is not.
+            #[cfg(feature = "embree")]
+            {
+                let device = EmbreeDevice::with_threads(threads)?;
+                drop(EmbreeScene::on_device(&device, &tris)?);
+                let (built, ms) = time(|| EmbreeScene::on_device(&device, &tris));
+                drop(built?);
+                rows.push(row(
+                    "embree",
+                    "bvh-medium",
+                    "build",
+                    threads,
+                    None,
+                    Some(ms),
+                    None,
+                ));
+            }
         }
         bar.inc(1);
         bar.set_message(format!("{name}: tracing"));
@@ -133,6 +157,8 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
             BvhBuildParams::medium_build(),
             &mut Duration::default(),
         );
+        #[cfg(feature = "embree")]
+        let embree = EmbreeScene::new(&tris)?;
         let eye = rays::camera_rays(&scene.camera, 256);
         let light = scene
             .lights
@@ -147,9 +173,28 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
             ("shadow", &shadow, true),
             ("incoherent", &incoherent, false),
         ] {
-            let n = KERNELS.len() + 1;
+            let n = KERNELS.len() + 1 + usize::from(cfg!(feature = "embree"));
             let times = p.install(|| {
                 median_times_interleaved(args.reps, n, |i| {
+                    #[cfg(feature = "embree")]
+                    if i == KERNELS.len() + 1 {
+                        let hits: usize = set
+                            .par_chunks(1024)
+                            .map(|c| {
+                                c.iter()
+                                    .filter(|r| {
+                                        if any {
+                                            embree.any_hit(r)
+                                        } else {
+                                            embree.closest_hit(r).is_some()
+                                        }
+                                    })
+                                    .count()
+                            })
+                            .sum();
+                        std::hint::black_box(hits);
+                        return;
+                    }
                     let hits: usize = if i < KERNELS.len() {
                         let b = &bvhs[i];
                         set.par_chunks(1024)
@@ -192,8 +237,12 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
                 let mrays = mrays_per_s(set.len(), *t);
                 let (engine, kernel) = if i < KERNELS.len() {
                     ("quiver", KERNELS[i].name())
-                } else {
+                } else if i == KERNELS.len() {
                     ("obvhs", "bvh2-medium")
+                } else if any {
+                    ("embree", "rtcOccluded1")
+                } else {
+                    ("embree", "rtcIntersect1")
                 };
                 rows.push(row(engine, kernel, kind, all, Some(mrays), None, None));
             }
@@ -217,7 +266,7 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
 fn print_rows(rows: &[Value]) {
     let s = |v: &Value| v.as_str().unwrap_or("").to_string();
     let f = |v: &Value| v.as_f64();
-    outln!(
+    out!(
         "{:<14} {:>9} {:<7} {:<17} {:<10} {:>3} {:>9} {:>9} {:>9} {:>8}",
         "scene",
         "prims",
@@ -230,18 +279,26 @@ fn print_rows(rows: &[Value]) {
         "Mrays/s",
         "q/obvhs"
     );
+    if cfg!(feature = "embree") {
+        out!(" {:>8}", "q/embree");
+    }
+    outln!();
     for r in rows {
         let name = s(&r["scene"]);
         let short = name.rsplit('/').next().unwrap_or(&name).to_string();
-        // Ratio against obvhs on the same scene, ray kind and thread count.
-        let ratio = if r["engine"] == "quiver" {
+        // Ratio against another engine (its one kernel, or `kernel`) on the same scene, ray
+        // kind and thread count.
+        let versus = |engine: &str, kernel: Option<&str>| {
+            if r["engine"] != "quiver" {
+                return None;
+            }
             rows.iter()
                 .find(|o| {
-                    o["engine"] == "obvhs"
+                    o["engine"] == engine
                         && o["scene"] == r["scene"]
                         && o["rays"] == r["rays"]
                         && o["threads"] == r["threads"]
-                        && o["kernel"] == "bvh2-medium"
+                        && kernel.is_none_or(|k| o["kernel"] == k)
                 })
                 .and_then(|o| {
                     match (
@@ -255,11 +312,10 @@ fn print_rows(rows: &[Value]) {
                         _ => None,
                     }
                 })
-        } else {
-            None
         };
+        let ratio = versus("obvhs", Some("bvh2-medium"));
         let num = |v: Option<f64>, p: usize| v.map_or("-".to_string(), |x| format!("{x:.p$}"));
-        outln!(
+        out!(
             "{:<14} {:>9} {:<7} {:<17} {:<10} {:>3} {:>9} {:>9} {:>9} {:>8}",
             short,
             r["primitives"],
@@ -272,6 +328,13 @@ fn print_rows(rows: &[Value]) {
             num(f(&r["mrays_per_s"]), 2),
             num(ratio, 2)
         );
+        if cfg!(feature = "embree") {
+            out!(" {:>8}", num(versus("embree", None), 2));
+        }
+        outln!();
     }
     outln!("(q/obvhs: quiver throughput over obvhs's, or obvhs build time over quiver's: above 1 means quiver is faster)");
+    if cfg!(feature = "embree") {
+        outln!("(q/embree: the same against Embree's rtcIntersect1 / rtcOccluded1 and its default-quality build)");
+    }
 }

@@ -1,11 +1,15 @@
 //! `quiver packets`: packet traversal against the BVH4 single-ray kernel, side by side on the
 //! same rays: eye rays (8 x 8 pixel tiles), shadow rays (one per eye hit and light, in tile
 //! order) and incoherent rays, SPD scenes in curve and patch mode, 1 thread and all threads.
+//! Built with the `embree` feature, Intel Embree 3 joins them in patch mode (the scene's
+//! triangles): one ray at a time and as coherent streams over the same packet-ordered rays.
 
 use super::{parse_layout, pool, Result};
-use crate::output::{outln, write_json};
+use crate::output::{out, outln, write_json};
 use quiver::traverse::PacketMode;
 use quiver::{BuildOptions, Layout, Primitive};
+#[cfg(feature = "embree")]
+use quiver_lab::embree::EmbreeScene;
 use quiver_lab::measure::{median_times_interleaved, mrays_per_s, trace, trace_packets, Query};
 use quiver_lab::rays;
 use quiver_scenes::scene::tessellate::DEFAULT_RESOLUTION;
@@ -41,6 +45,11 @@ const KERNELS: [(&str, Option<PacketMode>); 3] = [
     ("packet", Some(PacketMode::Auto)),
     ("packet-always", Some(PacketMode::Always)),
 ];
+
+/// Embree's kernels, after [`KERNELS`]: `rtcIntersect1` / `rtcOccluded1` per ray, and
+/// `rtcIntersect1M` / `rtcOccluded1M` with the coherent flag over runs of 64 rays (one tile).
+#[cfg(feature = "embree")]
+const EMBREE_KERNELS: [&str; 2] = ["embree-1", "embree-stream"];
 
 /// Runs `quiver packets`.
 pub(crate) fn run(args: PacketsArgs) -> Result<()> {
@@ -95,6 +104,18 @@ fn measure<P: Primitive>(
     let lights: Vec<_> = scene.lights.iter().map(|l| l.pos).collect();
     let shadow = rays::shadow_rays(&bvh, &eye, &lights);
     let random = rays::random_rays(&scene.bounds(), args.rays, 11);
+    // Embree traces triangles only: in patch mode the same surfaces as quiver's primitives
+    // (quiver keeps polygons whole, Embree gets them triangulated: `primitives` in its rows);
+    // curve mode's spheres and cones would need Embree user geometry, so it is left out.
+    #[cfg(feature = "embree")]
+    let (embree, extra, embree_tris): (_, &[&str], _) = if mode == "patch" {
+        let tris = scene.triangles();
+        (Some(EmbreeScene::new(&tris)?), &EMBREE_KERNELS, tris.len())
+    } else {
+        (None, &[], 0)
+    };
+    #[cfg(not(feature = "embree"))]
+    let (extra, embree_tris): (&[&str], usize) = (&[], 0);
     for threads in [1, all] {
         let p = pool(Some(threads as u16))?;
         for (kind, set, query) in [
@@ -103,7 +124,12 @@ fn measure<P: Primitive>(
             ("incoherent", &random, Query::Closest),
         ] {
             let times = p.install(|| {
-                median_times_interleaved(args.reps, KERNELS.len(), |i| {
+                median_times_interleaved(args.reps, KERNELS.len() + extra.len(), |i| {
+                    #[cfg(feature = "embree")]
+                    if let (Some(e), Some(j)) = (&embree, i.checked_sub(KERNELS.len())) {
+                        std::hint::black_box(trace_embree(e, set, query, j == 1));
+                        return;
+                    }
                     let hits = match KERNELS[i].1 {
                         None => trace(&bvh, set, query),
                         Some(m) => trace_packets(&bvh, set, query, m),
@@ -112,10 +138,16 @@ fn measure<P: Primitive>(
                 })
             });
             let single = mrays_per_s(set.len(), times[0]);
-            for ((kernel, _), t) in KERNELS.iter().zip(&times) {
+            let names = KERNELS.iter().map(|k| k.0).chain(extra.iter().copied());
+            for ((i, kernel), t) in names.enumerate().zip(&times) {
                 let mrays = mrays_per_s(set.len(), *t);
+                let primitives = if i < KERNELS.len() {
+                    prims.len()
+                } else {
+                    embree_tris
+                };
                 rows.push(json!({
-                    "scene": scene.name, "mode": mode, "primitives": prims.len(),
+                    "scene": scene.name, "mode": mode, "primitives": primitives,
                     "layout": args.layout.name(), "rays": kind, "count": set.len(),
                     "threads": threads, "kernel": kernel, "mrays_per_s": mrays,
                     "vs_single": mrays / single,
@@ -126,8 +158,35 @@ fn measure<P: Primitive>(
     Ok(())
 }
 
+/// Traces every ray through Embree on the current pool, in tasks of 1024 rays as
+/// `measure::trace` and `measure::trace_packets` cut them, so a stream sees the same runs of
+/// packet-ordered rays as quiver's packets; returns how many hit.
+#[cfg(feature = "embree")]
+fn trace_embree(scene: &EmbreeScene, rays: &[quiver::Ray], query: Query, stream: bool) -> usize {
+    use rayon::prelude::*;
+    rays.par_chunks(1024)
+        .map(|chunk| match (query, stream) {
+            (Query::Closest, false) => chunk
+                .iter()
+                .filter(|r| scene.closest_hit(r).is_some())
+                .count(),
+            (Query::Any, false) => chunk.iter().filter(|r| scene.any_hit(r)).count(),
+            (Query::Closest, true) => {
+                let mut hits = vec![None; chunk.len()];
+                scene.closest_hit_stream(chunk, &mut hits);
+                hits.iter().filter(|h| h.is_some()).count()
+            }
+            (Query::Any, true) => {
+                let mut hit = vec![false; chunk.len()];
+                scene.any_hit_stream(chunk, &mut hit);
+                hit.iter().filter(|&&h| h).count()
+            }
+        })
+        .sum()
+}
+
 fn print_rows(rows: &[Value]) {
-    outln!(
+    out!(
         "{:<12} {:<6} {:>8} {:<11} {:>3} {:>14} {:>14} {:>6} {:>14} {:>6}",
         "scene",
         "mode",
@@ -140,11 +199,27 @@ fn print_rows(rows: &[Value]) {
         "always Mrays/s",
         "ratio"
     );
-    for group in rows.chunks(KERNELS.len()) {
+    #[cfg(feature = "embree")]
+    out!(
+        " {:>16} {:>6} {:>14} {:>6}",
+        "embree-1 Mrays/s",
+        "ratio",
+        "stream Mrays/s",
+        "ratio"
+    );
+    outln!();
+    // One group per scene, mode, ray set and thread count: the quiver kernels in `KERNELS`
+    // order, then Embree's where it ran.
+    let key = |r: &Value| {
+        [&r["scene"], &r["mode"], &r["rays"], &r["threads"]]
+            .map(|v| v.to_string())
+            .join("/")
+    };
+    for group in rows.chunk_by(|a, b| key(a) == key(b)) {
         let r = &group[0];
         let m = |i: usize| group[i]["mrays_per_s"].as_f64().unwrap_or(f64::NAN);
         let v = |i: usize| group[i]["vs_single"].as_f64().unwrap_or(f64::NAN);
-        outln!(
+        out!(
             "{:<12} {:<6} {:>8} {:<11} {:>3} {:>14.2} {:>14.2} {:>5.2}x {:>14.2} {:>5.2}x",
             r["scene"].as_str().unwrap_or(""),
             r["mode"].as_str().unwrap_or(""),
@@ -157,5 +232,19 @@ fn print_rows(rows: &[Value]) {
             m(2),
             v(2)
         );
+        #[cfg(feature = "embree")]
+        for (kernel, width) in [("embree-1", 16), ("embree-stream", 14)] {
+            match group.iter().find(|r| r["kernel"] == kernel) {
+                Some(r) => out!(
+                    " {:>width$.2} {:>5.2}x",
+                    r["mrays_per_s"].as_f64().unwrap_or(f64::NAN),
+                    r["vs_single"].as_f64().unwrap_or(f64::NAN)
+                ),
+                None => out!(" {:>width$} {:>6}", "-", "-"),
+            }
+        }
+        outln!();
     }
+    #[cfg(feature = "embree")]
+    outln!("(ratios: over quiver's single-ray kernel; embree-1: rtcIntersect1 / rtcOccluded1 per ray; embree-stream: rtcIntersect1M / rtcOccluded1M, coherent, 64 rays per call; Embree in patch mode only, on the scene's triangles)");
 }

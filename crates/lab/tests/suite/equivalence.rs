@@ -217,14 +217,17 @@ fn watertight_leaves_match_the_scalar_watertight_test() {
             if bvh.isa() != isa {
                 continue;
             }
-            rays.par_iter().zip(&want).enumerate().for_each(|(i, (r, w))| {
-                assert_eq!(bvh.closest_hit(r), *w, "{layout} {isa} ray {i} {r:?}");
-                assert_eq!(
-                    bvh.any_hit(r),
-                    reference::any_hit(&wt, r),
-                    "{layout} {isa} any ray {i}"
-                );
-            });
+            rays.par_iter()
+                .zip(&want)
+                .enumerate()
+                .for_each(|(i, (r, w))| {
+                    assert_eq!(bvh.closest_hit(r), *w, "{layout} {isa} ray {i} {r:?}");
+                    assert_eq!(
+                        bvh.any_hit(r),
+                        reference::any_hit(&wt, r),
+                        "{layout} {isa} any ray {i}"
+                    );
+                });
         }
     }
 }

@@ -105,7 +105,11 @@ fn walk<T, B, S, F, const ORDERED: bool>(
         stats.boxes(8);
         let (t, mask) = ray.enter::<B>(n, limit * B::SLACK);
         if ORDERED {
-            // Push hit children farthest first, so the nearest is popped next.
+            // Push hit children farthest first, so the nearest is popped next. Measured
+            // against per-octant precomputed orders (children by centre along the ray's
+            // octant, 32 more bytes a node): those ran eye rays 4-29% faster but incoherent
+            // rays up to 12% slower (`quiver layouts`, 1 thread, medians of 3 runs), and the
+            // nearest hit child first plus octant order for the rest was slower than both.
             let mut hits = [(0.0f32, 0usize); 8];
             let mut k = 0;
             for i in bits(mask) {

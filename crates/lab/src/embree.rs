@@ -1,0 +1,756 @@
+//! Intel Embree 3 as a comparison engine (feature `embree`): the same triangles and rays as
+//! quiver's kernels, in the same process, so `quiver bench` and `quiver packets` can time the
+//! two side by side. A small hand-written FFI against the system's `libembree3` (Debian:
+//! `apt-get install libembree-dev`), checked against the 3.13 headers, rather than a bindings
+//! crate: the few calls used here are all we need, and every layout is asserted below.
+//!
+//! ```
+//! use glam::Vec3A;
+//! use quiver::{Ray, Triangle};
+//! use quiver_lab::embree::EmbreeScene;
+//! let tris = [Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y)];
+//! let scene = EmbreeScene::new(&tris).unwrap();
+//! let ray = Ray::new(Vec3A::new(0.25, 0.25, 1.0), -Vec3A::Z);
+//! assert_eq!(scene.closest_hit(&ray), Some((0, 1.0))); // (triangle index, t)
+//! assert!(scene.any_hit(&ray));
+//! ```
+//!
+//! Embree's triangle test is not quiver's (Embree accepts `tnear < t <= tfar`, quiver the
+//! closed interval, and the two round differently on edges), and on ties Embree returns any of
+//! the tied triangles, quiver the lowest index: the two may disagree on rays through edges and
+//! at equal distances (the tests below allow one ray in 1,000).
+
+use quiver::{Ray, Triangle};
+use std::ffi::{c_char, c_void, CStr, CString};
+use std::mem::MaybeUninit;
+use std::sync::{Arc, Mutex};
+
+/// The subset of `embree3/rtcore*.h` (3.13) used here. Names follow the C headers.
+#[allow(
+    non_camel_case_types,
+    non_snake_case,
+    clippy::upper_case_acronyms,
+    dead_code
+)]
+mod ffi {
+    use std::ffi::{c_char, c_void};
+
+    /// Opaque `struct RTCDeviceTy`.
+    #[repr(C)]
+    pub struct RTCDeviceTy {
+        _private: [u8; 0],
+    }
+    /// Opaque `struct RTCSceneTy`.
+    #[repr(C)]
+    pub struct RTCSceneTy {
+        _private: [u8; 0],
+    }
+    /// Opaque `struct RTCGeometryTy`.
+    #[repr(C)]
+    pub struct RTCGeometryTy {
+        _private: [u8; 0],
+    }
+    pub type RTCDevice = *mut RTCDeviceTy;
+    pub type RTCScene = *mut RTCSceneTy;
+    pub type RTCGeometry = *mut RTCGeometryTy;
+
+    // C enums are passed as (unsigned) int on every platform Embree supports.
+    pub type RTCError = u32;
+    pub const RTC_ERROR_NONE: RTCError = 0;
+    pub const RTC_ERROR_UNKNOWN: RTCError = 1;
+    pub const RTC_ERROR_INVALID_ARGUMENT: RTCError = 2;
+    pub const RTC_ERROR_INVALID_OPERATION: RTCError = 3;
+    pub const RTC_ERROR_OUT_OF_MEMORY: RTCError = 4;
+    pub const RTC_ERROR_UNSUPPORTED_CPU: RTCError = 5;
+    pub const RTC_ERROR_CANCELLED: RTCError = 6;
+
+    pub type RTCDeviceProperty = u32;
+    pub const RTC_DEVICE_PROPERTY_VERSION: RTCDeviceProperty = 0;
+    pub const RTC_DEVICE_PROPERTY_RAY_STREAM_SUPPORTED: RTCDeviceProperty = 35;
+    pub const RTC_DEVICE_PROPERTY_BACKFACE_CULLING_ENABLED: RTCDeviceProperty = 65;
+
+    pub type RTCGeometryType = u32;
+    pub const RTC_GEOMETRY_TYPE_TRIANGLE: RTCGeometryType = 0;
+
+    pub type RTCBufferType = u32;
+    pub const RTC_BUFFER_TYPE_INDEX: RTCBufferType = 0;
+    pub const RTC_BUFFER_TYPE_VERTEX: RTCBufferType = 1;
+
+    pub type RTCFormat = u32;
+    pub const RTC_FORMAT_UINT3: RTCFormat = 0x5003;
+    pub const RTC_FORMAT_FLOAT3: RTCFormat = 0x9003;
+
+    pub type RTCIntersectContextFlags = u32;
+    pub const RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT: RTCIntersectContextFlags = 0;
+    pub const RTC_INTERSECT_CONTEXT_FLAG_COHERENT: RTCIntersectContextFlags = 1;
+
+    pub const RTC_INVALID_GEOMETRY_ID: u32 = u32::MAX;
+    /// `RTC_MAX_INSTANCE_LEVEL_COUNT` in `rtcore_config.h` of the Debian build.
+    pub const RTC_MAX_INSTANCE_LEVEL_COUNT: usize = 1;
+
+    pub type RTCErrorFunction =
+        unsafe extern "C" fn(user_ptr: *mut c_void, code: RTCError, str: *const c_char);
+    pub type RTCFilterFunctionN = unsafe extern "C" fn(args: *const c_void);
+
+    /// `struct RTCIntersectContext` with `RTC_MAX_INSTANCE_LEVEL_COUNT == 1` and
+    /// `RTC_MIN_WIDTH == 0`, which drop `instStackSize` and `minWidthDistanceFactor`.
+    #[repr(C)]
+    pub struct RTCIntersectContext {
+        pub flags: RTCIntersectContextFlags,
+        pub filter: Option<RTCFilterFunctionN>,
+        pub instID: [u32; RTC_MAX_INSTANCE_LEVEL_COUNT],
+    }
+
+    /// `struct RTC_ALIGN(16) RTCRay`.
+    #[repr(C, align(16))]
+    #[derive(Clone, Copy)]
+    pub struct RTCRay {
+        pub org_x: f32,
+        pub org_y: f32,
+        pub org_z: f32,
+        pub tnear: f32,
+        pub dir_x: f32,
+        pub dir_y: f32,
+        pub dir_z: f32,
+        pub time: f32,
+        pub tfar: f32,
+        pub mask: u32,
+        pub id: u32,
+        pub flags: u32,
+    }
+
+    /// `struct RTC_ALIGN(16) RTCHit`.
+    #[repr(C, align(16))]
+    #[derive(Clone, Copy)]
+    pub struct RTCHit {
+        pub Ng_x: f32,
+        pub Ng_y: f32,
+        pub Ng_z: f32,
+        pub u: f32,
+        pub v: f32,
+        pub primID: u32,
+        pub geomID: u32,
+        pub instID: [u32; RTC_MAX_INSTANCE_LEVEL_COUNT],
+    }
+
+    /// `struct RTCRayHit`.
+    #[repr(C)]
+    #[derive(Clone, Copy)]
+    pub struct RTCRayHit {
+        pub ray: RTCRay,
+        pub hit: RTCHit,
+    }
+
+    // The layouts the library was compiled with (sizeof in C on x86_64 and aarch64).
+    const _: () = assert!(std::mem::size_of::<RTCRay>() == 48);
+    const _: () = assert!(std::mem::size_of::<RTCHit>() == 32);
+    const _: () = assert!(std::mem::size_of::<RTCRayHit>() == 80);
+    const _: () = assert!(std::mem::align_of::<RTCRayHit>() == 16);
+    const _: () = assert!(std::mem::size_of::<RTCIntersectContext>() == 24);
+
+    #[link(name = "embree3")]
+    extern "C" {
+        pub fn rtcNewDevice(config: *const c_char) -> RTCDevice;
+        pub fn rtcReleaseDevice(device: RTCDevice);
+        pub fn rtcGetDeviceProperty(device: RTCDevice, prop: RTCDeviceProperty) -> isize;
+        pub fn rtcGetDeviceError(device: RTCDevice) -> RTCError;
+        pub fn rtcSetDeviceErrorFunction(
+            device: RTCDevice,
+            error: Option<RTCErrorFunction>,
+            user_ptr: *mut c_void,
+        );
+
+        pub fn rtcNewScene(device: RTCDevice) -> RTCScene;
+        pub fn rtcReleaseScene(scene: RTCScene);
+        pub fn rtcAttachGeometry(scene: RTCScene, geometry: RTCGeometry) -> u32;
+        pub fn rtcCommitScene(scene: RTCScene);
+
+        pub fn rtcNewGeometry(device: RTCDevice, ty: RTCGeometryType) -> RTCGeometry;
+        pub fn rtcReleaseGeometry(geometry: RTCGeometry);
+        pub fn rtcCommitGeometry(geometry: RTCGeometry);
+        pub fn rtcSetNewGeometryBuffer(
+            geometry: RTCGeometry,
+            ty: RTCBufferType,
+            slot: u32,
+            format: RTCFormat,
+            byte_stride: usize,
+            item_count: usize,
+        ) -> *mut c_void;
+
+        pub fn rtcIntersect1(
+            scene: RTCScene,
+            context: *mut RTCIntersectContext,
+            rayhit: *mut RTCRayHit,
+        );
+        pub fn rtcOccluded1(scene: RTCScene, context: *mut RTCIntersectContext, ray: *mut RTCRay);
+        pub fn rtcIntersect1M(
+            scene: RTCScene,
+            context: *mut RTCIntersectContext,
+            rayhit: *mut RTCRayHit,
+            m: u32,
+            byte_stride: usize,
+        );
+        pub fn rtcOccluded1M(
+            scene: RTCScene,
+            context: *mut RTCIntersectContext,
+            ray: *mut RTCRay,
+            m: u32,
+            byte_stride: usize,
+        );
+    }
+
+    /// `rtcInitIntersectContext`, a `static inline` function in `rtcore_common.h` and so not in
+    /// the library.
+    pub fn init_intersect_context(flags: RTCIntersectContextFlags) -> RTCIntersectContext {
+        RTCIntersectContext {
+            flags,
+            filter: None,
+            instID: [RTC_INVALID_GEOMETRY_ID; RTC_MAX_INSTANCE_LEVEL_COUNT],
+        }
+    }
+}
+
+use ffi::*;
+
+/// Rays per `rtcIntersect1M` / `rtcOccluded1M` call: one 8 × 8 tile of `rays::camera_tiles`,
+/// small enough for a stack buffer, larger than Embree's widest packet (16).
+const STREAM_CHUNK: usize = 64;
+
+fn error_name(code: RTCError) -> &'static str {
+    match code {
+        RTC_ERROR_NONE => "RTC_ERROR_NONE",
+        RTC_ERROR_UNKNOWN => "RTC_ERROR_UNKNOWN",
+        RTC_ERROR_INVALID_ARGUMENT => "RTC_ERROR_INVALID_ARGUMENT",
+        RTC_ERROR_INVALID_OPERATION => "RTC_ERROR_INVALID_OPERATION",
+        RTC_ERROR_OUT_OF_MEMORY => "RTC_ERROR_OUT_OF_MEMORY",
+        RTC_ERROR_UNSUPPORTED_CPU => "RTC_ERROR_UNSUPPORTED_CPU",
+        RTC_ERROR_CANCELLED => "RTC_ERROR_CANCELLED",
+        _ => "unknown RTCError",
+    }
+}
+
+/// Embree reports the message only through the error callback (the code alone through
+/// `rtcGetDeviceError`); keep the latest one for the `Err` we return. Called on whatever thread
+/// hit the error (TBB build threads too), hence the mutex; must not unwind into C.
+unsafe extern "C" fn record_error(user_ptr: *mut c_void, code: RTCError, message: *const c_char) {
+    let Some(slot) = (user_ptr as *const Mutex<Option<String>>).as_ref() else {
+        return;
+    };
+    let text = if message.is_null() {
+        String::new()
+    } else {
+        CStr::from_ptr(message).to_string_lossy().into_owned()
+    };
+    if let Ok(mut last) = slot.lock() {
+        *last = Some(format!("{} ({code}): {text}", error_name(code)));
+    }
+}
+
+/// The device and the error slot its callback writes to: the slot must outlive the device,
+/// and scenes keep the device alive, so both live behind one `Arc`.
+struct Device {
+    raw: RTCDevice,
+    last_error: Box<Mutex<Option<String>>>,
+}
+
+// SAFETY: Embree's API is thread-safe for creating and committing different scenes on one
+// device; the only Rust-side state is the mutex-guarded error slot.
+unsafe impl Send for Device {}
+unsafe impl Sync for Device {}
+
+impl Device {
+    /// `Err` with Embree's code and message if anything failed since the last check.
+    fn check(&self, what: &str) -> Result<(), String> {
+        let code = unsafe { rtcGetDeviceError(self.raw) };
+        let message = self.last_error.lock().ok().and_then(|mut m| m.take());
+        match (code, message) {
+            (RTC_ERROR_NONE, None) => Ok(()),
+            (_, Some(m)) => Err(format!("Embree: {what}: {m}")),
+            (code, None) => Err(format!("Embree: {what}: {} ({code})", error_name(code))),
+        }
+    }
+}
+
+impl Drop for Device {
+    fn drop(&mut self) {
+        // Runs after the last scene is released (each holds an `Arc<Device>`), so this destroys
+        // the device before its error slot drops: no callback can reach a freed slot.
+        unsafe { rtcReleaseDevice(self.raw) }
+    }
+}
+
+/// An Embree device: the factory of scenes and the owner of Embree's build threads (its own
+/// TBB pool, not rayon's; queries run on the calling thread).
+#[derive(Clone)]
+pub struct EmbreeDevice {
+    inner: Arc<Device>,
+}
+
+impl EmbreeDevice {
+    /// A device with Embree's default configuration: builds use all hardware threads.
+    pub fn new() -> Result<Self, String> {
+        Self::with_config(None)
+    }
+
+    /// A device whose builds use `threads` threads (`threads=N` in Embree's configuration
+    /// string; 0 means all hardware threads). Embree's TBB scheduler is process-wide and takes
+    /// the largest count of all live devices, so a 1-thread build only runs on 1 thread while
+    /// no device with more threads exists.
+    pub fn with_threads(threads: usize) -> Result<Self, String> {
+        Self::with_config(Some(&format!("threads={threads}")))
+    }
+
+    fn with_config(config: Option<&str>) -> Result<Self, String> {
+        let config = config
+            .map(CString::new)
+            .transpose()
+            .map_err(|e| format!("Embree: configuration string: {e}"))?;
+        let config_ptr = config.as_ref().map_or(std::ptr::null(), |c| c.as_ptr());
+        let raw = unsafe { rtcNewDevice(config_ptr) };
+        if raw.is_null() {
+            // Without a device there is no callback and no message, only the code.
+            let code = unsafe { rtcGetDeviceError(std::ptr::null_mut()) };
+            return Err(format!(
+                "Embree: rtcNewDevice failed: {} ({code})",
+                error_name(code)
+            ));
+        }
+        let device = Device {
+            raw,
+            last_error: Box::new(Mutex::new(None)),
+        };
+        let slot: *const Mutex<Option<String>> = &*device.last_error;
+        unsafe { rtcSetDeviceErrorFunction(raw, Some(record_error), slot as *mut c_void) };
+        device.check("rtcNewDevice")?;
+        // Culling back faces would answer a different question than quiver's two-sided test.
+        let culling = RTC_DEVICE_PROPERTY_BACKFACE_CULLING_ENABLED;
+        if unsafe { rtcGetDeviceProperty(raw, culling) } != 0 {
+            return Err("Embree: this libembree3 culls back faces; quiver's are two-sided".into());
+        }
+        Ok(EmbreeDevice {
+            inner: Arc::new(device),
+        })
+    }
+
+    /// Embree's version as `major.minor.patch`.
+    pub fn version(&self) -> String {
+        let v = unsafe { rtcGetDeviceProperty(self.inner.raw, RTC_DEVICE_PROPERTY_VERSION) };
+        format!("{}.{}.{}", v / 10000, v / 100 % 100, v % 100)
+    }
+
+    /// Whether this library was built with ray streams (`rtcIntersect1M`); without them the
+    /// stream forms of [`EmbreeScene`] fall back to one ray at a time.
+    pub fn ray_streams(&self) -> bool {
+        let p = RTC_DEVICE_PROPERTY_RAY_STREAM_SUPPORTED;
+        unsafe { rtcGetDeviceProperty(self.inner.raw, p) != 0 }
+    }
+}
+
+/// One committed Embree scene holding one triangle mesh; primitive IDs are indices into the
+/// slice it was built from, as in quiver.
+pub struct EmbreeScene {
+    raw: RTCScene,
+    streams: bool,
+    /// Keeps the device (and its error slot) alive as long as the scene.
+    _device: Arc<Device>,
+}
+
+// SAFETY: after `rtcCommitScene` an Embree scene may be queried from any number of threads at
+// once; `EmbreeScene` exposes no way to modify it.
+unsafe impl Send for EmbreeScene {}
+unsafe impl Sync for EmbreeScene {}
+
+impl Drop for EmbreeScene {
+    fn drop(&mut self) {
+        // Before `_device` drops, so the device's last release comes after the scene's.
+        unsafe { rtcReleaseScene(self.raw) }
+    }
+}
+
+impl EmbreeScene {
+    /// Builds over `tris` on a new default device (all hardware threads for the build).
+    pub fn new(tris: &[Triangle]) -> Result<Self, String> {
+        Self::on_device(&EmbreeDevice::new()?, tris)
+    }
+
+    /// Builds over `tris` on `device`: one triangle geometry (a `FLOAT3` vertex buffer with
+    /// three vertices per triangle and a `UINT3` index buffer), Embree's default build quality
+    /// (medium) and scene flags, committed. Triangles with non-finite vertices are skipped by
+    /// Embree as by quiver.
+    pub fn on_device(device: &EmbreeDevice, tris: &[Triangle]) -> Result<Self, String> {
+        let dev = &device.inner;
+        let vertices = tris
+            .len()
+            .checked_mul(3)
+            .filter(|&n| n <= u32::MAX as usize);
+        let Some(vertices) = vertices else {
+            return Err(format!(
+                "Embree: {} triangles exceed 32-bit vertex indices",
+                tris.len()
+            ));
+        };
+        let raw = unsafe { rtcNewScene(dev.raw) };
+        if raw.is_null() {
+            dev.check("rtcNewScene")?;
+            return Err("Embree: rtcNewScene returned no scene".into());
+        }
+        // From here on, an early return releases the scene.
+        let scene = EmbreeScene {
+            raw,
+            streams: device.ray_streams(),
+            _device: dev.clone(),
+        };
+        // An empty scene is one without geometry, rather than one with zero-sized buffers.
+        if !tris.is_empty() {
+            let geom = unsafe { rtcNewGeometry(dev.raw, RTC_GEOMETRY_TYPE_TRIANGLE) };
+            if geom.is_null() {
+                dev.check("rtcNewGeometry")?;
+                return Err("Embree: rtcNewGeometry returned no geometry".into());
+            }
+            let filled = fill_buffers(dev, geom, tris, vertices);
+            if filled.is_ok() {
+                unsafe {
+                    rtcCommitGeometry(geom);
+                    rtcAttachGeometry(raw, geom);
+                }
+            }
+            // The scene holds its own reference once attached.
+            unsafe { rtcReleaseGeometry(geom) };
+            filled?;
+            dev.check("rtcCommitGeometry / rtcAttachGeometry")?;
+        }
+        unsafe { rtcCommitScene(raw) };
+        dev.check("rtcCommitScene")?;
+        Ok(scene)
+    }
+
+    /// The nearest hit within `[ray.t_min, ray.t_max]` (`rtcIntersect1`) as (triangle index,
+    /// t); the tie between triangles at equal t is Embree's, not quiver's lowest index.
+    #[inline]
+    pub fn closest_hit(&self, ray: &Ray) -> Option<(u32, f32)> {
+        let mut rh = ray_hit(ray);
+        let mut ctx = init_intersect_context(RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT);
+        unsafe { rtcIntersect1(self.raw, &mut ctx, &mut rh) };
+        hit_of(&rh)
+    }
+
+    /// Whether anything lies within `[ray.t_min, ray.t_max]` (`rtcOccluded1`).
+    #[inline]
+    pub fn any_hit(&self, ray: &Ray) -> bool {
+        let mut r = rtc_ray(ray);
+        let mut ctx = init_intersect_context(RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT);
+        unsafe { rtcOccluded1(self.raw, &mut ctx, &mut r) };
+        occluded(&r)
+    }
+
+    /// [`closest_hit`](Self::closest_hit) for every ray, handed to Embree as coherent streams
+    /// (`rtcIntersect1M`, `RTC_INTERSECT_CONTEXT_FLAG_COHERENT`) of up to 64 consecutive rays,
+    /// so Embree may trace them as packets: give it packet-ordered rays (e.g.
+    /// `rays::camera_tiles`). The answers are the single-ray form's.
+    ///
+    /// # Panics
+    /// If `out` and `rays` differ in length.
+    pub fn closest_hit_stream(&self, rays: &[Ray], out: &mut [Option<(u32, f32)>]) {
+        assert_eq!(rays.len(), out.len(), "one output per ray");
+        if !self.streams {
+            for (r, o) in rays.iter().zip(out) {
+                *o = self.closest_hit(r);
+            }
+            return;
+        }
+        let mut buf = [const { MaybeUninit::<RTCRayHit>::uninit() }; STREAM_CHUNK];
+        for (rays, out) in rays.chunks(STREAM_CHUNK).zip(out.chunks_mut(STREAM_CHUNK)) {
+            for (b, r) in buf.iter_mut().zip(rays) {
+                b.write(ray_hit(r));
+            }
+            let mut ctx = init_intersect_context(RTC_INTERSECT_CONTEXT_FLAG_COHERENT);
+            unsafe {
+                rtcIntersect1M(
+                    self.raw,
+                    &mut ctx,
+                    buf.as_mut_ptr().cast(),
+                    rays.len() as u32,
+                    std::mem::size_of::<RTCRayHit>(),
+                );
+            }
+            for (o, b) in out.iter_mut().zip(&buf) {
+                // SAFETY: the first `rays.len()` entries were written above.
+                *o = hit_of(unsafe { b.assume_init_ref() });
+            }
+        }
+    }
+
+    /// [`any_hit`](Self::any_hit) for every ray as coherent streams (`rtcOccluded1M`), as
+    /// [`closest_hit_stream`](Self::closest_hit_stream).
+    ///
+    /// # Panics
+    /// If `out` and `rays` differ in length.
+    pub fn any_hit_stream(&self, rays: &[Ray], out: &mut [bool]) {
+        assert_eq!(rays.len(), out.len(), "one output per ray");
+        if !self.streams {
+            for (r, o) in rays.iter().zip(out) {
+                *o = self.any_hit(r);
+            }
+            return;
+        }
+        let mut buf = [const { MaybeUninit::<RTCRay>::uninit() }; STREAM_CHUNK];
+        for (rays, out) in rays.chunks(STREAM_CHUNK).zip(out.chunks_mut(STREAM_CHUNK)) {
+            for (b, r) in buf.iter_mut().zip(rays) {
+                b.write(rtc_ray(r));
+            }
+            let mut ctx = init_intersect_context(RTC_INTERSECT_CONTEXT_FLAG_COHERENT);
+            unsafe {
+                rtcOccluded1M(
+                    self.raw,
+                    &mut ctx,
+                    buf.as_mut_ptr().cast(),
+                    rays.len() as u32,
+                    std::mem::size_of::<RTCRay>(),
+                );
+            }
+            for (o, b) in out.iter_mut().zip(&buf) {
+                // SAFETY: the first `rays.len()` entries were written above.
+                *o = occluded(unsafe { b.assume_init_ref() });
+            }
+        }
+    }
+}
+
+/// Copies the triangles into Embree-owned buffers (Embree pads them for its 16-byte loads).
+fn fill_buffers(
+    dev: &Device,
+    geom: RTCGeometry,
+    tris: &[Triangle],
+    vertices: usize,
+) -> Result<(), String> {
+    let vb = unsafe {
+        rtcSetNewGeometryBuffer(
+            geom,
+            RTC_BUFFER_TYPE_VERTEX,
+            0,
+            RTC_FORMAT_FLOAT3,
+            12,
+            vertices,
+        )
+    };
+    dev.check("rtcSetNewGeometryBuffer (vertices)")?;
+    let ib = unsafe {
+        rtcSetNewGeometryBuffer(
+            geom,
+            RTC_BUFFER_TYPE_INDEX,
+            0,
+            RTC_FORMAT_UINT3,
+            12,
+            tris.len(),
+        )
+    };
+    dev.check("rtcSetNewGeometryBuffer (indices)")?;
+    if vb.is_null() || ib.is_null() {
+        return Err("Embree: rtcSetNewGeometryBuffer returned no buffer".into());
+    }
+    // SAFETY: Embree allocated `vertices` × 12 and `tris.len()` × 12 bytes, 4-byte aligned
+    // (at least 16), for these two buffers.
+    let (vb, ib) = unsafe {
+        (
+            std::slice::from_raw_parts_mut(vb.cast::<[f32; 3]>(), vertices),
+            std::slice::from_raw_parts_mut(ib.cast::<[u32; 3]>(), tris.len()),
+        )
+    };
+    for (i, t) in tris.iter().enumerate() {
+        for (k, v) in t.v.iter().enumerate() {
+            vb[3 * i + k] = v.to_array();
+        }
+        let base = 3 * i as u32;
+        ib[i] = [base, base + 1, base + 2];
+    }
+    Ok(())
+}
+
+#[inline]
+fn rtc_ray(r: &Ray) -> RTCRay {
+    RTCRay {
+        org_x: r.origin.x,
+        org_y: r.origin.y,
+        org_z: r.origin.z,
+        tnear: r.t_min,
+        dir_x: r.dir.x,
+        dir_y: r.dir.y,
+        dir_z: r.dir.z,
+        time: 0.0,
+        tfar: r.t_max,
+        mask: u32::MAX,
+        id: 0,
+        flags: 0,
+    }
+}
+
+#[inline]
+fn ray_hit(r: &Ray) -> RTCRayHit {
+    RTCRayHit {
+        ray: rtc_ray(r),
+        hit: RTCHit {
+            Ng_x: 0.0,
+            Ng_y: 0.0,
+            Ng_z: 0.0,
+            u: 0.0,
+            v: 0.0,
+            primID: RTC_INVALID_GEOMETRY_ID,
+            geomID: RTC_INVALID_GEOMETRY_ID,
+            instID: [RTC_INVALID_GEOMETRY_ID; RTC_MAX_INSTANCE_LEVEL_COUNT],
+        },
+    }
+}
+
+/// `rtcIntersect1` leaves `geomID` invalid on a miss, and on a hit sets `tfar` to the distance.
+#[inline]
+fn hit_of(rh: &RTCRayHit) -> Option<(u32, f32)> {
+    (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID).then_some((rh.hit.primID, rh.ray.tfar))
+}
+
+/// `rtcOccluded1` marks a hit by setting `tfar` to −∞.
+#[inline]
+fn occluded(r: &RTCRay) -> bool {
+    r.tfar == f32::NEG_INFINITY
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rays;
+    use quiver::reference;
+    use quiver_scenes::Scene;
+    use rayon::prelude::*;
+
+    /// (primitive, t), as [`EmbreeScene::closest_hit`] answers.
+    type PrimT = Option<(u32, f32)>;
+
+    /// Rays where Embree and the brute-force reference differ: another primitive, or a t off
+    /// by more than 1e-4 relative, or hit against miss.
+    fn closest_disagreements(
+        scene: &EmbreeScene,
+        tris: &[Triangle],
+        rays: &[Ray],
+    ) -> Vec<(usize, PrimT, PrimT)> {
+        rays.par_iter()
+            .enumerate()
+            .filter_map(|(i, r)| {
+                let e = scene.closest_hit(r);
+                let q = reference::closest_hit(tris, r).map(|h| (h.prim, h.t));
+                let same = match (e, q) {
+                    (None, None) => true,
+                    (Some((ep, et)), Some((qp, qt))) => {
+                        ep == qp && (et - qt).abs() <= 1e-4 * qt.abs().max(et.abs())
+                    }
+                    _ => false,
+                };
+                (!same).then_some((i, e, q))
+            })
+            .collect()
+    }
+
+    fn check_scene(name: &str, random: usize) {
+        let s = Scene::load(name).unwrap();
+        let tris = s.triangles();
+        let scene = EmbreeScene::new(&tris).unwrap();
+        let camera = rays::camera_rays(&s.camera, 128);
+        let mut lights: Vec<_> = s.lights.iter().map(|l| l.pos).collect();
+        lights.push(s.camera.from); // soups have no lights
+        let shadow = rays::shadow_rays(&quiver::Bvh::new(&tris), &camera, &lights);
+        let sets = [
+            ("random", rays::random_rays(&s.bounds(), random, 5)),
+            ("shadow", shadow),
+            ("camera", camera),
+        ];
+        for (kind, set) in &sets {
+            let allowed = set.len() / 1000;
+            let bad = closest_disagreements(&scene, &tris, set);
+            for (i, e, q) in &bad {
+                println!("{name} {kind} ray {i}: embree {e:?}, reference {q:?}");
+            }
+            let hits = set
+                .iter()
+                .filter(|r| scene.closest_hit(r).is_some())
+                .count();
+            println!(
+                "{name} {kind}: {} rays, {hits} hits, {} closest-hit disagreements",
+                set.len(),
+                bad.len()
+            );
+            assert!(hits > 0, "{name} {kind}: no ray hits anything");
+            assert!(
+                bad.len() <= allowed,
+                "{name} {kind}: {} > {allowed}",
+                bad.len()
+            );
+
+            let any_bad: Vec<usize> = (0..set.len())
+                .into_par_iter()
+                .filter(|&i| scene.any_hit(&set[i]) != reference::any_hit(&tris, &set[i]))
+                .collect();
+            for i in &any_bad {
+                println!("{name} {kind} ray {i}: any-hit differs");
+            }
+            assert!(any_bad.len() <= allowed, "{name} {kind}: any-hit");
+
+            // The stream forms answer exactly as the single-ray forms, coherent or not.
+            let mut closest = vec![None; set.len()];
+            scene.closest_hit_stream(set, &mut closest);
+            let mut any = vec![false; set.len()];
+            scene.any_hit_stream(set, &mut any);
+            for (i, r) in set.iter().enumerate() {
+                assert_eq!(closest[i], scene.closest_hit(r), "{name} {kind} ray {i}");
+                assert_eq!(any[i], scene.any_hit(r), "{name} {kind} ray {i}");
+            }
+        }
+    }
+
+    #[test]
+    fn embree_agrees_with_reference_on_tetra6() {
+        check_scene("tetra6", 20_000);
+    }
+
+    #[test]
+    fn embree_agrees_with_reference_on_soup() {
+        check_scene("soup2000", 20_000);
+    }
+
+    #[test]
+    fn embree_stream_on_tiles_matches_single_rays() {
+        let s = Scene::load("tetra6").unwrap();
+        let scene = EmbreeScene::new(&s.triangles()).unwrap();
+        let eye = rays::camera_tiles(&s.camera, 100, 8); // partial tiles at the edges
+        let mut out = vec![None; eye.len()];
+        scene.closest_hit_stream(&eye, &mut out);
+        for (r, o) in eye.iter().zip(&out) {
+            assert_eq!(*o, scene.closest_hit(r));
+        }
+    }
+
+    #[test]
+    fn embree_device_reports_version_and_builds_empty_scenes() {
+        let device = EmbreeDevice::with_threads(1).unwrap();
+        println!(
+            "Embree {} (ray streams: {})",
+            device.version(),
+            device.ray_streams()
+        );
+        assert!(device.version().starts_with("3."));
+        let empty = EmbreeScene::on_device(&device, &[]).unwrap();
+        let ray = Ray::new(glam::Vec3A::ZERO, glam::Vec3A::X);
+        assert_eq!(empty.closest_hit(&ray), None);
+        assert!(!empty.any_hit(&ray));
+    }
+
+    #[test]
+    fn embree_errors_are_results() {
+        let device = EmbreeDevice::new().unwrap();
+        let dev = &device.inner;
+        dev.check("nothing").unwrap();
+        let geom = unsafe { rtcNewGeometry(dev.raw, 999) }; // no such geometry type
+        assert!(geom.is_null());
+        let err = dev.check("rtcNewGeometry").unwrap_err();
+        println!("{err}");
+        assert!(err.contains("invalid geometry type"), "{err}");
+        dev.check("after the error was taken").unwrap();
+    }
+}
