@@ -44,7 +44,7 @@ pub enum Bvh<P = Triangle> {
 
 impl<P: Primitive> Bvh<P> {
     /// Builds over `prims` with the default [`BuildOptions`]: binned SAH, leaves of up to 8,
-    /// the default layout (`bvh4-dfs`), on the current rayon thread pool. Hits report each
+    /// the default layout (`bvh8-dfs`), on the current rayon thread pool. Hits report each
     /// primitive's index in `prims`.
     pub fn new(prims: &[P]) -> Self {
         BuildOptions::default().build(prims)

@@ -167,84 +167,88 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
             .unwrap_or(scene.camera.from);
         let shadow = rays::shadow_rays(&bvhs[2], &eye, &[light]);
         let incoherent = rays::random_rays(&scene.bounds(), args.rays, 11);
-        let p = pool(Some(all as u16))?;
-        for (kind, set, any) in [
-            ("eye", &eye, false),
-            ("shadow", &shadow, true),
-            ("incoherent", &incoherent, false),
-        ] {
-            let n = KERNELS.len() + 1 + usize::from(cfg!(feature = "embree"));
-            let times = p.install(|| {
-                median_times_interleaved(args.reps, n, |i| {
-                    #[cfg(feature = "embree")]
-                    if i == KERNELS.len() + 1 {
-                        let hits: usize = set
-                            .par_chunks(1024)
-                            .map(|c| {
-                                c.iter()
-                                    .filter(|r| {
-                                        if any {
-                                            embree.any_hit(r)
-                                        } else {
-                                            embree.closest_hit(r).is_some()
-                                        }
-                                    })
-                                    .count()
-                            })
-                            .sum();
+        for threads in [1, all] {
+            let p = pool(Some(threads as u16))?;
+            for (kind, set, any) in [
+                ("eye", &eye, false),
+                ("shadow", &shadow, true),
+                ("incoherent", &incoherent, false),
+            ] {
+                let n = KERNELS.len() + 1 + usize::from(cfg!(feature = "embree"));
+                let times = p.install(|| {
+                    median_times_interleaved(args.reps, n, |i| {
+                        #[cfg(feature = "embree")]
+                        if i == KERNELS.len() + 1 {
+                            let hits: usize = set
+                                .par_chunks(1024)
+                                .map(|c| {
+                                    c.iter()
+                                        .filter(|r| {
+                                            if any {
+                                                embree.any_hit(r)
+                                            } else {
+                                                embree.closest_hit(r).is_some()
+                                            }
+                                        })
+                                        .count()
+                                })
+                                .sum();
+                            std::hint::black_box(hits);
+                            return;
+                        }
+                        let hits: usize = if i < KERNELS.len() {
+                            let b = &bvhs[i];
+                            set.par_chunks(1024)
+                                .map(|c| {
+                                    c.iter()
+                                        .filter(|r| {
+                                            if any {
+                                                b.any_hit(r)
+                                            } else {
+                                                b.closest_hit(r).is_some()
+                                            }
+                                        })
+                                        .count()
+                                })
+                                .sum()
+                        } else {
+                            set.par_chunks(1024)
+                                .map(|c| {
+                                    c.iter()
+                                        .filter(|r| {
+                                            let or = obvhs::ray::Ray::new(
+                                                r.origin, r.dir, r.t_min, r.t_max,
+                                            );
+                                            let test = |ray: &obvhs::ray::Ray, slot: usize| {
+                                                ot[obvh.primitive_indices[slot] as usize]
+                                                    .intersect(ray)
+                                            };
+                                            if any {
+                                                !obvh.ray_traverse_miss(or, test)
+                                            } else {
+                                                obvh.ray_traverse(or, &mut RayHit::none(), test)
+                                            }
+                                        })
+                                        .count()
+                                })
+                                .sum()
+                        };
                         std::hint::black_box(hits);
-                        return;
-                    }
-                    let hits: usize = if i < KERNELS.len() {
-                        let b = &bvhs[i];
-                        set.par_chunks(1024)
-                            .map(|c| {
-                                c.iter()
-                                    .filter(|r| {
-                                        if any {
-                                            b.any_hit(r)
-                                        } else {
-                                            b.closest_hit(r).is_some()
-                                        }
-                                    })
-                                    .count()
-                            })
-                            .sum()
+                    })
+                });
+                for (i, t) in times.iter().enumerate() {
+                    let mrays = mrays_per_s(set.len(), *t);
+                    let (engine, kernel) = if i < KERNELS.len() {
+                        ("quiver", KERNELS[i].name())
+                    } else if i == KERNELS.len() {
+                        ("obvhs", "bvh2-medium")
+                    } else if any {
+                        ("embree", "rtcOccluded1")
                     } else {
-                        set.par_chunks(1024)
-                            .map(|c| {
-                                c.iter()
-                                    .filter(|r| {
-                                        let or =
-                                            obvhs::ray::Ray::new(r.origin, r.dir, r.t_min, r.t_max);
-                                        let test = |ray: &obvhs::ray::Ray, slot: usize| {
-                                            ot[obvh.primitive_indices[slot] as usize].intersect(ray)
-                                        };
-                                        if any {
-                                            !obvh.ray_traverse_miss(or, test)
-                                        } else {
-                                            obvh.ray_traverse(or, &mut RayHit::none(), test)
-                                        }
-                                    })
-                                    .count()
-                            })
-                            .sum()
+                        ("embree", "rtcIntersect1")
                     };
-                    std::hint::black_box(hits);
-                })
-            });
-            for (i, t) in times.iter().enumerate() {
-                let mrays = mrays_per_s(set.len(), *t);
-                let (engine, kernel) = if i < KERNELS.len() {
-                    ("quiver", KERNELS[i].name())
-                } else if i == KERNELS.len() {
-                    ("obvhs", "bvh2-medium")
-                } else if any {
-                    ("embree", "rtcOccluded1")
-                } else {
-                    ("embree", "rtcIntersect1")
-                };
-                rows.push(row(engine, kernel, kind, all, Some(mrays), None, None));
+                    rows.push(row(engine, kernel, kind, threads, Some(mrays), None, None));
+                }
             }
         }
         bar.inc(1);
@@ -256,6 +260,7 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
         "os": std::env::consts::OS,
         "arch": std::env::consts::ARCH,
         "target_features": {"sse2": cfg!(target_feature = "sse2"), "avx": cfg!(target_feature = "avx"), "avx2": cfg!(target_feature = "avx2")},
+        "isa": quiver::Isa::detect().name(),
     });
     write_json(
         args.json.as_ref(),

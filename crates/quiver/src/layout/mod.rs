@@ -30,12 +30,13 @@ use std::str::FromStr;
 
 /// Every layout quiver can build, by its command-line name.
 ///
-/// The default, `bvh4-dfs`, is the fastest on eye rays and the packet kernels in our
-/// measurements (README, "Layout performance"); `bvh4-quant` needs half its node memory.
+/// The default, `bvh8-dfs`, is the fastest single-ray layout in our measurements (README,
+/// "Against obvhs and Embree"); `bvh4-dfs` has the packet kernel; `bvh4-quant` needs the
+/// least node memory.
 ///
 /// ```
 /// use quiver::Layout;
-/// assert_eq!(Layout::default(), Layout::Bvh4Dfs);
+/// assert_eq!(Layout::default(), Layout::Bvh8Dfs);
 /// ```
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum Layout {
@@ -53,15 +54,15 @@ pub enum Layout {
     Bvh2Compact,
     /// `bvh2-compact-page`: binary, compact page blocks.
     Bvh2CompactPage,
-    /// `bvh4-dfs`: 4-wide, depth-first. The default.
-    #[default]
+    /// `bvh4-dfs`: 4-wide, depth-first; the packet kernel's layout.
     Bvh4Dfs,
     /// `bvh4-subtree`: 4-wide, page subtree blocks.
     Bvh4Subtree,
     /// `bvh4-quant`: 4-wide quantized 64-byte nodes, depth-first.
     Bvh4Quant,
-    /// `bvh8-dfs`: 8-wide 256-byte nodes, depth-first, with AVX2 kernels where the CPU has
-    /// them ([`crate::Isa`]).
+    /// `bvh8-dfs`: 8-wide 256-byte nodes, depth-first, SIMD triangle leaves, with AVX2
+    /// kernels where the CPU has them ([`crate::Isa`]). The default.
+    #[default]
     Bvh8Dfs,
 }
 

@@ -4,6 +4,7 @@
 
 use crate::geometry::{LeafFormat, Primitive, Triangle};
 use bytemuck::{Pod, Zeroable};
+
 use glam::Vec3A;
 
 /// Four triangles, one per SIMD lane: 208 bytes.
@@ -12,7 +13,8 @@ use glam::Vec3A;
 /// [`LeafFormat::FastTriangles`]: `v0`, `e1 = v0 - v1`, `e2 = v2 - v0` and `n = e1 × e2`,
 /// computed with the same glam arithmetic as [`Triangle::intersect`]; for
 /// [`LeafFormat::WatertightTriangles`]: `v0`, `v1`, `v2` and zeros. An unused lane is all
-/// zeros (a degenerate triangle no ray hits) with id `u32::MAX`.
+/// NaN, which every test rejects without a mask (NaN fails every comparison it must pass),
+/// with id `u32::MAX`.
 #[repr(C, align(16))]
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 pub struct Tri4 {
@@ -38,8 +40,10 @@ pub(crate) fn pack<P: Primitive>(
     out: &mut Vec<Tri4>,
 ) {
     for (chunk, chunk_ids) in prims.chunks(4).zip(ids.chunks(4)) {
-        let mut g = Tri4::zeroed();
-        g.id = [u32::MAX; 4];
+        let mut g = Tri4 {
+            rows: [[[f32::NAN; 4]; 3]; 4],
+            id: [u32::MAX; 4],
+        };
         for (lane, (p, &id)) in chunk.iter().zip(chunk_ids).enumerate() {
             let t: Triangle = p
                 .triangle()

@@ -162,19 +162,21 @@ fn closest<T: Test8, B: BoxTest, P: Primitive, S: Stats>(
 ) -> Option<Hit> {
     let mut best = Hit::none(ray.t_max);
     let format = P::LEAF_FORMAT;
-    let r4 = (format != LeafFormat::Plain).then(|| Ray4Tri::new(ray, format));
+    // Prepared at the first leaf: many rays never reach one.
+    let mut r4: Option<Ray4Tri> = None;
     walk::<T, B, S, _, true>(
         &bvh.nodes,
         t8,
         ray.t_max,
         stats,
         |first, count, limit, stats| {
-            match &r4 {
-                Some(r4) => {
+            match format {
+                LeafFormat::FastTriangles | LeafFormat::WatertightTriangles => {
+                    let r4 = r4.get_or_insert_with(|| Ray4Tri::new(ray, format));
                     let g = &bvh.tri4[first..first + groups(count) as usize];
                     tri4::closest(g, count, ray, r4, format, &mut best, stats);
                 }
-                None => {
+                LeafFormat::Plain => {
                     let range = leaf_range(first, count);
                     let (prims, ids) = (&bvh.prims[range.clone()], &bvh.prim_ids[range]);
                     leaf_closest_hit(prims, ids, ray, &mut best, stats);
@@ -197,19 +199,20 @@ fn any<T: Test8, B: BoxTest, P: Primitive, S: Stats>(
 ) -> bool {
     let mut hit = false;
     let format = P::LEAF_FORMAT;
-    let r4 = (format != LeafFormat::Plain).then(|| Ray4Tri::new(ray, format));
+    let mut r4: Option<Ray4Tri> = None;
     walk::<T, B, S, _, false>(
         &bvh.nodes,
         t8,
         ray.t_max,
         stats,
         |first, count, _, stats| {
-            hit = match &r4 {
-                Some(r4) => {
+            hit = match format {
+                LeafFormat::FastTriangles | LeafFormat::WatertightTriangles => {
+                    let r4 = r4.get_or_insert_with(|| Ray4Tri::new(ray, format));
                     let g = &bvh.tri4[first..first + groups(count) as usize];
                     tri4::any(g, count, ray, r4, format, stats)
                 }
-                None => leaf_any_hit(&bvh.prims[leaf_range(first, count)], ray, stats),
+                LeafFormat::Plain => leaf_any_hit(&bvh.prims[leaf_range(first, count)], ray, stats),
             };
             hit
         },

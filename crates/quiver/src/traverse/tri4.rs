@@ -88,8 +88,8 @@ fn watertight4(g: &Tri4, r: &Ray4Tri, t_max: f32) -> (u32, u32, [f32; 4], [f32; 
     let v = x[0] * y[2] - y[0] * x[2];
     let w = x[1] * y[0] - y[1] * x[0];
     let zero = f32x4::ZERO;
-    let used = f32x4::from(g.id.map(|id| if id == u32::MAX { 0.0 } else { 1.0 })).simd_ne(zero);
-    let edge = (u.simd_eq(zero) | v.simd_eq(zero) | w.simd_eq(zero)) & used;
+    // An unused lane is NaN: never zero, never on an edge, and its t fails the range test.
+    let edge = u.simd_eq(zero) | v.simd_eq(zero) | w.simd_eq(zero);
     let neg = u.simd_lt(zero) | v.simd_lt(zero) | w.simd_lt(zero);
     let pos = u.simd_gt(zero) | v.simd_gt(zero) | w.simd_gt(zero);
     let det = u + v + w;
@@ -101,8 +101,7 @@ fn watertight4(g: &Tri4, r: &Ray4Tri, t_max: f32) -> (u32, u32, [f32; 4], [f32; 
         & det.simd_ne(zero)
         & t.simd_ge(r.t_min)
         & t.simd_le(f32x4::splat(t_max))
-        & !edge
-        & used;
+        & !edge;
     let (hu, hv) = (v * inv, w * inv);
     (
         ok.to_bitmask(),
