@@ -161,7 +161,9 @@ pub(crate) fn collapse_sah<const W: usize>(
                 for j in 2..=W {
                     for k in 1..j {
                         let c = cost[l][k - 1] + cost[r][j - k - 1];
-                        if c < split[j - 1] {
+                        // The first candidate always counts, so a split is chosen even when
+                        // every cost is infinite or NaN (boxes out at f32's range).
+                        if k == 1 || c < split[j - 1] {
                             (split[j - 1], split_k[j - 1]) = (c, k as u8);
                         }
                     }
@@ -176,13 +178,15 @@ pub(crate) fn collapse_sah<const W: usize>(
             f32::INFINITY
         };
         let wide = traversal_cost * area + split[W - 1];
-        (cost[i][0], choice[i][0]) = if leaf <= wide {
+        let inner = matches!(node.kind, NodeKind::Inner { .. });
+        // A leaf only within `max_leaf` (infinite costs must not tie a big node into one).
+        (cost[i][0], choice[i][0]) = if !inner || (count <= max_leaf && !(wide < leaf)) {
             (leaf, Choice::Leaf)
         } else {
             (wide, Choice::Wide)
         };
         for j in 2..=W {
-            (cost[i][j - 1], choice[i][j - 1]) = if cost[i][j - 2] <= split[j - 1] {
+            (cost[i][j - 1], choice[i][j - 1]) = if !inner || cost[i][j - 2] <= split[j - 1] {
                 (cost[i][j - 2], Choice::Fewer)
             } else {
                 (split[j - 1], Choice::Split(split_k[j - 1]))
@@ -477,6 +481,27 @@ mod tests {
                 );
                 assert!(c4.0 <= c4.1 * (1.0 + 1e-5), "{n} {max_leaf} 4-wide: {c4:?}");
             }
+        }
+    }
+
+    #[test]
+    fn sah_collapse_survives_infinite_and_nan_costs() {
+        // Boxes out at f32's range: their areas are infinite, so are all costs; with zero-
+        // extent boxes at infinity-straddling coordinates some areas are NaN. Found by fuzzing.
+        let big = f32::MAX;
+        let bounds: Vec<Aabb> = (0..40)
+            .map(|i| {
+                let x = if i % 2 == 0 { -big } else { big * 0.5 };
+                Aabb::new(
+                    Vec3A::new(x, -big, i as f32),
+                    Vec3A::new(big, big, i as f32 + 1.0),
+                )
+            })
+            .collect();
+        let tree = crate::build::build(&bounds, &Default::default(), crate::build::Builder::Binned);
+        for leaf_cost in [1.0, f32::NAN] {
+            let wide = collapse_sah::<8>(&tree, 8, 1.0, |n| leaf_cost * n as f32);
+            check_cover(&wide, 40, 8.max(tree.stats().max_leaf as u32));
         }
     }
 
