@@ -180,7 +180,8 @@ pub(crate) fn collapse_sah<const W: usize>(
         let wide = traversal_cost * area + split[W - 1];
         let inner = matches!(node.kind, NodeKind::Inner { .. });
         // A leaf only within `max_leaf` (infinite costs must not tie a big node into one).
-        (cost[i][0], choice[i][0]) = if !inner || (count <= max_leaf && !(wide < leaf)) {
+        let leaf_wins = wide.partial_cmp(&leaf) != Some(std::cmp::Ordering::Less);
+        (cost[i][0], choice[i][0]) = if !inner || (count <= max_leaf && leaf_wins) {
             (leaf, Choice::Leaf)
         } else {
             (wide, Choice::Wide)
