@@ -302,7 +302,7 @@ pub trait Primitive: Clone + Send + Sync {
     fn intersect_packet<F>(leaf: &[Self], rays: &mut PacketLeaf<'_, F>)
     where
         Self: Sized,
-        F: FnMut(usize, usize, PrimHit) -> Option<f32>,
+        F: FnMut(usize, u32, PrimHit) -> Option<f32>,
     {
         for i in bits(rays.rays()) {
             let mut ray = rays.ray(i);
@@ -364,7 +364,7 @@ impl Primitive for Triangle {
     #[inline(always)]
     fn intersect_packet<F>(leaf: &[Self], rays: &mut PacketLeaf<'_, F>)
     where
-        F: FnMut(usize, usize, PrimHit) -> Option<f32>,
+        F: FnMut(usize, u32, PrimHit) -> Option<f32>,
     {
         crate::traverse::packet::triangles_packet(leaf, rays)
     }

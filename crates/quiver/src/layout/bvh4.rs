@@ -5,6 +5,7 @@
 use super::bvh2::leaf_order;
 use super::collapse::{self, collapse, Child};
 use super::order::{self, Shape, HOLE};
+use super::tri4::{self, Tri4};
 use super::Footprint;
 use crate::build::BuildTree;
 use crate::geometry::{Aabb, Primitive, Triangle};
@@ -155,6 +156,9 @@ pub struct Bvh4<P = Triangle, N = Bvh4Node> {
     pub prims: Vec<P>,
     /// For each entry of `prims`, its index in the input.
     pub prim_ids: Vec<u32>,
+    /// The leaves as SIMD groups of four triangles, for primitive types with a triangle
+    /// [`crate::LeafFormat`] (empty otherwise); leaf children then index these groups.
+    pub tri4: Vec<Tri4>,
     /// Node order.
     pub mapping: Bvh4Mapping,
 }
@@ -174,7 +178,8 @@ impl<P: Primitive, N: Node4> Bvh4<P, N> {
 
     /// [`Bvh4::from_tree`] with the primitives already in the tree's leaf order.
     pub(crate) fn from_leaf_prims(tree: &BuildTree, prims: Vec<P>, mapping: Bvh4Mapping) -> Self {
-        let wide = collapse(tree);
+        let mut wide = collapse(tree);
+        let groups = tri4::pack_leaves(&mut wide, &prims, &tree.prim_indices);
         let (slots, pos) = arrange(&wide, mapping, std::mem::size_of::<N>());
         let nodes = slots
             .iter()
@@ -193,13 +198,19 @@ impl<P: Primitive, N: Node4> Bvh4<P, N> {
             nodes,
             prims,
             prim_ids: tree.prim_indices.clone(),
+            tri4: groups,
             mapping,
         }
     }
 
-    /// What the nodes and leaves occupy.
+    /// What the nodes and the leaf data the kernels read occupy (the SIMD groups, where the
+    /// leaves have them).
     pub fn footprint(&self) -> Footprint {
-        Footprint::of(&self.nodes, &self.prims, &self.prim_ids)
+        if self.tri4.is_empty() {
+            Footprint::of(&self.nodes, &self.prims, &self.prim_ids)
+        } else {
+            Footprint::of(&self.nodes, &self.tri4, &[])
+        }
     }
 }
 

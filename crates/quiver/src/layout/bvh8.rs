@@ -111,21 +111,7 @@ impl<P: Primitive> Bvh8<P> {
         };
         let wide = collapse_sah::<8>(tree, config.max_leaf_size, config.traversal_cost, leaf_cost);
         let mut wide = wide;
-        let mut groups = Vec::new();
-        if P::LEAF_FORMAT != LeafFormat::Plain {
-            // Leaves point at their first group instead of their first primitive.
-            for w in &mut wide {
-                for k in &mut w.kids {
-                    if let Child::Leaf { first, count } = k {
-                        let range = *first as usize..(*first + *count) as usize;
-                        let at = groups.len() as u32;
-                        let ids = &tree.prim_indices[range.clone()];
-                        tri4::pack(&prims[range], ids, P::LEAF_FORMAT, &mut groups);
-                        *first = at;
-                    }
-                }
-            }
-        }
+        let groups = tri4::pack_leaves(&mut wide, &prims, &tree.prim_indices);
         let nodes = wide.iter().map(Bvh8Node::encode).collect();
         Bvh8 {
             nodes,

@@ -2,6 +2,7 @@
 //! terms of the triangle test that do not depend on the ray computed once, when the BVH is
 //! laid out ([`crate::LeafFormat`]).
 
+use super::collapse::{Child, Wide};
 use crate::geometry::{LeafFormat, Primitive, Triangle};
 use bytemuck::{Pod, Zeroable};
 
@@ -33,12 +34,7 @@ pub(crate) fn groups(count: u32) -> u32 {
 }
 
 /// Appends the groups of one leaf (`prims` and their input `ids`) in `format` to `out`.
-pub(crate) fn pack<P: Primitive>(
-    prims: &[P],
-    ids: &[u32],
-    format: LeafFormat,
-    out: &mut Vec<Tri4>,
-) {
+fn pack<P: Primitive>(prims: &[P], ids: &[u32], format: LeafFormat, out: &mut Vec<Tri4>) {
     for (chunk, chunk_ids) in prims.chunks(4).zip(ids.chunks(4)) {
         let mut g = Tri4 {
             rows: [[[f32::NAN; 4]; 3]; 4],
@@ -66,6 +62,36 @@ pub(crate) fn pack<P: Primitive>(
         }
         out.push(g);
     }
+}
+
+/// For primitive types with a triangle [`LeafFormat`]: packs every leaf of the collapsed tree
+/// into groups and points the leaf at its first group instead of its first primitive. Plain
+/// formats keep their leaves and get no groups.
+pub(crate) fn pack_leaves<P: Primitive, const W: usize>(
+    wide: &mut [Wide<W>],
+    prims: &[P],
+    ids: &[u32],
+) -> Vec<Tri4> {
+    let mut groups = Vec::new();
+    if P::LEAF_FORMAT == LeafFormat::Plain {
+        return groups;
+    }
+    for w in wide {
+        for k in &mut w.kids {
+            if let Child::Leaf { first, count } = k {
+                let range = *first as usize..(*first + *count) as usize;
+                let at = groups.len() as u32;
+                pack(
+                    &prims[range.clone()],
+                    &ids[range],
+                    P::LEAF_FORMAT,
+                    &mut groups,
+                );
+                *first = at;
+            }
+        }
+    }
+    groups
 }
 
 impl Tri4 {

@@ -4,9 +4,8 @@
 use super::packet::{any_rays, closest_rays};
 use super::simd::{bits, insert_farthest_first, NanFirst};
 use super::stats::Stats;
-use super::{
-    leaf_any_hit, leaf_closest_hit, slab_reciprocal, BoxTest, PacketMode, RayQuery, Stack,
-};
+use super::tri4::Leaves;
+use super::{slab_reciprocal, BoxTest, PacketMode, RayQuery, Stack};
 use crate::build::MAX_DEPTH;
 use crate::geometry::{Hit, Primitive, Ray};
 use crate::layout::{Bvh4, Bvh4Node, Node4};
@@ -135,13 +134,12 @@ fn walk<N, B, S, F, const ORDERED: bool>(
 #[inline(always)]
 pub(crate) fn closest<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
     nodes: &[N],
-    tris: &[P],
-    ids: &[u32],
+    leaves: &Leaves<P>,
     ray: &Ray,
     stats: &mut S,
 ) -> Option<Hit> {
     let mut best = Hit::none(ray.t_max);
-    closest_from::<N, B, P, S>(nodes, tris, ids, ray, 0, &mut best, stats);
+    closest_from::<N, B, P, S>(nodes, leaves, ray, 0, &mut best, stats);
     best.found()
 }
 
@@ -150,15 +148,16 @@ pub(crate) fn closest<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
 #[inline(always)]
 pub(crate) fn closest_from<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
     nodes: &[N],
-    tris: &[P],
-    ids: &[u32],
+    leaves: &Leaves<P>,
     ray: &Ray,
     root: usize,
     best: &mut Hit,
     stats: &mut S,
 ) {
+    let mut prep = None;
     walk::<N, B, S, _, true>(nodes, ray, root, best.t, stats, |range, limit, stats| {
-        leaf_closest_hit(&tris[range.clone()], &ids[range], ray, best, stats);
+        let count = range.len() as u32;
+        leaves.closest(range.start, count, ray, &mut prep, best, stats);
         *limit = best.t;
         false
     });
@@ -167,37 +166,50 @@ pub(crate) fn closest_from<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
 #[inline(always)]
 pub(crate) fn any<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
     nodes: &[N],
-    tris: &[P],
+    leaves: &Leaves<P>,
     ray: &Ray,
     stats: &mut S,
 ) -> bool {
-    any_from::<N, B, P, S>(nodes, tris, ray, 0, stats)
+    any_from::<N, B, P, S>(nodes, leaves, ray, 0, stats)
 }
 
 /// Any hit in the subtree of inner node `root`.
 #[inline(always)]
 pub(crate) fn any_from<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
     nodes: &[N],
-    tris: &[P],
+    leaves: &Leaves<P>,
     ray: &Ray,
     root: usize,
     stats: &mut S,
 ) -> bool {
+    let mut prep = None;
     let mut hit = false;
     walk::<N, B, S, _, false>(nodes, ray, root, ray.t_max, stats, |range, _, stats| {
-        hit = leaf_any_hit(&tris[range], ray, stats);
+        hit = leaves.any(range.start, range.len() as u32, ray, &mut prep, stats);
         hit
     });
     hit
 }
 
+impl<P: Primitive, N: Node4> Bvh4<P, N> {
+    /// The leaf data the kernels read.
+    #[inline(always)]
+    pub(crate) fn leaves(&self) -> Leaves<'_, P> {
+        Leaves {
+            prims: &self.prims,
+            ids: &self.prim_ids,
+            tri4: &self.tri4,
+        }
+    }
+}
+
 impl<P: Primitive, N: Node4> RayQuery for Bvh4<P, N> {
     fn closest_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> Option<Hit> {
-        closest::<N, B, P, S>(&self.nodes, &self.prims, &self.prim_ids, ray, stats)
+        closest::<N, B, P, S>(&self.nodes, &self.leaves(), ray, stats)
     }
 
     fn any_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> bool {
-        any::<N, B, P, S>(&self.nodes, &self.prims, ray, stats)
+        any::<N, B, P, S>(&self.nodes, &self.leaves(), ray, stats)
     }
 
     fn closest_hit_packet_with<B: BoxTest, S: Stats>(
@@ -208,16 +220,7 @@ impl<P: Primitive, N: Node4> RayQuery for Bvh4<P, N> {
         hits: &mut [Option<Hit>],
         stats: &mut S,
     ) {
-        closest_rays::<N, B, P, S>(
-            &self.nodes,
-            &self.prims,
-            &self.prim_ids,
-            rays,
-            active,
-            mode,
-            hits,
-            stats,
-        )
+        closest_rays::<N, B, P, S>(&self.nodes, &self.leaves(), rays, active, mode, hits, stats)
     }
 
     fn any_hit_packet_with<B: BoxTest, S: Stats>(
@@ -230,7 +233,7 @@ impl<P: Primitive, N: Node4> RayQuery for Bvh4<P, N> {
     ) {
         any_rays::<N, B, P, S>(
             &self.nodes,
-            &self.prims,
+            &self.leaves(),
             rays,
             active,
             mode,

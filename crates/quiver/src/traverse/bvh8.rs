@@ -8,16 +8,12 @@
 use super::packet::{any_ray_by_ray, closest_ray_by_ray};
 use super::simd::{bits, insert_farthest_first, NanFirst};
 use super::stats::Stats;
-use super::tri4::{self, Ray4Tri};
-use super::{
-    leaf_any_hit, leaf_closest_hit, slab_reciprocal, BoxTest, PacketMode, RayQuery, Stack,
-};
+use super::tri4::Leaves;
+use super::{slab_reciprocal, BoxTest, PacketMode, RayQuery, Stack};
 use crate::build::MAX_DEPTH;
-use crate::geometry::{Hit, LeafFormat, Primitive, Ray};
+use crate::geometry::{Hit, Primitive, Ray};
 use crate::isa::Isa;
-use crate::layout::tri4::groups;
 use crate::layout::{Bvh8, Bvh8Node};
-use std::ops::Range;
 use wide::f32x8;
 
 /// The slab test of one ray against a node's eight boxes.
@@ -146,12 +142,6 @@ fn walk<T, B, S, F, const ORDERED: bool>(
     }
 }
 
-/// A plain leaf's primitives.
-#[inline(always)]
-fn leaf_range(first: usize, count: u32) -> Range<usize> {
-    first..first + count as usize
-}
-
 /// Closest hit over any 8-lane test.
 #[inline(always)]
 fn closest<T: Test8, B: BoxTest, P: Primitive, S: Stats>(
@@ -161,27 +151,16 @@ fn closest<T: Test8, B: BoxTest, P: Primitive, S: Stats>(
     stats: &mut S,
 ) -> Option<Hit> {
     let mut best = Hit::none(ray.t_max);
-    let format = P::LEAF_FORMAT;
+    let leaves = bvh.leaves();
     // Prepared at the first leaf: many rays never reach one.
-    let mut r4: Option<Ray4Tri> = None;
+    let mut prep = None;
     walk::<T, B, S, _, true>(
         &bvh.nodes,
         t8,
         ray.t_max,
         stats,
         |first, count, limit, stats| {
-            match format {
-                LeafFormat::FastTriangles | LeafFormat::WatertightTriangles => {
-                    let r4 = r4.get_or_insert_with(|| Ray4Tri::new(ray, format));
-                    let g = &bvh.tri4[first..first + groups(count) as usize];
-                    tri4::closest(g, count, ray, r4, format, &mut best, stats);
-                }
-                LeafFormat::Plain => {
-                    let range = leaf_range(first, count);
-                    let (prims, ids) = (&bvh.prims[range.clone()], &bvh.prim_ids[range]);
-                    leaf_closest_hit(prims, ids, ray, &mut best, stats);
-                }
-            }
+            leaves.closest(first, count, ray, &mut prep, &mut best, stats);
             *limit = best.t;
             false
         },
@@ -197,27 +176,31 @@ fn any<T: Test8, B: BoxTest, P: Primitive, S: Stats>(
     ray: &Ray,
     stats: &mut S,
 ) -> bool {
+    let leaves = bvh.leaves();
+    let mut prep = None;
     let mut hit = false;
-    let format = P::LEAF_FORMAT;
-    let mut r4: Option<Ray4Tri> = None;
     walk::<T, B, S, _, false>(
         &bvh.nodes,
         t8,
         ray.t_max,
         stats,
         |first, count, _, stats| {
-            hit = match format {
-                LeafFormat::FastTriangles | LeafFormat::WatertightTriangles => {
-                    let r4 = r4.get_or_insert_with(|| Ray4Tri::new(ray, format));
-                    let g = &bvh.tri4[first..first + groups(count) as usize];
-                    tri4::any(g, count, ray, r4, format, stats)
-                }
-                LeafFormat::Plain => leaf_any_hit(&bvh.prims[leaf_range(first, count)], ray, stats),
-            };
+            hit = leaves.any(first, count, ray, &mut prep, stats);
             hit
         },
     );
     hit
+}
+
+impl<P: Primitive> Bvh8<P> {
+    #[inline(always)]
+    fn leaves(&self) -> Leaves<'_, P> {
+        Leaves {
+            prims: &self.prims,
+            ids: &self.prim_ids,
+            tri4: &self.tri4,
+        }
+    }
 }
 
 impl<P: Primitive> RayQuery for Bvh8<P> {

@@ -210,3 +210,80 @@ pub(crate) fn any<S: Stats>(
     stats.empty_leaf();
     false
 }
+
+/// A wide layout's leaf data, as its kernels read it: the primitives themselves (plain
+/// leaves: a leaf is `first..first + count` of `prims`) or [`Tri4`] groups (triangle formats:
+/// a leaf is the groups from `first` holding its `count` triangles).
+#[derive(Clone, Copy)]
+pub(crate) struct Leaves<'a, P> {
+    pub prims: &'a [P],
+    pub ids: &'a [u32],
+    pub tri4: &'a [Tri4],
+}
+
+impl<P: Primitive> Leaves<'_, P> {
+    /// The leaf's groups (triangle formats).
+    #[inline(always)]
+    pub fn groups(&self, first: usize, count: u32) -> &[Tri4] {
+        &self.tri4[first..first + crate::layout::tri4::groups(count) as usize]
+    }
+
+    /// Closest hit in one leaf, improving `best`; `prep` holds the ray's group terms once the
+    /// first leaf made them. Returns true when `best` changed.
+    #[inline(always)]
+    pub fn closest<S: Stats>(
+        &self,
+        first: usize,
+        count: u32,
+        ray: &Ray,
+        prep: &mut Option<Ray4Tri>,
+        best: &mut Hit,
+        stats: &mut S,
+    ) -> bool {
+        match P::LEAF_FORMAT {
+            LeafFormat::Plain => {
+                let range = first..first + count as usize;
+                super::leaf_closest_hit(
+                    &self.prims[range.clone()],
+                    &self.ids[range],
+                    ray,
+                    best,
+                    stats,
+                )
+            }
+            format => {
+                let r = prep.get_or_insert_with(|| Ray4Tri::new(ray, format));
+                closest(
+                    self.groups(first, count),
+                    count,
+                    ray,
+                    r,
+                    format,
+                    best,
+                    stats,
+                )
+            }
+        }
+    }
+
+    /// Whether anything in one leaf is hit within the ray's interval.
+    #[inline(always)]
+    pub fn any<S: Stats>(
+        &self,
+        first: usize,
+        count: u32,
+        ray: &Ray,
+        prep: &mut Option<Ray4Tri>,
+        stats: &mut S,
+    ) -> bool {
+        match P::LEAF_FORMAT {
+            LeafFormat::Plain => {
+                super::leaf_any_hit(&self.prims[first..first + count as usize], ray, stats)
+            }
+            format => {
+                let r = prep.get_or_insert_with(|| Ray4Tri::new(ray, format));
+                any(self.groups(first, count), count, ray, r, format, stats)
+            }
+        }
+    }
+}

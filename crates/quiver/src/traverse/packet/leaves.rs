@@ -5,10 +5,14 @@
 use super::lanes::RayPacket;
 use super::walk::{walk, AloneIn, Visit};
 use super::{CHUNKS, LANES};
-use crate::geometry::{Hit, PrimHit, Primitive, Ray, Triangle};
+use crate::geometry::{Hit, LeafFormat, PrimHit, Primitive, Ray, Triangle};
+use crate::intersect::Watertight;
+use crate::layout::Tri4;
 use crate::traverse::bvh4::{self, WideNode};
 use crate::traverse::simd::bits;
-use crate::traverse::{leaf_any_hit, leaf_closest_hit, BoxTest, Stats};
+use crate::traverse::tri4::Leaves;
+use crate::traverse::{BoxTest, Stats};
+use std::ops::Range;
 use wide::f32x8;
 
 /// The rays of a packet that enter one leaf, as a primitive type's packet test
@@ -17,10 +21,12 @@ use wide::f32x8;
 pub struct PacketLeaf<'a, F> {
     pub(crate) packet: &'a mut RayPacket,
     live: u64,
+    /// The leaf's primitive ids (plain leaves; SIMD groups carry their own).
+    ids: &'a [u32],
     on_hit: F,
 }
 
-impl<F: FnMut(usize, usize, PrimHit) -> Option<f32>> PacketLeaf<'_, F> {
+impl<F: FnMut(usize, u32, PrimHit) -> Option<f32>> PacketLeaf<'_, F> {
     /// The rays still searching this leaf: bit `i` for ray `i` of the packet.
     #[inline(always)]
     pub fn rays(&self) -> u64 {
@@ -38,7 +44,13 @@ impl<F: FnMut(usize, usize, PrimHit) -> Option<f32>> PacketLeaf<'_, F> {
     /// to its nearest hit so far, an any-hit query takes the ray out of [`PacketLeaf::rays`].
     #[inline(always)]
     pub fn report(&mut self, i: usize, j: usize, hit: PrimHit) {
-        match (self.on_hit)(i, j, hit) {
+        self.report_id(i, self.ids[j], hit)
+    }
+
+    /// [`PacketLeaf::report`] by the primitive's input index.
+    #[inline(always)]
+    fn report_id(&mut self, i: usize, id: u32, hit: PrimHit) {
+        match (self.on_hit)(i, id, hit) {
             Some(limit) => self.packet.set_limit(i, limit),
             None => {
                 self.packet.set_limit(i, f32::NEG_INFINITY);
@@ -48,12 +60,24 @@ impl<F: FnMut(usize, usize, PrimHit) -> Option<f32>> PacketLeaf<'_, F> {
     }
 }
 
+/// Runs the leaf `range` (primitives, or groups holding `range.len()` triangles) for the
+/// rays of `leaf`.
+#[inline(always)]
+fn test_leaf<P: Primitive, F>(leaves: &Leaves<P>, range: Range<usize>, leaf: &mut PacketLeaf<'_, F>)
+where
+    F: FnMut(usize, u32, PrimHit) -> Option<f32>,
+{
+    match P::LEAF_FORMAT {
+        LeafFormat::Plain => P::intersect_packet(&leaves.prims[range], leaf),
+        format => groups_packet(leaves.groups(range.start, range.len() as u32), format, leaf),
+    }
+}
+
 /// Closest hits of one packet into `best` (one record per ray, [`Hit::none`] to start).
 #[inline(always)]
 pub(super) fn closest_packet<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
     nodes: &[N],
-    prims: &[P],
-    ids: &[u32],
+    leaves: &Leaves<P>,
     rays: &[Ray],
     pk: &mut RayPacket,
     best: &mut [Hit],
@@ -65,12 +89,12 @@ pub(super) fn closest_packet<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
             Visit::Alone(i, at) => {
                 match at {
                     AloneIn::Leaf(r) => {
-                        leaf_closest_hit(&prims[r.clone()], &ids[r], &rays[i], &mut best[i], stats);
+                        let count = r.len() as u32;
+                        leaves.closest(r.start, count, &rays[i], &mut None, &mut best[i], stats);
                     }
                     AloneIn::Inner(node) => bvh4::closest_from::<N, B, P, S>(
                         nodes,
-                        prims,
-                        ids,
+                        leaves,
                         &rays[i],
                         node,
                         &mut best[i],
@@ -83,16 +107,20 @@ pub(super) fn closest_packet<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
         };
         let live = pk.entering::<B>(b, cand);
         stats.prims(range.len() as u32);
-        let ids = &ids[range.clone()];
+        let ids = match P::LEAF_FORMAT {
+            LeafFormat::Plain => &leaves.ids[range.clone()],
+            _ => &[],
+        };
         let mut changed = false;
         let mut leaf = PacketLeaf {
             packet: pk,
             live,
-            on_hit: |i: usize, j: usize, h: PrimHit| {
-                if best[i].is_beaten_by(h.t, ids[j]) {
+            ids,
+            on_hit: |i: usize, id: u32, h: PrimHit| {
+                if best[i].is_beaten_by(h.t, id) {
                     best[i] = Hit {
                         t: h.t,
-                        prim: ids[j],
+                        prim: id,
                         u: h.u,
                         v: h.v,
                     };
@@ -101,7 +129,7 @@ pub(super) fn closest_packet<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
                 Some(best[i].t)
             },
         };
-        P::intersect_packet(&prims[range], &mut leaf);
+        test_leaf(leaves, range, &mut leaf);
         if changed {
             pk.refresh_limit_bound();
         } else {
@@ -115,7 +143,7 @@ pub(super) fn closest_packet<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
 #[inline(always)]
 pub(super) fn any_packet<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
     nodes: &[N],
-    prims: &[P],
+    leaves: &Leaves<P>,
     rays: &[Ray],
     pk: &mut RayPacket,
     hit: &mut [bool],
@@ -126,9 +154,11 @@ pub(super) fn any_packet<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
             Visit::Leaf(range, b, cand) => (range, b, cand),
             Visit::Alone(i, at) => {
                 let found = match at {
-                    AloneIn::Leaf(r) => leaf_any_hit(&prims[r], &rays[i], stats),
+                    AloneIn::Leaf(r) => {
+                        leaves.any(r.start, r.len() as u32, &rays[i], &mut None, stats)
+                    }
                     AloneIn::Inner(node) => {
-                        bvh4::any_from::<N, B, P, S>(nodes, prims, &rays[i], node, stats)
+                        bvh4::any_from::<N, B, P, S>(nodes, leaves, &rays[i], node, stats)
                     }
                 };
                 if found {
@@ -140,17 +170,22 @@ pub(super) fn any_packet<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
         };
         let live = pk.entering::<B>(b, cand);
         stats.prims(range.len() as u32);
+        let ids = match P::LEAF_FORMAT {
+            LeafFormat::Plain => &leaves.ids[range.clone()],
+            _ => &[],
+        };
         let mut found = 0u64;
         let mut leaf = PacketLeaf {
             packet: pk,
             live,
+            ids,
             on_hit: |i: usize, _, _| {
                 hit[i] = true;
                 found |= 1 << i;
                 None
             },
         };
-        P::intersect_packet(&prims[range], &mut leaf);
+        test_leaf(leaves, range, &mut leaf);
         for i in bits(found) {
             pk.retire(i);
         }
@@ -185,6 +220,18 @@ impl TriSetup {
         }
     }
 
+    /// Lane `l` of a fast-format group: the same vectors [`TriSetup::new`] computes, stored.
+    #[inline(always)]
+    fn from_group(g: &Tri4, l: usize) -> Self {
+        let splat = |v: usize| [0, 1, 2].map(|a| f32x8::splat(g.rows[v][a][l]));
+        TriSetup {
+            v0: splat(0),
+            e1: splat(1),
+            e2: splat(2),
+            n: splat(3),
+        }
+    }
+
     /// Möller–Trumbore for the eight rays of chunk `k` of `pk`, operation for operation as
     /// [`Triangle::intersect`] computes it for one ray (glam's `cross` and `dot` orders, fused
     /// where glam fuses), so every lane gets the single-ray result. Returns the mask of lanes
@@ -216,36 +263,71 @@ impl TriSetup {
     }
 }
 
+/// One setup's test over the live rays of a leaf, eight at a time, reporting `id`'s hits.
+#[inline(always)]
+fn setup_packet<F>(setup: &TriSetup, id: u32, rays: &mut PacketLeaf<'_, F>)
+where
+    F: FnMut(usize, u32, PrimHit) -> Option<f32>,
+{
+    for k in 0..CHUNKS {
+        let lanes = (rays.live >> (LANES * k)) as u32 & 0xFF;
+        if lanes == 0 {
+            continue;
+        }
+        let (ok, t, u, v) = setup.intersect8(rays.packet, k);
+        let ok = ok & lanes;
+        if ok == 0 {
+            continue;
+        }
+        let (t, u, v) = (t.as_array(), u.as_array(), v.as_array());
+        for l in bits(ok) {
+            let hit = PrimHit {
+                t: t[l],
+                u: u[l],
+                v: v[l],
+            };
+            rays.report_id(LANES * k + l, id, hit);
+        }
+    }
+}
+
 /// [`Triangle`]'s packet test: triangle by triangle, eight rays at a time, each lane exactly
 /// [`Triangle::intersect`]; a hit shortens (or ends) its ray before the next triangle.
 #[inline(always)]
 pub(crate) fn triangles_packet<F>(leaf: &[Triangle], rays: &mut PacketLeaf<'_, F>)
 where
-    F: FnMut(usize, usize, PrimHit) -> Option<f32>,
+    F: FnMut(usize, u32, PrimHit) -> Option<f32>,
 {
     for (j, tri) in leaf.iter().enumerate() {
         if rays.live == 0 {
             break;
         }
-        let setup = TriSetup::new(tri);
-        for k in 0..CHUNKS {
-            let lanes = (rays.live >> (LANES * k)) as u32 & 0xFF;
-            if lanes == 0 {
+        let id = rays.ids[j];
+        setup_packet(&TriSetup::new(tri), id, rays);
+    }
+}
+
+/// A leaf of SIMD groups for a packet: fast groups eight rays at a time from their stored
+/// terms, watertight groups ray by ray through the scalar watertight test.
+#[inline(always)]
+fn groups_packet<F>(groups: &[Tri4], format: LeafFormat, rays: &mut PacketLeaf<'_, F>)
+where
+    F: FnMut(usize, u32, PrimHit) -> Option<f32>,
+{
+    for g in groups {
+        for (l, &id) in g.id.iter().enumerate() {
+            if id == u32::MAX || rays.live == 0 {
                 continue;
             }
-            let (ok, t, u, v) = setup.intersect8(rays.packet, k);
-            let ok = ok & lanes;
-            if ok == 0 {
-                continue;
-            }
-            let (t, u, v) = (t.as_array(), u.as_array(), v.as_array());
-            for l in bits(ok) {
-                let hit = PrimHit {
-                    t: t[l],
-                    u: u[l],
-                    v: v[l],
-                };
-                rays.report(LANES * k + l, j, hit);
+            if format == LeafFormat::WatertightTriangles {
+                let tri = Watertight(g.watertight_triangle(l));
+                for i in bits(rays.live) {
+                    if let Some(h) = tri.intersect(&rays.ray(i)) {
+                        rays.report_id(i, id, h);
+                    }
+                }
+            } else {
+                setup_packet(&TriSetup::from_group(g, l), id, rays);
             }
         }
     }

@@ -34,6 +34,7 @@ pub use leaves::PacketLeaf;
 
 use super::bvh4::{self, WideNode};
 use super::query::RayQuery;
+use super::tri4::Leaves;
 use super::{BoxTest, Stats};
 use crate::geometry::{Hit, Primitive, Ray};
 
@@ -137,8 +138,7 @@ fn each_packet<T>(
 #[inline(always)]
 pub(crate) fn closest_rays<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
     nodes: &[N],
-    prims: &[P],
-    ids: &[u32],
+    leaves: &Leaves<P>,
     rays: &[Ray],
     active: Option<&[bool]>,
     mode: PacketMode,
@@ -152,16 +152,14 @@ pub(crate) fn closest_rays<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
             for (b, r) in best.iter_mut().zip(rays) {
                 *b = Hit::none(r.t_max);
             }
-            leaves::closest_packet::<N, B, P, S>(
-                nodes, prims, ids, rays, &mut pk, &mut best, stats,
-            );
+            leaves::closest_packet::<N, B, P, S>(nodes, leaves, rays, &mut pk, &mut best, stats);
             for (i, (h, b)) in hits.iter_mut().zip(best).enumerate() {
                 *h = if on >> i & 1 == 1 { b.found() } else { None };
             }
         } else {
             for (i, (h, r)) in hits.iter_mut().zip(rays).enumerate() {
                 *h = if on >> i & 1 == 1 {
-                    bvh4::closest::<N, B, P, S>(nodes, prims, ids, r, stats)
+                    bvh4::closest::<N, B, P, S>(nodes, leaves, r, stats)
                 } else {
                     None
                 };
@@ -174,7 +172,7 @@ pub(crate) fn closest_rays<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
 #[inline(always)]
 pub(crate) fn any_rays<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
     nodes: &[N],
-    prims: &[P],
+    leaves: &Leaves<P>,
     rays: &[Ray],
     active: Option<&[bool]>,
     mode: PacketMode,
@@ -185,10 +183,10 @@ pub(crate) fn any_rays<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
         out.fill(false);
         if packet {
             let mut pk = RayPacket::new(rays, on);
-            leaves::any_packet::<N, B, P, S>(nodes, prims, rays, &mut pk, out, stats);
+            leaves::any_packet::<N, B, P, S>(nodes, leaves, rays, &mut pk, out, stats);
         } else {
             for (i, (o, r)) in out.iter_mut().zip(rays).enumerate() {
-                *o = on >> i & 1 == 1 && bvh4::any::<N, B, P, S>(nodes, prims, r, stats);
+                *o = on >> i & 1 == 1 && bvh4::any::<N, B, P, S>(nodes, leaves, r, stats);
             }
         }
     });
