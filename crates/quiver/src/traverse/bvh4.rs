@@ -91,15 +91,22 @@ fn walk<N, B, S, F, const ORDERED: bool>(
         let (t, mask) = r4.enter::<B>(&n.planes(), limit * B::SLACK);
         if ORDERED {
             // Push hit children farthest first, so the nearest is popped next.
-            let mut hits = [(0.0f32, 0usize); 4];
-            let mut k = 0;
-            for i in bits(mask) {
-                insert_farthest_first(&mut hits, k, t[i], i);
-                k += 1;
-            }
-            for &(ti, i) in &hits[..k] {
+            if mask.is_power_of_two() {
+                // One child hit (the common case): nothing to order.
+                let i = mask.trailing_zeros() as usize;
                 let (c, count) = n.child(i);
-                stack.push((c, count, ti));
+                stack.push((c, count, t[i]));
+            } else {
+                let mut hits = [(0.0f32, 0u32); 4];
+                let mut k = 0;
+                for i in bits(mask) {
+                    insert_farthest_first(&mut hits, k, t[i], i as u32);
+                    k += 1;
+                }
+                for &(ti, i) in &hits[..k] {
+                    let (c, count) = n.child(i as usize);
+                    stack.push((c, count, ti));
+                }
             }
         } else {
             // Any hit stops at the first hit wherever it is: no ordering to pay for.

@@ -106,14 +106,20 @@ fn walk<T, B, S, F, const ORDERED: bool>(
             // octant, 32 more bytes a node): those ran eye rays 4-29% faster but incoherent
             // rays up to 12% slower (`quiver layouts`, 1 thread, medians of 3 runs), and the
             // nearest hit child first plus octant order for the rest was slower than both.
-            let mut hits = [(0.0f32, 0usize); 8];
-            let mut k = 0;
-            for i in bits(mask) {
-                insert_farthest_first(&mut hits, k, t[i], i);
-                k += 1;
-            }
-            for &(ti, i) in &hits[..k] {
-                stack.push((n.child[i], n.count[i], ti));
+            if mask.is_power_of_two() {
+                // One child hit (the common case): nothing to order.
+                let i = mask.trailing_zeros() as usize;
+                stack.push((n.child[i], n.count[i], t[i]));
+            } else {
+                let mut hits = [(0.0f32, 0u32); 8];
+                let mut k = 0;
+                for i in bits(mask) {
+                    insert_farthest_first(&mut hits, k, t[i], i as u32);
+                    k += 1;
+                }
+                for &(ti, i) in &hits[..k] {
+                    stack.push((n.child[i as usize], n.count[i as usize], ti));
+                }
             }
         } else {
             for i in bits(mask) {
