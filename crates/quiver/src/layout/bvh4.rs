@@ -109,19 +109,12 @@ impl Node4 for Bvh4Node {
     }
 
     fn encode(w: &Wide, pos: &[u32]) -> Self {
-        let mut n = Bvh4Node::zeroed();
-        for (i, (b, k)) in w.boxes.iter().zip(&w.kids).enumerate() {
-            for a in 0..3 {
-                n.planes[a][i] = b.min[a];
-                n.planes[3 + a][i] = b.max[a];
-            }
-            (n.child[i], n.count[i]) = match *k {
-                Child::Empty => (0, Self::LEAF),
-                Child::Inner(j) => (pos[j as usize], 0),
-                Child::Leaf { first, count } => (first, Self::LEAF | count),
-            };
+        let (planes, child, count) = w.rows(Self::LEAF, |j| pos[j as usize]);
+        Bvh4Node {
+            planes,
+            child,
+            count,
         }
-        n
     }
 }
 

@@ -2,7 +2,7 @@
 //! in one 8-lane slab test (one AVX2 instruction per step on the AVX2 path).
 
 use super::bvh2::leaf_order;
-use super::collapse::{collapse_sah, Child, Wide};
+use super::collapse::{collapse_sah, Wide};
 use super::tri4::{self, Tri4};
 use super::Footprint;
 use crate::build::{BuildConfig, BuildTree};
@@ -36,20 +36,13 @@ impl Bvh8Node {
     pub const LEAF: u32 = 1 << 31;
 
     fn encode(w: &Wide<8>) -> Self {
-        let mut n = Bvh8Node::zeroed();
-        for (i, (b, k)) in w.boxes.iter().zip(&w.kids).enumerate() {
-            for a in 0..3 {
-                n.planes[a][i] = b.min[a];
-                n.planes[3 + a][i] = b.max[a];
-            }
-            (n.child[i], n.count[i]) = match *k {
-                Child::Empty => (0, Self::LEAF),
-                // Depth-first order: collapsed node `j` is stored at position `j`.
-                Child::Inner(j) => (j, 0),
-                Child::Leaf { first, count } => (first, Self::LEAF | count),
-            };
+        // Depth-first order: collapsed node `j` is stored at position `j`.
+        let (planes, child, count) = w.rows(Self::LEAF, |j| j);
+        Bvh8Node {
+            planes,
+            child,
+            count,
         }
-        n
     }
 }
 

@@ -43,6 +43,31 @@ pub(crate) mod types {
             boxes: [Aabb::EMPTY; W],
             kids: [Child::Empty; W],
         };
+
+        /// The exact node formats' fields: the boxes as `[min xyz, max xyz]` rows of `W`
+        /// lanes, and per child (node position, 0) for an inner child, (first, `leaf` |
+        /// count) for a leaf, (0, `leaf`) for an unused slot. `pos` maps a collapsed node
+        /// index to its position in the node array.
+        pub fn rows(
+            &self,
+            leaf: u32,
+            pos: impl Fn(u32) -> u32,
+        ) -> ([[f32; W]; 6], [u32; W], [u32; W]) {
+            let mut planes = [[0.0; W]; 6];
+            let (mut child, mut count) = ([0; W], [0; W]);
+            for (i, (b, k)) in self.boxes.iter().zip(&self.kids).enumerate() {
+                for a in 0..3 {
+                    planes[a][i] = b.min[a];
+                    planes[3 + a][i] = b.max[a];
+                }
+                (child[i], count[i]) = match *k {
+                    Child::Empty => (0, leaf),
+                    Child::Inner(j) => (pos(j), 0),
+                    Child::Leaf { first, count } => (first, leaf | count),
+                };
+            }
+            (planes, child, count)
+        }
     }
 }
 
@@ -362,8 +387,13 @@ mod tests {
             }
         }
         assert!(covered.iter().all(|&c| c));
-        // A wide node has fewer than four children only when none of them could be opened.
-        for w in &wide {
+        assert_greedy_fill(&wide);
+    }
+
+    /// A greedily collapsed node has fewer than `W` children only when none of them could be
+    /// opened.
+    fn assert_greedy_fill<const W: usize>(wide: &[Wide<W>]) {
+        for w in wide {
             let used = w.kids.iter().filter(|k| **k != Child::Empty).count();
             let inner = w
                 .kids
@@ -371,7 +401,7 @@ mod tests {
                 .filter(|k| matches!(k, Child::Inner(_)))
                 .count();
             assert!(
-                used == 4 || inner == 0,
+                used == W || inner == 0,
                 "{used} children, {inner} of them inner"
             );
         }
@@ -385,18 +415,9 @@ mod tests {
             crate::build::Builder::Binned,
         );
         let wide = collapse::<8>(&tree);
+        assert_greedy_fill(&wide);
         let mut leaves = 0;
         for w in &wide {
-            let used = w.kids.iter().filter(|k| **k != Child::Empty).count();
-            let inner = w
-                .kids
-                .iter()
-                .filter(|k| matches!(k, Child::Inner(_)))
-                .count();
-            assert!(
-                used == 8 || inner == 0,
-                "{used} children, {inner} of them inner"
-            );
             leaves += w
                 .kids
                 .iter()
