@@ -61,15 +61,34 @@ impl<F: FnMut(usize, u32, PrimHit) -> Option<f32>> PacketLeaf<'_, F> {
 }
 
 /// Runs the leaf `range` (primitives, or groups holding `range.len()` triangles) for the
-/// rays of `leaf`.
+/// `live` rays of the packet, answering hits with `on_hit`.
 #[inline(always)]
-fn test_leaf<P: Primitive, F>(leaves: &Leaves<P>, range: Range<usize>, leaf: &mut PacketLeaf<'_, F>)
-where
+fn test_leaf<P: Primitive, F>(
+    leaves: &Leaves<P>,
+    range: Range<usize>,
+    packet: &mut RayPacket,
+    live: u64,
+    on_hit: F,
+) where
     F: FnMut(usize, u32, PrimHit) -> Option<f32>,
 {
+    let ids = match P::LEAF_FORMAT {
+        LeafFormat::Plain => &leaves.ids[range.clone()],
+        _ => &[],
+    };
+    let mut leaf = PacketLeaf {
+        packet,
+        live,
+        ids,
+        on_hit,
+    };
     match P::LEAF_FORMAT {
-        LeafFormat::Plain => P::intersect_packet(&leaves.prims[range], leaf),
-        format => groups_packet(leaves.groups(range.start, range.len() as u32), format, leaf),
+        LeafFormat::Plain => P::intersect_packet(&leaves.prims[range], &mut leaf),
+        format => groups_packet(
+            leaves.groups(range.start, range.len() as u32),
+            format,
+            &mut leaf,
+        ),
     }
 }
 
@@ -107,29 +126,19 @@ pub(super) fn closest_packet<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
         };
         let live = pk.entering::<B>(b, cand);
         stats.prims(range.len() as u32);
-        let ids = match P::LEAF_FORMAT {
-            LeafFormat::Plain => &leaves.ids[range.clone()],
-            _ => &[],
-        };
         let mut changed = false;
-        let mut leaf = PacketLeaf {
-            packet: pk,
-            live,
-            ids,
-            on_hit: |i: usize, id: u32, h: PrimHit| {
-                if best[i].is_beaten_by(h.t, id) {
-                    best[i] = Hit {
-                        t: h.t,
-                        prim: id,
-                        u: h.u,
-                        v: h.v,
-                    };
-                    changed = true;
-                }
-                Some(best[i].t)
-            },
-        };
-        test_leaf(leaves, range, &mut leaf);
+        test_leaf(leaves, range, pk, live, |i: usize, id: u32, h: PrimHit| {
+            if best[i].is_beaten_by(h.t, id) {
+                best[i] = Hit {
+                    t: h.t,
+                    prim: id,
+                    u: h.u,
+                    v: h.v,
+                };
+                changed = true;
+            }
+            Some(best[i].t)
+        });
         if changed {
             pk.refresh_limit_bound();
         } else {
@@ -170,22 +179,12 @@ pub(super) fn any_packet<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
         };
         let live = pk.entering::<B>(b, cand);
         stats.prims(range.len() as u32);
-        let ids = match P::LEAF_FORMAT {
-            LeafFormat::Plain => &leaves.ids[range.clone()],
-            _ => &[],
-        };
         let mut found = 0u64;
-        let mut leaf = PacketLeaf {
-            packet: pk,
-            live,
-            ids,
-            on_hit: |i: usize, _, _| {
-                hit[i] = true;
-                found |= 1 << i;
-                None
-            },
-        };
-        test_leaf(leaves, range, &mut leaf);
+        test_leaf(leaves, range, pk, live, |i: usize, _, _| {
+            hit[i] = true;
+            found |= 1 << i;
+            None
+        });
         for i in bits(found) {
             pk.retire(i);
         }
