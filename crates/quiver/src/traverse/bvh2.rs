@@ -1,8 +1,7 @@
 //! Single-ray traversal of a [`Bvh2`] in any of its memory mappings.
 
-use super::packet::{any_ray_by_ray, closest_ray_by_ray};
 use super::stats::Stats;
-use super::{leaf_any_hit, leaf_closest_hit, BoxTest, PacketMode, RayQuery, SlabRay, Stack};
+use super::{leaf_any_hit, leaf_closest_hit, BoxTest, RayQuery, SlabRay, Stack};
 use crate::build::MAX_DEPTH;
 use crate::geometry::{Hit, Primitive, Ray};
 use crate::layout::bvh2::{compact_children, Addressing};
@@ -73,28 +72,6 @@ impl<P: Primitive> RayQuery for Bvh2<P> {
             hit
         });
         hit
-    }
-
-    fn closest_hit_packet_with<B: BoxTest, S: Stats>(
-        &self,
-        rays: &[Ray],
-        active: Option<&[bool]>,
-        _: PacketMode,
-        hits: &mut [Option<Hit>],
-        stats: &mut S,
-    ) {
-        closest_ray_by_ray::<_, B, S>(self, rays, active, hits, stats)
-    }
-
-    fn any_hit_packet_with<B: BoxTest, S: Stats>(
-        &self,
-        rays: &[Ray],
-        active: Option<&[bool]>,
-        _: PacketMode,
-        occluded: &mut [bool],
-        stats: &mut S,
-    ) {
-        any_ray_by_ray::<_, B, S>(self, rays, active, occluded, stats)
     }
 }
 

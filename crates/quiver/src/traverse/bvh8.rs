@@ -5,11 +5,10 @@
 //! same nodes and return the same hits. Closest hit visits hit children nearest first; any
 //! hit pushes them unordered and stops at the first hit.
 
-use super::packet::{any_ray_by_ray, closest_ray_by_ray};
 use super::simd::{bits, insert_farthest_first, NanFirst};
 use super::stats::Stats;
 use super::tri4::Leaves;
-use super::{slab_reciprocal, BoxTest, PacketMode, RayQuery, Stack};
+use super::{slab_reciprocal, BoxTest, RayQuery, Stack};
 use crate::build::MAX_DEPTH;
 use crate::geometry::{Hit, Primitive, Ray};
 use crate::isa::Isa;
@@ -209,6 +208,7 @@ impl<P: Primitive> Bvh8<P> {
     }
 }
 
+/// No 8-wide packet kernel yet: packet queries go ray by ray (the trait's default).
 impl<P: Primitive> RayQuery for Bvh8<P> {
     fn closest_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> Option<Hit> {
         match self.isa {
@@ -226,29 +226,6 @@ impl<P: Primitive> RayQuery for Bvh8<P> {
             Isa::Avx2 => unsafe { avx2::any::<B, P, S>(self, ray, stats) },
             _ => any::<Portable8, B, P, S>(self, &Portable8::new(ray), ray, stats),
         }
-    }
-
-    /// No 8-wide packet kernel yet: ray by ray.
-    fn closest_hit_packet_with<B: BoxTest, S: Stats>(
-        &self,
-        rays: &[Ray],
-        active: Option<&[bool]>,
-        _: PacketMode,
-        hits: &mut [Option<Hit>],
-        stats: &mut S,
-    ) {
-        closest_ray_by_ray::<_, B, S>(self, rays, active, hits, stats)
-    }
-
-    fn any_hit_packet_with<B: BoxTest, S: Stats>(
-        &self,
-        rays: &[Ray],
-        active: Option<&[bool]>,
-        _: PacketMode,
-        occluded: &mut [bool],
-        stats: &mut S,
-    ) {
-        any_ray_by_ray::<_, B, S>(self, rays, active, occluded, stats)
     }
 }
 

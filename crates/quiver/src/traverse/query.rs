@@ -1,5 +1,6 @@
 //! [`RayQuery`]: the one interface every traversable structure answers.
 
+use super::packet::{any_ray_by_ray, closest_ray_by_ray};
 use super::{BoxTest, ConservativeBoxes, Counters, NoStats, PacketMode, Stats};
 use crate::geometry::{Hit, Ray};
 
@@ -7,9 +8,10 @@ use crate::geometry::{Hit, Ray};
 ///
 /// Every layout ([`crate::Bvh2`], [`crate::layout::Bvh4`], [`crate::layout::QBvh4`]), the
 /// layout-erased [`crate::Bvh`], and quiver-scenes' `SceneBvh` implement it. An implementor
-/// writes the four `*_with` methods, generic over the box test ([`BoxTest`]) and a statistics
-/// sink ([`Stats`]); the short forms (`closest_hit`, `any_hit`, the counted and packet forms)
-/// come with the trait and use the conservative box test.
+/// writes the two single-ray `*_with` methods, generic over the box test ([`BoxTest`]) and a
+/// statistics sink ([`Stats`]), and the two packet `*_with` methods where it has a packet
+/// kernel (without one they trace ray by ray); the short forms (`closest_hit`, `any_hit`, the
+/// counted and packet forms) come with the trait and use the conservative box test.
 ///
 /// Answers follow the rules in [`crate::geometry`]: the interval `[t_min, t_max]` is closed,
 /// and among hits at equal distance the lowest primitive index wins, so every implementor
@@ -42,6 +44,9 @@ pub trait RayQuery {
     /// [`RayQuery::closest_hit_with`]'s for that ray. `stats` counts packet node visits, not
     /// per-ray ones.
     ///
+    /// Without a packet kernel (the default) every active ray goes through
+    /// [`RayQuery::closest_hit_with`] and `mode` is ignored.
+    ///
     /// # Panics
     /// When `hits` or `active` differ in length from `rays`.
     fn closest_hit_packet_with<B: BoxTest, S: Stats>(
@@ -51,7 +56,10 @@ pub trait RayQuery {
         mode: PacketMode,
         hits: &mut [Option<Hit>],
         stats: &mut S,
-    );
+    ) {
+        let _ = mode;
+        closest_ray_by_ray::<_, B, S>(self, rays, active, hits, stats)
+    }
 
     /// Any-hit answers of `rays` into `occluded` (inactive rays get `false`); see
     /// [`RayQuery::closest_hit_packet_with`].
@@ -65,7 +73,10 @@ pub trait RayQuery {
         mode: PacketMode,
         occluded: &mut [bool],
         stats: &mut S,
-    );
+    ) {
+        let _ = mode;
+        any_ray_by_ray::<_, B, S>(self, rays, active, occluded, stats)
+    }
 
     /// The nearest hit along `ray` (lowest primitive index on ties).
     #[inline]
