@@ -408,6 +408,32 @@ impl Hit {
     pub fn is_beaten_by(&self, t: f32, prim: u32) -> bool {
         t < self.t || (t == self.t && prim < self.prim)
     }
+
+    /// Takes `hit` on primitive `prim` as the closest hit when it beats `self` (see
+    /// [`Hit::is_beaten_by`]); returns whether it did. Every kernel's leaf test goes through
+    /// this, so all apply the same order.
+    ///
+    /// ```
+    /// use quiver::{Hit, PrimHit};
+    /// let mut best = Hit::none(10.0);
+    /// assert!(best.offer(3, PrimHit { t: 2.0, u: 0.1, v: 0.2 }));
+    /// assert!(!best.offer(5, PrimHit { t: 2.0, u: 0.0, v: 0.0 }));
+    /// assert!(best.offer(1, PrimHit { t: 2.0, u: 0.0, v: 0.0 }));
+    /// assert_eq!(best.found().map(|h| (h.prim, h.t)), Some((1, 2.0)));
+    /// ```
+    #[inline(always)]
+    pub fn offer(&mut self, prim: u32, hit: PrimHit) -> bool {
+        let beaten = self.is_beaten_by(hit.t, prim);
+        if beaten {
+            *self = Hit {
+                t: hit.t,
+                prim,
+                u: hit.u,
+                v: hit.v,
+            };
+        }
+        beaten
+    }
 }
 
 /// Moves a surface point off the surface along `n` (the side the new ray leaves from) by a few

@@ -41,15 +41,7 @@ pub(crate) fn leaf_closest_hit<P: Primitive, S: Stats>(
     let mut found = false;
     for (tri, &prim) in tris.iter().zip(prim_ids) {
         if let Some(h) = tri.intersect(&r) {
-            if best.is_beaten_by(h.t, prim) {
-                *best = Hit {
-                    t: h.t,
-                    prim,
-                    u: h.u,
-                    v: h.v,
-                };
-                found = true;
-            }
+            found |= best.offer(prim, h);
         }
     }
     if !found {

@@ -170,17 +170,7 @@ pub(crate) fn closest<S: Stats>(
     stats.prims(count);
     let mut found = false;
     for g in groups {
-        group_hits(g, r, ray, best.t, format, |l, h| {
-            if best.is_beaten_by(h.t, g.id[l]) {
-                *best = Hit {
-                    t: h.t,
-                    prim: g.id[l],
-                    u: h.u,
-                    v: h.v,
-                };
-                found = true;
-            }
-        });
+        group_hits(g, r, ray, best.t, format, |l, h| found |= best.offer(g.id[l], h));
     }
     if !found {
         stats.empty_leaf();

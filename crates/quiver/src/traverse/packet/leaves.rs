@@ -128,15 +128,7 @@ pub(super) fn closest_packet<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
         stats.prims(range.len() as u32);
         let mut changed = false;
         test_leaf(leaves, range, pk, live, |i: usize, id: u32, h: PrimHit| {
-            if best[i].is_beaten_by(h.t, id) {
-                best[i] = Hit {
-                    t: h.t,
-                    prim: id,
-                    u: h.u,
-                    v: h.v,
-                };
-                changed = true;
-            }
+            changed |= best[i].offer(id, h);
             Some(best[i].t)
         });
         if changed {
