@@ -122,35 +122,27 @@ fn group_hits(
     format: LeafFormat,
     mut hit: impl FnMut(usize, PrimHit),
 ) {
-    if format == LeafFormat::WatertightTriangles {
-        let (ok, edge, t, u, v) = watertight4(g, r, t_max);
-        for l in bits(ok) {
-            hit(
-                l,
-                PrimHit {
-                    t: t[l],
-                    u: u[l],
-                    v: v[l],
-                },
-            );
-        }
-        for l in bits(edge) {
-            let limited = Ray { t_max, ..*ray };
-            if let Some(h) = Watertight(g.watertight_triangle(l)).intersect(&limited) {
-                hit(l, h);
-            }
-        }
+    // The fast test has no edge lanes; `format` is a constant here, so that loop compiles away.
+    let (ok, edge, t, u, v) = if format == LeafFormat::WatertightTriangles {
+        watertight4(g, r, t_max)
     } else {
         let (ok, t, u, v) = fast4(g, r, t_max);
-        for l in bits(ok) {
-            hit(
-                l,
-                PrimHit {
-                    t: t[l],
-                    u: u[l],
-                    v: v[l],
-                },
-            );
+        (ok, 0, t, u, v)
+    };
+    for l in bits(ok) {
+        hit(
+            l,
+            PrimHit {
+                t: t[l],
+                u: u[l],
+                v: v[l],
+            },
+        );
+    }
+    for l in bits(edge) {
+        let limited = Ray { t_max, ..*ray };
+        if let Some(h) = Watertight(g.watertight_triangle(l)).intersect(&limited) {
+            hit(l, h);
         }
     }
 }
@@ -170,7 +162,9 @@ pub(crate) fn closest<S: Stats>(
     stats.prims(count);
     let mut found = false;
     for g in groups {
-        group_hits(g, r, ray, best.t, format, |l, h| found |= best.offer(g.id[l], h));
+        group_hits(g, r, ray, best.t, format, |l, h| {
+            found |= best.offer(g.id[l], h)
+        });
     }
     if !found {
         stats.empty_leaf();
