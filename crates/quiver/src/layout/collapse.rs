@@ -376,17 +376,7 @@ mod tests {
         let bounds = crate::testing::soup_bounds(3000, 1);
         let tree = crate::build::build(&bounds, &Default::default(), crate::build::Builder::Binned);
         let wide = collapse::<4>(&tree);
-        let mut covered = vec![false; tree.prim_indices.len()];
-        for w in &wide {
-            for k in &w.kids {
-                if let Child::Leaf { first, count } = *k {
-                    for c in &mut covered[first as usize..(first + count) as usize] {
-                        assert!(!std::mem::replace(c, true));
-                    }
-                }
-            }
-        }
-        assert!(covered.iter().all(|&c| c));
+        check_cover(&wide, tree.prim_indices.len(), tree.stats().max_leaf as u32);
         assert_greedy_fill(&wide);
     }
 
