@@ -50,6 +50,19 @@ pub struct Row {
     pub ref_mismatch_per_million: f64,
 }
 
+/// A triangle's corners and edge midpoints: where a ray between two triangles of a closed
+/// mesh can leak through.
+///
+/// ```
+/// use glam::Vec3A;
+/// let t = quiver::Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y);
+/// assert_eq!(quiver_lab::accuracy::edge_points(&t)[3], Vec3A::new(0.5, 0.0, 0.0));
+/// ```
+pub fn edge_points(t: &Triangle) -> [Vec3A; 6] {
+    let [a, b, c] = t.v;
+    [a, b, c, (a + b) * 0.5, (b + c) * 0.5, (c + a) * 0.5]
+}
+
 /// Rays aimed exactly at every vertex and edge midpoint of a closed mesh around the origin,
 /// from a few interior points and from outside through the centre: each must hit.
 pub fn closed_mesh_rays(tris: &[Triangle]) -> Vec<Ray> {
@@ -61,14 +74,7 @@ pub fn closed_mesh_rays(tris: &[Triangle]) -> Vec<Ray> {
     ];
     let mut rays = Vec::new();
     for t in tris {
-        for p in [
-            t.v[0],
-            t.v[1],
-            t.v[2],
-            (t.v[0] + t.v[1]) * 0.5,
-            (t.v[1] + t.v[2]) * 0.5,
-            (t.v[2] + t.v[0]) * 0.5,
-        ] {
+        for p in edge_points(t) {
             rays.extend(inside.iter().map(|&o| Ray::new(o, p - o)));
             rays.push(Ray::new(p * 3.0, -p * 3.0));
         }

@@ -7,6 +7,7 @@ use glam::Vec3A;
 use quiver::intersect::{Exact, Watertight};
 use quiver::traverse::{ConservativeBoxes, FastBoxes, NoStats};
 use quiver::{reference, Layout, Primitive, Ray, RayQuery, Triangle};
+use quiver_lab::accuracy::edge_points;
 use quiver_scenes::Scene;
 use rayon::prelude::*;
 
@@ -117,16 +118,7 @@ fn watertight_never_leaks_through_tetra_cells() {
         .flat_map(|cell| {
             let center = cell.iter().flat_map(|t| t.v).sum::<Vec3A>() / 12.0;
             cell.iter()
-                .flat_map(|t| {
-                    [
-                        t.v[0],
-                        t.v[1],
-                        t.v[2],
-                        (t.v[0] + t.v[1]) * 0.5,
-                        (t.v[1] + t.v[2]) * 0.5,
-                        (t.v[2] + t.v[0]) * 0.5,
-                    ]
-                })
+                .flat_map(edge_points)
                 .map(move |p| Ray::new(center, p - center))
                 .collect::<Vec<_>>()
         })
