@@ -99,61 +99,102 @@ pub fn evaluate(
         .map(|s| s.triangles())
         .unwrap_or_default();
     let closed = closed_mesh_rays(&sphere);
-    let exact: Vec<Exact> = scene_tris.iter().map(|&t| Exact(t)).collect();
-    let reference = Bvh::new(&exact);
+    let wt = |t: &[Triangle]| t.iter().map(|&t| Watertight(t)).collect::<Vec<_>>();
+    let ex = |t: &[Triangle]| t.iter().map(|&t| Exact(t)).collect::<Vec<_>>();
+    let (fast, water, f64_) = (
+        Bvh::new(scene_tris),
+        Bvh::new(&wt(scene_tris)),
+        Bvh::new(&ex(scene_tris)),
+    );
     let want: Vec<Option<u32>> = rays
         .par_iter()
-        .map(|r| reference.closest_hit(r).map(|h| h.prim))
+        .map(|r| {
+            f64_.closest_hit_with::<ConservativeBoxes, _>(r, &mut NoStats)
+                .map(|h| h.prim)
+        })
         .collect();
     let ctx = Ctx {
         tris: scene_tris,
         rays: &rays,
         want: &want,
         closed: &closed,
-        reps,
     };
-    let wt = |t: &[Triangle]| t.iter().map(|&t| Watertight(t)).collect::<Vec<_>>();
-    let ex = |t: &[Triangle]| t.iter().map(|&t| Exact(t)).collect::<Vec<_>>();
+    let count = |q: Kernel, any: bool| measure::count_hits(&rays, |r| q(r, any));
+    // The six kernels, in row order, timed side by side so a slow spell hits all alike.
+    let kernels: [Kernel; 6] = [
+        &|r, any| query::<_, FastBoxes>(&fast, r, any),
+        &|r, any| query::<_, ConservativeBoxes>(&fast, r, any),
+        &|r, any| query::<_, FastBoxes>(&water, r, any),
+        &|r, any| query::<_, ConservativeBoxes>(&water, r, any),
+        &|r, any| query::<_, FastBoxes>(&f64_, r, any),
+        &|r, any| query::<_, ConservativeBoxes>(&f64_, r, any),
+    ];
+    let speed = |any: bool| {
+        measure::median_times_interleaved(reps, kernels.len(), |i| {
+            std::hint::black_box(count(kernels[i], any));
+        })
+        .into_iter()
+        .map(|t| measure::mrays_per_s(rays.len(), t))
+        .collect::<Vec<_>>()
+    };
+    let (closest, any) = (speed(false), speed(true));
+    let speed = |i: usize| (closest[i], any[i]);
     let mut rows = Vec::new();
     rows.extend(combo::<_, FastBoxes>(
-        "fast", "plain", scene_tris, &sphere, &ctx,
+        ("fast", "plain"),
+        &fast,
+        &Bvh::new(&sphere),
+        speed(0),
+        &ctx,
     ));
     rows.extend(combo::<_, ConservativeBoxes>(
-        "fast",
-        "conservative",
-        scene_tris,
-        &sphere,
+        ("fast", "conservative"),
+        &fast,
+        &Bvh::new(&sphere),
+        speed(1),
         &ctx,
     ));
     rows.extend(combo::<_, FastBoxes>(
-        "watertight",
-        "plain",
-        &wt(scene_tris),
-        &wt(&sphere),
+        ("watertight", "plain"),
+        &water,
+        &Bvh::new(&wt(&sphere)),
+        speed(2),
         &ctx,
     ));
     rows.extend(combo::<_, ConservativeBoxes>(
-        "watertight",
-        "conservative",
-        &wt(scene_tris),
-        &wt(&sphere),
+        ("watertight", "conservative"),
+        &water,
+        &Bvh::new(&wt(&sphere)),
+        speed(3),
         &ctx,
     ));
     rows.extend(combo::<_, FastBoxes>(
-        "f64",
-        "plain",
-        &ex(scene_tris),
-        &ex(&sphere),
+        ("f64", "plain"),
+        &f64_,
+        &Bvh::new(&ex(&sphere)),
+        speed(4),
         &ctx,
     ));
     rows.extend(combo::<_, ConservativeBoxes>(
-        "f64",
-        "conservative",
-        &ex(scene_tris),
-        &ex(&sphere),
+        ("f64", "conservative"),
+        &f64_,
+        &Bvh::new(&ex(&sphere)),
+        speed(5),
         &ctx,
     ));
     rows
+}
+
+/// One combination's query: `(ray, any)` to whether the ray hit.
+type Kernel<'a> = &'a (dyn Fn(&Ray, bool) -> bool + Sync);
+
+/// Closest hit found (or, with `any`, anything hit) by `bvh` with box test `B`.
+fn query<P: Primitive, B: BoxTest>(bvh: &Bvh<P>, r: &Ray, any: bool) -> bool {
+    if any {
+        bvh.any_hit_with::<B, _>(r, &mut NoStats)
+    } else {
+        bvh.closest_hit_with::<B, _>(r, &mut NoStats).is_some()
+    }
 }
 
 struct Ctx<'a> {
@@ -162,45 +203,21 @@ struct Ctx<'a> {
     rays: &'a [Ray],
     want: &'a [Option<u32>],
     closed: &'a [Ray],
-    reps: usize,
 }
 
 fn per_million(count: usize, of: usize) -> f64 {
     count as f64 * 1e6 / of.max(1) as f64
 }
 
+/// The error measurements of one combination (its speeds measured beside the others).
 fn combo<P: Primitive, B: BoxTest>(
-    intersector: &'static str,
-    box_test: &'static str,
-    prims: &[P],
-    sphere: &[P],
+    (intersector, box_test): (&'static str, &'static str),
+    bvh: &Bvh<P>,
+    sphere_bvh: &Bvh<P>,
+    (mrays, any_mrays): (f64, f64),
     ctx: &Ctx,
 ) -> Vec<Row> {
-    let bvh = Bvh::new(prims);
     let closest = |r: &Ray| bvh.closest_hit_with::<B, _>(r, &mut NoStats);
-    let time = |any: bool| {
-        let t = measure::median_time(ctx.reps, || {
-            let n: usize = ctx
-                .rays
-                .par_chunks(1024)
-                .map(|c| {
-                    c.iter()
-                        .filter(|r| {
-                            if any {
-                                bvh.any_hit_with::<B, _>(r, &mut NoStats)
-                            } else {
-                                closest(r).is_some()
-                            }
-                        })
-                        .count()
-                })
-                .sum();
-            std::hint::black_box(n);
-        });
-        measure::mrays_per_s(ctx.rays.len(), t)
-    };
-    let (mrays, any_mrays) = (time(false), time(true));
-    let sphere_bvh = Bvh::new(sphere);
     let leaks = ctx
         .closed
         .par_iter()

@@ -41,14 +41,26 @@ const RAYS_PER_TASK: usize = 1024;
 
 /// Traces every ray on the current thread pool; returns how many hit.
 pub fn trace<Q: RayQuery + Sync>(bvh: &Q, rays: &[Ray], query: Query) -> usize {
+    match query {
+        Query::Closest => count_hits(rays, |r| bvh.closest_hit(r).is_some()),
+        Query::Any => count_hits(rays, |r| bvh.any_hit(r)),
+    }
+}
+
+/// How many rays `hit` says hit, asked on the current thread pool in tasks of
+/// `RAYS_PER_TASK` rays: the timed loop of every engine and kernel we compare, so they are
+/// scheduled alike.
+///
+/// ```
+/// use quiver_lab::measure::count_hits;
+/// use quiver::Ray;
+/// use glam::Vec3A;
+/// let rays = vec![Ray::new(Vec3A::ZERO, Vec3A::X); 3000];
+/// assert_eq!(count_hits(&rays, |r| r.dir.x > 0.0), 3000);
+/// ```
+pub fn count_hits(rays: &[Ray], hit: impl Fn(&Ray) -> bool + Sync) -> usize {
     rays.par_chunks(RAYS_PER_TASK)
-        .map(|chunk| match query {
-            Query::Closest => chunk
-                .iter()
-                .filter(|r| bvh.closest_hit(r).is_some())
-                .count(),
-            Query::Any => chunk.iter().filter(|r| bvh.any_hit(r)).count(),
-        })
+        .map(|chunk| chunk.iter().filter(|r| hit(r)).count())
         .sum()
 }
 

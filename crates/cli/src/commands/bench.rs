@@ -13,10 +13,9 @@ use quiver::build::{build, prim_bounds, BuildConfig, Builder};
 use quiver::{BuildOptions, Bvh, Layout, RayQuery};
 #[cfg(feature = "embree")]
 use quiver_lab::embree::{EmbreeDevice, EmbreeScene};
-use quiver_lab::measure::{median_times_interleaved, mrays_per_s};
+use quiver_lab::measure::{count_hits, median_times_interleaved, mrays_per_s};
 use quiver_lab::{obvhs_bridge, rays};
 use quiver_scenes::scene::{tessellate, Scene};
-use rayon::prelude::*;
 use serde_json::{json, Value};
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
@@ -179,59 +178,36 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
                     median_times_interleaved(args.reps, n, |i| {
                         #[cfg(feature = "embree")]
                         if i == KERNELS.len() + 1 {
-                            let hits: usize = set
-                                .par_chunks(1024)
-                                .map(|c| {
-                                    c.iter()
-                                        .filter(|r| {
-                                            if any {
-                                                embree.any_hit(r)
-                                            } else {
-                                                embree.closest_hit(r).is_some()
-                                            }
-                                        })
-                                        .count()
-                                })
-                                .sum();
-                            std::hint::black_box(hits);
+                            std::hint::black_box(count_hits(set, |r| {
+                                if any {
+                                    embree.any_hit(r)
+                                } else {
+                                    embree.closest_hit(r).is_some()
+                                }
+                            }));
                             return;
                         }
-                        let hits: usize = if i < KERNELS.len() {
+                        let hits = if i < KERNELS.len() {
                             let b = &bvhs[i];
-                            set.par_chunks(1024)
-                                .map(|c| {
-                                    c.iter()
-                                        .filter(|r| {
-                                            if any {
-                                                b.any_hit(r)
-                                            } else {
-                                                b.closest_hit(r).is_some()
-                                            }
-                                        })
-                                        .count()
-                                })
-                                .sum()
+                            count_hits(set, |r| {
+                                if any {
+                                    b.any_hit(r)
+                                } else {
+                                    b.closest_hit(r).is_some()
+                                }
+                            })
                         } else {
-                            set.par_chunks(1024)
-                                .map(|c| {
-                                    c.iter()
-                                        .filter(|r| {
-                                            let or = obvhs::ray::Ray::new(
-                                                r.origin, r.dir, r.t_min, r.t_max,
-                                            );
-                                            let test = |ray: &obvhs::ray::Ray, slot: usize| {
-                                                ot[obvh.primitive_indices[slot] as usize]
-                                                    .intersect(ray)
-                                            };
-                                            if any {
-                                                !obvh.ray_traverse_miss(or, test)
-                                            } else {
-                                                obvh.ray_traverse(or, &mut RayHit::none(), test)
-                                            }
-                                        })
-                                        .count()
-                                })
-                                .sum()
+                            count_hits(set, |r| {
+                                let or = obvhs::ray::Ray::new(r.origin, r.dir, r.t_min, r.t_max);
+                                let test = |ray: &obvhs::ray::Ray, slot: usize| {
+                                    ot[obvh.primitive_indices[slot] as usize].intersect(ray)
+                                };
+                                if any {
+                                    !obvh.ray_traverse_miss(or, test)
+                                } else {
+                                    obvh.ray_traverse(or, &mut RayHit::none(), test)
+                                }
+                            })
                         };
                         std::hint::black_box(hits);
                     })
