@@ -1,6 +1,11 @@
 //! The `quiver` command line: thin over the library. Every command prints a table on stdout
 //! and, with `--json FILE`, writes the same facts under stable keys. One module per command
 //! in `commands/`; everything written to stdout or files goes through `output`.
+//!
+//! Exit codes: 0 on success (also when the reader of stdout closes the pipe early, as
+//! `quiver ... | head` does: the output just stops), 2 on any error, with one line
+//! `error: ...` on stderr naming the flag, file or value at fault. Arguments and output paths
+//! are checked before any work starts.
 
 use clap::{Parser, Subcommand};
 use commands::{accuracy, bench, build, gen, layouts, packets, render};
@@ -39,7 +44,10 @@ enum Command {
 }
 
 fn main() -> ExitCode {
-    let cli = Cli::parse();
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => return clap_exit(&e),
+    };
     let result = match cli.command {
         Command::Build(args) => build::run(args),
         Command::Layouts(args) => layouts::run(args),
@@ -49,11 +57,32 @@ fn main() -> ExitCode {
         Command::Bench(args) => bench::run(args),
         Command::Packets(args) => packets::run(args),
     };
-    match result {
+    // A failed stdout is reported even when the command failed too: both went wrong.
+    let stdout = output::finish_stdout();
+    match result.and(stdout) {
         Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("error: {e}");
-            ExitCode::from(2)
+        Err(e) => fail(&e.to_string()),
+    }
+}
+
+/// Prints `error: message` and returns exit code 2. `eprintln!` would panic on a failed
+/// stderr; there is nowhere left to report that, so it is ignored.
+fn fail(message: &str) -> ExitCode {
+    use std::io::Write as _;
+    let _ = writeln!(std::io::stderr(), "error: {message}");
+    ExitCode::from(2)
+}
+
+/// Prints clap's message (usage errors to stderr, `--help` and `--version` to stdout) and
+/// exits as clap would, except that a failed stdout is an error (a closed pipe is not, as for
+/// the commands' own output).
+fn clap_exit(e: &clap::Error) -> ExitCode {
+    match e.print() {
+        // stderr itself failed: there is nowhere to report that.
+        Err(_) if e.use_stderr() => ExitCode::from(2),
+        Err(io) if io.kind() != std::io::ErrorKind::BrokenPipe => {
+            fail(&format!("cannot write to stdout: {io}"))
         }
+        _ => ExitCode::from(e.exit_code().clamp(0, 255) as u8),
     }
 }

@@ -1,28 +1,204 @@
 //! Everything the commands write: tables and lines on stdout, JSON reports, PNG images,
 //! the node-count heatmap, and SVG scatter plots.
+//!
+//! Files are written all or nothing ([`write_file`]): into a temporary file beside the target,
+//! renamed over it once complete, so an interrupted or failed run never leaves a truncated
+//! file and never spoils the previous one. Output paths are checked before any work starts
+//! ([`check_outputs`]), so a typo in a path costs no render time.
+//!
+//! Stdout: the first failed write is remembered and later ones are skipped; `main` reports it
+//! through [`finish_stdout`] with a non-zero exit. A closed pipe (`quiver ... | head`) is the
+//! reader's choice to stop, not a failure: it ends the output quietly with exit code 0.
 
 use crate::commands::Result;
 use serde_json::Value;
+use std::fs::File;
+use std::io::{self, BufWriter, Write};
 use std::path::{Path, PathBuf};
+use std::sync::Mutex;
 
-/// `println!` that stops quietly when stdout is gone (`quiver ... | head`) instead of panicking.
+/// The first error writing to stdout. Later writes are skipped: a full disk would fail them
+/// too, and a closed pipe has no reader left.
+static STDOUT_ERROR: Mutex<Option<io::Error>> = Mutex::new(None);
+
+/// Writes formatted text to stdout, remembering the first failure for [`finish_stdout`].
+pub(crate) fn emit(args: std::fmt::Arguments) {
+    // A poisoned lock only means another thread panicked while printing; the slot is intact.
+    let mut error = STDOUT_ERROR.lock().unwrap_or_else(|e| e.into_inner());
+    if error.is_none() {
+        if let Err(e) = io::stdout().write_fmt(args) {
+            *error = Some(e);
+        }
+    }
+}
+
+/// Flushes stdout and turns the first write error into the command's error, except a closed
+/// pipe, which ends the output quietly (see the module doc).
+pub(crate) fn finish_stdout() -> Result<()> {
+    let mut error = STDOUT_ERROR.lock().unwrap_or_else(|e| e.into_inner());
+    if error.is_none() {
+        if let Err(e) = io::stdout().flush() {
+            *error = Some(e);
+        }
+    }
+    match error.take() {
+        Some(e) if e.kind() != io::ErrorKind::BrokenPipe => {
+            Err(format!("cannot write to stdout: {e}").into())
+        }
+        _ => Ok(()),
+    }
+}
+
+/// `println!` through [`emit`]: never panics when stdout is gone.
 macro_rules! outln {
-    ($($t:tt)*) => {{
-        use std::io::Write as _;
-        let _ = writeln!(std::io::stdout(), $($t)*);
-    }};
+    () => {
+        $crate::output::emit(format_args!("\n"))
+    };
+    ($($t:tt)*) => {
+        $crate::output::emit(format_args!("{}\n", format_args!($($t)*)))
+    };
 }
 pub(crate) use outln;
 
 /// `print!` with the same rule as [`outln!`].
 macro_rules! out {
-    ($($t:tt)*) => {{
-        use std::io::Write as _;
-        let _ = write!(std::io::stdout(), $($t)*);
-    }};
+    ($($t:tt)*) => {
+        $crate::output::emit(format_args!($($t)*))
+    };
+}
+pub(crate) use out;
+
+/// Checks, before any work, that each output file given as `(flag, path)` can be written:
+/// the path names a file (not a directory), its directory exists and takes new files, and no
+/// two flags name the same file (the second write would silently replace the first).
+pub(crate) fn check_outputs(outputs: &[(&str, Option<&Path>)]) -> Result<()> {
+    let mut seen: Vec<(&str, PathBuf)> = Vec::new();
+    for &(flag, path) in outputs {
+        let Some(path) = path else { continue };
+        let shown = path.display();
+        let Some(name) = path.file_name() else {
+            return Err(format!("{flag} {shown}: not a file name").into());
+        };
+        if path.is_dir() {
+            return Err(format!("{flag} {shown}: is a directory, not a file").into());
+        }
+        let dir = parent_dir(path);
+        match std::fs::metadata(dir) {
+            Ok(m) if m.is_dir() => {}
+            Ok(_) => {
+                return Err(format!("{flag} {shown}: {} is not a directory", dir.display()).into())
+            }
+            Err(e) if e.kind() == io::ErrorKind::NotFound => {
+                let dir = dir.display();
+                return Err(format!("{flag} {shown}: directory {dir} does not exist").into());
+            }
+            Err(e) => {
+                return Err(format!("{flag} {shown}: directory {}: {e}", dir.display()).into())
+            }
+        }
+        // Creating (and removing) a temporary file is the one reliable test that the
+        // directory takes new files: permission bits do not tell about read-only mounts,
+        // ACLs or root.
+        let probe = TempFile::create(dir, name).map_err(|e| {
+            format!(
+                "{flag} {shown}: cannot create files in {}: {e}",
+                dir.display()
+            )
+        })?;
+        drop(probe);
+        let key = std::fs::canonicalize(dir).map_or_else(|_| path.to_path_buf(), |d| d.join(name));
+        if let Some((other, _)) = seen.iter().find(|(_, k)| *k == key) {
+            return Err(format!("{other} and {flag} both name {shown}").into());
+        }
+        seen.push((flag, key));
+    }
+    Ok(())
 }
 
-pub(crate) use out;
+/// The directory a file path lives in (`.` for a bare file name).
+fn parent_dir(path: &Path) -> &Path {
+    match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    }
+}
+
+/// A temporary file beside its target, removed when dropped unless [`TempFile::persist`]
+/// renamed it into place (so an error or a panic between the two leaves nothing behind).
+struct TempFile {
+    path: PathBuf,
+    file: Option<File>,
+}
+
+impl TempFile {
+    /// Creates `.NAME.PID-K.tmp` in `dir`, a name no other file, run or writer in this run
+    /// shares (`create_new` refuses an existing one, and `K` counts up past it).
+    fn create(dir: &Path, name: &std::ffi::OsStr) -> io::Result<TempFile> {
+        let mut k = 0u32;
+        loop {
+            let mut temp = std::ffi::OsString::from(".");
+            temp.push(name);
+            temp.push(format!(".{}-{k}.tmp", std::process::id()));
+            let path = dir.join(temp);
+            match File::options().write(true).create_new(true).open(&path) {
+                Ok(file) => {
+                    return Ok(TempFile {
+                        path,
+                        file: Some(file),
+                    })
+                }
+                Err(e) if e.kind() == io::ErrorKind::AlreadyExists && k < 1000 => k += 1,
+                Err(e) => return Err(e),
+            }
+        }
+    }
+
+    /// Syncs the data to disk and renames the file to `target`: the rename is atomic, and
+    /// the sync keeps a crash right after it from exposing an empty file under `target`.
+    fn persist(mut self, target: &Path) -> io::Result<()> {
+        if let Some(file) = self.file.take() {
+            file.sync_all()?;
+        }
+        std::fs::rename(&self.path, target)?;
+        self.path = PathBuf::new();
+        Ok(())
+    }
+}
+
+impl Drop for TempFile {
+    fn drop(&mut self) {
+        self.file = None;
+        if !self.path.as_os_str().is_empty() {
+            let _ = std::fs::remove_file(&self.path);
+        }
+    }
+}
+
+/// Writes `path` all or nothing: `write` fills a temporary file in the same directory, which
+/// replaces `path` only when complete. On any error `path` keeps its previous content (or stays
+/// absent) and no temporary file remains; the error names `path`. Every file the CLI writes
+/// goes through here.
+///
+/// A replaced file gets a new inode: a symbolic link at `path` is replaced by a plain file,
+/// and the old file's permissions are not carried over.
+pub(crate) fn write_file(
+    path: &Path,
+    write: impl FnOnce(&mut BufWriter<File>) -> Result<()>,
+) -> Result<()> {
+    let fail = |e: &dyn std::fmt::Display| format!("cannot write {}: {e}", path.display());
+    let name = path.file_name().ok_or_else(|| fail(&"not a file name"))?;
+    let mut temp = TempFile::create(parent_dir(path), name).map_err(|e| fail(&e))?;
+    let file = temp
+        .file
+        .take()
+        .ok_or_else(|| fail(&"temporary file closed"))?;
+    let mut w = BufWriter::new(file);
+    write(&mut w).map_err(|e| fail(&e))?;
+    let file = w.into_inner().map_err(|e| fail(&e.into_error()))?;
+    temp.file = Some(file);
+    temp.persist(path).map_err(|e| fail(&e))?;
+    Ok(())
+}
 
 /// A report as a two-column table: key, value (floats to three decimals).
 pub(crate) fn print_table(report: &Value) {
@@ -40,26 +216,27 @@ pub(crate) fn print_table(report: &Value) {
 
 /// Writes `report` as pretty JSON to `path`, if given.
 pub(crate) fn write_json(path: Option<&PathBuf>, report: &Value) -> Result<()> {
-    if let Some(p) = path {
-        let text = serde_json::to_string_pretty(report)?;
-        std::fs::write(p, text + "\n").map_err(|e| format!("cannot write {}: {e}", p.display()))?;
-    }
-    Ok(())
+    let Some(path) = path else { return Ok(()) };
+    let text = serde_json::to_string_pretty(report)?;
+    write_file(path, |w| Ok(w.write_all((text + "\n").as_bytes())?))
 }
 
 /// Writes an 8-bit RGB image.
 pub(crate) fn write_png(path: &Path, w: u32, h: u32, rgb: &[[u8; 3]]) -> Result<()> {
-    let fail = |e: &dyn std::fmt::Display| format!("cannot write {}: {e}", path.display());
-    let file = std::fs::File::create(path).map_err(|e| fail(&e))?;
-    let mut enc = png::Encoder::new(std::io::BufWriter::new(file), w, h);
-    enc.set_color(png::ColorType::Rgb);
-    enc.set_depth(png::BitDepth::Eight);
-    let mut writer = enc.write_header().map_err(|e| fail(&e))?;
-    writer
-        .write_image_data(rgb.as_flattened())
-        .map_err(|e| fail(&e))?;
-    writer.finish().map_err(|e| fail(&e))?;
-    Ok(())
+    write_file(path, |out| {
+        let mut enc = png::Encoder::new(out, w, h);
+        enc.set_color(png::ColorType::Rgb);
+        enc.set_depth(png::BitDepth::Eight);
+        let mut writer = enc.write_header()?;
+        writer.write_image_data(rgb.as_flattened())?;
+        writer.finish()?;
+        Ok(())
+    })
+}
+
+/// Writes text (an SVG plot, an NFF scene) to `path`.
+pub(crate) fn write_text(path: &Path, text: &str) -> Result<()> {
+    write_file(path, |w| Ok(w.write_all(text.as_bytes())?))
 }
 
 /// A false-colour picture of per-ray node counts: dark blue (few) through green and yellow to
@@ -151,4 +328,84 @@ pub(crate) fn scatter_svg(title: &str, x_label: &str, y_label: &str, points: &[P
         );
     }
     s + "</svg>\n"
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The names in `dir`, sorted.
+    fn names(dir: &Path) -> Vec<String> {
+        let mut v: Vec<String> = std::fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        v.sort();
+        v
+    }
+
+    #[test]
+    fn write_file_writes_whole_file_and_leaves_no_temp() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("out.json");
+        std::fs::write(&path, "old").unwrap();
+        write_file(&path, |w| Ok(w.write_all(b"new content")?)).unwrap();
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), "new content");
+        assert_eq!(names(dir.path()), ["out.json"]);
+    }
+
+    #[test]
+    fn failed_write_keeps_previous_file_and_leaves_no_temp() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("image.png");
+        std::fs::write(&path, "previous").unwrap();
+        let err = write_file(&path, |w| {
+            w.write_all(&[7; 100_000])?;
+            Err("encoder gave up".into())
+        })
+        .unwrap_err()
+        .to_string();
+        assert!(
+            err.contains("image.png") && err.contains("encoder gave up"),
+            "{err}"
+        );
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), "previous");
+        assert_eq!(names(dir.path()), ["image.png"]);
+    }
+
+    #[test]
+    fn failed_first_write_creates_nothing() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("plot.svg");
+        assert!(write_file(&path, |_| Err("no".into())).is_err());
+        assert!(names(dir.path()).is_empty());
+    }
+
+    #[test]
+    fn check_outputs_names_flag_and_problem() {
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("f");
+        std::fs::write(&file, "").unwrap();
+        let missing = dir.path().join("missing/x.json");
+        let under_file = file.join("x.json");
+        let cases: [(&Path, &str); 3] = [
+            (&missing, "does not exist"),
+            (&under_file, "is not a directory"),
+            (dir.path(), "is a directory"),
+        ];
+        for (path, want) in cases {
+            let err = check_outputs(&[("--json", Some(path))])
+                .unwrap_err()
+                .to_string();
+            assert!(err.starts_with("--json ") && err.contains(want), "{err}");
+        }
+        let same = dir.path().join("a.png");
+        let err = check_outputs(&[("--output", Some(&same)), ("--heatmap", Some(&same))])
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("--output and --heatmap"), "{err}");
+        check_outputs(&[("--json", Some(&file)), ("--plot", None)]).unwrap();
+        // The probe file is gone again.
+        assert_eq!(names(dir.path()), ["f"]);
+    }
 }

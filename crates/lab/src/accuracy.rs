@@ -118,7 +118,6 @@ pub fn evaluate(
         rays: &rays,
         want: &want,
         closed: &closed,
-        size: bounds.extent().max_element(),
     };
     let count = |q: Kernel, any: bool| measure::count_hits(&rays, |r| q(r, any));
     // The six kernels, in row order, timed side by side so a slow spell hits all alike.
@@ -204,8 +203,6 @@ struct Ctx<'a> {
     rays: &'a [Ray],
     want: &'a [Option<u32>],
     closed: &'a [Ray],
-    /// The scene's largest extent (secondary-ray offsets are relative to it).
-    size: f32,
 }
 
 fn per_million(count: usize, of: usize) -> f64 {
@@ -251,7 +248,7 @@ fn combo<P: Primitive, B: BoxTest>(
                         -normal
                     };
                     let d = r.dir - side * (2.0 * r.dir.dot(side));
-                    let s = method.ray(ctx.size, p, side, d, f32::INFINITY);
+                    let s = method.ray(p, side, d, f32::INFINITY);
                     (
                         1usize,
                         closest(&s).is_some_and(|s| s.prim == h.prim) as usize,

@@ -23,10 +23,14 @@ pub fn triangles(tris: &[Triangle]) -> Vec<obvhs::triangle::Triangle> {
 }
 
 /// SAH cost of an obvhs tree with quiver's constants (c_T = c_I = 1), so the two compare.
-/// obvhs marks leaves by a non-zero primitive count.
+/// obvhs marks leaves by a non-zero primitive count. An empty tree (obvhs builds no nodes
+/// for no triangles) costs 0, as quiver's tree over nothing does.
 pub fn sah_cost(bvh: &obvhs::bvh2::Bvh2) -> f64 {
     let area = |n: &obvhs::bvh2::node::Bvh2Node| n.aabb.half_area() as f64;
-    let root = area(&bvh.nodes[0]).max(f64::MIN_POSITIVE);
+    let Some(root) = bvh.nodes.first() else {
+        return 0.0;
+    };
+    let root = area(root).max(f64::MIN_POSITIVE);
     bvh.nodes
         .iter()
         .map(|n| {

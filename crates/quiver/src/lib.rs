@@ -34,7 +34,6 @@
 
 pub mod build;
 mod bvh;
-mod frame;
 pub mod geometry;
 pub mod intersect;
 mod isa;

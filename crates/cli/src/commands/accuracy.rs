@@ -1,8 +1,8 @@
 //! `quiver accuracy`: what accuracy costs: intersector x box test x offset, in time and in
-//! errors, as a table and a scatter plot.
+//! errors, as a table and, with `--plot`, a scatter plot.
 
-use super::{pool, scene_help, Result};
-use crate::output::{outln, scatter_svg, write_json, Point};
+use super::{count, pool, scene_help, thread_count, Result, MAX_RAYS, MAX_REPS};
+use crate::output::{check_outputs, outln, scatter_svg, write_json, write_text, Point};
 use quiver_lab::accuracy::{evaluate, Row};
 use quiver_scenes::Scene;
 use serde_json::{json, Value};
@@ -14,20 +14,20 @@ pub(crate) struct AccuracyArgs {
     #[arg(default_value = "teapot12", long_help = scene_help())]
     scene: String,
     /// Incoherent rays for throughput, reference mismatches and secondary rays.
-    #[arg(long, default_value_t = 300_000)]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 300_000, value_parser = count(MAX_RAYS))]
     rays: usize,
     /// Timed repetitions (median).
-    #[arg(long, default_value_t = 3)]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 3, value_parser = count(MAX_REPS))]
     reps: usize,
     /// Subdivisions of the icosphere the leak test shoots at (20*4^n triangles).
-    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(0..=8))]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(0..=8))]
     sphere: u32,
     /// Worker threads (default: all cores).
-    #[arg(long, value_parser = clap::value_parser!(u16).range(1..=1024))]
+    #[arg(allow_negative_numbers = true, long, value_parser = thread_count())]
     threads: Option<u16>,
-    /// Write the time-against-error plot (SVG) here.
-    #[arg(long, default_value = "accuracy.svg")]
-    plot: PathBuf,
+    /// Write the time-against-error plot (SVG) to this file (default: no plot).
+    #[arg(long)]
+    plot: Option<PathBuf>,
     /// Write the rows as JSON to this file.
     #[arg(long)]
     json: Option<PathBuf>,
@@ -35,12 +35,13 @@ pub(crate) struct AccuracyArgs {
 
 /// Runs `quiver accuracy`.
 pub(crate) fn run(args: AccuracyArgs) -> Result<()> {
-    if args.rays == 0 {
-        return Err("--rays must be at least 1".into());
-    }
+    check_outputs(&[
+        ("--plot", args.plot.as_deref()),
+        ("--json", args.json.as_deref()),
+    ])?;
     let scene = Scene::load(&args.scene)?;
     let tris = scene.triangles();
-    let pool = pool(args.threads)?;
+    let pool = pool(args.threads.map(usize::from))?;
     let bar = indicatif::ProgressBar::new_spinner();
     bar.set_message(format!("measuring 12 combinations on {}", scene.name));
     bar.enable_steady_tick(std::time::Duration::from_millis(200));
@@ -93,8 +94,9 @@ pub(crate) fn run(args: AccuracyArgs) -> Result<()> {
             })
         })
         .collect();
-    std::fs::write(&args.plot, plot(&rows, &scene.name))
-        .map_err(|e| format!("cannot write {}: {e}", args.plot.display()))?;
+    if let Some(path) = &args.plot {
+        write_text(path, &plot(&rows, &scene.name))?;
+    }
     write_json(args.json.as_ref(), &Value::Array(json_rows))
 }
 

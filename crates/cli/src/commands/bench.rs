@@ -3,8 +3,8 @@
 //! Built with the `embree` feature, Intel Embree 3 joins them (`rtcIntersect1` / `rtcOccluded1`
 //! in the same interleaved rounds, and its build time).
 
-use super::{pool, Result};
-use crate::output::{out, outln, write_json};
+use super::{count, measured_threads, pool, thread_count, Result, MAX_RAYS, MAX_REPS};
+use crate::output::{check_outputs, out, outln, write_json};
 use obvhs::{
     bvh2::builder::build_bvh2_from_tris, cwbvh::builder::build_cwbvh_from_tris, ray::RayHit,
     BvhBuildParams,
@@ -22,19 +22,28 @@ use std::time::{Duration, Instant};
 
 #[derive(clap::Args)]
 pub(crate) struct BenchArgs {
-    /// Scenes, measured as triangles (SPD scenes in patch mode). Default: the bunny (3.7k),
-    /// teapot12 (9.4k), balls3 (158k) and tetra10 (1M).
+    /// Scenes (generator names or .obj/.nff files), measured as triangles (SPD scenes in
+    /// patch mode). Default: the generated teapot12 (9.4k triangles), balls3 (158k) and
+    /// tetra10 (1M), so the default needs no file and runs from anywhere. Name a mesh to add
+    /// it, e.g. the Stanford bunny of the source tree:
+    /// `quiver bench crates/lab/tests/data/bunny.obj teapot12 balls3 tetra10`.
     scenes: Vec<String>,
     /// Incoherent rays per scene (eye rays: a 256 x 256 image; shadow rays: one per eye hit).
-    #[arg(long, default_value_t = 200_000)]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 200_000, value_parser = count(MAX_RAYS))]
     rays: usize,
     /// Timed rounds per measurement (median).
-    #[arg(long, default_value_t = 3)]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 3, value_parser = count(MAX_REPS))]
     reps: usize,
+    /// Thread counts to measure, comma-separated (default: 1 and all cores).
+    #[arg(allow_negative_numbers = true, long, value_delimiter = ',', value_parser = thread_count())]
+    threads: Vec<u16>,
     /// Write the machine description and all rows as JSON.
     #[arg(long)]
     json: Option<PathBuf>,
 }
+
+/// The scenes `quiver bench` measures without arguments.
+const DEFAULT_SCENES: [&str; 3] = ["teapot12", "balls3", "tetra10"];
 
 const KERNELS: [Layout; 5] = [
     Layout::Bvh2Dfs,
@@ -52,27 +61,34 @@ fn time<T>(f: impl FnOnce() -> T) -> (T, f64) {
 
 /// Runs `quiver bench`.
 pub(crate) fn run(args: BenchArgs) -> Result<()> {
-    let bunny = concat!(env!("CARGO_MANIFEST_DIR"), "/../lab/tests/data/bunny.obj");
+    check_outputs(&[("--json", args.json.as_deref())])?;
+    // Generated scenes only: a file path fixed at compile time would break as soon as the
+    // binary is installed elsewhere or run from another directory.
     let scenes = if args.scenes.is_empty() {
-        vec![
-            bunny.to_string(),
-            "teapot12".into(),
-            "balls3".into(),
-            "tetra10".into(),
-        ]
+        DEFAULT_SCENES.map(String::from).to_vec()
     } else {
         args.scenes.clone()
     };
-    let all = rayon::current_num_threads().max(2);
+    let thread_counts = measured_threads(&args.threads);
+    // Every scene loads before the first measurement, so a bad name or file fails at once
+    // rather than after minutes of measuring the scenes before it.
+    let loaded = scenes
+        .iter()
+        .map(|name| {
+            Ok((
+                name,
+                Scene::load(name)?.into_patches(tessellate::DEFAULT_RESOLUTION),
+            ))
+        })
+        .collect::<Result<Vec<_>>>()?;
     let bar = indicatif::ProgressBar::new(scenes.len() as u64 * 2);
     bar.set_style(indicatif::ProgressStyle::with_template(
         "{bar:40} {pos}/{len} {msg} [{elapsed}]",
     )?);
     let mut rows: Vec<Value> = Vec::new();
     let config = BuildConfig::default();
-    for name in &scenes {
+    for (name, scene) in &loaded {
         bar.set_message(format!("{name}: building"));
-        let scene = Scene::load(name)?.into_patches(tessellate::DEFAULT_RESOLUTION);
         let tris = scene.triangles();
         let ot = obvhs_bridge::triangles(&tris);
         let row = |engine: &str,
@@ -85,9 +101,9 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
             json!({"scene": scene.name, "primitives": tris.len(), "engine": engine, "kernel": kernel, "rays": rays,
                    "threads": threads, "mrays_per_s": mrays, "build_ms": build_ms, "sah_cost": sah})
         };
-        // Builds, 1 thread and all threads, warmed once so page faults do not count.
-        for threads in [1, all] {
-            let p = pool(Some(threads as u16))?;
+        // Builds at each thread count, warmed once so page faults do not count.
+        for &threads in &thread_counts {
+            let p = pool(Some(threads))?;
             p.install(|| {
                 let options = BuildOptions::default().layout(Layout::Bvh2Dfs);
                 let _ = options.build(&tris);
@@ -166,8 +182,8 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
             .unwrap_or(scene.camera.from);
         let shadow = rays::shadow_rays(&bvhs[2], &eye, &[light]);
         let incoherent = rays::random_rays(&scene.bounds(), args.rays, 11);
-        for threads in [1, all] {
-            let p = pool(Some(threads as u16))?;
+        for &threads in &thread_counts {
+            let p = pool(Some(threads))?;
             for (kind, set, any) in [
                 ("eye", &eye, false),
                 ("shadow", &shadow, true),
@@ -232,7 +248,8 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
     bar.finish_and_clear();
     print_rows(&rows);
     let machine = json!({
-        "threads": all,
+        "threads": rayon::current_num_threads(),
+        "measured_threads": thread_counts,
         "os": std::env::consts::OS,
         "arch": std::env::consts::ARCH,
         "target_features": {"sse2": cfg!(target_feature = "sse2"), "avx": cfg!(target_feature = "avx"), "avx2": cfg!(target_feature = "avx2")},
@@ -295,7 +312,11 @@ fn print_rows(rows: &[Value]) {
                 })
         };
         let ratio = versus("obvhs", Some("bvh2-medium"));
-        let num = |v: Option<f64>, p: usize| v.map_or("-".to_string(), |x| format!("{x:.p$}"));
+        // Not finite: a ratio of two empty measurements (no shadow rays when no eye ray hits).
+        let num = |v: Option<f64>, p: usize| {
+            v.filter(|x| x.is_finite())
+                .map_or("-".to_string(), |x| format!("{x:.p$}"))
+        };
         out!(
             "{:<14} {:>9} {:<7} {:<17} {:<10} {:>3} {:>9} {:>9} {:>9} {:>8}",
             short,

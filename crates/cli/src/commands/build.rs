@@ -1,9 +1,10 @@
 //! `quiver build`: one layout's size, tree shape, SAH cost and build time.
 
 use super::{
-    finite_cost, layout_help, load_and_build, parse_builder, parse_layout, pool, scene_help, Result,
+    finite_cost, layout_help, load_and_build, parse_builder, parse_layout, pool, scene_help,
+    thread_count, Result,
 };
-use crate::output::{print_table, write_json};
+use crate::output::{check_outputs, print_table, write_json};
 use quiver::build::{BuildConfig, Builder};
 use quiver::{BuildOptions, Layout};
 use serde_json::json;
@@ -24,19 +25,19 @@ pub(crate) struct BuildArgs {
     #[arg(long)]
     patches: bool,
     /// Worker threads (default: all cores).
-    #[arg(long, value_parser = clap::value_parser!(u16).range(1..=1024))]
+    #[arg(allow_negative_numbers = true, long, value_parser = thread_count())]
     threads: Option<u16>,
     /// Bins per axis for the binned builder.
-    #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u16).range(2..=1024))]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 16, value_parser = clap::value_parser!(u16).range(2..=1024))]
     bins: u16,
     /// Largest leaf the build may make.
-    #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u16).range(1..=255))]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 8, value_parser = clap::value_parser!(u16).range(1..=255))]
     max_leaf: u16,
     /// SAH cost of an inner-node visit (c_T).
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 1.0)]
     traversal_cost: f32,
     /// SAH cost of one primitive test (c_I).
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 1.0)]
     intersection_cost: f32,
     /// Write the report as JSON to this file.
     #[arg(long)]
@@ -45,6 +46,7 @@ pub(crate) struct BuildArgs {
 
 /// Runs `quiver build`.
 pub(crate) fn run(args: BuildArgs) -> Result<()> {
+    check_outputs(&[("--json", args.json.as_deref())])?;
     let config = BuildConfig {
         bins: args.bins as usize,
         max_leaf_size: args.max_leaf as usize,
@@ -53,7 +55,7 @@ pub(crate) fn run(args: BuildArgs) -> Result<()> {
         ..BuildConfig::default()
     };
     let builder = args.builder;
-    let pool = pool(args.threads)?;
+    let pool = pool(args.threads.map(usize::from))?;
     let options = BuildOptions {
         builder,
         layout: args.layout,

@@ -1,8 +1,10 @@
 //! `quiver layouts`: traversal throughput of every memory layout side by side, with
 //! Havran-style time ratios.
 
-use super::{parse_layout, pool, Result};
-use crate::output::{out, outln, write_json};
+use super::{
+    count, measured_threads, parse_layout, pool, thread_count, Result, MAX_RAYS, MAX_REPS,
+};
+use crate::output::{check_outputs, out, outln, write_json};
 use quiver::build::{build, prim_bounds, BuildConfig, Builder};
 use quiver::{Bvh, Layout};
 use quiver_lab::measure::{self, Query};
@@ -20,16 +22,16 @@ pub(crate) struct LayoutsArgs {
     #[arg(long = "layout", value_parser = parse_layout)]
     layouts: Vec<Layout>,
     /// Incoherent rays per measurement.
-    #[arg(long, default_value_t = 300_000)]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 300_000, value_parser = count(MAX_RAYS))]
     rays: usize,
     /// Camera rays per measurement: a RES × RES image.
-    #[arg(long, default_value_t = 512)]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 512, value_parser = count(8192))]
     res: usize,
-    /// Thread counts to measure.
-    #[arg(long, value_delimiter = ',', default_values_t = [1u16, 2])]
+    /// Thread counts to measure, comma-separated.
+    #[arg(allow_negative_numbers = true, long, value_delimiter = ',', default_values_t = [1u16, 2], value_parser = thread_count())]
     threads: Vec<u16>,
     /// Timed rounds (each runs every layout once; the median per layout is reported).
-    #[arg(long, default_value_t = 5)]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 5, value_parser = count(MAX_REPS))]
     reps: usize,
     /// Write the rows and ratios as JSON to this file.
     #[arg(long)]
@@ -48,25 +50,35 @@ struct Row {
 
 /// Runs `quiver layouts`.
 pub(crate) fn run(args: LayoutsArgs) -> Result<()> {
-    let layouts = if args.layouts.is_empty() {
-        Layout::ALL.to_vec()
-    } else {
-        args.layouts.clone()
-    };
-    if args.rays == 0 || args.res == 0 {
-        return Err("--rays and --res must be at least 1".into());
+    check_outputs(&[("--json", args.json.as_deref())])?;
+    let mut layouts: Vec<Layout> = Vec::new();
+    // A layout named twice would be timed twice and shown as two equal columns.
+    for &l in &args.layouts {
+        if !layouts.contains(&l) {
+            layouts.push(l);
+        }
     }
+    if layouts.is_empty() {
+        layouts = Layout::ALL.to_vec();
+    }
+    let threads = measured_threads(&args.threads);
+    // Every scene loads before the first measurement, so a bad name or file fails at once
+    // rather than after the scenes before it were measured.
+    let loaded = args
+        .scenes
+        .iter()
+        .map(|name| Ok((name, Scene::load(name)?)))
+        .collect::<Result<Vec<_>>>()?;
     let config = BuildConfig::default();
-    let per_scene = layouts.len() * args.threads.len() * 4;
+    let count_pool = pool(None)?;
+    let per_scene = layouts.len() * threads.len() * 4;
     let bar = indicatif::ProgressBar::new((args.scenes.len() * per_scene) as u64);
     bar.set_style(indicatif::ProgressStyle::with_template(
         "{bar:40} {pos}/{len} {msg} [{elapsed}]",
     )?);
     let mut rows = Vec::new();
     let mut sizes = Vec::new();
-    for name in &args.scenes {
-        bar.set_message(format!("loading {name}"));
-        let scene = Scene::load(name)?;
+    for (name, scene) in &loaded {
         let tris = scene.triangles();
         let tree = build(&prim_bounds(&tris), &config, Builder::Binned);
         let sets = [
@@ -78,7 +90,7 @@ pub(crate) fn run(args: LayoutsArgs) -> Result<()> {
             bar.set_message(format!("{name}: laying out {layout}"));
             let bvh = Bvh::from_tree(&tree, &tris, layout);
             // What each layout's boxes cost in work: counters over the random rays.
-            let work = pool(None)?.install(|| measure::count(&bvh, &sets[0].1, Query::Closest));
+            let work = count_pool.install(|| measure::count(&bvh, &sets[0].1, Query::Closest));
             let per_ray = |x: u64| x as f64 / sets[0].1.len() as f64;
             sizes.push(json!({
                 "scene": scene.name,
@@ -93,7 +105,7 @@ pub(crate) fn run(args: LayoutsArgs) -> Result<()> {
             }));
             bvhs.push(bvh);
         }
-        for &threads in &args.threads {
+        for &threads in &threads {
             let pool = pool(Some(threads))?;
             for (kind, rays) in &sets {
                 for query in [Query::Closest, Query::Any] {
@@ -111,7 +123,7 @@ pub(crate) fn run(args: LayoutsArgs) -> Result<()> {
                         rows.push(Row {
                             scene: scene.name.clone(),
                             layout,
-                            threads: threads as usize,
+                            threads,
                             rays: kind,
                             query,
                             mrays: measure::mrays_per_s(rays.len(), t),
@@ -160,7 +172,10 @@ fn find(rows: &[Row], like: &Row, layout: Layout) -> Option<f64> {
 
 fn layout_ratios(rows: &[Row]) -> Vec<Value> {
     let mut out = Vec::new();
-    for r in rows.iter().filter(|r| r.layout == rows[0].layout) {
+    let Some(first) = rows.first() else {
+        return out;
+    };
+    for r in rows.iter().filter(|r| r.layout == first.layout) {
         let mut entry = json!({"scene": r.scene, "threads": r.threads, "rays": r.rays, "query": r.query.name()});
         for (name, slow, fast) in RATIOS {
             if let (Some(s), Some(f)) = (find(rows, r, slow), find(rows, r, fast)) {
@@ -174,6 +189,10 @@ fn layout_ratios(rows: &[Row]) -> Vec<Value> {
 }
 
 fn print_layout_tables(sizes: &[Value], rows: &[Row], layouts: &[Layout]) {
+    // Each table row starts from the first layout's measurement.
+    let Some(&first) = layouts.first() else {
+        return;
+    };
     outln!(
         "{:<12} {:<18} {:>10} {:>12} {:>8} {:>10} {:>10} {:>10}",
         "scene",
@@ -212,7 +231,7 @@ fn print_layout_tables(sizes: &[Value], rows: &[Row], layouts: &[Layout]) {
         out!(" {:>8}", short(*l));
     }
     outln!();
-    for r in rows.iter().filter(|r| r.layout == layouts[0]) {
+    for r in rows.iter().filter(|r| r.layout == first) {
         row_head(r);
         for &l in layouts {
             out!(" {:>8.2}", find(rows, r, l).unwrap_or(f64::NAN));
@@ -231,7 +250,7 @@ fn print_layout_tables(sizes: &[Value], rows: &[Row], layouts: &[Layout]) {
         out!(" {name:>16}");
     }
     outln!();
-    for r in rows.iter().filter(|r| r.layout == layouts[0]) {
+    for r in rows.iter().filter(|r| r.layout == first) {
         row_head(r);
         for (_, slow, fast) in RATIOS {
             match (find(rows, r, slow), find(rows, r, fast)) {

@@ -18,13 +18,58 @@ use std::time::Instant;
 /// A command's outcome; the error is printed as `error: ...` with exit code 2.
 pub(crate) type Result<T> = std::result::Result<T, Box<dyn std::error::Error>>;
 
+/// Most worker threads `--threads` accepts: far above any machine this runs on, low enough
+/// that a typo does not try to spawn millions of threads.
+const MAX_THREADS: i64 = 1024;
+
+/// Most rays `--rays` accepts (about 5 GB of rays): more is a typo, not a measurement.
+pub(crate) const MAX_RAYS: u64 = 100_000_000;
+
+/// Most timed rounds `--reps` accepts.
+pub(crate) const MAX_REPS: u64 = 1000;
+
+/// `--threads N`: a worker count from 1 to [`MAX_THREADS`] (0 would silently mean rayon's
+/// default, and the report would claim 0 threads).
+pub(crate) fn thread_count() -> clap::builder::RangedI64ValueParser<u16> {
+    clap::value_parser!(u16).range(1..=MAX_THREADS)
+}
+
+/// A count flag (`--rays`, `--reps`, `--res`, ...): a whole number from 1 to `max`; clap's
+/// error names the flag, the value and the range. Numeric flags also set
+/// `allow_negative_numbers`, so `--rays -5` reaches that check instead of clap reading `-5` as
+/// an unknown option and naming no flag.
+pub(crate) fn count(max: u64) -> clap::builder::RangedU64ValueParser<usize> {
+    clap::builder::RangedU64ValueParser::new().range(1..=max)
+}
+
 /// A thread pool of `threads` workers (all cores when `None`).
-pub(crate) fn pool(threads: Option<u16>) -> Result<rayon::ThreadPool> {
+pub(crate) fn pool(threads: Option<usize>) -> Result<rayon::ThreadPool> {
     let mut b = rayon::ThreadPoolBuilder::new();
     if let Some(n) = threads {
-        b = b.num_threads(n as usize);
+        // rayon reads 0 as "its default", which would make every report lie about the count;
+        // the flags' parsers already refuse 0, this keeps a future caller honest.
+        if n == 0 {
+            return Err("--threads must be at least 1, got 0".into());
+        }
+        b = b.num_threads(n);
     }
     Ok(b.build()?)
+}
+
+/// The thread counts a measuring command runs at: the ones asked for, in order, without
+/// repeats (a repeat would measure the same thing twice and print it twice), or 1 and all
+/// cores (at least 2, so there are always two columns to compare).
+pub(crate) fn measured_threads(asked: &[u16]) -> Vec<usize> {
+    let mut counts: Vec<usize> = Vec::new();
+    if asked.is_empty() {
+        counts.extend([1, rayon::current_num_threads().max(2)]);
+    }
+    for &n in asked {
+        if !counts.contains(&(n as usize)) {
+            counts.push(n as usize);
+        }
+    }
+    counts
 }
 
 /// `--layout` by name.

@@ -4,8 +4,10 @@
 //! Built with the `embree` feature, Intel Embree 3 joins them in patch mode (the scene's
 //! triangles): one ray at a time and as coherent streams over the same packet-ordered rays.
 
-use super::{parse_layout, pool, Result};
-use crate::output::{out, outln, write_json};
+use super::{
+    count, measured_threads, parse_layout, pool, thread_count, Result, MAX_RAYS, MAX_REPS,
+};
+use crate::output::{check_outputs, out, outln, write_json};
 use quiver::traverse::PacketMode;
 use quiver::{BuildOptions, Layout, Primitive};
 #[cfg(feature = "embree")]
@@ -23,14 +25,17 @@ pub(crate) struct PacketsArgs {
     /// Default: balls3 (158k triangles in patch mode), gears3, teapot12 and tetra9 (262k).
     scenes: Vec<String>,
     /// Image width and height for eye rays.
-    #[arg(long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(8..=8192))]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(8..=8192))]
     res: u32,
     /// Incoherent rays per scene.
-    #[arg(long, default_value_t = 200_000)]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 200_000, value_parser = count(MAX_RAYS))]
     rays: usize,
     /// Timed rounds per measurement (median).
-    #[arg(long, default_value_t = 5)]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 5, value_parser = count(MAX_REPS))]
     reps: usize,
+    /// Thread counts to measure, comma-separated (default: 1 and all cores).
+    #[arg(allow_negative_numbers = true, long, value_delimiter = ',', value_parser = thread_count())]
+    threads: Vec<u16>,
     /// Memory layout (a 4-wide one: binary layouts have no packet kernel).
     #[arg(long, default_value = "bvh4-dfs", value_parser = parse_layout)]
     layout: Layout,
@@ -53,6 +58,7 @@ const EMBREE_KERNELS: [&str; 2] = ["embree-1", "embree-stream"];
 
 /// Runs `quiver packets`.
 pub(crate) fn run(args: PacketsArgs) -> Result<()> {
+    check_outputs(&[("--json", args.json.as_deref())])?;
     if args.layout.name().starts_with("bvh2") {
         return Err(format!("--layout {}: packets need a 4-wide layout", args.layout).into());
     }
@@ -71,7 +77,7 @@ pub(crate) fn run(args: PacketsArgs) -> Result<()> {
         }
         jobs.push(("patch", scene.into_patches(DEFAULT_RESOLUTION)));
     }
-    let all = rayon::current_num_threads().max(2);
+    let thread_counts = measured_threads(&args.threads);
     let bar = indicatif::ProgressBar::new(jobs.len() as u64);
     bar.set_style(indicatif::ProgressStyle::with_template(
         "{bar:40} {pos}/{len} {msg} [{elapsed}]",
@@ -80,9 +86,23 @@ pub(crate) fn run(args: PacketsArgs) -> Result<()> {
     for (mode, scene) in &jobs {
         bar.set_message(format!("{} ({mode})", scene.name));
         if scene.is_all_triangles() {
-            measure(&args, scene, mode, &scene.triangles(), all, &mut rows)?;
+            measure(
+                &args,
+                scene,
+                mode,
+                &scene.triangles(),
+                &thread_counts,
+                &mut rows,
+            )?;
         } else {
-            measure(&args, scene, mode, &scene.prims().0, all, &mut rows)?;
+            measure(
+                &args,
+                scene,
+                mode,
+                &scene.prims().0,
+                &thread_counts,
+                &mut rows,
+            )?;
         }
         bar.inc(1);
     }
@@ -96,7 +116,7 @@ fn measure<P: Primitive>(
     scene: &Scene,
     mode: &str,
     prims: &[P],
-    all: usize,
+    thread_counts: &[usize],
     rows: &mut Vec<Value>,
 ) -> Result<()> {
     let bvh = BuildOptions::default().layout(args.layout).build(prims);
@@ -116,8 +136,8 @@ fn measure<P: Primitive>(
     };
     #[cfg(not(feature = "embree"))]
     let (extra, embree_tris): (&[&str], usize) = (&[], 0);
-    for threads in [1, all] {
-        let p = pool(Some(threads as u16))?;
+    for &threads in thread_counts {
+        let p = pool(Some(threads))?;
         for (kind, set, query) in [
             ("eye", &eye, Query::Closest),
             ("shadow", &shadow, Query::Any),
@@ -217,10 +237,18 @@ fn print_rows(rows: &[Value]) {
     };
     for group in rows.chunk_by(|a, b| key(a) == key(b)) {
         let r = &group[0];
-        let m = |i: usize| group[i]["mrays_per_s"].as_f64().unwrap_or(f64::NAN);
-        let v = |i: usize| group[i]["vs_single"].as_f64().unwrap_or(f64::NAN);
+        let m = |i: usize| {
+            group
+                .get(i)
+                .map_or("-".into(), |r| number(&r["mrays_per_s"], ""))
+        };
+        let v = |i: usize| {
+            group
+                .get(i)
+                .map_or("-".into(), |r| number(&r["vs_single"], "x"))
+        };
         out!(
-            "{:<12} {:<6} {:>8} {:<11} {:>3} {:>14.2} {:>14.2} {:>5.2}x {:>14.2} {:>5.2}x",
+            "{:<12} {:<6} {:>8} {:<11} {:>3} {:>14} {:>14} {:>6} {:>14} {:>6}",
             r["scene"].as_str().unwrap_or(""),
             r["mode"].as_str().unwrap_or(""),
             r["primitives"],
@@ -236,9 +264,9 @@ fn print_rows(rows: &[Value]) {
         for (kernel, width) in [("embree-1", 16), ("embree-stream", 14)] {
             match group.iter().find(|r| r["kernel"] == kernel) {
                 Some(r) => out!(
-                    " {:>width$.2} {:>5.2}x",
-                    r["mrays_per_s"].as_f64().unwrap_or(f64::NAN),
-                    r["vs_single"].as_f64().unwrap_or(f64::NAN)
+                    " {:>width$} {:>6}",
+                    number(&r["mrays_per_s"], ""),
+                    number(&r["vs_single"], "x")
                 ),
                 None => out!(" {:>width$} {:>6}", "-", "-"),
             }
@@ -247,4 +275,14 @@ fn print_rows(rows: &[Value]) {
     }
     #[cfg(feature = "embree")]
     outln!("(ratios: over quiver's single-ray kernel; embree-1: rtcIntersect1 / rtcOccluded1 per ray; embree-stream: rtcIntersect1M / rtcOccluded1M, coherent, 64 rays per call; Embree in patch mode only, on the scene's triangles)");
+}
+
+/// A measured number to two decimals with `unit`, or `-` where there is none: a ray set can
+/// be empty (no shadow rays when no eye ray hits), and its throughput ratio is then 0 / 0,
+/// which JSON holds as null.
+fn number(v: &Value, unit: &str) -> String {
+    match v.as_f64() {
+        Some(x) if x.is_finite() => format!("{x:.2}{unit}"),
+        _ => "-".into(),
+    }
 }

@@ -1,8 +1,8 @@
 //! `quiver render`: the SPD testing procedure on one scene: a PNG, the ray counts, Havran's
 //! statistics, optionally a heatmap of nodes per eye ray.
 
-use super::{layout_help, load_and_build, parse_layout, pool, scene_help, Result};
-use crate::output::{heatmap, print_table, write_json, write_png};
+use super::{layout_help, load_and_build, parse_layout, pool, scene_help, thread_count, Result};
+use crate::output::{check_outputs, heatmap, print_table, write_json, write_png};
 use clap::ValueEnum;
 use quiver::{BuildOptions, Layout};
 use quiver_scenes::render::{render, Offset, RenderConfig};
@@ -16,13 +16,13 @@ pub(crate) struct RenderArgs {
     #[arg(default_value = DEFAULT_SCENE, long_help = scene_help())]
     scene: String,
     /// Image width and height in pixels ((res+1)^2 eye rays at the pixel corners).
-    #[arg(long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(1..=16384))]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(1..=16384))]
     res: u32,
     /// Output PNG.
     #[arg(short, long, default_value = "quiver.png")]
     output: PathBuf,
     /// Worker threads (default: all cores).
-    #[arg(long, value_parser = clap::value_parser!(u16).range(1..=1024))]
+    #[arg(allow_negative_numbers = true, long, value_parser = thread_count())]
     threads: Option<u16>,
     /// Memory layout of the BVH.
     #[arg(long, default_value = "bvh4-dfs", value_parser = parse_layout, long_help = layout_help())]
@@ -63,7 +63,12 @@ enum OffsetArg {
 
 /// Runs `quiver render`.
 pub(crate) fn run(args: RenderArgs) -> Result<()> {
-    let pool = pool(args.threads)?;
+    check_outputs(&[
+        ("--output", Some(args.output.as_path())),
+        ("--heatmap", args.heatmap.as_deref()),
+        ("--json", args.json.as_deref()),
+    ])?;
+    let pool = pool(args.threads.map(usize::from))?;
     let options = BuildOptions::default()
         .layout(args.layout)
         .thread_pool(&pool);

@@ -53,35 +53,6 @@ impl Default for BuildConfig {
     }
 }
 
-impl BuildConfig {
-    /// Whether the settings are in range, and if not which one is wrong: what [`build`]
-    /// checks before it starts, for callers that take settings from users.
-    ///
-    /// ```
-    /// use quiver::build::BuildConfig;
-    /// assert!(BuildConfig::default().check().is_ok());
-    /// let bad = BuildConfig { bins: 1, ..BuildConfig::default() };
-    /// assert!(bad.check().unwrap_err().contains("bins"));
-    /// ```
-    pub fn check(&self) -> Result<(), String> {
-        if !(2..=1024).contains(&self.bins) {
-            return Err(format!("bins must be in 2..=1024, got {}", self.bins));
-        }
-        if self.max_leaf_size < 1 {
-            return Err("max_leaf_size must be at least 1, got 0".into());
-        }
-        for (name, c) in [
-            ("traversal_cost", self.traversal_cost),
-            ("intersection_cost", self.intersection_cost),
-        ] {
-            if !(c.is_finite() && c >= 0.0) {
-                return Err(format!("{name} must be a finite number >= 0, got {c}"));
-            }
-        }
-        Ok(())
-    }
-}
-
 /// Which algorithm builds the tree.
 ///
 /// ```
@@ -192,14 +163,15 @@ pub struct TreeStats {
 ///
 /// Primitives whose box is not finite (a NaN or infinite coordinate) are dropped and counted in
 /// [`BuildTree::dropped`]; an empty input gives a single empty leaf.
-///
-/// # Panics
-/// When [`BuildConfig::check`] finds a setting out of range (call it first to report the
-/// error instead).
 pub fn build(bounds: &[Aabb], config: &BuildConfig, builder: Builder) -> BuildTree {
-    if let Err(e) = config.check() {
-        panic!("BuildConfig: {e}");
-    }
+    assert!(
+        (2..=1024).contains(&config.bins),
+        "BuildConfig::bins must be in 2..=1024"
+    );
+    assert!(
+        config.max_leaf_size >= 1,
+        "BuildConfig::max_leaf_size must be at least 1"
+    );
     let indices: Vec<u32> = (0..bounds.len() as u32)
         .filter(|&i| is_finite(&bounds[i as usize]))
         .collect();
@@ -299,22 +271,6 @@ pub(crate) fn widest_axis(e: Vec3A) -> usize {
 }
 
 impl BuildTree {
-    /// The same tree with every box mapped by `f` (a BVH's frame change).
-    pub(crate) fn scaled(&self, f: impl Fn(&Aabb) -> Aabb) -> BuildTree {
-        BuildTree {
-            nodes: self
-                .nodes
-                .iter()
-                .map(|n| BuildNode {
-                    bounds: f(&n.bounds),
-                    kind: n.kind,
-                })
-                .collect(),
-            prim_indices: self.prim_indices.clone(),
-            dropped: self.dropped,
-        }
-    }
-
     /// Shape counts: nodes, leaves, depth, largest leaf.
     pub fn stats(&self) -> TreeStats {
         let mut s = TreeStats {

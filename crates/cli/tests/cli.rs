@@ -1,0 +1,445 @@
+//! The `quiver` binary as a user runs it: bad input gives exit code 2 and one `error:` line
+//! naming the flag, file or value, never a panic (exit code 101); output paths and numbers are
+//! checked before any work; files appear whole or not at all. Scenes and ray counts are tiny
+//! so the whole file runs in seconds.
+
+use assert_cmd::prelude::*;
+use assert_cmd::Command;
+use predicates::prelude::*;
+use std::path::Path;
+
+/// The `quiver` binary cargo built for these tests.
+const QUIVER: &str = env!("CARGO_BIN_EXE_quiver");
+
+fn quiver() -> Command {
+    Command::new(QUIVER)
+}
+
+/// `quiver` with `line`'s words as arguments (no word in these tests has a space).
+fn run(line: &str) -> Command {
+    let mut c = quiver();
+    c.args(line.split(' '));
+    c
+}
+
+/// The names in `dir`, sorted (hidden temporary files included).
+fn names(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    v.sort();
+    v
+}
+
+/// Every subcommand's smallest run on `scene`; `dir` takes the files they write.
+fn every_command(scene: &str, dir: &Path) -> Vec<Vec<String>> {
+    let png = dir.join("r.png").display().to_string();
+    let tiny = ["--rays", "10", "--reps", "1", "--threads", "1"];
+    let with = |head: &[&str], tail: &[&str]| -> Vec<String> {
+        head.iter().chain(tail).map(|s| s.to_string()).collect()
+    };
+    vec![
+        with(&["build", scene], &[]),
+        with(&["render", scene, "--res", "8", "-o", &png], &[]),
+        with(
+            &["layouts", scene, "--layout", "bvh2-dfs", "--res", "8"],
+            &tiny,
+        ),
+        with(&["accuracy", scene, "--sphere", "0"], &tiny),
+        with(&["bench", scene], &tiny),
+        with(&["packets", scene, "--res", "8"], &tiny),
+    ]
+}
+
+// Defect 1: empty scenes.
+
+#[test]
+fn empty_generated_scene_works_in_every_command() {
+    let dir = tempfile::tempdir().unwrap();
+    for args in every_command("soup0", dir.path()) {
+        quiver()
+            .args(&args)
+            .current_dir(dir.path())
+            .assert()
+            .success()
+            // packets used to print `NaNx` for the empty shadow-ray set.
+            .stdout(predicate::str::contains("NaN").not())
+            .stderr(predicate::str::contains("panicked").not());
+    }
+    run("gen soup0").assert().success();
+}
+
+#[test]
+fn bench_on_empty_scene_does_not_panic() {
+    run("bench soup0 --rays 10 --reps 1 --threads 1")
+        .assert()
+        .success()
+        .stdout(predicate::str::contains("soup0"));
+}
+
+#[test]
+fn empty_obj_file_works_or_names_the_problem() {
+    let dir = tempfile::tempdir().unwrap();
+    let obj = dir.path().join("empty.obj");
+    std::fs::write(&obj, "# no faces\n").unwrap();
+    let obj = obj.display().to_string();
+    for args in every_command(&obj, dir.path()) {
+        quiver()
+            .args(&args)
+            .assert()
+            .success()
+            .stdout(predicate::str::contains("NaN").not())
+            .stderr(predicate::str::contains("panicked").not());
+    }
+    // gen either writes an NFF that reads back, or says why it cannot: the OBJ loader puts
+    // the light of a scene without faces at -inf (empty bounds), which NFF cannot carry.
+    let nff = dir.path().join("empty.nff");
+    let out = run("gen -o").arg(&nff).arg(&obj).output().unwrap();
+    if out.status.success() {
+        quiver().arg("build").arg(&nff).assert().success();
+    } else {
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{err}");
+        assert!(
+            err.starts_with("error: ") && err.contains("empty.obj"),
+            "{err}"
+        );
+        assert!(!nff.exists());
+    }
+}
+
+// Defect 2: thread counts.
+
+#[test]
+fn zero_threads_is_refused_everywhere() {
+    let commands = [
+        "build tetra1",
+        "render tetra1 --res 8",
+        "layouts tetra1 --rays 10 --res 8 --reps 1",
+        "accuracy tetra1 --rays 10 --reps 1 --sphere 0",
+        "bench tetra1 --rays 10 --reps 1",
+        "packets tetra1 --rays 10 --reps 1 --res 8",
+    ];
+    let dir = tempfile::tempdir().unwrap();
+    for line in commands {
+        run(line)
+            .args(["--threads", "0"])
+            .current_dir(dir.path())
+            .assert()
+            .code(2)
+            .stdout("")
+            .stderr(
+                predicate::str::contains("'--threads <THREADS>'")
+                    .and(predicate::str::contains("'0'")),
+            );
+    }
+    // layouts takes a list: a 0 anywhere in it is refused too.
+    run("layouts tetra1 --threads 1,0")
+        .assert()
+        .code(2)
+        .stderr(predicate::str::contains("--threads"));
+    assert!(names(dir.path()).is_empty(), "{:?}", names(dir.path()));
+}
+
+#[test]
+fn bench_and_packets_measure_the_thread_counts_asked_for() {
+    let dir = tempfile::tempdir().unwrap();
+    for line in [
+        "bench tetra1 --rays 10 --reps 1 --threads 1",
+        "packets tetra1 --rays 10 --reps 1 --res 8 --threads 1",
+    ] {
+        let json = dir.path().join("report.json");
+        run(line).arg("--json").arg(&json).assert().success();
+        let report: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        let rows = report["rows"].as_array().unwrap();
+        assert!(!rows.is_empty());
+        assert!(rows.iter().all(|r| r["threads"] == 1), "{line}: {rows:?}");
+    }
+}
+
+// Defect 3: output paths checked first; stdout errors.
+
+#[test]
+fn render_to_a_missing_directory_fails_before_rendering() {
+    run("render tetra1 --res 8 -o /nonexistent/x.png")
+        .assert()
+        .code(2)
+        .stdout("")
+        .stderr(
+            predicate::str::contains("--output /nonexistent/x.png")
+                .and(predicate::str::contains("does not exist")),
+        );
+}
+
+#[test]
+fn bad_json_path_fails_before_anything_is_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let png = dir.path().join("x.png");
+    // A directory as --json: no table on stdout, no PNG.
+    run("render tetra1 --res 8 -o")
+        .arg(&png)
+        .arg("--json")
+        .arg(dir.path())
+        .assert()
+        .code(2)
+        .stdout("")
+        .stderr(predicate::str::contains("--json").and(predicate::str::contains("is a directory")));
+    assert!(names(dir.path()).is_empty(), "{:?}", names(dir.path()));
+    run("build tetra1 --json")
+        .arg(dir.path())
+        .assert()
+        .code(2)
+        .stdout("");
+    // A file where the directory should be.
+    let file = dir.path().join("f");
+    std::fs::write(&file, "").unwrap();
+    run("build tetra1 --json")
+        .arg(file.join("r.json"))
+        .assert()
+        .code(2)
+        .stdout("")
+        .stderr(predicate::str::contains("is not a directory"));
+}
+
+#[test]
+fn every_output_flag_is_checked_before_work() {
+    // Default sizes: a check that came after the work would show as a table on stdout and a
+    // `cannot write` error instead of one naming the flag.
+    let cases = [
+        "gen tetra1 -o /nonexistent/s.nff",
+        "render tetra1 --res 8 --heatmap /nonexistent/h.png",
+        "layouts tetra1 --json /nonexistent/l.json",
+        "accuracy tetra1 --plot /nonexistent/a.svg",
+        "accuracy tetra1 --json /nonexistent/a.json",
+        "bench tetra1 --json /nonexistent/b.json",
+        "packets tetra1 --json /nonexistent/p.json",
+        "render tetra1 -o same.png --heatmap same.png",
+    ];
+    let dir = tempfile::tempdir().unwrap();
+    for line in cases {
+        run(line)
+            .current_dir(dir.path())
+            .assert()
+            .code(2)
+            .stdout("")
+            .stderr(predicate::str::starts_with("error: --"));
+    }
+    assert!(names(dir.path()).is_empty(), "{:?}", names(dir.path()));
+}
+
+#[test]
+fn accuracy_writes_a_plot_only_when_asked() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = |extra: &[&str]| {
+        run("accuracy tetra1 --rays 10 --reps 1 --sphere 0")
+            .args(["--threads", "1"])
+            .args(extra)
+            .current_dir(dir.path())
+            .assert()
+            .success();
+    };
+    run(&[]);
+    assert!(names(dir.path()).is_empty(), "{:?}", names(dir.path()));
+    run(&["--plot", "plot.svg"]);
+    assert_eq!(names(dir.path()), ["plot.svg"]);
+    let svg = std::fs::read_to_string(dir.path().join("plot.svg")).unwrap();
+    assert!(svg.starts_with("<svg") && svg.ends_with("</svg>\n"));
+}
+
+#[cfg(target_os = "linux")]
+#[test]
+fn full_stdout_is_an_error() {
+    for args in [&["build", "tetra1"][..], &["gen", "tetra1"], &["--help"]] {
+        let full = std::fs::OpenOptions::new()
+            .write(true)
+            .open("/dev/full")
+            .unwrap();
+        // assert_cmd's own Command captures stdout; std's keeps the one given.
+        std::process::Command::new(QUIVER)
+            .args(args)
+            .stdout(full)
+            .assert()
+            .code(2)
+            .stderr(predicate::str::contains("cannot write to stdout"));
+    }
+}
+
+/// A reader that stops early (`quiver ... | head`) is not an error: exit 0, nothing on stderr.
+#[cfg(unix)]
+#[test]
+fn closed_pipe_exits_quietly() {
+    for args in [&["build", "tetra1"][..], &["gen", "tetra4"]] {
+        let mut child = std::process::Command::new(QUIVER)
+            .args(args)
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        // Closing the read end at once: the child's first write meets a closed pipe.
+        drop(child.stdout.take());
+        let out = child.wait_with_output().unwrap();
+        assert_eq!(out.status.code(), Some(0), "{args:?}");
+        assert_eq!(String::from_utf8_lossy(&out.stderr), "", "{args:?}");
+    }
+}
+
+// Defect 4: whole files or none.
+
+#[test]
+fn written_files_are_complete_and_no_temp_file_remains() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    run("render tetra1 --res 8 -o img.png --heatmap heat.png")
+        .args(["--json", "render.json", "--threads", "1"])
+        .current_dir(d)
+        .assert()
+        .success();
+    run("gen tetra1 -o scene.nff")
+        .current_dir(d)
+        .assert()
+        .success();
+    run("build tetra1 --json build.json")
+        .current_dir(d)
+        .assert()
+        .success();
+    let want = "build.json heat.png img.png render.json scene.nff";
+    assert_eq!(names(d).join(" "), want);
+    for (png, side) in [("img.png", 8), ("heat.png", 9)] {
+        let decoder = png::Decoder::new(std::io::BufReader::new(
+            std::fs::File::open(d.join(png)).unwrap(),
+        ));
+        let mut reader = decoder.read_info().unwrap();
+        let mut buf = vec![0; reader.output_buffer_size().unwrap()];
+        let info = reader.next_frame(&mut buf).unwrap();
+        assert_eq!((info.width, info.height), (side, side), "{png}");
+    }
+    for json in ["render.json", "build.json"] {
+        let text = std::fs::read_to_string(d.join(json)).unwrap();
+        let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+        assert_eq!(v["scene"], "tetra1", "{json}");
+    }
+    // The NFF reads back as the same scene.
+    run("build scene.nff")
+        .current_dir(d)
+        .assert()
+        .success()
+        .stdout(predicate::str::is_match(r"primitives +4\n").unwrap());
+}
+
+#[test]
+fn failed_run_leaves_previous_files_intact() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("img.png"), "previous image").unwrap();
+    std::fs::write(d.join("r.json"), "previous report").unwrap();
+    // The report cannot be written: the image must not have been replaced either.
+    run("render tetra1 --res 8 -o img.png --json no/r.json")
+        .current_dir(d)
+        .assert()
+        .code(2);
+    assert_eq!(
+        std::fs::read_to_string(d.join("img.png")).unwrap(),
+        "previous image"
+    );
+    assert_eq!(names(d), ["img.png", "r.json"]);
+}
+
+/// A run killed in the middle of writing (here by the file-size limit's SIGXFSZ, the
+/// signal a full quota gives) leaves the previous file as it was, not a truncated one.
+#[cfg(unix)]
+#[test]
+fn interrupted_write_leaves_previous_file_intact() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("img.png"), "previous image").unwrap();
+    // `ulimit -f 1`: at most one block (512 or 1024 bytes by shell) per file; a 64 x 64
+    // render's PNG is larger, so the process dies inside the write.
+    let status = std::process::Command::new("sh")
+        .arg("-c")
+        .arg(format!(
+            "ulimit -f 1 && exec '{QUIVER}' render tetra3 --res 64 --threads 1 -o img.png"
+        ))
+        .current_dir(d)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .status()
+        .unwrap();
+    assert!(!status.success());
+    assert_eq!(
+        std::fs::read_to_string(d.join("img.png")).unwrap(),
+        "previous image"
+    );
+}
+
+// Defect 5: nonsense numbers; bench's default scenes.
+
+#[test]
+fn zero_and_nonsense_numbers_are_refused_naming_the_flag() {
+    // Each command line is split at spaces; the flag is what the error must name.
+    let cases = [
+        ("packets tetra1 --rays 0 --reps 1 --res 8", "--rays"),
+        ("packets tetra1 --rays 10 --reps 0 --res 8", "--reps"),
+        ("packets tetra1 --rays 10 --reps 1 --res 0", "--res"),
+        ("bench tetra1 --rays 0 --reps 1", "--rays"),
+        ("bench tetra1 --rays 10 --reps 0", "--reps"),
+        ("layouts tetra1 --rays 0 --res 8 --reps 1", "--rays"),
+        ("layouts tetra1 --rays 10 --res 0 --reps 1", "--res"),
+        ("layouts tetra1 --rays 10 --res 8 --reps 0", "--reps"),
+        ("accuracy tetra1 --rays 0 --reps 1 --sphere 0", "--rays"),
+        ("accuracy tetra1 --rays 10 --reps 0 --sphere 0", "--reps"),
+        ("accuracy tetra1 --rays -5", "--rays"),
+        ("render tetra1 --res 0", "--res"),
+        ("render tetra1 --threads -2", "--threads"),
+        ("gen tetra1 --patches --resolution 0", "--resolution"),
+        ("build tetra1 --bins 1", "--bins"),
+        ("build tetra1 --max-leaf 0", "--max-leaf"),
+        ("build tetra1 --traversal-cost NaN", "--traversal-cost"),
+        ("build tetra1 --intersection-cost -1", "--intersection-cost"),
+    ];
+    let dir = tempfile::tempdir().unwrap();
+    for (args, flag) in cases {
+        run(args)
+            .current_dir(dir.path())
+            .assert()
+            .code(2)
+            .stdout("")
+            .stderr(predicate::str::contains(flag));
+    }
+    assert!(names(dir.path()).is_empty(), "{:?}", names(dir.path()));
+}
+
+#[test]
+fn bad_scene_names_and_files_are_named() {
+    run("build nosuchscene7")
+        .assert()
+        .code(2)
+        .stderr(predicate::str::contains("nosuchscene7"));
+    run("build /nonexistent/mesh.obj")
+        .assert()
+        .code(2)
+        .stderr(predicate::str::contains("/nonexistent/mesh.obj"));
+    // A bad name after a good one fails before the good one is measured.
+    run("bench tetra1 nosuchscene7 --rays 10 --reps 1")
+        .assert()
+        .code(2)
+        .stdout("")
+        .stderr(predicate::str::contains("nosuchscene7"));
+}
+
+/// `bench` used to default to a bunny path fixed when the binary was compiled, which breaks
+/// once the binary is installed elsewhere or the source tree moves.
+#[test]
+fn bench_defaults_need_no_file_from_the_source_tree() {
+    let binary = std::fs::read(QUIVER).unwrap();
+    let baked = concat!(env!("CARGO_MANIFEST_DIR"), "/../lab");
+    assert!(
+        !binary.windows(baked.len()).any(|w| w == baked.as_bytes()),
+        "the binary refers to {baked}"
+    );
+    run("bench --help")
+        .assert()
+        .success()
+        .stdout(predicate::str::contains("teapot12").and(predicate::str::contains("bunny.obj")));
+}
