@@ -3,7 +3,8 @@
 //! pool), from a primitive slice or an indexed mesh.
 
 use crate::build::{build, prim_bounds, BuildConfig, BuildTree, Builder};
-use crate::geometry::{Hit, Primitive, Ray, Triangle};
+use crate::frame::{Back, Frame};
+use crate::geometry::{Aabb, Hit, Primitive, Ray, Triangle};
 use crate::isa::Isa;
 use crate::layout::bvh2::leaf_order;
 use crate::layout::{Bvh2, Bvh4, Bvh8, Footprint, Layout, QBvh4};
@@ -31,7 +32,16 @@ use rayon::ThreadPool;
 /// }
 /// ```
 #[derive(Clone, Debug)]
-pub enum Bvh<P = Triangle> {
+pub struct Bvh<P = Triangle> {
+    nodes: Nodes<P>,
+    /// The frame the nodes and primitives live in (scaled when the scene is far from unit
+    /// size; see [`Primitive::scaled`]).
+    frame: Frame,
+}
+
+/// The nodes and leaves of one [`Layout`].
+#[derive(Clone, Debug)]
+pub(crate) enum Nodes<P> {
     /// Binary nodes.
     Bvh2(Bvh2<P>),
     /// 4-wide exact nodes.
@@ -53,39 +63,69 @@ impl<P: Primitive> Bvh<P> {
     /// Lays out a built tree over `prims` (the build's input) as `layout`, for the
     /// instruction set [`Isa::detect`] picks.
     pub fn from_tree(tree: &BuildTree, prims: &[P], layout: Layout) -> Self {
-        layout.lay_out(
-            tree,
-            leaf_order(tree, prims),
-            Isa::detect(),
-            &BuildConfig::default(),
-        )
+        let frame = Frame::for_bounds(&finite_union(&prim_bounds(prims)));
+        let config = BuildConfig::default();
+        match frame_prims(frame, prims) {
+            Some(local) => Bvh {
+                nodes: layout.lay_out(
+                    &tree.scaled(|b| frame.aabb(b)),
+                    leaf_order(tree, &local),
+                    Isa::detect(),
+                    &config,
+                ),
+                frame,
+            },
+            None => Bvh {
+                nodes: layout.lay_out(tree, leaf_order(tree, prims), Isa::detect(), &config),
+                frame: Frame::default(),
+            },
+        }
     }
 
     /// The instruction set queries run on: the BVH's own for 8-wide nodes, portable for the
     /// others (they have no AVX2 kernels).
     pub fn isa(&self) -> Isa {
-        match self {
-            Bvh::Bvh8(b) => b.isa,
+        match &self.nodes {
+            Nodes::Bvh8(b) => b.isa,
             _ => Isa::Portable,
         }
     }
 
     /// The same BVH traversed with `isa` where it has kernels for it (see [`Bvh::isa`]).
     pub fn with_isa(self, isa: Isa) -> Self {
-        match self {
-            Bvh::Bvh8(b) => Bvh::Bvh8(b.with_isa(isa)),
+        let nodes = match self.nodes {
+            Nodes::Bvh8(b) => Nodes::Bvh8(b.with_isa(isa)),
             other => other,
-        }
+        };
+        Bvh { nodes, ..self }
     }
 
     /// What the nodes and leaves occupy.
     pub fn footprint(&self) -> Footprint {
-        match self {
-            Bvh::Bvh2(b) => b.footprint(),
-            Bvh::Bvh4(b) => b.footprint(),
-            Bvh::QBvh4(b) => b.footprint(),
-            Bvh::Bvh8(b) => b.footprint(),
+        match &self.nodes {
+            Nodes::Bvh2(b) => b.footprint(),
+            Nodes::Bvh4(b) => b.footprint(),
+            Nodes::QBvh4(b) => b.footprint(),
+            Nodes::Bvh8(b) => b.footprint(),
         }
+    }
+}
+
+/// The union of the finite boxes.
+fn finite_union(boxes: &[Aabb]) -> Aabb {
+    boxes
+        .iter()
+        .filter(|b| b.is_finite())
+        .fold(Aabb::EMPTY, |u, b| u.union(b))
+}
+
+/// The primitives in `frame`: `None` for the identity frame (use them as they are) and for
+/// types that cannot be scaled.
+fn frame_prims<P: Primitive>(frame: Frame, prims: &[P]) -> Option<Vec<P>> {
+    if frame.is_identity() {
+        None
+    } else {
+        frame.prims(prims)
     }
 }
 
@@ -102,24 +142,24 @@ impl Bvh {
     }
 }
 
-impl<P: Primitive> RayQuery for Bvh<P> {
+impl<P: Primitive> RayQuery for Nodes<P> {
     #[inline]
     fn closest_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> Option<Hit> {
         match self {
-            Bvh::Bvh2(b) => b.closest_hit_with::<B, S>(ray, stats),
-            Bvh::Bvh4(b) => b.closest_hit_with::<B, S>(ray, stats),
-            Bvh::QBvh4(b) => b.closest_hit_with::<B, S>(ray, stats),
-            Bvh::Bvh8(b) => b.closest_hit_with::<B, S>(ray, stats),
+            Nodes::Bvh2(b) => b.closest_hit_with::<B, S>(ray, stats),
+            Nodes::Bvh4(b) => b.closest_hit_with::<B, S>(ray, stats),
+            Nodes::QBvh4(b) => b.closest_hit_with::<B, S>(ray, stats),
+            Nodes::Bvh8(b) => b.closest_hit_with::<B, S>(ray, stats),
         }
     }
 
     #[inline]
     fn any_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> bool {
         match self {
-            Bvh::Bvh2(b) => b.any_hit_with::<B, S>(ray, stats),
-            Bvh::Bvh4(b) => b.any_hit_with::<B, S>(ray, stats),
-            Bvh::QBvh4(b) => b.any_hit_with::<B, S>(ray, stats),
-            Bvh::Bvh8(b) => b.any_hit_with::<B, S>(ray, stats),
+            Nodes::Bvh2(b) => b.any_hit_with::<B, S>(ray, stats),
+            Nodes::Bvh4(b) => b.any_hit_with::<B, S>(ray, stats),
+            Nodes::QBvh4(b) => b.any_hit_with::<B, S>(ray, stats),
+            Nodes::Bvh8(b) => b.any_hit_with::<B, S>(ray, stats),
         }
     }
 
@@ -132,10 +172,10 @@ impl<P: Primitive> RayQuery for Bvh<P> {
         stats: &mut S,
     ) {
         match self {
-            Bvh::Bvh2(b) => b.closest_hit_packet_with::<B, S>(rays, active, mode, hits, stats),
-            Bvh::Bvh4(b) => b.closest_hit_packet_with::<B, S>(rays, active, mode, hits, stats),
-            Bvh::QBvh4(b) => b.closest_hit_packet_with::<B, S>(rays, active, mode, hits, stats),
-            Bvh::Bvh8(b) => b.closest_hit_packet_with::<B, S>(rays, active, mode, hits, stats),
+            Nodes::Bvh2(b) => b.closest_hit_packet_with::<B, S>(rays, active, mode, hits, stats),
+            Nodes::Bvh4(b) => b.closest_hit_packet_with::<B, S>(rays, active, mode, hits, stats),
+            Nodes::QBvh4(b) => b.closest_hit_packet_with::<B, S>(rays, active, mode, hits, stats),
+            Nodes::Bvh8(b) => b.closest_hit_packet_with::<B, S>(rays, active, mode, hits, stats),
         }
     }
 
@@ -148,10 +188,109 @@ impl<P: Primitive> RayQuery for Bvh<P> {
         stats: &mut S,
     ) {
         match self {
-            Bvh::Bvh2(b) => b.any_hit_packet_with::<B, S>(rays, active, mode, occluded, stats),
-            Bvh::Bvh4(b) => b.any_hit_packet_with::<B, S>(rays, active, mode, occluded, stats),
-            Bvh::QBvh4(b) => b.any_hit_packet_with::<B, S>(rays, active, mode, occluded, stats),
-            Bvh::Bvh8(b) => b.any_hit_packet_with::<B, S>(rays, active, mode, occluded, stats),
+            Nodes::Bvh2(b) => b.any_hit_packet_with::<B, S>(rays, active, mode, occluded, stats),
+            Nodes::Bvh4(b) => b.any_hit_packet_with::<B, S>(rays, active, mode, occluded, stats),
+            Nodes::QBvh4(b) => b.any_hit_packet_with::<B, S>(rays, active, mode, occluded, stats),
+            Nodes::Bvh8(b) => b.any_hit_packet_with::<B, S>(rays, active, mode, occluded, stats),
+        }
+    }
+}
+
+/// Rays per batch brought into a scaled BVH's frame for a packet query: a whole number of
+/// packets, so the packets are the ones an unscaled BVH would form.
+const FRAME_BATCH: usize = 4 * crate::traverse::PACKET_RAYS;
+
+impl<P: Primitive> RayQuery for Bvh<P> {
+    #[inline]
+    fn closest_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> Option<Hit> {
+        if self.frame.is_identity() {
+            return self.nodes.closest_hit_with::<B, S>(ray, stats);
+        }
+        let (local, back) = self.frame.ray(ray);
+        let hit = self.nodes.closest_hit_with::<B, S>(&local, stats);
+        hit.map(|h| back.hit(h))
+    }
+
+    #[inline]
+    fn any_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> bool {
+        if self.frame.is_identity() {
+            return self.nodes.any_hit_with::<B, S>(ray, stats);
+        }
+        self.nodes
+            .any_hit_with::<B, S>(&self.frame.ray(ray).0, stats)
+    }
+
+    fn closest_hit_packet_with<B: BoxTest, S: Stats>(
+        &self,
+        rays: &[Ray],
+        active: Option<&[bool]>,
+        mode: PacketMode,
+        hits: &mut [Option<Hit>],
+        stats: &mut S,
+    ) {
+        if self.frame.is_identity() {
+            return self
+                .nodes
+                .closest_hit_packet_with::<B, S>(rays, active, mode, hits, stats);
+        }
+        assert_eq!(hits.len(), rays.len(), "one hit slot per ray");
+        self.in_frame(rays, active, |local, backs, active, at| {
+            let hits = &mut hits[at..at + local.len()];
+            self.nodes
+                .closest_hit_packet_with::<B, S>(local, active, mode, hits, stats);
+            for (h, back) in hits.iter_mut().zip(backs) {
+                *h = h.map(|h| back.hit(h));
+            }
+        });
+    }
+
+    fn any_hit_packet_with<B: BoxTest, S: Stats>(
+        &self,
+        rays: &[Ray],
+        active: Option<&[bool]>,
+        mode: PacketMode,
+        occluded: &mut [bool],
+        stats: &mut S,
+    ) {
+        if self.frame.is_identity() {
+            return self
+                .nodes
+                .any_hit_packet_with::<B, S>(rays, active, mode, occluded, stats);
+        }
+        assert_eq!(occluded.len(), rays.len(), "one flag per ray");
+        self.in_frame(rays, active, |local, _, active, at| {
+            let occluded = &mut occluded[at..at + local.len()];
+            self.nodes
+                .any_hit_packet_with::<B, S>(local, active, mode, occluded, stats);
+        });
+    }
+}
+
+impl<P: Primitive> Bvh<P> {
+    /// Calls `f(local rays, their ways back, their active flags, index of the first)` batch
+    /// by batch with the rays brought into the frame, on the stack.
+    fn in_frame(
+        &self,
+        rays: &[Ray],
+        active: Option<&[bool]>,
+        mut f: impl FnMut(&[Ray], &[Back], Option<&[bool]>, usize),
+    ) {
+        if let Some(a) = active {
+            assert_eq!(a.len(), rays.len(), "one active flag per ray");
+        }
+        let mut local = [Ray::new(glam::Vec3A::ZERO, glam::Vec3A::ZERO); FRAME_BATCH];
+        let mut backs = [Back::default(); FRAME_BATCH];
+        for (n, batch) in rays.chunks(FRAME_BATCH).enumerate() {
+            let at = n * FRAME_BATCH;
+            for ((l, b), r) in local.iter_mut().zip(&mut backs).zip(batch) {
+                (*l, *b) = self.frame.ray(r);
+            }
+            f(
+                &local[..batch.len()],
+                &backs[..batch.len()],
+                active.map(|a| &a[at..at + batch.len()]),
+                at,
+            );
         }
     }
 }
@@ -222,7 +361,8 @@ impl<'p> BuildOptions<'p> {
         BuildOptions { layout, ..self }
     }
 
-    /// Makes leaves of at most `n` primitives (`n >= 1`; at most 65535 for `bvh4-quant`).
+    /// Makes leaves of at most `n` primitives (`n >= 1`; `bvh4-quant` stores leaf sizes in 16
+    /// bits and caps them at 65535).
     pub fn max_leaf_size(mut self, n: usize) -> Self {
         self.config.max_leaf_size = n;
         self
@@ -261,8 +401,8 @@ impl<'p> BuildOptions<'p> {
     /// Builds a BVH over `prims`; hits report each primitive's index in `prims`.
     ///
     /// # Panics
-    /// When the settings are out of range: `bins` outside 2..=1024, `max_leaf_size` 0, or
-    /// above 65535 with the `bvh4-quant` layout.
+    /// When [`BuildConfig::check`] finds a setting out of range: `bins` outside 2..=1024,
+    /// `max_leaf_size` 0, or a negative or non-finite SAH cost.
     pub fn build<P: Primitive>(&self, prims: &[P]) -> Bvh<P> {
         self.build_with_tree(prims).0
     }
@@ -274,14 +414,22 @@ impl<'p> BuildOptions<'p> {
     /// As [`BuildOptions::build`].
     pub fn build_with_tree<P: Primitive>(&self, prims: &[P]) -> (Bvh<P>, BuildTree) {
         self.run(|| {
-            let tree = build(&prim_bounds(prims), &self.config, self.builder);
-            let bvh = self.layout.lay_out(
-                &tree,
-                leaf_order(&tree, prims),
-                self.chosen_isa(),
-                &self.config,
-            );
-            (bvh, tree)
+            let bounds = prim_bounds(prims);
+            let frame = Frame::for_bounds(&finite_union(&bounds));
+            match frame_prims(frame, prims) {
+                Some(local) => {
+                    let local_bounds: Vec<Aabb> = bounds.iter().map(|b| frame.aabb(b)).collect();
+                    let tree = build(&local_bounds, &self.effective_config(), self.builder);
+                    let nodes = self.lay_out(&tree, leaf_order(&tree, &local));
+                    (Bvh { nodes, frame }, tree.refit(&bounds))
+                }
+                None => {
+                    let tree = build(&bounds, &self.effective_config(), self.builder);
+                    let nodes = self.lay_out(&tree, leaf_order(&tree, prims));
+                    let frame = Frame::default();
+                    (Bvh { nodes, frame }, tree)
+                }
+            }
         })
     }
 
@@ -316,17 +464,50 @@ impl<'p> BuildOptions<'p> {
         let mesh = Mesh::new(positions, indices)?;
         Ok(self.run(|| {
             use rayon::prelude::*;
-            let tree = build(&mesh.bounds(), &self.config, self.builder);
+            let bounds = mesh.bounds();
+            let frame = Frame::for_bounds(&finite_union(&bounds));
+            let local_bounds: Vec<Aabb> = if frame.is_identity() {
+                bounds.clone()
+            } else {
+                bounds.iter().map(|b| frame.aabb(b)).collect()
+            };
+            let tree = build(&local_bounds, &self.effective_config(), self.builder);
+            let down = |t: Triangle| {
+                if frame.is_identity() {
+                    t
+                } else {
+                    frame.prims(&[t]).expect("triangles scale")[0]
+                }
+            };
             let leaf_tris = tree
                 .prim_indices
                 .par_iter()
-                .map(|&i| mesh.triangle(i))
+                .map(|&i| down(mesh.triangle(i)))
                 .collect();
-            let bvh = self
-                .layout
-                .lay_out(&tree, leaf_tris, self.chosen_isa(), &self.config);
-            (bvh, tree)
+            let nodes = self.lay_out(&tree, leaf_tris);
+            let tree = if frame.is_identity() {
+                tree
+            } else {
+                tree.refit(&bounds)
+            };
+            (Bvh { nodes, frame }, tree)
         }))
+    }
+
+    /// The settings the build runs with: the quantized layout stores leaf sizes in 16 bits,
+    /// so its leaves are capped at 65535 primitives.
+    fn effective_config(&self) -> BuildConfig {
+        let mut config = self.config.clone();
+        if self.layout == Layout::Bvh4Quant {
+            config.max_leaf_size = config.max_leaf_size.min(u16::MAX as usize);
+        }
+        config
+    }
+
+    /// Lays out a tree built with these options over `prims` in leaf order.
+    fn lay_out<P: Primitive>(&self, tree: &BuildTree, prims: Vec<P>) -> Nodes<P> {
+        self.layout
+            .lay_out(tree, prims, self.chosen_isa(), &self.effective_config())
     }
 
     /// The instruction set asked for, or the detected one.
@@ -347,6 +528,7 @@ impl<'p> BuildOptions<'p> {
 mod tests {
     use super::*;
     use crate::testing::soup;
+    use glam::Vec3A;
 
     #[test]
     fn a_mesh_builds_the_same_bvh_as_its_triangles() {
@@ -380,6 +562,30 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn huge_leaves_in_the_quantized_layout_are_capped_not_a_panic() {
+        // 70,000 copies of one triangle cannot be split; with leaves of up to 100,000 they
+        // made one leaf, more than the layout's 16-bit count holds.
+        let tris = vec![crate::Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y); 70_000];
+        let (bvh, tree) = BuildOptions::default()
+            .layout(Layout::Bvh4Quant)
+            .max_leaf_size(100_000)
+            .build_with_tree(&tris);
+        assert!(tree.stats().max_leaf <= 65535);
+        let (_, uncapped) = BuildOptions::default()
+            .max_leaf_size(100_000)
+            .build_with_tree(&tris);
+        assert!(
+            uncapped.stats().max_leaf > 65535,
+            "the case is the one that overflowed"
+        );
+        let ray = Ray::new(Vec3A::new(0.25, 0.25, 1.0), -Vec3A::Z);
+        assert_eq!(
+            bvh.closest_hit(&ray),
+            crate::reference::closest_hit(&tris, &ray)
+        );
     }
 
     #[test]

@@ -53,6 +53,35 @@ impl Default for BuildConfig {
     }
 }
 
+impl BuildConfig {
+    /// Whether the settings are in range, and if not which one is wrong: what [`build`]
+    /// checks before it starts, for callers that take settings from users.
+    ///
+    /// ```
+    /// use quiver::build::BuildConfig;
+    /// assert!(BuildConfig::default().check().is_ok());
+    /// let bad = BuildConfig { bins: 1, ..BuildConfig::default() };
+    /// assert!(bad.check().unwrap_err().contains("bins"));
+    /// ```
+    pub fn check(&self) -> Result<(), String> {
+        if !(2..=1024).contains(&self.bins) {
+            return Err(format!("bins must be in 2..=1024, got {}", self.bins));
+        }
+        if self.max_leaf_size < 1 {
+            return Err("max_leaf_size must be at least 1, got 0".into());
+        }
+        for (name, c) in [
+            ("traversal_cost", self.traversal_cost),
+            ("intersection_cost", self.intersection_cost),
+        ] {
+            if !(c.is_finite() && c >= 0.0) {
+                return Err(format!("{name} must be a finite number >= 0, got {c}"));
+            }
+        }
+        Ok(())
+    }
+}
+
 /// Which algorithm builds the tree.
 ///
 /// ```
@@ -163,15 +192,14 @@ pub struct TreeStats {
 ///
 /// Primitives whose box is not finite (a NaN or infinite coordinate) are dropped and counted in
 /// [`BuildTree::dropped`]; an empty input gives a single empty leaf.
+///
+/// # Panics
+/// When [`BuildConfig::check`] finds a setting out of range (call it first to report the
+/// error instead).
 pub fn build(bounds: &[Aabb], config: &BuildConfig, builder: Builder) -> BuildTree {
-    assert!(
-        (2..=1024).contains(&config.bins),
-        "BuildConfig::bins must be in 2..=1024"
-    );
-    assert!(
-        config.max_leaf_size >= 1,
-        "BuildConfig::max_leaf_size must be at least 1"
-    );
+    if let Err(e) = config.check() {
+        panic!("BuildConfig: {e}");
+    }
     let indices: Vec<u32> = (0..bounds.len() as u32)
         .filter(|&i| is_finite(&bounds[i as usize]))
         .collect();
@@ -271,6 +299,45 @@ pub(crate) fn widest_axis(e: Vec3A) -> usize {
 }
 
 impl BuildTree {
+    /// The same tree with its boxes recomputed bottom-up from `bounds` (one per input
+    /// primitive): the tree of a build made in a BVH's scaled frame, told in the caller's units.
+    pub(crate) fn refit(&self, bounds: &[Aabb]) -> BuildTree {
+        let mut nodes = self.nodes.clone();
+        // Preorder: every child comes after its parent, so a reverse sweep sees children first.
+        for i in (0..nodes.len()).rev() {
+            nodes[i].bounds = match nodes[i].kind {
+                NodeKind::Leaf { first, count } => self.prim_indices
+                    [first as usize..(first + count) as usize]
+                    .iter()
+                    .fold(Aabb::EMPTY, |b, &p| b.union(&bounds[p as usize])),
+                NodeKind::Inner { left, right } => nodes[left as usize]
+                    .bounds
+                    .union(&nodes[right as usize].bounds),
+            };
+        }
+        BuildTree {
+            nodes,
+            prim_indices: self.prim_indices.clone(),
+            dropped: self.dropped,
+        }
+    }
+
+    /// The same tree with every box mapped by `f` (a BVH's frame change).
+    pub(crate) fn scaled(&self, f: impl Fn(&Aabb) -> Aabb) -> BuildTree {
+        BuildTree {
+            nodes: self
+                .nodes
+                .iter()
+                .map(|n| BuildNode {
+                    bounds: f(&n.bounds),
+                    kind: n.kind,
+                })
+                .collect(),
+            prim_indices: self.prim_indices.clone(),
+            dropped: self.dropped,
+        }
+    }
+
     /// Shape counts: nodes, leaves, depth, largest leaf.
     pub fn stats(&self) -> TreeStats {
         let mut s = TreeStats {

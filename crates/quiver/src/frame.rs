@@ -1,0 +1,208 @@
+//! A BVH's own frame: a scene far from unit size is scaled by a power of two before it is
+//! built, and every query's ray is brought into that frame and its hit back out.
+//!
+//! Why: the triangle tests multiply two or three lengths (the fast test's normal `e1 × e2`
+//! and `n · c`, the watertight test's edge functions), the SAH multiplies two, so a scene a
+//! few orders of magnitude past 1e10 overflows f32 and one below 1e-13 underflows — hits go
+//! missing, build costs turn infinite. Multiplying by a power of two is exact in f32, and
+//! every test's arithmetic commutes with it, so in the frame the scene computes exactly what
+//! the same scene at unit size computes: a scene scaled by `2^j` gives bit-identical hits,
+//! with `t` scaled by `2^j`.
+//!
+//! Scenes whose extent lies within `2^-20..=2^20` keep the identity frame, so ordinary
+//! scenes pay one predictable branch per query and nothing else.
+
+use crate::geometry::{Aabb, Hit, Primitive, Ray};
+
+/// Extents from `2^-SAFE` to `2^SAFE` keep the identity frame: the tests' products of up to
+/// three lengths stay far inside f32's normal range there (`2^60` and `2^-60`).
+const SAFE: i32 = 20;
+
+/// Largest scaled coordinate allowed when a tiny scene far from the origin is scaled up.
+const MAX_SCALED_EXPONENT: i32 = 100;
+
+/// Ray directions are brought near unit length by at most this power of two either way.
+const MAX_DIR_EXPONENT: i32 = 60;
+
+/// `x * 2^e` for `e` beyond f32's exponent range too, in two exact steps.
+#[inline(always)]
+fn scale2(x: f32, e: i32) -> f32 {
+    let half = e / 2;
+    x * pow2(half) * pow2(e - half)
+}
+
+/// What takes one ray's local hit distances back to world units.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct Back {
+    /// World distance = local distance * 2^e.
+    e: i32,
+}
+
+impl Back {
+    /// A hit found in the frame, with its distance in world units.
+    #[inline(always)]
+    pub(crate) fn hit(self, hit: Hit) -> Hit {
+        Hit {
+            t: scale2(hit.t, self.e),
+            ..hit
+        }
+    }
+}
+
+/// The power of two that takes world coordinates to the BVH's frame: local = world · 2^-k.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub(crate) struct Frame {
+    k: i32,
+}
+
+/// `2^e` for `e` in f32's normal exponent range.
+fn pow2(e: i32) -> f32 {
+    debug_assert!((-126..=127).contains(&e));
+    f32::from_bits(((e + 127) as u32) << 23)
+}
+
+/// The exponent of `x` (finite, positive): `x` lies in `[2^e, 2^(e+1))`.
+fn exponent(x: f32) -> i32 {
+    if x >= f32::MIN_POSITIVE {
+        ((x.to_bits() >> 23) & 0xff) as i32 - 127
+    } else {
+        // Subnormal: count from the smallest normal down.
+        -127 - (x.to_bits().leading_zeros() as i32 - 9)
+    }
+}
+
+impl Frame {
+    /// The frame for a scene with these bounds (finite primitives only; empty: identity).
+    pub(crate) fn for_bounds(b: &Aabb) -> Frame {
+        if b.is_empty() || !b.is_finite() {
+            return Frame::default();
+        }
+        let extent = b.extent().max_element();
+        if extent <= 0.0 {
+            return Frame::default();
+        }
+        let e = exponent(extent);
+        if (-SAFE..=SAFE).contains(&e) {
+            return Frame::default();
+        }
+        let mut k = e.clamp(-MAX_SCALED_EXPONENT, MAX_SCALED_EXPONENT);
+        // Scaling a tiny scene up must not carry its far-off coordinates out of range.
+        let reach = b.min.abs().max(b.max.abs()).max_element();
+        if reach > 0.0 {
+            k = k.max(exponent(reach) - MAX_SCALED_EXPONENT);
+        }
+        Frame { k }
+    }
+
+    /// True when local and world coordinates are the same.
+    #[inline(always)]
+    pub(crate) fn is_identity(self) -> bool {
+        self.k == 0
+    }
+
+    /// World to local factor.
+    #[inline(always)]
+    fn down(self) -> f32 {
+        pow2(-self.k)
+    }
+
+    /// `ray` in the frame: the same line, its direction also brought near unit length (a
+    /// renderer's shadow ray toward a far light carries the whole distance in its direction),
+    /// and the factor that takes its hit distances back to world units.
+    #[inline(always)]
+    pub(crate) fn ray(self, ray: &Ray) -> (Ray, Back) {
+        let m = ray.dir.abs().max_element();
+        let j = if m > 0.0 && m.is_finite() {
+            exponent(m).clamp(-MAX_DIR_EXPONENT, MAX_DIR_EXPONENT)
+        } else {
+            0
+        };
+        // Local distance = world distance * 2^(j - k).
+        let back = Back { e: self.k - j };
+        let local = Ray {
+            origin: ray.origin * self.down(),
+            dir: ray.dir * pow2(-j),
+            t_min: scale2(ray.t_min, -back.e),
+            t_max: scale2(ray.t_max, -back.e),
+        };
+        (local, back)
+    }
+
+    /// A box in the frame.
+    pub(crate) fn aabb(self, b: &Aabb) -> Aabb {
+        let s = self.down();
+        Aabb::new(b.min * s, b.max * s)
+    }
+
+    /// A box from the frame back in world units.
+    #[cfg(test)]
+    fn world_aabb(self, b: &Aabb) -> Aabb {
+        let s = pow2(self.k);
+        Aabb::new(b.min * s, b.max * s)
+    }
+
+    /// The primitives in the frame, or `None` when their type cannot be scaled
+    /// ([`Primitive::scaled`]).
+    pub(crate) fn prims<P: Primitive>(self, prims: &[P]) -> Option<Vec<P>> {
+        let s = self.down();
+        prims.iter().map(|p| p.scaled(s)).collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec3A;
+
+    #[test]
+    fn exponents_and_powers_agree() {
+        for e in -126..=127 {
+            assert_eq!(exponent(pow2(e)), e);
+            assert_eq!(pow2(e), 2f32.powi(e));
+        }
+        assert_eq!(exponent(3.0), 1);
+        assert_eq!(exponent(f32::MIN_POSITIVE / 4.0), -128);
+    }
+
+    #[test]
+    fn ordinary_scenes_keep_the_identity_frame() {
+        for size in [1e-6f32, 1.0, 1e6] {
+            let b = Aabb::new(Vec3A::splat(-size), Vec3A::splat(size));
+            assert!(Frame::for_bounds(&b).is_identity(), "{size}");
+        }
+        assert!(Frame::for_bounds(&Aabb::EMPTY).is_identity());
+    }
+
+    #[test]
+    fn extreme_scenes_come_to_unit_size_exactly() {
+        for size in [1e-30f32, 1e-12, 1e12, 1e30] {
+            let b = Aabb::new(Vec3A::splat(-size), Vec3A::splat(size));
+            let f = Frame::for_bounds(&b);
+            let local = f.aabb(&b);
+            let e = local.extent().max_element();
+            assert!((1.0..2.0).contains(&e), "{size}: {e}");
+            assert_eq!(f.world_aabb(&local), b, "{size}: scaling is exact");
+            // A shadow ray's direction spans the scene.
+            let ray = Ray::segment(Vec3A::splat(size), Vec3A::X * size, 0.5, 3.0);
+            let (local, back) = f.ray(&ray);
+            assert!(
+                local.dir.x.is_normal() && local.t_max.is_normal(),
+                "{size}: {local:?}"
+            );
+            let back = back.hit(Hit {
+                t: local.t_max,
+                u: 0.25,
+                v: 0.5,
+                prim: 7,
+            });
+            assert_eq!(back.t, ray.t_max);
+        }
+    }
+
+    #[test]
+    fn a_tiny_scene_far_away_stays_in_range() {
+        let b = Aabb::new(Vec3A::splat(1e30), Vec3A::splat(1e30) + Vec3A::ONE * 1e20);
+        let local = Frame::for_bounds(&b).aabb(&b);
+        assert!(local.is_finite());
+    }
+}
