@@ -34,9 +34,6 @@ use rayon::ThreadPool;
 #[derive(Clone, Debug)]
 pub struct Bvh<P = Triangle> {
     nodes: Nodes<P>,
-    /// The frame the nodes and primitives live in (scaled when the scene is far from unit
-    /// size; see [`Primitive::scaled`]).
-    frame: Frame,
 }
 
 /// The nodes and leaves of one [`Layout`].
@@ -50,6 +47,27 @@ pub(crate) enum Nodes<P> {
     QBvh4(QBvh4<P>),
     /// 8-wide exact nodes.
     Bvh8(Bvh8<P>),
+    /// Nodes built in a scaled frame, for a scene far from unit size (see
+    /// [`Primitive::scaled`]). A variant of its own, so that unscaled BVHs pay nothing for it.
+    Scaled(Box<Scaled<P>>),
+}
+
+/// Nodes and primitives in a frame scaled by a power of two, and the frame.
+#[derive(Clone, Debug)]
+pub(crate) struct Scaled<P> {
+    frame: Frame,
+    nodes: Nodes<P>,
+}
+
+impl<P> Nodes<P> {
+    /// These nodes, built in `frame`.
+    fn framed(self, frame: Frame) -> Nodes<P> {
+        if frame.is_identity() {
+            self
+        } else {
+            Nodes::Scaled(Box::new(Scaled { frame, nodes: self }))
+        }
+    }
 }
 
 impl<P: Primitive> Bvh<P> {
@@ -67,17 +85,17 @@ impl<P: Primitive> Bvh<P> {
         let config = BuildConfig::default();
         match frame_prims(frame, prims) {
             Some(local) => Bvh {
-                nodes: layout.lay_out(
-                    &tree.scaled(|b| frame.aabb(b)),
-                    leaf_order(tree, &local),
-                    Isa::detect(),
-                    &config,
-                ),
-                frame,
+                nodes: layout
+                    .lay_out(
+                        &tree.scaled(|b| frame.aabb(b)),
+                        leaf_order(tree, &local),
+                        Isa::detect(),
+                        &config,
+                    )
+                    .framed(frame),
             },
             None => Bvh {
                 nodes: layout.lay_out(tree, leaf_order(tree, prims), Isa::detect(), &config),
-                frame: Frame::default(),
             },
         }
     }
@@ -85,28 +103,49 @@ impl<P: Primitive> Bvh<P> {
     /// The instruction set queries run on: the BVH's own for 8-wide nodes, portable for the
     /// others (they have no AVX2 kernels).
     pub fn isa(&self) -> Isa {
-        match &self.nodes {
-            Nodes::Bvh8(b) => b.isa,
-            _ => Isa::Portable,
-        }
+        self.nodes.isa()
     }
 
     /// The same BVH traversed with `isa` where it has kernels for it (see [`Bvh::isa`]).
     pub fn with_isa(self, isa: Isa) -> Self {
-        let nodes = match self.nodes {
-            Nodes::Bvh8(b) => Nodes::Bvh8(b.with_isa(isa)),
-            other => other,
-        };
-        Bvh { nodes, ..self }
+        Bvh {
+            nodes: self.nodes.with_isa(isa),
+        }
     }
 
     /// What the nodes and leaves occupy.
     pub fn footprint(&self) -> Footprint {
-        match &self.nodes {
+        self.nodes.footprint()
+    }
+}
+
+impl<P: Primitive> Nodes<P> {
+    fn isa(&self) -> Isa {
+        match self {
+            Nodes::Bvh8(b) => b.isa,
+            Nodes::Scaled(s) => s.nodes.isa(),
+            _ => Isa::Portable,
+        }
+    }
+
+    fn with_isa(self, isa: Isa) -> Self {
+        match self {
+            Nodes::Bvh8(b) => Nodes::Bvh8(b.with_isa(isa)),
+            Nodes::Scaled(s) => {
+                let Scaled { frame, nodes } = *s;
+                nodes.with_isa(isa).framed(frame)
+            }
+            other => other,
+        }
+    }
+
+    fn footprint(&self) -> Footprint {
+        match self {
             Nodes::Bvh2(b) => b.footprint(),
             Nodes::Bvh4(b) => b.footprint(),
             Nodes::QBvh4(b) => b.footprint(),
             Nodes::Bvh8(b) => b.footprint(),
+            Nodes::Scaled(s) => s.nodes.footprint(),
         }
     }
 }
@@ -143,23 +182,25 @@ impl Bvh {
 }
 
 impl<P: Primitive> RayQuery for Nodes<P> {
-    #[inline]
+    #[inline(always)]
     fn closest_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> Option<Hit> {
         match self {
             Nodes::Bvh2(b) => b.closest_hit_with::<B, S>(ray, stats),
             Nodes::Bvh4(b) => b.closest_hit_with::<B, S>(ray, stats),
             Nodes::QBvh4(b) => b.closest_hit_with::<B, S>(ray, stats),
             Nodes::Bvh8(b) => b.closest_hit_with::<B, S>(ray, stats),
+            Nodes::Scaled(s) => s.closest_hit_with::<B, S>(ray, stats),
         }
     }
 
-    #[inline]
+    #[inline(always)]
     fn any_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> bool {
         match self {
             Nodes::Bvh2(b) => b.any_hit_with::<B, S>(ray, stats),
             Nodes::Bvh4(b) => b.any_hit_with::<B, S>(ray, stats),
             Nodes::QBvh4(b) => b.any_hit_with::<B, S>(ray, stats),
             Nodes::Bvh8(b) => b.any_hit_with::<B, S>(ray, stats),
+            Nodes::Scaled(s) => s.any_hit_with::<B, S>(ray, stats),
         }
     }
 
@@ -176,6 +217,7 @@ impl<P: Primitive> RayQuery for Nodes<P> {
             Nodes::Bvh4(b) => b.closest_hit_packet_with::<B, S>(rays, active, mode, hits, stats),
             Nodes::QBvh4(b) => b.closest_hit_packet_with::<B, S>(rays, active, mode, hits, stats),
             Nodes::Bvh8(b) => b.closest_hit_packet_with::<B, S>(rays, active, mode, hits, stats),
+            Nodes::Scaled(s) => s.closest_hit_packet_with::<B, S>(rays, active, mode, hits, stats),
         }
     }
 
@@ -192,6 +234,7 @@ impl<P: Primitive> RayQuery for Nodes<P> {
             Nodes::Bvh4(b) => b.any_hit_packet_with::<B, S>(rays, active, mode, occluded, stats),
             Nodes::QBvh4(b) => b.any_hit_packet_with::<B, S>(rays, active, mode, occluded, stats),
             Nodes::Bvh8(b) => b.any_hit_packet_with::<B, S>(rays, active, mode, occluded, stats),
+            Nodes::Scaled(s) => s.any_hit_packet_with::<B, S>(rays, active, mode, occluded, stats),
         }
     }
 }
@@ -201,21 +244,49 @@ impl<P: Primitive> RayQuery for Nodes<P> {
 const FRAME_BATCH: usize = 4 * crate::traverse::PACKET_RAYS;
 
 impl<P: Primitive> RayQuery for Bvh<P> {
-    #[inline]
+    #[inline(always)]
     fn closest_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> Option<Hit> {
-        if self.frame.is_identity() {
-            return self.nodes.closest_hit_with::<B, S>(ray, stats);
-        }
+        self.nodes.closest_hit_with::<B, S>(ray, stats)
+    }
+
+    #[inline(always)]
+    fn any_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> bool {
+        self.nodes.any_hit_with::<B, S>(ray, stats)
+    }
+
+    fn closest_hit_packet_with<B: BoxTest, S: Stats>(
+        &self,
+        rays: &[Ray],
+        active: Option<&[bool]>,
+        mode: PacketMode,
+        hits: &mut [Option<Hit>],
+        stats: &mut S,
+    ) {
+        self.nodes
+            .closest_hit_packet_with::<B, S>(rays, active, mode, hits, stats)
+    }
+
+    fn any_hit_packet_with<B: BoxTest, S: Stats>(
+        &self,
+        rays: &[Ray],
+        active: Option<&[bool]>,
+        mode: PacketMode,
+        occluded: &mut [bool],
+        stats: &mut S,
+    ) {
+        self.nodes
+            .any_hit_packet_with::<B, S>(rays, active, mode, occluded, stats)
+    }
+}
+
+impl<P: Primitive> RayQuery for Scaled<P> {
+    fn closest_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> Option<Hit> {
         let (local, back) = self.frame.ray(ray);
         let hit = self.nodes.closest_hit_with::<B, S>(&local, stats);
         hit.map(|h| back.hit(h))
     }
 
-    #[inline]
     fn any_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> bool {
-        if self.frame.is_identity() {
-            return self.nodes.any_hit_with::<B, S>(ray, stats);
-        }
         self.nodes
             .any_hit_with::<B, S>(&self.frame.ray(ray).0, stats)
     }
@@ -228,11 +299,6 @@ impl<P: Primitive> RayQuery for Bvh<P> {
         hits: &mut [Option<Hit>],
         stats: &mut S,
     ) {
-        if self.frame.is_identity() {
-            return self
-                .nodes
-                .closest_hit_packet_with::<B, S>(rays, active, mode, hits, stats);
-        }
         assert_eq!(hits.len(), rays.len(), "one hit slot per ray");
         self.in_frame(rays, active, |local, backs, active, at| {
             let hits = &mut hits[at..at + local.len()];
@@ -252,11 +318,6 @@ impl<P: Primitive> RayQuery for Bvh<P> {
         occluded: &mut [bool],
         stats: &mut S,
     ) {
-        if self.frame.is_identity() {
-            return self
-                .nodes
-                .any_hit_packet_with::<B, S>(rays, active, mode, occluded, stats);
-        }
         assert_eq!(occluded.len(), rays.len(), "one flag per ray");
         self.in_frame(rays, active, |local, _, active, at| {
             let occluded = &mut occluded[at..at + local.len()];
@@ -266,7 +327,7 @@ impl<P: Primitive> RayQuery for Bvh<P> {
     }
 }
 
-impl<P: Primitive> Bvh<P> {
+impl<P: Primitive> Scaled<P> {
     /// Calls `f(local rays, their ways back, their active flags, index of the first)` batch
     /// by batch with the rays brought into the frame, on the stack.
     fn in_frame(
@@ -421,13 +482,17 @@ impl<'p> BuildOptions<'p> {
                     let local_bounds: Vec<Aabb> = bounds.iter().map(|b| frame.aabb(b)).collect();
                     let tree = build(&local_bounds, &self.effective_config(), self.builder);
                     let nodes = self.lay_out(&tree, leaf_order(&tree, &local));
-                    (Bvh { nodes, frame }, tree.refit(&bounds))
+                    (
+                        Bvh {
+                            nodes: nodes.framed(frame),
+                        },
+                        tree.refit(&bounds),
+                    )
                 }
                 None => {
                     let tree = build(&bounds, &self.effective_config(), self.builder);
                     let nodes = self.lay_out(&tree, leaf_order(&tree, prims));
-                    let frame = Frame::default();
-                    (Bvh { nodes, frame }, tree)
+                    (Bvh { nodes }, tree)
                 }
             }
         })
@@ -490,7 +555,12 @@ impl<'p> BuildOptions<'p> {
             } else {
                 tree.refit(&bounds)
             };
-            (Bvh { nodes, frame }, tree)
+            (
+                Bvh {
+                    nodes: nodes.framed(frame),
+                },
+                tree,
+            )
         }))
     }
 
