@@ -1,5 +1,6 @@
 use glam::Vec3A;
 use quiver::geometry::{Aabb, Ray};
+use std::fmt;
 
 /// A pinhole camera in the SPD/NFF convention.
 ///
@@ -20,14 +21,73 @@ pub struct Camera {
     pub from: Vec3A,
     /// Point at the image centre.
     pub at: Vec3A,
-    /// Up direction (need not be perpendicular to the view).
+    /// Up direction (need not be perpendicular to the view, but must not be parallel to it).
     pub up: Vec3A,
     /// Full field of view in degrees.
     pub angle: f32,
 }
 
+/// Why a camera cannot make eye rays. [`CameraError::field`] names the NFF field at fault.
+///
+/// ```
+/// use quiver_scenes::scene::{Camera, CameraError};
+/// use glam::Vec3A;
+/// let e = Camera::try_new(Vec3A::Z * 5.0, Vec3A::ZERO, Vec3A::Z, 45.0).unwrap_err();
+/// assert_eq!(e, CameraError::UpAlongView);
+/// assert_eq!(e.field(), "up");
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum CameraError {
+    /// A field (`from`, `at`, `up` or `angle`) holds a NaN or an infinity.
+    NonFinite(&'static str),
+    /// `from` and `at` are the same point, or so close together or far apart that their
+    /// difference has no direction in f32.
+    NoViewDirection,
+    /// `up` is zero or parallel to the view direction, so the image has no up.
+    UpAlongView,
+    /// The field of view is not strictly between 0 and 180 degrees.
+    Angle(f32),
+}
+
+impl CameraError {
+    /// The field the fault is reported against: `from`, `at`, `up` or `angle`.
+    pub fn field(&self) -> &'static str {
+        match self {
+            CameraError::NonFinite(f) => f,
+            CameraError::NoViewDirection => "at",
+            CameraError::UpAlongView => "up",
+            CameraError::Angle(_) => "angle",
+        }
+    }
+}
+
+impl fmt::Display for CameraError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            CameraError::NonFinite(field) => write!(f, "camera '{field}' is not finite"),
+            CameraError::NoViewDirection => write!(
+                f,
+                "camera 'at' gives no view direction: it is the same point as 'from' \
+                 (or too close to it, or too far from it, for f32)"
+            ),
+            CameraError::UpAlongView => write!(
+                f,
+                "camera 'up' is zero or parallel to the view direction from 'from' to 'at'"
+            ),
+            CameraError::Angle(a) => write!(
+                f,
+                "camera 'angle' {a} must lie strictly between 0 and 180 degrees"
+            ),
+        }
+    }
+}
+
+impl std::error::Error for CameraError {}
+
 impl Camera {
-    /// A camera from eye, look-at point, up vector and field of view.
+    /// A camera from eye, look-at point, up vector and field of view, unchecked: a degenerate
+    /// one (see [`CameraError`]) makes NaN eye rays, so input from outside the program goes
+    /// through [`Camera::try_new`] instead.
     pub fn new(from: Vec3A, at: Vec3A, up: Vec3A, angle: f32) -> Self {
         Camera {
             from,
@@ -37,7 +97,53 @@ impl Camera {
         }
     }
 
-    /// A camera that frames `bounds` from a diagonal viewpoint (for files without one).
+    /// [`Camera::new`], or why its eye rays would not be finite.
+    ///
+    /// ```
+    /// use quiver_scenes::scene::{Camera, CameraError};
+    /// use glam::Vec3A;
+    /// assert!(Camera::try_new(Vec3A::Z, Vec3A::ZERO, Vec3A::Y, 45.0).is_ok());
+    /// let same = Camera::try_new(Vec3A::ONE, Vec3A::ONE, Vec3A::Y, 45.0);
+    /// assert_eq!(same.unwrap_err(), CameraError::NoViewDirection);
+    /// let wide = Camera::try_new(Vec3A::Z, Vec3A::ZERO, Vec3A::Y, 180.0);
+    /// assert_eq!(wide.unwrap_err(), CameraError::Angle(180.0));
+    /// ```
+    pub fn try_new(from: Vec3A, at: Vec3A, up: Vec3A, angle: f32) -> Result<Self, CameraError> {
+        let cam = Camera::new(from, at, up, angle);
+        cam.validate()?;
+        Ok(cam)
+    }
+
+    /// Checks that every eye ray [`Camera::ray`] makes is finite.
+    pub fn validate(&self) -> Result<(), CameraError> {
+        for (field, v) in [("from", self.from), ("at", self.at), ("up", self.up)] {
+            if !v.is_finite() {
+                return Err(CameraError::NonFinite(field));
+            }
+        }
+        if !self.angle.is_finite() {
+            return Err(CameraError::NonFinite("angle"));
+        }
+        if !(self.angle > 0.0 && self.angle < 180.0) {
+            return Err(CameraError::Angle(self.angle));
+        }
+        // Zero when the difference underflows or overflows as well as when the points match.
+        let w = (self.at - self.from).normalize_or_zero();
+        if w == Vec3A::ZERO {
+            return Err(CameraError::NoViewDirection);
+        }
+        // As `ray` computes it, from the unnormalised up: within about 1e-6 radians of the
+        // view the image's roll is f32 noise, and at 0 (or where the product under- or
+        // overflows) `ray` divides by zero.
+        let right = w.cross(self.up);
+        if right.normalize_or_zero() == Vec3A::ZERO || right.length() <= 1e-6 * self.up.length() {
+            return Err(CameraError::UpAlongView);
+        }
+        Ok(())
+    }
+
+    /// A camera that frames `bounds` from a diagonal viewpoint (for files without one). Always
+    /// valid: bounds too large or too small to frame in f32 get a fixed view of the origin.
     pub fn framing(bounds: &Aabb) -> Self {
         let (c, r) = if bounds.is_empty() {
             (Vec3A::ZERO, 1.0)
@@ -47,17 +153,17 @@ impl Camera {
         let dir = Vec3A::new(0.6, 0.45, 1.0).normalize();
         // 45° full angle: the bounding sphere fits when the distance is r / sin(22.5°).
         let dist = r / (22.5f32).to_radians().sin();
-        let cam = Camera::new(c + dir * dist, c, Vec3A::Y, 45.0);
-        if cam.from.is_finite() && cam.at.is_finite() && cam.from != cam.at {
-            cam
-        } else {
-            // Bounds too large (or too small) to frame in f32: a fixed view of the origin.
-            Camera::new(Vec3A::new(0.0, 0.0, 10.0), Vec3A::ZERO, Vec3A::Y, 45.0)
-        }
+        Camera::try_new(c + dir * dist, c, Vec3A::Y, 45.0).unwrap_or(Camera::new(
+            Vec3A::new(0.0, 0.0, 10.0),
+            Vec3A::ZERO,
+            Vec3A::Y,
+            45.0,
+        ))
     }
 
     /// The eye ray through image-plane point `(sx, sy)`, both in `[-1, 1]`: `(-1, 1)` is the
-    /// top-left edge of the field of view. The direction is normalised.
+    /// top-left edge of the field of view. The direction is normalised; it is NaN for a camera
+    /// [`Camera::validate`] rejects.
     pub fn ray(&self, sx: f32, sy: f32) -> Ray {
         let w = (self.at - self.from).normalize();
         let right = w.cross(self.up).normalize();

@@ -8,16 +8,30 @@
 //! assert_eq!((s.objects.len(), s.triangles().len()), (16, 16));
 //! assert!(Scene::load("nosuchscene").unwrap_err().to_string().contains("tetra"));
 //! ```
+//!
+//! Files are read strictly, and both formats report a fault alike, as
+//! `file:line: what was expected` ([`SceneError::Parse`]). A NaN or infinite number is an
+//! error too, unless [`LoadOptions`] asks for the primitives and lights that hold one to be
+//! dropped and counted ([`LoadReport`]):
+//!
+//! ```
+//! use quiver_scenes::scene::{nff, LoadOptions, NonFinite};
+//! let text = "f 1 1 1 1 0 0 0 1\ns 0 0 0 1\ns 0 nan 0 1\n";
+//! let e = nff::parse(text, "two.nff").unwrap_err();
+//! assert_eq!(e.to_string(), "two.nff:3: sphere centre y is NaN ('nan')");
+//! let lax = LoadOptions::default().non_finite(NonFinite::Drop);
+//! let (scene, report) = nff::parse_with(text, "two.nff", &lax).unwrap();
+//! assert_eq!((scene.objects.len(), report.dropped_primitives), (1, 1));
+//! ```
 
 mod camera;
 pub mod nff;
-#[cfg(feature = "obj")]
-mod obj;
+pub mod obj;
 mod soup;
 mod spd;
 pub mod tessellate;
 
-pub use camera::Camera;
+pub use camera::{Camera, CameraError};
 
 use crate::primitive::{Cone, PatchTriangle, Polygon, Prim, Sphere};
 use glam::Vec3A;
@@ -120,6 +134,8 @@ pub struct Generator {
     pub name: &'static str,
     /// Size used when the name has no number.
     pub default_size: u32,
+    /// Smallest size accepted (the SPD lattice divides by zero at 0).
+    pub min_size: u32,
     /// Largest size accepted (keeps a typo from exhausting memory).
     pub max_size: u32,
     /// One line for `--help` and error messages.
@@ -133,6 +149,7 @@ pub const GENERATORS: &[Generator] = &[
     Generator {
         name: "balls",
         default_size: 4,
+        min_size: 0,
         max_size: 6,
         about: "SPD sphereflake: (9^(size+1)-1)/8 mirrored spheres on a floor",
         make: spd::balls::make,
@@ -140,6 +157,7 @@ pub const GENERATORS: &[Generator] = &[
     Generator {
         name: "gears",
         default_size: 4,
+        min_size: 0,
         max_size: 12,
         about: "SPD gears: size^3 gear pairs with 144-vertex concave faces, some transparent",
         make: spd::gears::make,
@@ -147,6 +165,7 @@ pub const GENERATORS: &[Generator] = &[
     Generator {
         name: "jacks",
         default_size: 1,
+        min_size: 0,
         max_size: 6,
         about: "SPD jacks: recursive jacks of spheres and cylinders",
         make: spd::jacks::make,
@@ -154,6 +173,7 @@ pub const GENERATORS: &[Generator] = &[
     Generator {
         name: "lattice",
         default_size: 12,
+        min_size: 1,
         max_size: 60,
         about: "SPD lattice: (size+1)^3 spheres joined by cylinders",
         make: spd::lattice::make,
@@ -161,6 +181,7 @@ pub const GENERATORS: &[Generator] = &[
     Generator {
         name: "mount",
         default_size: 6,
+        min_size: 0,
         max_size: 10,
         about: "SPD fractal mountain: 2*4^size triangles and 4 glass spheres",
         make: spd::mount::make,
@@ -168,6 +189,7 @@ pub const GENERATORS: &[Generator] = &[
     Generator {
         name: "rings",
         default_size: 7,
+        min_size: 0,
         max_size: 40,
         about: "SPD rings: pentagonal rings of spheres and cylinders",
         make: spd::rings::make,
@@ -175,6 +197,7 @@ pub const GENERATORS: &[Generator] = &[
     Generator {
         name: "sombrero",
         default_size: 1,
+        min_size: 0,
         max_size: 6,
         about: "SPD sombrero: a height field of 2*(2^(size+4)-1)^2 triangles",
         make: spd::sombrero::make,
@@ -182,6 +205,7 @@ pub const GENERATORS: &[Generator] = &[
     Generator {
         name: "teapot",
         default_size: 6,
+        min_size: 0,
         max_size: 128,
         about:
             "SPD teapot: Bezier patches tessellated to 64*size^2-8*size triangles on a checkerboard",
@@ -190,6 +214,7 @@ pub const GENERATORS: &[Generator] = &[
     Generator {
         name: "tetra",
         default_size: 6,
+        min_size: 0,
         max_size: 12,
         about: "SPD tetra: recursive tetrahedron, 4^size triangles",
         make: spd::tetra::make,
@@ -197,6 +222,7 @@ pub const GENERATORS: &[Generator] = &[
     Generator {
         name: "tree",
         default_size: 11,
+        min_size: 0,
         max_size: 18,
         about: "SPD tree: a branching tree of 2^(size+1)-1 cones and spheres",
         make: spd::tree::make,
@@ -204,6 +230,7 @@ pub const GENERATORS: &[Generator] = &[
     Generator {
         name: "icosphere",
         default_size: 4,
+        min_size: 0,
         max_size: 9,
         about: "a closed unit sphere: an icosahedron subdivided size times, 20*4^size triangles",
         make: soup::icosphere,
@@ -211,6 +238,7 @@ pub const GENERATORS: &[Generator] = &[
     Generator {
         name: "soup",
         default_size: 10_000,
+        min_size: 0,
         max_size: 50_000_000,
         about: "seeded random triangle soup, size = triangle count",
         make: soup::soup,
@@ -228,16 +256,44 @@ pub enum SceneError {
         name: String,
         /// The size asked for.
         size: String,
+        /// The smallest accepted.
+        min: u32,
         /// The largest accepted.
         max: u32,
     },
-    /// A file that could not be read or parsed.
+    /// A file that could not be used as a whole (unreadable, or an OBJ without faces).
     File {
         /// The file.
         path: PathBuf,
-        /// What went wrong, with a line number where known.
+        /// What went wrong.
         message: String,
     },
+    /// A fault at one line of a scene file, NFF or OBJ; shown as `file:line: message`.
+    Parse {
+        /// The file.
+        path: PathBuf,
+        /// The line, from 1.
+        line: usize,
+        /// What was found and what was expected there.
+        message: String,
+    },
+}
+
+impl SceneError {
+    /// The line a [`SceneError::Parse`] points at.
+    ///
+    /// ```
+    /// use quiver_scenes::scene::obj;
+    /// let e = obj::parse("v 0 0 0\nv 1 0 0\nf 1 2\n", "two.obj").unwrap_err();
+    /// assert_eq!(e.line(), Some(3));
+    /// assert_eq!(e.to_string(), "two.obj:3: face needs at least 3 vertices, got 2");
+    /// ```
+    pub fn line(&self) -> Option<usize> {
+        match self {
+            SceneError::Parse { line, .. } => Some(*line),
+            _ => None,
+        }
+    }
 }
 
 impl fmt::Display for SceneError {
@@ -251,32 +307,193 @@ impl fmt::Display for SceneError {
                     names.join(", ")
                 )
             }
-            SceneError::Size { name, size, max } => {
+            SceneError::Size {
+                name,
+                size,
+                min,
+                max,
+            } => {
                 write!(
                     f,
-                    "scene '{name}': size '{size}' must be a number from 0 to {max}"
+                    "scene '{name}': size '{size}' must be a number from {min} to {max}"
                 )
             }
             SceneError::File { path, message } => write!(f, "{}: {message}", path.display()),
+            SceneError::Parse {
+                path,
+                line,
+                message,
+            } => write!(f, "{}:{line}: {message}", path.display()),
         }
     }
 }
 
 impl std::error::Error for SceneError {}
 
+/// What a file loader does with a NaN or infinite number.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum NonFinite {
+    /// Fail with the number's file and line (the default).
+    #[default]
+    Error,
+    /// Leave out the primitive or light that holds it and count it in [`LoadReport`]. Numbers
+    /// no primitive or light owns (the view, background, materials) are errors still.
+    Drop,
+}
+
+/// How files are read: [`Scene::load_with`], [`nff::parse_with`], [`obj::parse_with`].
+///
+/// ```
+/// use quiver_scenes::scene::{LoadOptions, NonFinite};
+/// assert_eq!(LoadOptions::default().non_finite, NonFinite::Error);
+/// let lax = LoadOptions::default().non_finite(NonFinite::Drop);
+/// assert_eq!(lax.non_finite, NonFinite::Drop);
+/// ```
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct LoadOptions {
+    /// What a NaN or infinite number does.
+    pub non_finite: NonFinite,
+}
+
+impl LoadOptions {
+    /// Sets [`LoadOptions::non_finite`].
+    pub fn non_finite(mut self, n: NonFinite) -> Self {
+        self.non_finite = n;
+        self
+    }
+}
+
+/// What a load left out under [`NonFinite::Drop`]; empty otherwise.
+///
+/// ```
+/// use quiver_scenes::scene::{obj, LoadOptions, NonFinite};
+/// let text = "v 0 0 0\nv 1 0 0\nv 0 inf 0\nv 0 1 0\nf 1 2 3\nf 1 2 4\n";
+/// let lax = LoadOptions::default().non_finite(NonFinite::Drop);
+/// let (scene, report) = obj::parse_with(text, "m.obj", &lax).unwrap();
+/// assert_eq!((scene.objects.len(), report.dropped_primitives), (1, 1));
+/// assert_eq!(report.reasons, ["m.obj:5: face dropped: its vertex 3 (line 3) is not finite"]);
+/// assert_eq!(report.to_string(), "dropped 1 primitive with non-finite numbers \
+///     (m.obj:5: face dropped: its vertex 3 (line 3) is not finite)");
+/// ```
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct LoadReport {
+    /// Primitives left out: OBJ faces (a polygon counts once) and NFF spheres, cones,
+    /// polygons and patches.
+    pub dropped_primitives: usize,
+    /// NFF lights left out.
+    pub dropped_lights: usize,
+    /// Why, as `file:line: ...`, for the first [`LoadReport::REASONS_KEPT`] drops in file
+    /// order.
+    pub reasons: Vec<String>,
+}
+
+impl LoadReport {
+    /// How many reasons [`LoadReport::reasons`] keeps: enough to find the fault, few enough
+    /// for a file with millions of NaNs.
+    pub const REASONS_KEPT: usize = 8;
+
+    /// True when nothing was dropped.
+    pub fn is_empty(&self) -> bool {
+        self.dropped_primitives == 0 && self.dropped_lights == 0
+    }
+
+    fn note(&mut self, reason: String) {
+        if self.reasons.len() < Self::REASONS_KEPT {
+            self.reasons.push(reason);
+        }
+    }
+
+    pub(crate) fn drop_primitive(&mut self, reason: String) {
+        self.dropped_primitives += 1;
+        self.note(reason);
+    }
+
+    pub(crate) fn drop_light(&mut self, reason: String) {
+        self.dropped_lights += 1;
+        self.note(reason);
+    }
+}
+
+impl fmt::Display for LoadReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let count = |n: usize, what: &str| format!("{n} {what}{}", if n == 1 { "" } else { "s" });
+        let mut parts = Vec::new();
+        if self.dropped_primitives > 0 {
+            parts.push(count(self.dropped_primitives, "primitive"));
+        }
+        if self.dropped_lights > 0 {
+            parts.push(count(self.dropped_lights, "light"));
+        }
+        if parts.is_empty() {
+            return write!(f, "nothing dropped");
+        }
+        write!(
+            f,
+            "dropped {} with non-finite numbers ({}",
+            parts.join(" and "),
+            self.reasons.join("; ")
+        )?;
+        let total = self.dropped_primitives + self.dropped_lights;
+        if total > self.reasons.len() {
+            write!(f, "; {} more", total - self.reasons.len())?;
+        }
+        write!(f, ")")
+    }
+}
+
+/// One number read from a file: the value, or a message saying what was expected. NaN and
+/// infinity are returned as values for the caller to fail on or drop ([`non_finite`]).
+pub(crate) fn number(tok: &str, what: &str) -> Result<f32, String> {
+    tok.parse::<f32>()
+        .map_err(|_| format!("expected a number for {what}, got '{tok}'"))
+}
+
+/// The message for a number that parsed but is not finite (`1e39` is infinite in f32).
+pub(crate) fn non_finite(what: &str, tok: &str, x: f32) -> String {
+    let kind = if x.is_nan() { "NaN" } else { "infinite" };
+    format!("{what} is {kind} ('{tok}')")
+}
+
+/// A file's text. Invalid UTF-8 becomes U+FFFD, so it fails as a bad token on its own line
+/// where it matters and passes in comments.
+fn read_text(path: &Path) -> Result<String, SceneError> {
+    let bytes = std::fs::read(path).map_err(|e| SceneError::File {
+        path: path.into(),
+        message: format!("cannot read: {e}"),
+    })?;
+    Ok(String::from_utf8_lossy(&bytes).into_owned())
+}
+
 impl Scene {
-    /// Loads a scene by name (`tetra6`, `soup1000`) or from an `.obj` path.
+    /// Loads a scene by name (`tetra6`, `soup1000`) or from an `.nff` or `.obj` path,
+    /// strictly: any fault in a file, a NaN or infinite number included, is an error naming
+    /// the file and line. [`Scene::load_with`] can drop non-finite primitives instead.
+    ///
+    /// ```
+    /// use quiver_scenes::Scene;
+    /// let e = Scene::load("/nonexistent/x.obj").unwrap_err().to_string();
+    /// assert!(e.starts_with("/nonexistent/x.obj: cannot read: "), "{e}");
+    /// ```
     pub fn load(spec: &str) -> Result<Scene, SceneError> {
+        Scene::load_with(spec, &LoadOptions::default()).map(|(scene, _)| scene)
+    }
+
+    /// [`Scene::load`] with options, and what they made the loader leave out. Generators
+    /// always report nothing dropped.
+    ///
+    /// ```
+    /// use quiver_scenes::scene::{LoadOptions, NonFinite, Scene};
+    /// let lax = LoadOptions::default().non_finite(NonFinite::Drop);
+    /// let (scene, report) = Scene::load_with("tetra1", &lax).unwrap();
+    /// assert_eq!((scene.objects.len(), report.is_empty()), (4, true));
+    /// ```
+    pub fn load_with(spec: &str, opts: &LoadOptions) -> Result<(Scene, LoadReport), SceneError> {
         let lower = spec.to_ascii_lowercase();
         if lower.ends_with(".obj") {
-            return load_obj(Path::new(spec));
+            return obj::parse_with(&read_text(Path::new(spec))?, spec, opts);
         }
         if lower.ends_with(".nff") {
-            let text = std::fs::read_to_string(spec).map_err(|e| SceneError::File {
-                path: spec.into(),
-                message: format!("cannot read: {e}"),
-            })?;
-            return nff::parse(&text, spec);
+            return nff::parse_with(&read_text(Path::new(spec))?, spec, opts);
         }
         let split = spec
             .find(|c: char| c.is_ascii_digit())
@@ -291,14 +508,15 @@ impl Scene {
         } else {
             size.parse::<u32>()
                 .ok()
-                .filter(|&s| s <= gen.max_size)
+                .filter(|s| (gen.min_size..=gen.max_size).contains(s))
                 .ok_or_else(|| SceneError::Size {
                     name: name.into(),
                     size: size.into(),
+                    min: gen.min_size,
                     max: gen.max_size,
                 })?
         };
-        Ok((gen.make)(size))
+        Ok(((gen.make)(size), LoadReport::default()))
     }
 
     /// Bounds of all finite objects.
@@ -439,17 +657,4 @@ impl Scene {
             .iter()
             .all(|o| matches!(o.shape, Shape::Triangle(_)))
     }
-}
-
-#[cfg(feature = "obj")]
-fn load_obj(path: &Path) -> Result<Scene, SceneError> {
-    obj::load(path)
-}
-
-#[cfg(not(feature = "obj"))]
-fn load_obj(path: &Path) -> Result<Scene, SceneError> {
-    Err(SceneError::File {
-        path: path.into(),
-        message: "OBJ support needs quiver's `obj` feature".into(),
-    })
 }

@@ -5,7 +5,8 @@
 //! cone (base point and radius, apex point and radius), `s` sphere, `p` polygon and `pp`
 //! polygonal patch (vertex count, then one vertex, or vertex and normal, per line), `#`
 //! comments. The reader takes whitespace-separated tokens, so line breaks inside an entity
-//! are not significant; errors name the line of the offending token.
+//! are not significant; errors name the line of the offending token, as
+//! `file:line: message` ([`SceneError::Parse`]), the same form the OBJ reader uses.
 //!
 //! ```
 //! use quiver_scenes::scene::{nff, Scene};
@@ -14,37 +15,66 @@
 //! nff::write(&s, &mut text).unwrap();
 //! let back = nff::parse(std::str::from_utf8(&text).unwrap(), "tetra2.nff").unwrap();
 //! assert_eq!(back.objects, s.objects);
-//! assert!(nff::parse("s 0 0 zero 1", "bad.nff").unwrap_err().to_string().contains("line 1"));
+//! assert_eq!(
+//!     nff::parse("s 0 0 zero 1", "bad.nff").unwrap_err().to_string(),
+//!     "bad.nff:1: expected a number for sphere centre z, got 'zero'"
+//! );
 //! ```
 
-use super::{Camera, Light, Material, Object, Scene, SceneError, Shape};
+use super::{
+    Camera, Light, LoadOptions, LoadReport, Material, NonFinite, Object, Scene, SceneError, Shape,
+};
 use crate::primitive::{Cone, Sphere};
 use glam::Vec3A;
 use quiver::Triangle;
 use std::io::{self, Write};
 use std::path::Path;
 
+const ENTITIES: &str = "v, b, l, f, c, s, p or pp";
+
 /// Token stream with line numbers.
 struct Tokens<'a> {
     path: &'a Path,
     items: Vec<(usize, &'a str)>,
     at: usize,
+    non_finite: NonFinite,
+    /// The first non-finite number of the current entity under [`NonFinite::Drop`]: its line
+    /// and message.
+    dropped: Option<(usize, String)>,
+    /// Context for a missing or malformed number (a polygon's promised vertex count).
+    hint: Option<String>,
 }
 
 impl<'a> Tokens<'a> {
-    fn new(text: &'a str, path: &'a Path) -> Self {
+    fn new(text: &'a str, path: &'a Path, non_finite: NonFinite) -> Self {
         let mut items = Vec::new();
         for (n, line) in text.lines().enumerate() {
             let line = line.split('#').next().unwrap_or("");
             items.extend(line.split_whitespace().map(|t| (n + 1, t)));
         }
-        Tokens { path, items, at: 0 }
+        Tokens {
+            path,
+            items,
+            at: 0,
+            non_finite,
+            dropped: None,
+            hint: None,
+        }
     }
 
     fn err(&self, line: usize, message: String) -> SceneError {
-        SceneError::File {
+        SceneError::Parse {
             path: self.path.into(),
-            message: format!("line {line}: {message}"),
+            line,
+            message,
+        }
+    }
+
+    /// [`Tokens::err`] for a missing or malformed token, with the hint if there is one.
+    fn syntax(&self, line: usize, message: String) -> SceneError {
+        match &self.hint {
+            Some(h) => self.err(line, format!("{message} ({h})")),
+            None => self.err(line, message),
         }
     }
 
@@ -58,7 +88,7 @@ impl<'a> Tokens<'a> {
 
     fn next(&mut self, what: &str) -> Result<&'a str, SceneError> {
         let t = self.items.get(self.at).ok_or_else(|| {
-            self.err(
+            self.syntax(
                 self.line(),
                 format!("unexpected end of file, expected {what}"),
             )
@@ -71,26 +101,54 @@ impl<'a> Tokens<'a> {
         self.items.get(self.at).map(|t| t.1)
     }
 
+    /// A number of what no primitive or light owns (view, background, material): NaN and
+    /// infinity are errors whatever the options.
     fn number(&mut self, what: &str) -> Result<f32, SceneError> {
         let line = self.line();
-        let tok = self.next(what)?;
-        match tok.parse::<f32>() {
+        let tok = self.next(&format!("a number for {what}"))?;
+        match super::number(tok, what) {
             Ok(x) if x.is_finite() => Ok(x),
-            _ => Err(self.err(
-                line,
-                format!("expected {what} (a finite number), found '{tok}'"),
-            )),
+            Ok(x) => Err(self.err(line, super::non_finite(what, tok, x))),
+            Err(m) => Err(self.syntax(line, m)),
         }
     }
 
-    fn count(&mut self, what: &str, min: u32) -> Result<usize, SceneError> {
+    /// A number of a primitive or light: under [`NonFinite::Drop`] a NaN or infinity is kept
+    /// and marks the entity for dropping.
+    fn coord(&mut self, what: &str) -> Result<f32, SceneError> {
         let line = self.line();
-        let tok = self.next(what)?;
+        let tok = self.next(&format!("a number for {what}"))?;
+        match super::number(tok, what) {
+            Ok(x) if x.is_finite() => Ok(x),
+            Ok(x) => {
+                let m = super::non_finite(what, tok, x);
+                match self.non_finite {
+                    NonFinite::Error => Err(self.err(line, m)),
+                    NonFinite::Drop => {
+                        self.dropped.get_or_insert((line, m));
+                        Ok(x)
+                    }
+                }
+            }
+            Err(m) => Err(self.syntax(line, m)),
+        }
+    }
+
+    /// A whole number of at least `min`; `small` says what is wrong with a smaller one.
+    fn count(
+        &mut self,
+        what: &str,
+        min: u32,
+        small: impl Fn(u32) -> String,
+    ) -> Result<usize, SceneError> {
+        let line = self.line();
+        let tok = self.next(&format!("{what} (a whole number)"))?;
         match tok.parse::<u32>() {
             Ok(n) if n >= min => Ok(n as usize),
-            _ => Err(self.err(
+            Ok(n) => Err(self.err(line, small(n))),
+            Err(_) => Err(self.syntax(
                 line,
-                format!("expected {what} (an integer >= {min}), found '{tok}'"),
+                format!("expected {what} (a whole number), got '{tok}'"),
             )),
         }
     }
@@ -103,21 +161,61 @@ impl<'a> Tokens<'a> {
         ))
     }
 
-    fn keyword(&mut self, want: &str) -> Result<(), SceneError> {
+    /// A point or direction of a primitive or light (see [`Tokens::coord`]).
+    fn point(&mut self, what: &str) -> Result<Vec3A, SceneError> {
+        Ok(Vec3A::new(
+            self.coord(&format!("{what} x"))?,
+            self.coord(&format!("{what} y"))?,
+            self.coord(&format!("{what} z"))?,
+        ))
+    }
+
+    /// Reads the keyword `want` and returns its line.
+    fn keyword(&mut self, want: &str) -> Result<usize, SceneError> {
         let line = self.line();
-        let tok = self.next(want)?;
+        let tok = self.next(&format!("'{want}'"))?;
         if tok == want {
-            Ok(())
+            Ok(line)
         } else {
-            Err(self.err(line, format!("expected '{want}', found '{tok}'")))
+            Err(self.err(line, format!("expected '{want}', got '{tok}'")))
         }
     }
 }
 
-/// Parses NFF text. `path` names the source in error messages.
+/// Parses NFF text strictly (see [`parse_with`]). `path` names the source in error messages.
 pub fn parse(text: &str, path: impl AsRef<Path>) -> Result<Scene, SceneError> {
+    parse_with(text, path, &LoadOptions::default()).map(|(scene, _)| scene)
+}
+
+/// Parses NFF text; `path` names the source in error messages. Under [`NonFinite::Drop`] a
+/// sphere, cone, polygon, patch or light with a NaN or infinite number is left out and
+/// counted; a non-finite view, background or material is an error either way.
+///
+/// Besides syntax, the reader rejects what would trace as something other than the file
+/// says: a degenerate view (see [`crate::scene::CameraError`]), a negative `hither`, a sphere
+/// without a positive radius, a cone with a negative radius, both radii zero or its two ends
+/// at one point.
+///
+/// ```
+/// use quiver_scenes::scene::{nff, LoadOptions, NonFinite};
+/// let view = "v\nfrom 0 0 5\nat 0 0 0\nup 0 0 1\nangle 45\nhither 1\nresolution 64 64\n";
+/// assert_eq!(
+///     nff::parse(view, "v.nff").unwrap_err().to_string(),
+///     "v.nff:4: camera 'up' is zero or parallel to the view direction from 'from' to 'at'"
+/// );
+/// let lax = LoadOptions::default().non_finite(NonFinite::Drop);
+/// let (s, report) = nff::parse_with("l 0 0 1\nl inf 0 1\n", "l.nff", &lax).unwrap();
+/// assert_eq!((s.lights.len(), report.dropped_lights), (1, 1));
+/// assert_eq!(report.reasons, ["l.nff:2: light dropped: light position x is infinite ('inf')"]);
+/// ```
+pub fn parse_with(
+    text: &str,
+    path: impl AsRef<Path>,
+    opts: &LoadOptions,
+) -> Result<(Scene, LoadReport), SceneError> {
     let path = path.as_ref();
-    let mut tk = Tokens::new(text, path);
+    let mut tk = Tokens::new(text, path, opts.non_finite);
+    let mut report = LoadReport::default();
     let mut scene = Scene {
         name: path.display().to_string(),
         objects: Vec::new(),
@@ -130,57 +228,82 @@ pub fn parse(text: &str, path: impl AsRef<Path>) -> Result<Scene, SceneError> {
     };
     let mut have_view = false;
     let mut material: Option<u32> = None;
+    // The entity before the current one, to explain a stray number by a wrong count.
+    let mut last: Option<(usize, &str, Option<usize>)> = None;
     while let Some(tok) = tk.peek() {
         let line = tk.line();
         tk.at += 1;
-        let shape = |s: Shape, tk: &Tokens, objects: &mut Vec<Object>| {
-            let m =
-                material.ok_or_else(|| tk.err(line, format!("'{tok}' before any 'f' material")))?;
-            objects.push(Object {
-                shape: s,
-                material: m,
-            });
-            Ok::<(), SceneError>(())
-        };
+        tk.dropped = None;
+        let mut count = None;
+        // Stores a shape unless one of its numbers was not finite under `NonFinite::Drop`.
+        let shape =
+            |s: Shape, tk: &mut Tokens, objects: &mut Vec<Object>, report: &mut LoadReport| {
+                let m = material
+                    .ok_or_else(|| tk.err(line, format!("'{tok}' before any 'f' material")))?;
+                match tk.dropped.take() {
+                    Some((l, why)) => report.drop_primitive(format!(
+                        "{}:{l}: {} dropped: {why}",
+                        path.display(),
+                        shape_name(tok)
+                    )),
+                    None => objects.push(Object {
+                        shape: s,
+                        material: m,
+                    }),
+                }
+                Ok::<(), SceneError>(())
+            };
         match tok {
             "v" => {
-                tk.keyword("from")?;
+                let l_from = tk.keyword("from")?;
                 let from = tk.vec3("from")?;
-                tk.keyword("at")?;
+                let l_at = tk.keyword("at")?;
                 let at = tk.vec3("at")?;
-                tk.keyword("up")?;
+                let l_up = tk.keyword("up")?;
                 let up = tk.vec3("up")?;
-                tk.keyword("angle")?;
+                let l_angle = tk.keyword("angle")?;
                 let angle = tk.number("angle")?;
-                tk.keyword("hither")?;
-                scene.hither = tk.number("hither")?;
+                let l_hither = tk.keyword("hither")?;
+                let hither = tk.number("hither")?;
+                if hither < 0.0 {
+                    return Err(tk.err(l_hither, format!("hither {hither} must not be negative")));
+                }
                 tk.keyword("resolution")?;
                 scene.resolution = [
-                    tk.count("resolution x", 1)? as u32,
-                    tk.count("resolution y", 1)? as u32,
+                    tk.count("resolution x", 1, |_| {
+                        "resolution x must be at least 1".into()
+                    })? as u32,
+                    tk.count("resolution y", 1, |_| {
+                        "resolution y must be at least 1".into()
+                    })? as u32,
                 ];
-                if !(angle > 0.0 && angle < 180.0) {
-                    return Err(tk.err(
-                        line,
-                        format!("view angle {angle} must lie strictly between 0 and 180"),
-                    ));
-                }
-                if (at - from).length_squared() == 0.0 || up.length_squared() == 0.0 {
-                    return Err(tk.err(line, "view needs from != at and a non-zero up".into()));
-                }
-                scene.camera = Camera::new(from, at, up, angle);
+                scene.hither = hither;
+                scene.camera = Camera::try_new(from, at, up, angle).map_err(|e| {
+                    let l = match e.field() {
+                        "from" => l_from,
+                        "at" => l_at,
+                        "up" => l_up,
+                        _ => l_angle,
+                    };
+                    tk.err(l, e.to_string())
+                })?;
                 have_view = true;
             }
             "b" => scene.background = tk.vec3("background colour")?,
             "l" => {
-                let pos = tk.vec3("light position")?;
+                let pos = tk.point("light position")?;
                 // An optional colour follows when the next token is a number.
                 let color = if tk.peek().is_some_and(|t| t.parse::<f32>().is_ok()) {
-                    tk.vec3("light colour")?
+                    tk.point("light colour")?
                 } else {
                     Vec3A::ONE
                 };
-                scene.lights.push(Light { pos, color });
+                match tk.dropped.take() {
+                    Some((l, why)) => {
+                        report.drop_light(format!("{}:{l}: light dropped: {why}", path.display()))
+                    }
+                    None => scene.lights.push(Light { pos, color }),
+                }
             }
             "f" => {
                 let m = Material {
@@ -202,24 +325,44 @@ pub fn parse(text: &str, path: impl AsRef<Path>) -> Result<Scene, SceneError> {
                 });
             }
             "s" => {
-                let center = tk.vec3("sphere centre")?;
-                let radius = tk.number("sphere radius")?;
-                if radius <= 0.0 {
-                    return Err(tk.err(line, format!("sphere radius {radius} must be positive")));
+                let center = tk.point("sphere centre")?;
+                let l_radius = tk.line();
+                let radius = tk.coord("sphere radius")?;
+                if tk.dropped.is_none() && radius <= 0.0 {
+                    return Err(
+                        tk.err(l_radius, format!("sphere radius {radius} must be positive"))
+                    );
                 }
                 shape(
                     Shape::Sphere(Sphere { center, radius }),
-                    &tk,
+                    &mut tk,
                     &mut scene.objects,
+                    &mut report,
                 )?;
             }
             "c" => {
-                let base = tk.vec3("cone base")?;
-                let base_radius = tk.number("cone base radius")?;
-                let apex = tk.vec3("cone apex")?;
-                let apex_radius = tk.number("cone apex radius")?;
-                if base_radius < 0.0 || apex_radius < 0.0 {
-                    return Err(tk.err(line, "cone radii must not be negative".into()));
+                let base = tk.point("cone base")?;
+                let base_radius = tk.coord("cone base radius")?;
+                let l_apex = tk.line();
+                let apex = tk.point("cone apex")?;
+                let l_apex_radius = tk.line();
+                let apex_radius = tk.coord("cone apex radius")?;
+                if tk.dropped.is_none() {
+                    let fault = if base_radius < 0.0 || apex_radius < 0.0 {
+                        Some((l_apex_radius, "cone radii must not be negative".to_string()))
+                    } else if base_radius == 0.0 && apex_radius == 0.0 {
+                        Some((
+                            l_apex_radius,
+                            "cone radii must not both be zero".to_string(),
+                        ))
+                    } else if base == apex {
+                        Some((l_apex, "cone apex must differ from its base".to_string()))
+                    } else {
+                        None
+                    };
+                    if let Some((l, m)) = fault {
+                        return Err(tk.err(l, m));
+                    }
                 }
                 let c = Cone {
                     base,
@@ -227,39 +370,69 @@ pub fn parse(text: &str, path: impl AsRef<Path>) -> Result<Scene, SceneError> {
                     apex,
                     apex_radius,
                 };
-                shape(Shape::Cone(c), &tk, &mut scene.objects)?;
+                shape(Shape::Cone(c), &mut tk, &mut scene.objects, &mut report)?;
             }
             "p" | "pp" => {
-                let n = tk.count("vertex count", 3)?;
+                let n = tk.count("vertex count", 3, |n| {
+                    format!("{} needs at least 3 vertices, got {n}", shape_name(tok))
+                })?;
+                count = Some(n);
                 // A count larger than the rest of the file is an error found below; do not let
                 // it reserve memory first.
                 let mut verts = Vec::with_capacity(n.min(tk.items.len() - tk.at));
                 let mut normals = Vec::new();
-                for _ in 0..n {
-                    verts.push(tk.vec3("vertex")?);
+                // A word or the end of the file where a vertex should be: say what the count
+                // promised.
+                tk.hint = Some(format!("the '{tok}' on line {line} says {n} vertices"));
+                for i in 1..=n {
+                    verts.push(tk.point(&format!("vertex {i}"))?);
                     if tok == "pp" {
-                        normals.push(tk.vec3("vertex normal")?);
+                        normals.push(tk.point(&format!("normal {i}"))?);
                     }
                 }
+                tk.hint = None;
                 let s = match (tok, n) {
                     ("pp", _) => Shape::Patch { verts, normals },
                     (_, 3) => Shape::Triangle(Triangle::new(verts[0], verts[1], verts[2])),
                     _ => Shape::Polygon(verts),
                 };
-                shape(s, &tk, &mut scene.objects)?;
+                shape(s, &mut tk, &mut scene.objects, &mut report)?;
+            }
+            other if other.parse::<f32>().is_ok() => {
+                let hint = match last {
+                    Some((l, e @ ("p" | "pp"), Some(n))) => {
+                        format!("; the '{e}' on line {l} says {n} vertices, are there more?")
+                    }
+                    Some((l, e, _)) => format!("; too many numbers for the '{e}' on line {l}?"),
+                    None => String::new(),
+                };
+                return Err(tk.err(
+                    line,
+                    format!("expected an entity ({ENTITIES}), got the number '{other}'{hint}"),
+                ));
             }
             other => {
                 return Err(tk.err(
                     line,
-                    format!("unknown entity '{other}' (expected v, b, l, f, c, s, p or pp)"),
+                    format!("unknown entity '{other}' (expected {ENTITIES})"),
                 ))
             }
         }
+        last = Some((line, tok, count));
     }
     if !have_view {
         scene.camera = Camera::framing(&scene.bounds());
     }
-    Ok(scene)
+    Ok((scene, report))
+}
+
+fn shape_name(entity: &str) -> &'static str {
+    match entity {
+        "s" => "sphere",
+        "c" => "cone",
+        "pp" => "patch",
+        _ => "polygon",
+    }
 }
 
 /// Writes the scene as NFF. Numbers are printed in Rust's shortest round-trip form, so
@@ -339,35 +512,32 @@ mod tests {
     fn malformed_input_names_file_line_and_expectation() {
         assert_eq!(
             err("f 1 1 1 0.5 0.5 3 0 1\ns 0 0 0"),
-            "t.nff: line 2: unexpected end of file, expected sphere radius"
+            "t.nff:2: unexpected end of file, expected a number for sphere radius"
         );
         assert_eq!(
             err("f 1 1 1 0.5 0.5 3 0 1\n\ns 0 0 0 -1"),
-            "t.nff: line 3: sphere radius -1 must be positive"
+            "t.nff:3: sphere radius -1 must be positive"
         );
-        assert_eq!(
-            err("s 0 0 0 1"),
-            "t.nff: line 1: 's' before any 'f' material"
-        );
+        assert_eq!(err("s 0 0 0 1"), "t.nff:1: 's' before any 'f' material");
         assert_eq!(
             err("f 1 1 1 1 1 1 1 1\np 2\n0 0 0\n1 1 1"),
-            "t.nff: line 2: expected vertex count (an integer >= 3), found '2'"
+            "t.nff:2: polygon needs at least 3 vertices, got 2"
         );
         assert_eq!(
             err("x 1"),
-            "t.nff: line 1: unknown entity 'x' (expected v, b, l, f, c, s, p or pp)"
+            "t.nff:1: unknown entity 'x' (expected v, b, l, f, c, s, p or pp)"
         );
         assert_eq!(
             err("v\nfrom 0 0 0\nat 0 0 1\nup 0 1 0\nangle 45\nhither 1\nresolution 512 nan"),
-            "t.nff: line 7: expected resolution y (an integer >= 1), found 'nan'"
+            "t.nff:7: expected resolution y (a whole number), got 'nan'"
         );
         assert_eq!(
             err("f 1 1 1 1 1 1 1 1\ns 0 inf 0 1"),
-            "t.nff: line 2: expected sphere centre y (a finite number), found 'inf'"
+            "t.nff:2: sphere centre y is infinite ('inf')"
         );
         assert_eq!(
             err("v\nfrom 0 0 0\nlookat 0 0 1"),
-            "t.nff: line 3: expected 'at', found 'lookat'"
+            "t.nff:3: expected 'at', got 'lookat'"
         );
     }
 
