@@ -118,6 +118,7 @@ pub fn evaluate(
         rays: &rays,
         want: &want,
         closed: &closed,
+        size: bounds.extent().max_element(),
     };
     let count = |q: Kernel, any: bool| measure::count_hits(&rays, |r| q(r, any));
     // The six kernels, in row order, timed side by side so a slow spell hits all alike.
@@ -203,6 +204,8 @@ struct Ctx<'a> {
     rays: &'a [Ray],
     want: &'a [Option<u32>],
     closed: &'a [Ray],
+    /// The scene's largest extent (secondary-ray offsets are relative to it).
+    size: f32,
 }
 
 fn per_million(count: usize, of: usize) -> f64 {
@@ -248,7 +251,7 @@ fn combo<P: Primitive, B: BoxTest>(
                         -normal
                     };
                     let d = r.dir - side * (2.0 * r.dir.dot(side));
-                    let s = method.ray(p, side, d, f32::INFINITY);
+                    let s = method.ray(ctx.size, p, side, d, f32::INFINITY);
                     (
                         1usize,
                         closest(&s).is_some_and(|s| s.prim == h.prim) as usize,

@@ -236,6 +236,42 @@ impl Triangle {
     }
 }
 
+/// `v` scaled to unit length at any size, or zero for a zero or non-finite vector.
+///
+/// glam's `normalize_or_zero` squares the components, so a normal computed as the cross
+/// product of two edges is lost beyond about 1e19 (overflow) or below 1e-19 (underflow) —
+/// edges of about 1e10 and 1e-10. This first brings the largest component near 1 by powers of
+/// two, which is exact: wherever `normalize_or_zero` works, the result is the same bits.
+///
+/// ```
+/// use quiver::geometry::unit_or_zero;
+/// use glam::Vec3A;
+/// let huge = Vec3A::new(3e30, 4e30, 0.0);
+/// assert_eq!(huge.normalize_or_zero(), Vec3A::ZERO); // squared: overflow
+/// assert!(unit_or_zero(huge).abs_diff_eq(Vec3A::new(0.6, 0.8, 0.0), 1e-7));
+/// // Powers of two are exact: the same bits as at unit size.
+/// assert_eq!(unit_or_zero(Vec3A::new(3.0, 4.0, 0.0) * 2f32.powi(100)), Vec3A::new(3.0, 4.0, 0.0).normalize());
+/// assert_eq!(unit_or_zero(Vec3A::new(0.0, 1e-30, 0.0)), Vec3A::Y);
+/// assert_eq!(unit_or_zero(Vec3A::ZERO), Vec3A::ZERO);
+/// ```
+pub fn unit_or_zero(v: Vec3A) -> Vec3A {
+    const STEP: f32 = (1u64 << 60) as f32;
+    let mut v = v;
+    let mut m = v.abs().max_element();
+    if !m.is_finite() {
+        return Vec3A::ZERO;
+    }
+    while m > STEP {
+        v /= STEP;
+        m /= STEP;
+    }
+    while m > 0.0 && m < 1.0 / STEP {
+        v *= STEP;
+        m *= STEP;
+    }
+    v.normalize_or_zero()
+}
+
 /// Anything a BVH can hold: it has bounds and a ray test. Triangles are the fast path; the
 /// quiver-scenes crate adds the SPD's analytic shapes (spheres, cones, polygons, patches).
 ///
@@ -290,6 +326,28 @@ pub trait Primitive: Clone + Send + Sync {
     /// True when every coordinate is finite; others are invisible (builds drop them).
     fn is_finite(&self) -> bool {
         self.bounds().is_finite()
+    }
+    /// This primitive with every coordinate and length multiplied by `s`, a power of two
+    /// (exact in f32). Its tests must commute with the scaling: a ray scaled alike hits it at
+    /// `s` times the distance with the same surface parameters.
+    ///
+    /// A [`crate::Bvh`] over a scene far from unit size (extent outside `2^-20..=2^20`)
+    /// builds and traces it scaled to unit size, where no product of lengths overflows or
+    /// underflows f32; `None` (the default) keeps such a scene at its own size.
+    ///
+    /// ```
+    /// use quiver::{Primitive, Ray, Triangle};
+    /// use glam::Vec3A;
+    /// let t = Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y);
+    /// let ray = Ray::new(Vec3A::new(0.25, 0.25, 1.0), -Vec3A::Z);
+    /// let small = t.scaled(0.5).unwrap();
+    /// let half = Ray::new(ray.origin * 0.5, ray.dir);
+    /// assert_eq!(small.intersect(&half).unwrap().t, 0.5 * t.intersect(&ray).unwrap().t);
+    /// ```
+    #[inline]
+    fn scaled(&self, s: f32) -> Option<Self> {
+        let _ = s;
+        None
     }
     /// The packet kernels' test of a leaf of these primitives against the rays of a packet
     /// that enter it: for every ray of [`PacketLeaf::rays`] (within its current interval,
@@ -359,6 +417,13 @@ impl Primitive for Triangle {
     #[inline]
     fn is_finite(&self) -> bool {
         Triangle::is_finite(self)
+    }
+
+    #[inline]
+    fn scaled(&self, s: f32) -> Option<Self> {
+        Some(Triangle {
+            v: self.v.map(|p| p * s),
+        })
     }
 
     #[inline(always)]

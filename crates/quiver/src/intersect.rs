@@ -93,6 +93,10 @@ impl Primitive for Watertight {
         self.0.is_finite()
     }
 
+    fn scaled(&self, s: f32) -> Option<Self> {
+        self.0.scaled(s).map(Watertight)
+    }
+
     #[inline(always)]
     fn intersect(&self, ray: &Ray) -> Option<PrimHit> {
         let d = ray.dir;
@@ -144,6 +148,10 @@ impl Primitive for Exact {
 
     fn is_finite(&self) -> bool {
         self.0.is_finite()
+    }
+
+    fn scaled(&self, s: f32) -> Option<Self> {
+        self.0.scaled(s).map(Exact)
     }
 
     #[inline]

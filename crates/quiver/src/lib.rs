@@ -34,6 +34,7 @@
 
 pub mod build;
 mod bvh;
+mod frame;
 pub mod geometry;
 pub mod intersect;
 mod isa;

@@ -14,7 +14,7 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 use glam::Vec3A;
-use quiver::geometry::{Aabb, PrimHit, Primitive, Ray, Triangle};
+use quiver::geometry::{unit_or_zero, Aabb, PrimHit, Primitive, Ray, Triangle};
 
 /// A sphere.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -86,7 +86,7 @@ impl Polygon {
                 (a.x - b.x) * (a.y + b.y),
             );
         }
-        let normal = n.normalize_or_zero();
+        let normal = unit_or_zero(n);
         let m = normal.abs();
         let axis = if m.x >= m.y && m.x >= m.z {
             0
@@ -165,7 +165,7 @@ fn nearest_t(ray: &Ray, p: Vec3A) -> f32 {
 impl Primitive for Cone {
     fn bounds(&self) -> Aabb {
         // Each end circle lies within its centre ± radius·sqrt(1 - axis_i^2) per axis.
-        let axis = (self.apex - self.base).normalize_or_zero();
+        let axis = unit_or_zero(self.apex - self.base);
         let spread = (Vec3A::ONE - axis * axis).max(Vec3A::ZERO);
         let ext = |r: f32| Vec3A::new(spread.x.sqrt(), spread.y.sqrt(), spread.z.sqrt()) * r;
         let a = Aabb::new(
@@ -308,6 +308,32 @@ impl Primitive for Prim {
         }
     }
 
+    fn scaled(&self, s: f32) -> Option<Self> {
+        Some(match self {
+            Prim::Triangle(t) => Prim::Triangle(t.scaled(s)?),
+            Prim::Patch(p) => Prim::Patch(PatchTriangle {
+                tri: p.tri.scaled(s)?,
+                normals: p.normals,
+            }),
+            Prim::Sphere(sp) => Prim::Sphere(Sphere {
+                center: sp.center * s,
+                radius: sp.radius * s,
+            }),
+            Prim::Cone(c) => Prim::Cone(Cone {
+                base: c.base * s,
+                base_radius: c.base_radius * s,
+                apex: c.apex * s,
+                apex_radius: c.apex_radius * s,
+            }),
+            // Unit normal and projection axis do not change with the size.
+            Prim::Polygon(p) => Prim::Polygon(Polygon {
+                verts: p.verts.iter().map(|&v| v * s).collect(),
+                normal: p.normal,
+                axis: p.axis,
+            }),
+        })
+    }
+
     #[inline]
     fn intersect(&self, ray: &Ray) -> Option<PrimHit> {
         match self {
@@ -326,7 +352,7 @@ impl Prim {
     pub fn normal(&self, ray: &Ray, hit: &PrimHit) -> Vec3A {
         let p = ray.at(hit.t);
         match self {
-            Prim::Triangle(t) => (t.v[1] - t.v[0]).cross(t.v[2] - t.v[0]).normalize_or_zero(),
+            Prim::Triangle(t) => unit_or_zero((t.v[1] - t.v[0]).cross(t.v[2] - t.v[0])),
             Prim::Patch(pt) => {
                 let w = 1.0 - hit.u - hit.v;
                 (pt.normals[0] * w + pt.normals[1] * hit.u + pt.normals[2] * hit.v)
@@ -334,10 +360,10 @@ impl Prim {
             }
             Prim::Sphere(s) => ((p - s.center) / s.radius).normalize_or_zero(),
             Prim::Cone(c) => {
-                let axis = (c.apex - c.base).normalize_or_zero();
+                let axis = unit_or_zero(c.apex - c.base);
                 let h = (c.apex - c.base).length();
                 let rel = p - c.base;
-                let radial = (rel - axis * rel.dot(axis)).normalize_or_zero();
+                let radial = unit_or_zero(rel - axis * rel.dot(axis));
                 // The surface leans by the radius change along the axis.
                 let slope = (c.base_radius - c.apex_radius) / h;
                 (radial + axis * slope).normalize_or_zero()

@@ -22,7 +22,7 @@
 use crate::accel::SceneBvh;
 use crate::scene::{Material, Scene};
 use glam::Vec3A;
-use quiver::geometry::{offset_ray_origin, Hit, Ray};
+use quiver::geometry::{offset_ray_origin, unit_or_zero, Hit, Ray};
 use quiver::traverse::{ConservativeBoxes, Counters, NoStats, PacketMode, RayQuery, Stats};
 use rayon::prelude::*;
 use std::ops::AddAssign;
@@ -48,30 +48,83 @@ pub struct RenderConfig {
     pub packets: bool,
 }
 
-/// How a secondary ray avoids re-hitting the surface it starts on.
+/// How a secondary ray avoids re-hitting the surface it starts on. Both measure their
+/// distances against the scene's size (its largest extent), so a scene renders alike at any
+/// scale.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Offset {
-    /// Start at the hit point and ignore hits closer than `1e-4 * (1 + max|p|)`: what the
-    /// classical tracers behind the SPD's published counts did, and the default. It skips
-    /// real geometry closer than that (balls: the contacts of touching spheres).
+    /// Start at the hit point and ignore hits closer than `1e-4 * (size / 10 + max|p|)`: the
+    /// classical tracers' epsilon behind the SPD's published counts (about 1e-4 at the SPD
+    /// scenes' sizes of 1 to 100), and the default. It skips real geometry closer than that
+    /// (balls: the contacts of touching spheres).
     #[default]
     Epsilon,
     /// Move the origin a few ulps off the surface along the normal (Wächter & Binder): finds
-    /// geometry however close, at any scale.
+    /// geometry however close. Its near-origin threshold is taken relative to the scene's
+    /// size (by a power of two, exactly).
     Ulps,
 }
 
 impl Offset {
     /// A ray leaving point `p` of a surface with normal `side` (pointing to where the ray
-    /// goes) in direction `dir`, up to `t_max`.
-    pub fn ray(self, p: Vec3A, side: Vec3A, dir: Vec3A, t_max: f32) -> Ray {
+    /// goes) in direction `dir`, up to `t_max`, in a scene whose largest extent is `size`.
+    ///
+    /// ```
+    /// use quiver_scenes::render::Offset;
+    /// use glam::Vec3A;
+    /// let r = Offset::Epsilon.ray(10.0, Vec3A::ZERO, Vec3A::Z, Vec3A::Z, 1.0);
+    /// assert!((r.t_min - 1e-4).abs() < 1e-9);
+    /// // The same at a thousandth of the size, a thousandth of the distance.
+    /// let small = Offset::Epsilon.ray(0.01, Vec3A::ZERO, Vec3A::Z, Vec3A::Z, 1.0);
+    /// assert!((small.t_min - 1e-7).abs() < 1e-12);
+    /// ```
+    pub fn ray(self, size: f32, p: Vec3A, side: Vec3A, dir: Vec3A, t_max: f32) -> Ray {
         match self {
             Offset::Epsilon => {
-                let eps = 1e-4 * (1.0 + p.abs().max_element());
-                Ray::segment(p, dir, eps / dir.length(), t_max)
+                let eps = 1e-4 * (0.1 * size + p.abs().max_element());
+                Ray::segment(p, dir, eps / length(dir), t_max)
             }
-            Offset::Ulps => Ray::segment(offset_ray_origin(p, side), dir, 0.0, t_max),
+            Offset::Ulps => {
+                let unit = unit_of(size);
+                let origin = offset_ray_origin(p / unit, side) * unit;
+                Ray::segment(origin, dir, 0.0, t_max)
+            }
         }
+    }
+}
+
+/// `|v|` at any size (glam's squares overflow beyond about 1e19).
+fn length(v: Vec3A) -> f32 {
+    let l2 = v.length_squared();
+    if l2.is_normal() {
+        l2.sqrt()
+    } else {
+        v.dot(unit_or_zero(v))
+    }
+}
+
+/// The power of two nearest below `size` (1 for a zero or non-finite size): dividing by it
+/// is exact.
+fn unit_of(size: f32) -> f32 {
+    if size.is_normal() && size > 0.0 {
+        f32::from_bits(size.to_bits() & 0x7f80_0000)
+    } else {
+        1.0
+    }
+}
+
+/// A scene's size for [`Offset::ray`]: its largest extent.
+///
+/// ```
+/// use quiver_scenes::{render::scene_size, Scene};
+/// assert_eq!(scene_size(&Scene::load("tetra2").unwrap()), 2.0);
+/// ```
+pub fn scene_size(scene: &Scene) -> f32 {
+    let b = scene.bounds();
+    if b.is_empty() {
+        1.0
+    } else {
+        b.extent().max_element()
     }
 }
 
@@ -200,6 +253,7 @@ fn render_with<W: Work>(
     progress: &(dyn Fn(usize) + Sync),
 ) -> Rendered {
     let n = config.res as usize + 1;
+    let size = scene_size(scene);
     let bands: Vec<Band> = (0..n.div_ceil(TILE))
         .into_par_iter()
         .map(|b| {
@@ -208,6 +262,7 @@ fn render_with<W: Work>(
                 scene,
                 bvh,
                 config,
+                size,
                 rays: RayCounts::default(),
                 work: W::default(),
             };
@@ -256,6 +311,8 @@ struct Tracer<'a, W> {
     scene: &'a Scene,
     bvh: &'a SceneBvh,
     config: &'a RenderConfig,
+    /// The scene's size, for secondary-ray offsets.
+    size: f32,
     rays: RayCounts,
     work: W,
 }
@@ -438,7 +495,7 @@ impl<W: Work> Tracer<'_, W> {
     fn surface(&self, ray: &Ray, hit: &Hit) -> Surface {
         let object = &self.scene.objects[self.bvh.object_of(hit.prim) as usize];
         let material = self.scene.materials[object.material as usize];
-        let d = ray.dir.normalize();
+        let d = unit_or_zero(ray.dir);
         // The outward normal decides entering or leaving a transmitter; the shading normal
         // turns toward the viewer on two-sided surfaces: transmitters (NFF: "objects with
         // T > 0 are two-sided") and the materials the config lists (the teapot).
@@ -462,7 +519,8 @@ impl<W: Work> Tracer<'_, W> {
     /// the light is behind the surface (SPD rule 10, transmitters too).
     fn shadow_ray(&self, s: &Surface, light: Vec3A) -> Option<Ray> {
         let to_light = light - s.p;
-        (s.n.dot(to_light) > 0.0).then(|| self.config.offset.ray(s.p, s.n, to_light, 1.0))
+        (s.n.dot(to_light) > 0.0)
+            .then(|| self.config.offset.ray(self.size, s.p, s.n, to_light, 1.0))
     }
 
     /// Colour leaving `s` toward the viewer: lights, then reflection and refraction rays.
@@ -485,7 +543,7 @@ impl<W: Work> Tracer<'_, W> {
                 self.rays.shadow_blocked += 1;
                 continue;
             }
-            color += shade(&m, n, (l.pos - p).normalize(), d) * l.color * intensity;
+            color += shade(&m, n, unit_or_zero(l.pos - p), d) * l.color * intensity;
         }
         if depth >= self.config.max_depth {
             return color;
@@ -510,7 +568,7 @@ impl<W: Work> Tracer<'_, W> {
             if k >= 0.0 {
                 self.rays.refract += 1;
                 let dir = d * eta + nf * (eta * cos_i - k.sqrt());
-                let r = offset.ray(p, -nf, dir, f32::INFINITY);
+                let r = offset.ray(self.size, p, -nf, dir, f32::INFINITY);
                 color += self.trace(&r, depth + 1) * m.t;
             } else {
                 // Total internal reflection: the reflection ray takes the transmitted share.
@@ -519,7 +577,7 @@ impl<W: Work> Tracer<'_, W> {
         }
         if reflect {
             self.rays.reflect += 1;
-            let r = offset.ray(p, nf, reflect_dir, f32::INFINITY);
+            let r = offset.ray(self.size, p, nf, reflect_dir, f32::INFINITY);
             color += self.trace(&r, depth + 1) * reflect_weight;
         }
         color

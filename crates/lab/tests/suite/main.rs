@@ -13,4 +13,5 @@ mod mixed;
 mod obvhs;
 mod packets;
 mod render;
+mod scale;
 mod scenes;

@@ -22,9 +22,9 @@ pub use bvh8::{Bvh8, Bvh8Node};
 pub use tri4::Tri4;
 
 use crate::build::{BuildConfig, BuildTree};
+use crate::bvh::Nodes;
 use crate::geometry::Primitive;
 use crate::isa::Isa;
-use crate::Bvh;
 use std::fmt;
 use std::str::FromStr;
 
@@ -133,7 +133,7 @@ impl Layout {
         prims: Vec<P>,
         isa: Isa,
         config: &BuildConfig,
-    ) -> Bvh<P> {
+    ) -> Nodes<P> {
         let bvh2 = match self {
             Layout::Bvh2Dfs => Bvh2Mapping::DepthFirst,
             Layout::Bvh2Bfs => Bvh2Mapping::BreadthFirst,
@@ -143,17 +143,17 @@ impl Layout {
             Layout::Bvh2Compact => Bvh2Mapping::Compact,
             Layout::Bvh2CompactPage => Bvh2Mapping::CompactPage,
             Layout::Bvh4Dfs => {
-                return Bvh::Bvh4(Bvh4::from_leaf_prims(tree, prims, Bvh4Mapping::DepthFirst))
+                return Nodes::Bvh4(Bvh4::from_leaf_prims(tree, prims, Bvh4Mapping::DepthFirst))
             }
             Layout::Bvh4Subtree => {
-                return Bvh::Bvh4(Bvh4::from_leaf_prims(tree, prims, Bvh4Mapping::Subtree))
+                return Nodes::Bvh4(Bvh4::from_leaf_prims(tree, prims, Bvh4Mapping::Subtree))
             }
             Layout::Bvh4Quant => {
-                return Bvh::QBvh4(QBvh4::from_leaf_prims(tree, prims, Bvh4Mapping::DepthFirst))
+                return Nodes::QBvh4(QBvh4::from_leaf_prims(tree, prims, Bvh4Mapping::DepthFirst))
             }
-            Layout::Bvh8Dfs => return Bvh::Bvh8(Bvh8::from_leaf_prims(tree, prims, isa, config)),
+            Layout::Bvh8Dfs => return Nodes::Bvh8(Bvh8::from_leaf_prims(tree, prims, isa, config)),
         };
-        Bvh::Bvh2(Bvh2::from_leaf_prims(tree, prims, bvh2))
+        Nodes::Bvh2(Bvh2::from_leaf_prims(tree, prims, bvh2))
     }
 }
 
