@@ -272,6 +272,28 @@ pub fn unit_or_zero(v: Vec3A) -> Vec3A {
     v.normalize_or_zero()
 }
 
+/// The power of two that brings a magnitude `m` near 1 when products of two or three such
+/// magnitudes would leave f32's range (`m` outside `2^-40..=2^40`), else 1: multiply the
+/// vectors of a cross or dot product by it first, and the product keeps its digits at any
+/// scale with the same bits as before wherever it had them.
+///
+/// ```
+/// use quiver::geometry::unit_scale;
+/// assert_eq!(unit_scale(3.0), 1.0);
+/// assert_eq!(unit_scale(1e30) * 1e30, 1e30 * 2f32.powi(-99));
+/// assert!((1.0..2.0).contains(&(unit_scale(1e-30) * 1e-30)));
+/// ```
+pub fn unit_scale(m: f32) -> f32 {
+    const BAND: f32 = (1u64 << 40) as f32;
+    if !(m.is_finite() && m > 0.0) || (1.0 / BAND..=BAND).contains(&m) {
+        return 1.0;
+    }
+    // 2^-e for m in [2^e, 2^(e+1)); e lies in -149..=127, so take it in two exact halves.
+    let e = m.log2().floor() as i32;
+    let half = e / 2;
+    2f32.powi(-half) * 2f32.powi(-(e - half))
+}
+
 /// Anything a BVH can hold: it has bounds and a ray test. Triangles are the fast path; the
 /// quiver-scenes crate adds the SPD's analytic shapes (spheres, cones, polygons, patches).
 ///

@@ -14,7 +14,7 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 use glam::Vec3A;
-use quiver::geometry::{unit_or_zero, Aabb, PrimHit, Primitive, Ray, Triangle};
+use quiver::geometry::{unit_or_zero, unit_scale, Aabb, PrimHit, Primitive, Ray, Triangle};
 
 /// A sphere.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -77,9 +77,16 @@ impl Polygon {
     /// A polygon through `verts` (at least three, all in one plane). The normal follows the
     /// vertex order (Newell's method, robust for concave and nearly collinear input).
     pub fn new(verts: Vec<Vec3A>) -> Polygon {
+        // Newell's terms are products of two coordinates: bring them near 1 first (exactly,
+        // by a power of two) so a polygon at 1e-30 or 1e30 keeps its normal.
+        let s = unit_scale(
+            verts
+                .iter()
+                .fold(0.0f32, |m, v| m.max(v.abs().max_element())),
+        );
         let mut n = Vec3A::ZERO;
         for (i, a) in verts.iter().enumerate() {
-            let b = verts[(i + 1) % verts.len()];
+            let (a, b) = (*a * s, verts[(i + 1) % verts.len()] * s);
             n += Vec3A::new(
                 (a.y - b.y) * (a.z + b.z),
                 (a.z - b.z) * (a.x + b.x),
@@ -352,7 +359,12 @@ impl Prim {
     pub fn normal(&self, ray: &Ray, hit: &PrimHit) -> Vec3A {
         let p = ray.at(hit.t);
         match self {
-            Prim::Triangle(t) => unit_or_zero((t.v[1] - t.v[0]).cross(t.v[2] - t.v[0])),
+            Prim::Triangle(t) => {
+                let (e1, e2) = (t.v[1] - t.v[0], t.v[2] - t.v[0]);
+                // Edges of 1e-20 or 1e20 would under- or overflow in the cross product.
+                let s = unit_scale(e1.abs().max(e2.abs()).max_element());
+                unit_or_zero((e1 * s).cross(e2 * s))
+            }
             Prim::Patch(pt) => {
                 let w = 1.0 - hit.u - hit.v;
                 (pt.normals[0] * w + pt.normals[1] * hit.u + pt.normals[2] * hit.v)
@@ -360,12 +372,16 @@ impl Prim {
             }
             Prim::Sphere(s) => ((p - s.center) / s.radius).normalize_or_zero(),
             Prim::Cone(c) => {
-                let axis = unit_or_zero(c.apex - c.base);
-                let h = (c.apex - c.base).length();
-                let rel = p - c.base;
+                // Lengths brought near 1 by a power of two (exact): `h` and the dot product
+                // square them.
+                let s = unit_scale((c.apex - c.base).abs().max_element());
+                let along = (c.apex - c.base) * s;
+                let axis = unit_or_zero(along);
+                let h = along.length();
+                let rel = (p - c.base) * s;
                 let radial = unit_or_zero(rel - axis * rel.dot(axis));
                 // The surface leans by the radius change along the axis.
-                let slope = (c.base_radius - c.apex_radius) / h;
+                let slope = (c.base_radius - c.apex_radius) * s / h;
                 (radial + axis * slope).normalize_or_zero()
             }
             Prim::Polygon(poly) => poly.normal,

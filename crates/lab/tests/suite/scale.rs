@@ -12,7 +12,7 @@ use quiver_scenes::render::{render, Offset, RenderConfig};
 use quiver_scenes::scene::{Scene, Shape};
 
 /// Every power of ten from 1e-30 to 1e30.
-const EXPONENTS: std::ops::RangeInclusive<i32> = -15..=15;
+const EXPONENTS: std::ops::RangeInclusive<i32> = -30..=30;
 
 /// A scale factor: `10^j` or `2^j`.
 #[derive(Clone, Copy, Debug)]
@@ -171,7 +171,7 @@ fn renders_match(scene: &Scene, patches: bool) {
             "{}: a scene with shadow rays",
             scene.name
         );
-        for j in (-40..=40).step_by(10).map(Factor::Two) {
+        for j in (-100..=100).step_by(10).map(Factor::Two) {
             let got = run(&scale_scene(scene, j));
             let at = format!("{} {offset:?} at {j}", scene.name);
             assert_eq!(got.rays, want.rays, "{at}");

@@ -1,5 +1,5 @@
 use glam::Vec3A;
-use quiver::geometry::{Aabb, Ray};
+use quiver::geometry::{unit_or_zero, Aabb, Ray};
 use std::fmt;
 
 /// A pinhole camera in the SPD/NFF convention.
@@ -68,7 +68,7 @@ impl fmt::Display for CameraError {
             CameraError::NoViewDirection => write!(
                 f,
                 "camera 'at' gives no view direction: it is the same point as 'from' \
-                 (or too close to it, or too far from it, for f32)"
+                 (or so far from it that the difference overflows f32)"
             ),
             CameraError::UpAlongView => write!(
                 f,
@@ -127,16 +127,16 @@ impl Camera {
         if !(self.angle > 0.0 && self.angle < 180.0) {
             return Err(CameraError::Angle(self.angle));
         }
-        // Zero when the difference underflows or overflows as well as when the points match.
-        let w = (self.at - self.from).normalize_or_zero();
+        // At any scale (`unit_or_zero`): zero only when the points match or their difference
+        // overflows.
+        let w = unit_or_zero(self.at - self.from);
         if w == Vec3A::ZERO {
             return Err(CameraError::NoViewDirection);
         }
-        // As `ray` computes it, from the unnormalised up: within about 1e-6 radians of the
-        // view the image's roll is f32 noise, and at 0 (or where the product under- or
-        // overflows) `ray` divides by zero.
-        let right = w.cross(self.up);
-        if right.normalize_or_zero() == Vec3A::ZERO || right.length() <= 1e-6 * self.up.length() {
+        // Within about 1e-6 radians of the view the image's roll is f32 noise, and at 0 `ray`
+        // has no right-hand direction.
+        let right = w.cross(unit_or_zero(self.up));
+        if !(right.length() > 1e-6) {
             return Err(CameraError::UpAlongView);
         }
         Ok(())
@@ -162,14 +162,16 @@ impl Camera {
     }
 
     /// The eye ray through image-plane point `(sx, sy)`, both in `[-1, 1]`: `(-1, 1)` is the
-    /// top-left edge of the field of view. The direction is normalised; it is NaN for a camera
+    /// top-left edge of the field of view. The direction is normalised (at any scale); it is
+    /// meaningless (zero) for a camera
     /// [`Camera::validate`] rejects.
     pub fn ray(&self, sx: f32, sy: f32) -> Ray {
-        let w = (self.at - self.from).normalize();
-        let right = w.cross(self.up).normalize();
+        // `unit_or_zero`: a scene and its camera scaled to 1e30 or 1e-30 see the same rays.
+        let w = unit_or_zero(self.at - self.from);
+        let right = unit_or_zero(w.cross(self.up));
         let up = right.cross(w);
         let h = (self.angle.to_radians() * 0.5).tan();
-        let dir = (w + right * (sx * h) + up * (sy * h)).normalize();
+        let dir = unit_or_zero(w + right * (sx * h) + up * (sy * h));
         Ray::new(self.from, dir)
     }
 }
