@@ -136,7 +136,7 @@ impl Camera {
         // Within about 1e-6 radians of the view the image's roll is f32 noise, and at 0 `ray`
         // has no right-hand direction.
         let right = w.cross(unit_or_zero(self.up));
-        if !(right.length() > 1e-6) {
+        if right.length() <= 1e-6 {
             return Err(CameraError::UpAlongView);
         }
         Ok(())
