@@ -23,6 +23,10 @@ mod output;
 struct Cli {
     #[command(subcommand)]
     command: Command,
+    /// Scene files: drop primitives and lights with a NaN or infinite number (and say how many
+    /// on stderr) instead of refusing the file.
+    #[arg(long, global = true)]
+    drop_non_finite: bool,
 }
 
 #[derive(Subcommand)]
@@ -48,6 +52,9 @@ fn main() -> ExitCode {
         Ok(cli) => cli,
         Err(e) => return clap_exit(&e),
     };
+    if cli.drop_non_finite {
+        commands::drop_non_finite();
+    }
     let result = match cli.command {
         Command::Build(args) => build::run(args),
         Command::Layouts(args) => layouts::run(args),

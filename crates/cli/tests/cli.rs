@@ -443,3 +443,26 @@ fn bench_defaults_need_no_file_from_the_source_tree() {
         .success()
         .stdout(predicate::str::contains("teapot12").and(predicate::str::contains("bunny.obj")));
 }
+
+#[test]
+fn non_finite_input_is_refused_unless_dropping_is_asked_for() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("nan.nff");
+    std::fs::write(
+        &file,
+        "v\nfrom 0 0 5\nat 0 0 0\nup 0 1 0\nangle 45\nhither 1\nresolution 8 8\n\
+         f 1 1 1 1 0 0 0 1\ns 0 0 0 1\ns nan 0 0 1\n",
+    )
+    .unwrap();
+    let path = file.to_str().unwrap();
+    quiver()
+        .args(["build", path])
+        .assert()
+        .code(2)
+        .stderr(predicate::str::contains("nan.nff:10").and(predicate::str::contains("NaN")));
+    quiver()
+        .args(["build", path, "--drop-non-finite"])
+        .assert()
+        .success()
+        .stderr(predicate::str::contains("warning").and(predicate::str::contains("dropped 1")));
+}

@@ -4,7 +4,6 @@
 use super::{count, pool, scene_help, thread_count, Result, MAX_RAYS, MAX_REPS};
 use crate::output::{check_outputs, outln, scatter_svg, write_json, write_text, Point};
 use quiver_lab::accuracy::{evaluate, Row};
-use quiver_scenes::Scene;
 use serde_json::{json, Value};
 use std::path::PathBuf;
 
@@ -39,7 +38,7 @@ pub(crate) fn run(args: AccuracyArgs) -> Result<()> {
         ("--plot", args.plot.as_deref()),
         ("--json", args.json.as_deref()),
     ])?;
-    let scene = Scene::load(&args.scene)?;
+    let scene = super::load_scene(&args.scene)?;
     let tris = scene.triangles();
     let pool = pool(args.threads.map(usize::from))?;
     let bar = indicatif::ProgressBar::new_spinner();

@@ -15,7 +15,7 @@ use quiver::{BuildOptions, Bvh, Layout, RayQuery};
 use quiver_lab::embree::{EmbreeDevice, EmbreeScene};
 use quiver_lab::measure::{count_hits, median_times_interleaved, mrays_per_s};
 use quiver_lab::{obvhs_bridge, rays};
-use quiver_scenes::scene::{tessellate, Scene};
+use quiver_scenes::scene::tessellate;
 use serde_json::{json, Value};
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
@@ -77,7 +77,7 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
         .map(|name| {
             Ok((
                 name,
-                Scene::load(name)?.into_patches(tessellate::DEFAULT_RESOLUTION),
+                super::load_scene(name)?.into_patches(tessellate::DEFAULT_RESOLUTION),
             ))
         })
         .collect::<Result<Vec<_>>>()?;

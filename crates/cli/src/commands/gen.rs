@@ -25,7 +25,7 @@ pub(crate) struct GenArgs {
 /// Runs `quiver gen`.
 pub(crate) fn run(args: GenArgs) -> Result<()> {
     check_outputs(&[("--output", args.output.as_deref())])?;
-    let mut scene = Scene::load(&args.scene)?;
+    let mut scene = super::load_scene(&args.scene)?;
     if args.patches {
         scene = scene.into_patches(args.resolution);
     }

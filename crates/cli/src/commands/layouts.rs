@@ -9,7 +9,6 @@ use quiver::build::{build, prim_bounds, BuildConfig, Builder};
 use quiver::{Bvh, Layout};
 use quiver_lab::measure::{self, Query};
 use quiver_lab::rays;
-use quiver_scenes::Scene;
 use serde_json::{json, Value};
 use std::path::PathBuf;
 
@@ -67,7 +66,7 @@ pub(crate) fn run(args: LayoutsArgs) -> Result<()> {
     let loaded = args
         .scenes
         .iter()
-        .map(|name| Ok((name, Scene::load(name)?)))
+        .map(|name| Ok((name, super::load_scene(name)?)))
         .collect::<Result<Vec<_>>>()?;
     let config = BuildConfig::default();
     let count_pool = pool(None)?;

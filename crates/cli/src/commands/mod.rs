@@ -12,8 +12,31 @@ pub(crate) mod render;
 use quiver::build::{BuildTree, Builder};
 use quiver::{BuildOptions, Layout};
 use quiver_scenes::accel::SceneBvh;
-use quiver_scenes::scene::{tessellate, Scene, GENERATORS};
+use quiver_scenes::scene::{tessellate, LoadOptions, NonFinite, Scene, GENERATORS};
+use std::sync::OnceLock;
 use std::time::Instant;
+
+/// How this run reads scene files (`--drop-non-finite`), set once by `main`.
+static LOAD: OnceLock<LoadOptions> = OnceLock::new();
+
+/// Makes every scene this run loads drop primitives and lights with non-finite numbers (and
+/// say so on stderr) instead of refusing the file.
+pub(crate) fn drop_non_finite() {
+    let _ = LOAD.set(LoadOptions::default().non_finite(NonFinite::Drop));
+}
+
+/// Loads a scene by name or path with the run's options; what `--drop-non-finite` dropped is
+/// reported on stderr as a warning.
+pub(crate) fn load_scene(name: &str) -> Result<Scene> {
+    let options = LOAD.get().copied().unwrap_or_default();
+    let (scene, report) = Scene::load_with(name, &options)?;
+    if !report.is_empty() {
+        use std::io::Write as _;
+        // A failed stderr has nowhere to be reported; the run goes on.
+        let _ = writeln!(std::io::stderr(), "warning: {name}: {report}");
+    }
+    Ok(scene)
+}
 
 /// A command's outcome; the error is printed as `error: ...` with exit code 2.
 pub(crate) type Result<T> = std::result::Result<T, Box<dyn std::error::Error>>;
@@ -120,7 +143,7 @@ fn load_and_build(
     patches: bool,
     options: &BuildOptions,
 ) -> Result<(Scene, SceneBvh, BuildTree, f64)> {
-    let mut scene = Scene::load(name)?;
+    let mut scene = load_scene(name)?;
     if patches {
         scene = scene.into_patches(tessellate::DEFAULT_RESOLUTION);
     }

@@ -71,7 +71,7 @@ pub(crate) fn run(args: PacketsArgs) -> Result<()> {
     };
     let mut jobs = Vec::new();
     for name in &scenes {
-        let scene = Scene::load(name)?;
+        let scene = super::load_scene(name)?;
         if !scene.is_all_triangles() {
             jobs.push(("curve", scene.clone()));
         }
