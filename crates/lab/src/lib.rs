@@ -13,4 +13,5 @@ pub mod checks;
 pub mod embree;
 pub mod measure;
 pub mod obvhs_bridge;
+pub mod oracle;
 pub mod rays;

@@ -28,11 +28,6 @@ pub fn reference_hits<P: Primitive>(prims: &[P], rays: &[Ray]) -> Vec<Option<Hit
         .collect()
 }
 
-/// The fraction of answers that are hits.
-pub fn hit_fraction(hits: &[Option<Hit>]) -> f64 {
-    hits.iter().filter(|h| h.is_some()).count() as f64 / hits.len().max(1) as f64
-}
-
 /// A triangle from three coordinate triples.
 pub fn tri(a: [f32; 3], b: [f32; 3], c: [f32; 3]) -> Triangle {
     Triangle::new(a.into(), b.into(), c.into())
