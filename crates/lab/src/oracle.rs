@@ -36,6 +36,11 @@
 //!   `q = L² / (2·area)`: `t_tol = T_K·ε·(t + L/|d|)·q / |cos|`, about ten ulps of `t` for an
 //!   equilateral triangle met head-on from afar.
 //!
+//! - range: where a product of up to three of the lengths involved (longest edge, farthest
+//!   vertex from the origin, the direction's length) leaves `2^-100..=2^100`, the f32 test
+//!   overflows or flushes to zero and no rounding model holds; such a crossing is treated as
+//!   grazed (below).
+//!
 //! A ray is *decidable* when exactly one answer is admissible: the nearest crossing whose
 //! barycentric margin `min(w, u, v)` exceeds `uv_tol`, whose `t` lies more than `t_tol`
 //! inside `[t_min, t_max]` and that is not grazed, with no other crossing within the
@@ -96,6 +101,11 @@ pub const COS_MIN: f64 = 1.0 / 4096.0;
 /// A barycentric band wider than this marks a crossing as grazed: an f32 test cannot place
 /// the point on the triangle to better than a sixteenth of its size.
 pub const BAND_CAP: f64 = 1.0 / 16.0;
+
+/// Largest product of lengths an f32 test is judged at (`2^100`, and its reciprocal the
+/// smallest): past it, a sum of three such products may overflow, or they lose their digits
+/// to subnormals.
+const F32_PRODUCTS: f64 = 1.2676506002282294e30;
 
 /// Triangles per culling group. Groups are runs of triangles in Morton order of their
 /// centroids, each with a bounding sphere the ray must pass near.
@@ -241,6 +251,26 @@ fn crossing(tri: &Tri, line: &Line) -> Option<Crossing> {
     let kappa = dist * tri.longest / (tri.n_len * cos);
     let q = tri.longest * tri.longest / tri.n_len;
     let t_tol = T_K * UNIT_ROUNDOFF * (t.abs() + tri.longest / line.d_len) * q / cos;
+    // An f32 test forms products of up to three of these lengths (the fast test's normal
+    // `L²`, `n·d`, `d×c`, `n·c`; the watertight test's edge functions and scaled distance);
+    // beyond f32's range they overflow or flush to zero and no rounding model holds: any
+    // answer near the triangle is admissible, as for a grazed crossing.
+    let (l, dd) = (tri.longest, line.d_len);
+    let in_f32 = [
+        l * l,
+        l * l * dd,
+        dd * dist,
+        dd * dist * l,
+        l * l * dist,
+        dist * dist * dist,
+    ]
+    .iter()
+    .all(|m| (F32_PRODUCTS.recip()..=F32_PRODUCTS).contains(m));
+    let uv_tol = if in_f32 {
+        BARY_K * UNIT_ROUNDOFF * kappa
+    } else {
+        f64::INFINITY
+    };
     Some(Crossing {
         hit: OracleHit {
             prim: tri.prim,
@@ -248,7 +278,7 @@ fn crossing(tri: &Tri, line: &Line) -> Option<Crossing> {
             u,
             v,
             t_tol,
-            uv_tol: BARY_K * UNIT_ROUNDOFF * kappa,
+            uv_tol,
         },
         margin: w.min(u).min(v),
         cos,

@@ -43,3 +43,13 @@ fn nff_inputs() {
 fn obj_inputs() {
     assert!(replay("obj", quiver_lab::checks::obj_load) >= 2);
 }
+
+#[test]
+fn packets_inputs() {
+    assert!(replay("packets", quiver_lab::checks::packets_against_oracle) >= 3);
+}
+
+#[test]
+fn render_inputs() {
+    assert!(replay("render", quiver_lab::checks::render_nff) >= 3);
+}
