@@ -81,7 +81,7 @@ impl<P: Primitive> Bvh<P> {
     /// Lays out a built tree over `prims` (the build's input) as `layout`, for the
     /// instruction set [`Isa::detect`] picks.
     pub fn from_tree(tree: &BuildTree, prims: &[P], layout: Layout) -> Self {
-        let frame = Frame::for_bounds(&finite_union(&prim_bounds(prims)));
+        let frame = Frame::for_prims(&prim_bounds(prims));
         let config = BuildConfig::default();
         match frame_prims(frame, prims) {
             Some(local) => Bvh {
@@ -148,14 +148,6 @@ impl<P: Primitive> Nodes<P> {
             Nodes::Scaled(s) => s.nodes.footprint(),
         }
     }
-}
-
-/// The union of the finite boxes.
-fn finite_union(boxes: &[Aabb]) -> Aabb {
-    boxes
-        .iter()
-        .filter(|b| b.is_finite())
-        .fold(Aabb::EMPTY, |u, b| u.union(b))
 }
 
 /// The primitives in `frame`: `None` for the identity frame (use them as they are) and for
@@ -476,7 +468,7 @@ impl<'p> BuildOptions<'p> {
     pub fn build_with_tree<P: Primitive>(&self, prims: &[P]) -> (Bvh<P>, BuildTree) {
         self.run(|| {
             let bounds = prim_bounds(prims);
-            let frame = Frame::for_bounds(&finite_union(&bounds));
+            let frame = Frame::for_prims(&bounds);
             match frame_prims(frame, prims) {
                 Some(local) => {
                     let local_bounds: Vec<Aabb> = bounds.iter().map(|b| frame.aabb(b)).collect();
@@ -530,7 +522,7 @@ impl<'p> BuildOptions<'p> {
         Ok(self.run(|| {
             use rayon::prelude::*;
             let bounds = mesh.bounds();
-            let frame = Frame::for_bounds(&finite_union(&bounds));
+            let frame = Frame::for_prims(&bounds);
             let local_bounds: Vec<Aabb> = if frame.is_identity() {
                 bounds.clone()
             } else {

@@ -9,14 +9,19 @@
 //! the same scene at unit size computes: a scene scaled by `2^j` gives bit-identical hits,
 //! with `t` scaled by `2^j`.
 //!
-//! Scenes whose extent lies within `2^-20..=2^20` keep the identity frame, so ordinary
-//! scenes pay one predictable branch per query and nothing else.
+//! Only a scene whose primitives are all larger than `2^20` or all smaller than `2^-20` is
+//! scaled (see [`Frame::for_prims`]); every other BVH keeps the identity frame and pays
+//! nothing for it (the scaled BVH is a variant of its own).
 
 use crate::geometry::{Aabb, Hit, Primitive, Ray};
 
 /// Extents from `2^-SAFE` to `2^SAFE` keep the identity frame: the tests' products of up to
 /// three lengths stay far inside f32's normal range there (`2^60` and `2^-60`).
 const SAFE: i32 = 20;
+
+/// Largest extent, as a power of two, a scaled scene may span: products of three lengths stay
+/// within f32 (2^120).
+const MAX_SPREAD_EXPONENT: i32 = 40;
 
 /// Largest scaled coordinate allowed when a tiny scene far from the origin is scaled up.
 const MAX_SCALED_EXPONENT: i32 = 100;
@@ -72,26 +77,40 @@ fn exponent(x: f32) -> i32 {
 }
 
 impl Frame {
-    /// The frame for a scene with these bounds (finite primitives only; empty: identity).
-    pub(crate) fn for_bounds(b: &Aabb) -> Frame {
-        if b.is_empty() || !b.is_finite() {
+    /// The frame for primitives with these boxes (non-finite and empty ones ignored): the
+    /// identity unless every primitive is larger than `2^SAFE` or every one smaller than
+    /// `2^-SAFE` — a whole scene far from unit size. A scene that mixes sizes keeps its own
+    /// units: no one power of two serves a triangle of 1 beside one of 1e30, and scaling would
+    /// take from the small ones what it gave the large.
+    pub(crate) fn for_prims(boxes: &[Aabb]) -> Frame {
+        let (mut lo, mut hi) = (f32::INFINITY, 0.0f32);
+        let mut all = Aabb::EMPTY;
+        for b in boxes.iter().filter(|b| b.is_finite() && !b.is_empty()) {
+            let size = b.extent().max_element();
+            if size > 0.0 {
+                (lo, hi) = (lo.min(size), hi.max(size));
+            }
+            all = all.union(b);
+        }
+        if hi == 0.0 {
             return Frame::default();
         }
-        let extent = b.extent().max_element();
-        if extent <= 0.0 {
+        let mut k = if exponent(lo) > SAFE {
+            exponent(lo)
+        } else if exponent(hi) < -SAFE {
+            exponent(hi)
+        } else {
             return Frame::default();
-        }
-        let e = exponent(extent);
-        if (-SAFE..=SAFE).contains(&e) {
-            return Frame::default();
-        }
-        let mut k = e.clamp(-MAX_SCALED_EXPONENT, MAX_SCALED_EXPONENT);
-        // Scaling a tiny scene up must not carry its far-off coordinates out of range.
-        let reach = b.min.abs().max(b.max.abs()).max_element();
+        };
+        // Keep the scene's spread, and its far-off coordinates, in range.
+        k = k.max(exponent(all.extent().max_element()) - MAX_SPREAD_EXPONENT);
+        let reach = all.min.abs().max(all.max.abs()).max_element();
         if reach > 0.0 {
             k = k.max(exponent(reach) - MAX_SCALED_EXPONENT);
         }
-        Frame { k }
+        Frame {
+            k: k.clamp(-MAX_SCALED_EXPONENT, MAX_SCALED_EXPONENT),
+        }
     }
 
     /// True when local and world coordinates are the same.
@@ -168,16 +187,17 @@ mod tests {
     fn ordinary_scenes_keep_the_identity_frame() {
         for size in [1e-6f32, 1.0, 1e6] {
             let b = Aabb::new(Vec3A::splat(-size), Vec3A::splat(size));
-            assert!(Frame::for_bounds(&b).is_identity(), "{size}");
+            assert!(Frame::for_prims(&[b]).is_identity(), "{size}");
         }
-        assert!(Frame::for_bounds(&Aabb::EMPTY).is_identity());
+        assert!(Frame::for_prims(&[Aabb::EMPTY]).is_identity());
+        assert!(Frame::for_prims(&[]).is_identity());
     }
 
     #[test]
     fn extreme_scenes_come_to_unit_size_exactly() {
         for size in [1e-30f32, 1e-12, 1e12, 1e30] {
             let b = Aabb::new(Vec3A::splat(-size), Vec3A::splat(size));
-            let f = Frame::for_bounds(&b);
+            let f = Frame::for_prims(&[b, b]);
             let local = f.aabb(&b);
             let e = local.extent().max_element();
             assert!((1.0..2.0).contains(&e), "{size}: {e}");
@@ -202,7 +222,17 @@ mod tests {
     #[test]
     fn a_tiny_scene_far_away_stays_in_range() {
         let b = Aabb::new(Vec3A::splat(1e30), Vec3A::splat(1e30) + Vec3A::ONE * 1e20);
-        let local = Frame::for_bounds(&b).aabb(&b);
+        let local = Frame::for_prims(&[b]).aabb(&b);
         assert!(local.is_finite());
+    }
+
+    #[test]
+    fn mixed_sizes_keep_their_units() {
+        let unit = Aabb::new(Vec3A::ZERO, Vec3A::ONE);
+        let huge = Aabb::new(Vec3A::ZERO, Vec3A::splat(1e30));
+        let tiny = Aabb::new(Vec3A::ZERO, Vec3A::splat(1e-30));
+        assert!(Frame::for_prims(&[unit, huge]).is_identity());
+        assert!(Frame::for_prims(&[unit, tiny]).is_identity());
+        assert!(!Frame::for_prims(&[huge, huge]).is_identity());
     }
 }
