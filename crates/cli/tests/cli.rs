@@ -466,3 +466,23 @@ fn non_finite_input_is_refused_unless_dropping_is_asked_for() {
         .success()
         .stderr(predicate::str::contains("warning").and(predicate::str::contains("dropped 1")));
 }
+
+#[test]
+fn a_camera_looking_along_its_up_vector_is_refused_before_rendering() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("up.nff");
+    std::fs::write(
+        &file,
+        "v\nfrom 0 0 5\nat 0 0 0\nup 0 0 1\nangle 45\nhither 1\nresolution 8 8\n\
+         f 1 1 1 1 0 0 0 1\ns 0 0 0 1\n",
+    )
+    .unwrap();
+    let png = dir.path().join("out.png");
+    quiver()
+        .args(["render", file.to_str().unwrap(), "--res", "8", "-o"])
+        .arg(&png)
+        .assert()
+        .code(2)
+        .stderr(predicate::str::contains("up.nff:4").and(predicate::str::contains("'up'")));
+    assert!(!png.exists(), "no image for a refused camera");
+}
