@@ -15,7 +15,7 @@
 //! # let _ = object;
 //! ```
 //!
-//! OBJ loading needs the default `obj` feature (tobj).
+//! OBJ files are read by quiver's own line-by-line reader ([`scene::obj`]), errors naming file and line.
 
 #![warn(missing_docs)]
 
