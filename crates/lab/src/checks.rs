@@ -128,7 +128,7 @@ fn judgeable(r: &Ray) -> bool {
     r.origin.is_finite() && r.dir.is_finite() && r.t_min.is_finite() && !r.t_max.is_nan()
 }
 
-/// Triangles and rays from the bytes, a BVH as the input's [`Setup`] chooses. Nothing may
+/// Triangles and rays from the bytes, a BVH as the input's setup bytes choose. Nothing may
 /// panic, trees must be valid and every instruction set must give bit-identical answers; on
 /// tame inputs every query must also answer as the independent f64 oracle
 /// ([`crate::oracle`]) admits — the same primitive, `t`, `u` and `v` on decidable rays, one of
