@@ -143,6 +143,7 @@ fn eye_hits_are_the_same_at_every_scale_watertight() {
 }
 
 /// Renders of `scene` at every scale against scale 1, with either offset: at powers of two
+/// (every layout)
 /// (exact in f32) the same ray counts and the same pixels; at powers of ten (each coordinate
 /// rounded anew, so a facing test or a shading value at a tie may land the other way) the
 /// same eye hits, other ray counts within two rays or 0.2% per kind, and at most 1% of pixel
@@ -156,8 +157,8 @@ fn renders_match(scene: &Scene, patches: bool) {
             offset,
             ..RenderConfig::default()
         };
-        let run = |s: &Scene| {
-            let options = BuildOptions::default();
+        let run_in = |s: &Scene, layout: Layout| {
+            let options = BuildOptions::default().layout(layout);
             let bvh = if patches {
                 SceneBvh::build_triangles(s, &options)
             } else {
@@ -165,17 +166,21 @@ fn renders_match(scene: &Scene, patches: bool) {
             };
             render(s, &bvh, &config, &|_| {})
         };
+        let run = |s: &Scene| run_in(s, Layout::default());
         let want = run(scene);
         assert!(
             want.rays.shadow > 0,
             "{}: a scene with shadow rays",
             scene.name
         );
-        for j in (-100..=100).step_by(10).map(Factor::Two) {
-            let got = run(&scale_scene(scene, j));
-            let at = format!("{} {offset:?} at {j}", scene.name);
-            assert_eq!(got.rays, want.rays, "{at}");
-            assert!(got.rgb == want.rgb, "{at}: pixels differ");
+        // Every layout: a render does not depend on the layout at scale 1 (tests/suite/render.rs).
+        for layout in Layout::ALL {
+            for j in (-100..=100).step_by(20).map(Factor::Two) {
+                let got = run_in(&scale_scene(scene, j), layout);
+                let at = format!("{} {layout} {offset:?} at {j}", scene.name);
+                assert_eq!(got.rays, want.rays, "{at}");
+                assert!(got.rgb == want.rgb, "{at}: pixels differ");
+            }
         }
         for j in EXPONENTS.map(Factor::Ten) {
             let got = run(&scale_scene(scene, j));
