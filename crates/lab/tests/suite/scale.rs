@@ -143,8 +143,7 @@ fn eye_hits_are_the_same_at_every_scale_watertight() {
 }
 
 /// Renders of `scene` at every scale against scale 1, with either offset: at powers of two
-/// (every layout)
-/// (exact in f32) the same ray counts and the same pixels; at powers of ten (each coordinate
+/// (exact in f32; every layout) the same ray counts and the same pixels; at powers of ten (each coordinate
 /// rounded anew, so a facing test or a shading value at a tie may land the other way) the
 /// same eye hits, other ray counts within two rays or 0.2% per kind, and at most 1% of pixel
 /// channels different (one corner ray decided the other way shades four pixels: 12 of 1728
