@@ -13,7 +13,7 @@
 //! scaled (see [`Frame::for_prims`]); every other BVH keeps the identity frame and pays
 //! nothing for it (the scaled BVH is a variant of its own).
 
-use crate::geometry::{Aabb, Hit, Primitive, Ray};
+use crate::geometry::{exponent, pow2, scale2, Aabb, Hit, Primitive, Ray};
 
 /// Extents from `2^-SAFE` to `2^SAFE` keep the identity frame: the tests' products of up to
 /// three lengths stay far inside f32's normal range there (`2^60` and `2^-60`).
@@ -28,13 +28,6 @@ const MAX_SCALED_EXPONENT: i32 = 100;
 
 /// Ray directions are brought near unit length by at most this power of two either way.
 const MAX_DIR_EXPONENT: i32 = 60;
-
-/// `x * 2^e` for `e` beyond f32's exponent range too, in two exact steps.
-#[inline(always)]
-fn scale2(x: f32, e: i32) -> f32 {
-    let half = e / 2;
-    x * pow2(half) * pow2(e - half)
-}
 
 /// What takes one ray's local hit distances back to world units.
 #[derive(Clone, Copy, Debug, Default)]
@@ -58,22 +51,6 @@ impl Back {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub(crate) struct Frame {
     k: i32,
-}
-
-/// `2^e` for `e` in f32's normal exponent range.
-fn pow2(e: i32) -> f32 {
-    debug_assert!((-126..=127).contains(&e));
-    f32::from_bits(((e + 127) as u32) << 23)
-}
-
-/// The exponent of `x` (finite, positive): `x` lies in `[2^e, 2^(e+1))`.
-fn exponent(x: f32) -> i32 {
-    if x >= f32::MIN_POSITIVE {
-        ((x.to_bits() >> 23) & 0xff) as i32 - 127
-    } else {
-        // Subnormal: count from the smallest normal down.
-        -127 - (x.to_bits().leading_zeros() as i32 - 9)
-    }
 }
 
 impl Frame {

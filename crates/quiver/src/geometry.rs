@@ -252,24 +252,15 @@ impl Triangle {
 /// // Powers of two are exact: the same bits as at unit size.
 /// assert_eq!(unit_or_zero(Vec3A::new(3.0, 4.0, 0.0) * 2f32.powi(100)), Vec3A::new(3.0, 4.0, 0.0).normalize());
 /// assert_eq!(unit_or_zero(Vec3A::new(0.0, 1e-30, 0.0)), Vec3A::Y);
+/// assert_eq!(unit_or_zero(Vec3A::new(0.0, 0.0, -1e-45)), -Vec3A::Z); // subnormal
 /// assert_eq!(unit_or_zero(Vec3A::ZERO), Vec3A::ZERO);
 /// ```
 pub fn unit_or_zero(v: Vec3A) -> Vec3A {
-    const STEP: f32 = (1u64 << 60) as f32;
-    let mut v = v;
-    let mut m = v.abs().max_element();
+    let m = v.abs().max_element();
     if !m.is_finite() {
         return Vec3A::ZERO;
     }
-    while m > STEP {
-        v /= STEP;
-        m /= STEP;
-    }
-    while m > 0.0 && m < 1.0 / STEP {
-        v *= STEP;
-        m *= STEP;
-    }
-    v.normalize_or_zero()
+    (v * unit_scale(m)).normalize_or_zero()
 }
 
 /// The power of two that brings a magnitude `m` near 1 when products of two or three such
@@ -288,10 +279,32 @@ pub fn unit_scale(m: f32) -> f32 {
     if !(m.is_finite() && m > 0.0) || (1.0 / BAND..=BAND).contains(&m) {
         return 1.0;
     }
-    // 2^-e for m in [2^e, 2^(e+1)); e lies in -149..=127, so take it in two exact halves.
-    let e = m.log2().floor() as i32;
+    // 2^-e for m in [2^e, 2^(e+1)); the factor itself must be an f32, so a subnormal m only
+    // comes up by 2^127 (to at least 2^-22, still far from underflow).
+    scale2(1.0, -exponent(m).max(-127))
+}
+
+/// `2^e` for `e` in f32's normal exponent range.
+pub(crate) fn pow2(e: i32) -> f32 {
+    debug_assert!((-126..=127).contains(&e));
+    f32::from_bits(((e + 127) as u32) << 23)
+}
+
+/// The exponent of `x` (finite, positive): `x` lies in `[2^e, 2^(e+1))`.
+pub(crate) fn exponent(x: f32) -> i32 {
+    if x >= f32::MIN_POSITIVE {
+        ((x.to_bits() >> 23) & 0xff) as i32 - 127
+    } else {
+        // Subnormal: count from the smallest normal down.
+        -127 - (x.to_bits().leading_zeros() as i32 - 9)
+    }
+}
+
+/// `x * 2^e` for `e` beyond f32's exponent range too, in two exact steps.
+#[inline(always)]
+pub(crate) fn scale2(x: f32, e: i32) -> f32 {
     let half = e / 2;
-    2f32.powi(-half) * 2f32.powi(-(e - half))
+    x * pow2(half) * pow2(e - half)
 }
 
 /// Anything a BVH can hold: it has bounds and a ray test. Triangles are the fast path; the
