@@ -4,7 +4,7 @@
 
 use crate::build::{build, prim_bounds, BuildConfig, BuildTree, Builder};
 use crate::frame::{Back, Frame};
-use crate::geometry::{Aabb, Hit, Primitive, Ray, Triangle};
+use crate::geometry::{Hit, Primitive, Ray, Triangle};
 use crate::isa::Isa;
 use crate::layout::bvh2::leaf_order;
 use crate::layout::{Bvh2, Bvh4, Bvh8, Footprint, Layout, QBvh4};
@@ -87,7 +87,7 @@ impl<P: Primitive> Bvh<P> {
             Some(local) => Bvh {
                 nodes: layout
                     .lay_out(
-                        &tree.scaled(|b| frame.aabb(b)),
+                        &tree.refit(&prim_bounds(&local)),
                         leaf_order(tree, &local),
                         Isa::detect(),
                         &config,
@@ -469,24 +469,25 @@ impl<'p> BuildOptions<'p> {
         self.run(|| {
             let bounds = prim_bounds(prims);
             let frame = Frame::for_prims(&bounds);
-            match frame_prims(frame, prims) {
-                Some(local) => {
-                    let local_bounds: Vec<Aabb> = bounds.iter().map(|b| frame.aabb(b)).collect();
-                    let tree = build(&local_bounds, &self.effective_config(), self.builder);
-                    let nodes = self.lay_out(&tree, leaf_order(&tree, &local));
-                    (
-                        Bvh {
-                            nodes: nodes.framed(frame),
-                        },
-                        tree.refit(&bounds),
-                    )
-                }
-                None => {
-                    let tree = build(&bounds, &self.effective_config(), self.builder);
-                    let nodes = self.lay_out(&tree, leaf_order(&tree, prims));
-                    (Bvh { nodes }, tree)
-                }
-            }
+            let local = frame_prims(frame, prims);
+            // A type that cannot be scaled stays in its own units.
+            let frame = if local.is_some() {
+                frame
+            } else {
+                Frame::default()
+            };
+            let tree = build(
+                &frame.boxes(&bounds),
+                &self.effective_config(),
+                self.builder,
+            );
+            let nodes = self.lay_out(&tree, leaf_order(&tree, local.as_deref().unwrap_or(prims)));
+            (
+                Bvh {
+                    nodes: nodes.framed(frame),
+                },
+                frame.world_tree(tree, &bounds),
+            )
         })
     }
 
@@ -523,35 +524,25 @@ impl<'p> BuildOptions<'p> {
             use rayon::prelude::*;
             let bounds = mesh.bounds();
             let frame = Frame::for_prims(&bounds);
-            let local_bounds: Vec<Aabb> = if frame.is_identity() {
-                bounds.clone()
-            } else {
-                bounds.iter().map(|b| frame.aabb(b)).collect()
-            };
-            let tree = build(&local_bounds, &self.effective_config(), self.builder);
-            let down = |t: Triangle| {
-                if frame.is_identity() {
-                    t
-                } else {
-                    frame.prims(&[t]).expect("triangles scale")[0]
-                }
-            };
+            let tree = build(
+                &frame.boxes(&bounds),
+                &self.effective_config(),
+                self.builder,
+            );
             let leaf_tris = tree
                 .prim_indices
                 .par_iter()
-                .map(|&i| down(mesh.triangle(i)))
+                .map(|&i| match frame.is_identity() {
+                    true => mesh.triangle(i),
+                    false => frame.prim(&mesh.triangle(i)).expect("triangles scale"),
+                })
                 .collect();
             let nodes = self.lay_out(&tree, leaf_tris);
-            let tree = if frame.is_identity() {
-                tree
-            } else {
-                tree.refit(&bounds)
-            };
             (
                 Bvh {
                     nodes: nodes.framed(frame),
                 },
-                tree,
+                frame.world_tree(tree, &bounds),
             )
         }))
     }
@@ -648,6 +639,34 @@ mod tests {
             bvh.closest_hit(&ray),
             crate::reference::closest_hit(&tris, &ray)
         );
+    }
+
+    #[test]
+    fn a_mesh_far_from_unit_size_hits_what_it_hits_at_unit_size() {
+        let tris = soup(300, 4);
+        let s = 2f32.powi(100);
+        let positions: Vec<[f32; 3]> = tris
+            .iter()
+            .flat_map(|t| t.v.map(|v| (v * s).to_array()))
+            .collect();
+        let indices: Vec<[u32; 3]> = (0..tris.len() as u32)
+            .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
+            .collect();
+        let (big, tree) = BuildOptions::default()
+            .build_mesh_with_tree(&positions, &indices)
+            .unwrap();
+        assert!(matches!(big.nodes, Nodes::Scaled(_)));
+        let unit = Bvh::new(&tris);
+        for i in 0..200 {
+            let o = Vec3A::new(i as f32 / 200.0, 0.5, -1.0);
+            let ray = Ray::new(o, Vec3A::new(0.1, 0.05, 1.0));
+            let want = unit.closest_hit(&ray).map(|h| Hit { t: h.t * s, ..h });
+            assert_eq!(big.closest_hit(&Ray::new(o * s, ray.dir)), want, "ray {i}");
+        }
+        // The tree is told in the caller's units: its boxes hold the world triangles.
+        let world: Vec<Triangle> = tris.iter().map(|t| t.scaled(s).unwrap()).collect();
+        tree.validate(&prim_bounds(&world), &BuildConfig::default())
+            .unwrap();
     }
 
     #[test]

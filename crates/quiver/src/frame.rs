@@ -13,6 +13,7 @@
 //! scaled (see [`Frame::for_prims`]); every other BVH keeps the identity frame and pays
 //! nothing for it (the scaled BVH is a variant of its own).
 
+use crate::build::BuildTree;
 use crate::geometry::{exponent, pow2, scale2, Aabb, Hit, Primitive, Ray};
 
 /// Extents from `2^-SAFE` to `2^SAFE` keep the identity frame: the tests' products of up to
@@ -137,11 +138,34 @@ impl Frame {
         Aabb::new(b.min * s, b.max * s)
     }
 
-    /// The primitives in the frame, or `None` when their type cannot be scaled
+    /// One primitive in the frame, or `None` when its type cannot be scaled
     /// ([`Primitive::scaled`]).
+    pub(crate) fn prim<P: Primitive>(self, p: &P) -> Option<P> {
+        p.scaled(self.down())
+    }
+
+    /// The primitives in the frame, or `None` when their type cannot be scaled.
     pub(crate) fn prims<P: Primitive>(self, prims: &[P]) -> Option<Vec<P>> {
-        let s = self.down();
-        prims.iter().map(|p| p.scaled(s)).collect()
+        prims.iter().map(|p| self.prim(p)).collect()
+    }
+
+    /// A tree built in the frame, told in world units: refit to the primitives' world
+    /// `bounds` (scaling its boxes back would lose subnormal coordinates).
+    pub(crate) fn world_tree(self, tree: BuildTree, bounds: &[Aabb]) -> BuildTree {
+        if self.is_identity() {
+            tree
+        } else {
+            tree.refit(bounds)
+        }
+    }
+
+    /// Boxes in the frame: borrowed as they are in the identity frame.
+    pub(crate) fn boxes(self, boxes: &[Aabb]) -> std::borrow::Cow<'_, [Aabb]> {
+        if self.is_identity() {
+            boxes.into()
+        } else {
+            boxes.iter().map(|b| self.aabb(b)).collect()
+        }
     }
 }
 

@@ -322,22 +322,6 @@ impl BuildTree {
         }
     }
 
-    /// The same tree with every box mapped by `f` (a BVH's frame change).
-    pub(crate) fn scaled(&self, f: impl Fn(&Aabb) -> Aabb) -> BuildTree {
-        BuildTree {
-            nodes: self
-                .nodes
-                .iter()
-                .map(|n| BuildNode {
-                    bounds: f(&n.bounds),
-                    kind: n.kind,
-                })
-                .collect(),
-            prim_indices: self.prim_indices.clone(),
-            dropped: self.dropped,
-        }
-    }
-
     /// Shape counts: nodes, leaves, depth, largest leaf.
     pub fn stats(&self) -> TreeStats {
         let mut s = TreeStats {
