@@ -4,8 +4,13 @@ use glam::Vec3A;
 use quiver::{reference, BuildOptions, Bvh, Hit, Layout, Primitive, Ray, Triangle};
 use rayon::prelude::*;
 
-/// The 4-wide layouts: the ones with a packet kernel.
-pub const WIDE: [Layout; 3] = [Layout::Bvh4Dfs, Layout::Bvh4Subtree, Layout::Bvh4Quant];
+/// The 4- and 8-wide layouts: the ones with a packet kernel.
+pub const WIDE: [Layout; 4] = [
+    Layout::Bvh4Dfs,
+    Layout::Bvh4Subtree,
+    Layout::Bvh4Quant,
+    Layout::Bvh8Dfs,
+];
 
 /// Runs `f` on a fresh pool of `threads` threads.
 pub fn in_pool<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {

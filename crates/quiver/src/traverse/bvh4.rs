@@ -9,7 +9,7 @@ use super::{slab_reciprocal, BoxTest, PacketMode, RayQuery, Stack};
 use crate::build::MAX_DEPTH;
 use crate::geometry::{Hit, Primitive, Ray};
 use crate::layout::{Bvh4, Bvh4Node, Node4};
-use wide::f32x4;
+use wide::{f32x4, f32x8};
 
 /// The kernels' name for a 4-wide node format.
 pub(crate) use crate::layout::Node4 as WideNode;
@@ -227,7 +227,15 @@ impl<P: Primitive, N: Node4> RayQuery for Bvh4<P, N> {
         hits: &mut [Option<Hit>],
         stats: &mut S,
     ) {
-        closest_rays::<N, B, P, S>(&self.nodes, &self.leaves(), rays, active, mode, hits, stats)
+        closest_rays::<N, f32x8, B, P, S>(
+            &self.nodes,
+            &self.leaves(),
+            rays,
+            active,
+            mode,
+            hits,
+            stats,
+        )
     }
 
     fn any_hit_packet_with<B: BoxTest, S: Stats>(
@@ -238,7 +246,7 @@ impl<P: Primitive, N: Node4> RayQuery for Bvh4<P, N> {
         occluded: &mut [bool],
         stats: &mut S,
     ) {
-        any_rays::<N, B, P, S>(
+        any_rays::<N, f32x8, B, P, S>(
             &self.nodes,
             &self.leaves(),
             rays,

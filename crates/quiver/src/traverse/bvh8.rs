@@ -5,7 +5,9 @@
 //! same nodes and return the same hits. Closest hit visits hit children nearest first; any
 //! hit pushes them unordered and stops at the first hit.
 
-use super::simd::{bits, insert_farthest_first, NanFirst};
+use super::lane8::F8;
+use super::packet::{self, PacketMode};
+use super::simd::{bits, insert_farthest_first};
 use super::stats::Stats;
 use super::tri4::Leaves;
 use super::{slab_reciprocal, BoxTest, RayQuery, Stack};
@@ -15,61 +17,54 @@ use crate::isa::Isa;
 use crate::layout::{Bvh8, Bvh8Node};
 use wide::f32x8;
 
-/// The slab test of one ray against a node's eight boxes.
-trait Test8 {
-    /// Entry distances of the eight boxes and the mask of those entered within
-    /// `[t_min, t_max]` (boundaries included; `t_max` already scaled by the box test's slack).
-    fn enter<B: BoxTest>(&self, n: &Bvh8Node, t_max: f32) -> ([f32; 8], u32);
-}
-
-/// A ray prepared for the portable 8-lane test.
-struct Portable8 {
-    origin: [f32x8; 3],
-    inv: [f32x8; 3],
+/// A ray prepared for the slab test of a node's eight boxes in eight lanes of `V`.
+pub(crate) struct Ray8<V> {
+    origin: [V; 3],
+    inv: [V; 3],
     /// Per axis, the plane row entered first (min row, or max row for a negative direction).
     near: [usize; 3],
     far: [usize; 3],
-    t_min: f32x8,
+    t_min: V,
 }
 
-/// Per axis, the near and far plane rows for a ray with these reciprocals.
-#[inline(always)]
-fn rows(inv: [f32; 3]) -> ([usize; 3], [usize; 3]) {
-    let neg = inv.map(|x| x.is_sign_negative() as usize);
-    (
-        [0, 1, 2].map(|a| a + 3 * neg[a]),
-        [0, 1, 2].map(|a| a + 3 - 3 * neg[a]),
-    )
-}
-
-impl Portable8 {
+impl<V: F8> Ray8<V> {
     #[inline(always)]
-    fn new(ray: &Ray) -> Self {
-        let inv: [f32; 3] = slab_reciprocal(ray.dir).into();
-        let (near, far) = rows(inv);
-        Portable8 {
-            origin: <[f32; 3]>::from(ray.origin).map(f32x8::splat),
-            inv: inv.map(f32x8::splat),
-            near,
-            far,
-            t_min: f32x8::splat(ray.t_min),
+    pub(crate) fn new(ray: &Ray) -> Self {
+        Self::from_parts(
+            ray.origin.into(),
+            slab_reciprocal(ray.dir).into(),
+            ray.t_min,
+        )
+    }
+
+    /// From an origin, the slab reciprocals of the direction and `t_min`.
+    #[inline(always)]
+    pub(crate) fn from_parts(origin: [f32; 3], inv: [f32; 3], t_min: f32) -> Self {
+        let neg = inv.map(|x| x.is_sign_negative() as usize);
+        Ray8 {
+            origin: V::splat3(origin),
+            inv: V::splat3(inv),
+            near: [0, 1, 2].map(|a| a + 3 * neg[a]),
+            far: [0, 1, 2].map(|a| a + 3 - 3 * neg[a]),
+            t_min: V::splat(t_min),
         }
     }
-}
 
-impl Test8 for Portable8 {
+    /// Entry distances of the eight boxes and the mask of those entered within
+    /// `[t_min, t_max]` (boundaries included; `t_max` already scaled by the box test's slack).
     #[inline(always)]
-    fn enter<B: BoxTest>(&self, n: &Bvh8Node, t_max: f32) -> ([f32; 8], u32) {
-        let p = |row: usize| f32x8::from(n.planes[row]);
+    pub(crate) fn enter<B: BoxTest>(&self, n: &Bvh8Node, t_max: f32) -> ([f32; 8], u32) {
+        let p = |row: usize| V::load(&n.planes[row]);
+        let slack = V::splat(B::SLACK);
         let mut near = self.t_min;
-        let mut far = f32x8::splat(t_max);
+        let mut far = V::splat(t_max);
         for a in 0..3 {
-            let tn = (p(self.near[a]) - self.origin[a]) * self.inv[a];
-            let tf = (p(self.far[a]) - self.origin[a]) * self.inv[a];
+            let tn = p(self.near[a]).sub(self.origin[a]).mul(self.inv[a]);
+            let tf = p(self.far[a]).sub(self.origin[a]).mul(self.inv[a]);
             near = tn.max_nan_first(near);
-            far = (tf * f32x8::splat(B::SLACK)).min_nan_first(far);
+            far = tf.mul(slack).min_nan_first(far);
         }
-        (near.to_array(), near.simd_le(far).to_bitmask())
+        (near.to_array(), near.le(far).bitmask())
     }
 }
 
@@ -79,21 +74,22 @@ impl Test8 for Portable8 {
 /// visit hit children nearest first (closest hit) or in slot order (any hit, which stops at
 /// the first hit and gains nothing from sorting).
 #[inline(always)]
-fn walk<T, B, S, F, const ORDERED: bool>(
+fn walk<V, B, S, F, const ORDERED: bool>(
     nodes: &[Bvh8Node],
-    ray: &T,
+    ray: &Ray8<V>,
+    root: usize,
     mut limit: f32,
     stats: &mut S,
     mut leaf: F,
 ) where
-    T: Test8,
+    V: F8,
     B: BoxTest,
     S: Stats,
     F: FnMut(usize, u32, &mut f32, &mut S) -> bool,
 {
     // Each node pushes at most seven entries beyond the one it continues with.
     let mut stack: Stack<(u32, u32, f32), { 7 * MAX_DEPTH + 8 }> = Stack::new();
-    let mut node = 0usize;
+    let mut node = root;
     loop {
         let n = &nodes[node];
         stats.node();
@@ -147,54 +143,120 @@ fn walk<T, B, S, F, const ORDERED: bool>(
     }
 }
 
-/// Closest hit over any 8-lane test.
+/// Closest hit in the subtree of inner node `root`, improving on `best`, whose distance is
+/// the search limit.
 #[inline(always)]
-fn closest<T: Test8, B: BoxTest, P: Primitive, S: Stats>(
-    bvh: &Bvh8<P>,
-    t8: &T,
+pub(crate) fn closest_from<V: F8, B: BoxTest, P: Primitive, S: Stats>(
+    nodes: &[Bvh8Node],
+    leaves: &Leaves<P>,
     ray: &Ray,
+    root: usize,
+    best: &mut Hit,
     stats: &mut S,
-) -> Option<Hit> {
-    let mut best = Hit::none(ray.t_max);
-    let leaves = bvh.leaves();
+) {
     // Prepared at the first leaf: many rays never reach one.
     let mut prep = None;
-    walk::<T, B, S, _, true>(
-        &bvh.nodes,
-        t8,
-        ray.t_max,
+    let r8 = Ray8::<V>::new(ray);
+    walk::<V, B, S, _, true>(
+        nodes,
+        &r8,
+        root,
+        best.t,
         stats,
+        #[inline(always)]
         |first, count, limit, stats| {
-            leaves.closest(first, count, ray, &mut prep, &mut best, stats);
+            leaves.closest(first, count, ray, &mut prep, best, stats);
             *limit = best.t;
             false
         },
     );
-    best.found()
 }
 
-/// Any hit over any 8-lane test.
+/// Whether anything in the subtree of inner node `root` is hit.
 #[inline(always)]
-fn any<T: Test8, B: BoxTest, P: Primitive, S: Stats>(
-    bvh: &Bvh8<P>,
-    t8: &T,
+pub(crate) fn any_from<V: F8, B: BoxTest, P: Primitive, S: Stats>(
+    nodes: &[Bvh8Node],
+    leaves: &Leaves<P>,
     ray: &Ray,
+    root: usize,
     stats: &mut S,
 ) -> bool {
-    let leaves = bvh.leaves();
     let mut prep = None;
     let mut hit = false;
-    walk::<T, B, S, _, false>(
-        &bvh.nodes,
-        t8,
+    let r8 = Ray8::<V>::new(ray);
+    walk::<V, B, S, _, false>(
+        nodes,
+        &r8,
+        root,
         ray.t_max,
         stats,
+        #[inline(always)]
         |first, count, _, stats| {
             hit = leaves.any(first, count, ray, &mut prep, stats);
             hit
         },
     );
     hit
+}
+
+/// Closest hit over lanes of `V`.
+#[inline(always)]
+fn closest<V: F8, B: BoxTest, P: Primitive, S: Stats>(
+    bvh: &Bvh8<P>,
+    ray: &Ray,
+    stats: &mut S,
+) -> Option<Hit> {
+    let mut best = Hit::none(ray.t_max);
+    closest_from::<V, B, P, S>(&bvh.nodes, &bvh.leaves(), ray, 0, &mut best, stats);
+    best.found()
+}
+
+/// Any hit over lanes of `V`.
+#[inline(always)]
+fn any<V: F8, B: BoxTest, P: Primitive, S: Stats>(bvh: &Bvh8<P>, ray: &Ray, stats: &mut S) -> bool {
+    any_from::<V, B, P, S>(&bvh.nodes, &bvh.leaves(), ray, 0, stats)
+}
+
+/// Packet closest hits over lanes of `V`.
+#[inline(always)]
+fn closest_packet<V: F8, B: BoxTest, P: Primitive, S: Stats>(
+    bvh: &Bvh8<P>,
+    rays: &[Ray],
+    active: Option<&[bool]>,
+    mode: PacketMode,
+    hits: &mut [Option<Hit>],
+    stats: &mut S,
+) {
+    packet::closest_rays::<Bvh8Node, V, B, P, S>(
+        &bvh.nodes,
+        &bvh.leaves(),
+        rays,
+        active,
+        mode,
+        hits,
+        stats,
+    )
+}
+
+/// Packet any-hit answers over lanes of `V`.
+#[inline(always)]
+fn any_packet<V: F8, B: BoxTest, P: Primitive, S: Stats>(
+    bvh: &Bvh8<P>,
+    rays: &[Ray],
+    active: Option<&[bool]>,
+    mode: PacketMode,
+    occluded: &mut [bool],
+    stats: &mut S,
+) {
+    packet::any_rays::<Bvh8Node, V, B, P, S>(
+        &bvh.nodes,
+        &bvh.leaves(),
+        rays,
+        active,
+        mode,
+        occluded,
+        stats,
+    )
 }
 
 impl<P: Primitive> Bvh8<P> {
@@ -208,91 +270,66 @@ impl<P: Primitive> Bvh8<P> {
     }
 }
 
-/// No 8-wide packet kernel yet: packet queries go ray by ray (the trait's default).
+// Each query branches once on the BVH's instruction set. SAFETY (every `unsafe` call below):
+// `isa` is Avx2 only where the CPU has AVX2 and FMA (`Isa::or_portable`).
 impl<P: Primitive> RayQuery for Bvh8<P> {
     fn closest_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> Option<Hit> {
         match self.isa {
             #[cfg(target_arch = "x86_64")]
-            // SAFETY: `isa` is Avx2 only where the CPU has AVX2 and FMA (`Isa::or_portable`).
             Isa::Avx2 => unsafe { avx2::closest::<B, P, S>(self, ray, stats) },
-            _ => closest::<Portable8, B, P, S>(self, &Portable8::new(ray), ray, stats),
+            _ => closest::<f32x8, B, P, S>(self, ray, stats),
         }
     }
 
     fn any_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> bool {
         match self.isa {
             #[cfg(target_arch = "x86_64")]
-            // SAFETY: as in `closest_hit_with`.
             Isa::Avx2 => unsafe { avx2::any::<B, P, S>(self, ray, stats) },
-            _ => any::<Portable8, B, P, S>(self, &Portable8::new(ray), ray, stats),
+            _ => any::<f32x8, B, P, S>(self, ray, stats),
+        }
+    }
+
+    fn closest_hit_packet_with<B: BoxTest, S: Stats>(
+        &self,
+        rays: &[Ray],
+        active: Option<&[bool]>,
+        mode: PacketMode,
+        hits: &mut [Option<Hit>],
+        stats: &mut S,
+    ) {
+        match self.isa {
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx2 => unsafe {
+                avx2::closest_packet::<B, P, S>(self, rays, active, mode, hits, stats)
+            },
+            _ => closest_packet::<f32x8, B, P, S>(self, rays, active, mode, hits, stats),
+        }
+    }
+
+    fn any_hit_packet_with<B: BoxTest, S: Stats>(
+        &self,
+        rays: &[Ray],
+        active: Option<&[bool]>,
+        mode: PacketMode,
+        occluded: &mut [bool],
+        stats: &mut S,
+    ) {
+        match self.isa {
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx2 => unsafe {
+                avx2::any_packet::<B, P, S>(self, rays, active, mode, occluded, stats)
+            },
+            _ => any_packet::<f32x8, B, P, S>(self, rays, active, mode, occluded, stats),
         }
     }
 }
 
-/// The AVX2 kernels: the same walk, the slab test on 256-bit registers.
+/// The AVX2 kernels: the same walks on 256-bit registers, compiled with AVX2 enabled (every
+/// function they call is inlined into these).
 #[cfg(target_arch = "x86_64")]
 mod avx2 {
     use super::*;
-    use std::arch::x86_64::*;
-
-    /// A ray prepared for the AVX2 test.
-    pub(super) struct Avx8 {
-        origin: [__m256; 3],
-        inv: [__m256; 3],
-        near: [usize; 3],
-        far: [usize; 3],
-        t_min: __m256,
-    }
-
-    impl Avx8 {
-        #[target_feature(enable = "avx2,fma")]
-        #[inline]
-        fn new(ray: &Ray) -> Self {
-            let inv: [f32; 3] = slab_reciprocal(ray.dir).into();
-            let (near, far) = rows(inv);
-            let o: [f32; 3] = ray.origin.into();
-            Avx8 {
-                origin: o.map(|x| _mm256_set1_ps(x)),
-                inv: inv.map(|x| _mm256_set1_ps(x)),
-                near,
-                far,
-                t_min: _mm256_set1_ps(ray.t_min),
-            }
-        }
-
-        /// [`Test8::enter`] on AVX2: `_mm256_max_ps(a, b)` returns `b` when either is NaN,
-        /// as the portable NaN-first max does lane by lane, and `<=` is ordered (false on
-        /// NaN) in both.
-        #[target_feature(enable = "avx2,fma")]
-        #[inline]
-        fn enter_avx<B: BoxTest>(&self, n: &Bvh8Node, t_max: f32) -> ([f32; 8], u32) {
-            // SAFETY: the rows are 32-byte aligned (64-byte aligned node, 32-byte rows).
-            let p = |row: usize| unsafe { _mm256_load_ps(n.planes[row].as_ptr()) };
-            let slack = _mm256_set1_ps(B::SLACK);
-            let mut near = self.t_min;
-            let mut far = _mm256_set1_ps(t_max);
-            for a in 0..3 {
-                let tn = _mm256_mul_ps(_mm256_sub_ps(p(self.near[a]), self.origin[a]), self.inv[a]);
-                let tf = _mm256_mul_ps(_mm256_sub_ps(p(self.far[a]), self.origin[a]), self.inv[a]);
-                near = _mm256_max_ps(tn, near);
-                far = _mm256_min_ps(_mm256_mul_ps(tf, slack), far);
-            }
-            let mut t = [0.0f32; 8];
-            // SAFETY: `t` holds eight floats; the unaligned store needs no alignment.
-            unsafe { _mm256_storeu_ps(t.as_mut_ptr(), near) };
-            let mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, far)) as u32;
-            (t, mask)
-        }
-    }
-
-    impl Test8 for Avx8 {
-        #[inline(always)]
-        fn enter<B: BoxTest>(&self, n: &Bvh8Node, t_max: f32) -> ([f32; 8], u32) {
-            // SAFETY: an `Avx8` is only made inside the AVX2 kernels below, which run only
-            // where the CPU has AVX2 and FMA.
-            unsafe { self.enter_avx::<B>(n, t_max) }
-        }
-    }
+    use crate::traverse::lane8::Avx;
 
     /// # Safety
     /// The CPU must support AVX2 and FMA.
@@ -302,7 +339,7 @@ mod avx2 {
         ray: &Ray,
         stats: &mut S,
     ) -> Option<Hit> {
-        super::closest::<Avx8, B, P, S>(bvh, &Avx8::new(ray), ray, stats)
+        super::closest::<Avx, B, P, S>(bvh, ray, stats)
     }
 
     /// # Safety
@@ -313,6 +350,34 @@ mod avx2 {
         ray: &Ray,
         stats: &mut S,
     ) -> bool {
-        super::any::<Avx8, B, P, S>(bvh, &Avx8::new(ray), ray, stats)
+        super::any::<Avx, B, P, S>(bvh, ray, stats)
+    }
+
+    /// # Safety
+    /// The CPU must support AVX2 and FMA.
+    #[target_feature(enable = "avx2,fma")]
+    pub(super) unsafe fn closest_packet<B: BoxTest, P: Primitive, S: Stats>(
+        bvh: &Bvh8<P>,
+        rays: &[Ray],
+        active: Option<&[bool]>,
+        mode: PacketMode,
+        hits: &mut [Option<Hit>],
+        stats: &mut S,
+    ) {
+        super::closest_packet::<Avx, B, P, S>(bvh, rays, active, mode, hits, stats)
+    }
+
+    /// # Safety
+    /// The CPU must support AVX2 and FMA.
+    #[target_feature(enable = "avx2,fma")]
+    pub(super) unsafe fn any_packet<B: BoxTest, P: Primitive, S: Stats>(
+        bvh: &Bvh8<P>,
+        rays: &[Ray],
+        active: Option<&[bool]>,
+        mode: PacketMode,
+        occluded: &mut [bool],
+        stats: &mut S,
+    ) {
+        super::any_packet::<Avx, B, P, S>(bvh, rays, active, mode, occluded, stats)
     }
 }

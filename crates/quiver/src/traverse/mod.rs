@@ -10,6 +10,7 @@
 mod bvh2;
 mod bvh4;
 mod bvh8;
+mod lane8;
 pub mod packet;
 mod query;
 pub mod reference;

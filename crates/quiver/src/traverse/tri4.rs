@@ -114,7 +114,7 @@ fn watertight4(g: &Tri4, r: &Ray4Tri, t_max: f32) -> (u32, u32, [f32; 4], [f32; 
 
 /// Hits of one group in `format` within `[t_min, t_max]`: `(lane, hit)` for each.
 #[inline(always)]
-fn group_hits(
+pub(crate) fn group_hits(
     g: &Tri4,
     r: &Ray4Tri,
     ray: &Ray,

@@ -2,6 +2,7 @@
 //! reciprocal direction, which rejects in one 4-wide test the child boxes no ray of the
 //! packet can enter.
 
+use crate::traverse::lane8::F8;
 use crate::traverse::BoxTest;
 use glam::Vec3A;
 use wide::f32x4;
@@ -22,7 +23,7 @@ struct AxisBound {
 
 /// Bounds on what any active ray of a packet can compute in a slab test.
 #[derive(Clone, Copy, Debug)]
-pub(super) struct Bound {
+pub(crate) struct Bound {
     axes: [Option<AxisBound>; 3],
     t_min_lo: f32,
     /// The largest search limit of any active ray; lowered as hits shorten rays.
@@ -46,6 +47,25 @@ impl Bound {
             hi = hi.fast_min((xf * i_lo).fast_max(xf * i_hi) * f32x4::splat(B::SLACK));
         }
         lo.simd_le(hi).to_bitmask()
+    }
+}
+
+impl Bound {
+    /// [`Bound::may_enter`] for the eight boxes of an 8-wide node (`[[f32; 8]; 6]` rows), in
+    /// lanes of `V`.
+    #[inline(always)]
+    pub fn may_enter8<V: F8, B: BoxTest>(&self, p: &[[f32; 8]; 6]) -> u32 {
+        let slack = V::splat(B::SLACK);
+        let mut lo = V::splat(self.t_min_lo);
+        let mut hi = V::splat(self.t_max_hi * B::SLACK);
+        for ax in self.axes.iter().flatten() {
+            let (i_lo, i_hi) = (V::splat(ax.i_lo), V::splat(ax.i_hi));
+            let xn = V::load(&p[ax.near_row]).sub(V::splat(ax.o_near));
+            lo = lo.max_nan_first(xn.mul(i_lo).min_nan_first(xn.mul(i_hi)));
+            let xf = V::load(&p[ax.far_row]).sub(V::splat(ax.o_far));
+            hi = hi.min_nan_first(xf.mul(i_lo).max_nan_first(xf.mul(i_hi)).mul(slack));
+        }
+        lo.le(hi).bitmask()
     }
 }
 
@@ -131,6 +151,7 @@ mod tests {
     use crate::traverse::bvh4::Ray4;
     use crate::traverse::{slab_reciprocal, ConservativeBoxes, FastBoxes};
     use crate::{Aabb, Ray};
+    use bytemuck::Zeroable;
 
     /// Four boxes as the plane rows a node hands the slab test.
     fn rows(boxes: [Aabb; 4]) -> [f32x4; 6] {
@@ -201,6 +222,48 @@ mod tests {
     fn the_bound_never_culls_a_box_an_active_ray_enters() {
         check::<FastBoxes>(1);
         check::<ConservativeBoxes>(2);
+    }
+
+    /// The 8-wide cull test against each ray's 8-wide slab test, in lanes of `V`.
+    fn check8<V: F8, B: BoxTest>(seed: u64) {
+        let mut rng = Rng::new(seed);
+        for round in 0..2000u64 {
+            let rays = rays(&mut rng, round);
+            let (a, b) = (boxes(&mut rng, 3.0), boxes(&mut rng, 3.0));
+            let mut node = crate::layout::Bvh8Node::zeroed();
+            for r in 0..6 {
+                for i in 0..4 {
+                    node.planes[r][i] = a[r].as_array()[i];
+                    node.planes[r][4 + i] = b[r].as_array()[i];
+                }
+            }
+            let mut bb = BoundBuilder::new();
+            for r in &rays {
+                bb.add(r.origin, slab_reciprocal(r.dir), r.t_min, r.t_max);
+            }
+            let may = bb.finish().may_enter8::<V, B>(&node.planes);
+            assert_eq!(
+                may & 0x0F,
+                bb.finish().may_enter::<B>(&a),
+                "round {round}: the 8-wide bound differs from the 4-wide one"
+            );
+            for r in &rays {
+                let (_, enters) =
+                    crate::traverse::bvh8::Ray8::<V>::new(r).enter::<B>(&node, r.t_max * B::SLACK);
+                assert_eq!(enters & !may, 0, "round {round}: culls a box {r:?} enters");
+            }
+        }
+    }
+
+    #[test]
+    fn the_8_wide_bound_never_culls_a_box_an_active_ray_enters() {
+        check8::<wide::f32x8, FastBoxes>(3);
+        check8::<wide::f32x8, ConservativeBoxes>(4);
+        #[cfg(target_arch = "x86_64")]
+        if crate::Isa::Avx2.or_portable() == crate::Isa::Avx2 {
+            check8::<crate::traverse::lane8::Avx, FastBoxes>(3);
+            check8::<crate::traverse::lane8::Avx, ConservativeBoxes>(4);
+        }
     }
 
     #[test]

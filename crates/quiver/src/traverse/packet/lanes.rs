@@ -2,10 +2,10 @@
 //! per-ray state the walk keeps (search limit, active mask, coherence record).
 
 use super::bound::{Bound, BoundBuilder};
+use super::node::PacketNode;
 use super::{CHUNKS, LANES, PACKET_RAYS};
 use crate::geometry::Ray;
-use crate::traverse::bvh4::Ray4;
-use crate::traverse::simd::NanFirst;
+use crate::traverse::lane8::F8;
 use crate::traverse::{slab_reciprocal, BoxTest};
 use glam::Vec3A;
 use wide::f32x8;
@@ -150,10 +150,10 @@ impl RayPacket {
         self.bound.t_max_hi = m.to_array().into_iter().fold(f32::NEG_INFINITY, f32::max);
     }
 
-    /// Ray `i` prepared for the 4-wide single-ray test.
+    /// Ray `i` prepared for a node format's test of all its children.
     #[inline(always)]
-    pub(super) fn ray4(&self, i: usize) -> Ray4 {
-        Ray4::from_parts(
+    pub(super) fn first<N: PacketNode, V: F8>(&self, i: usize) -> N::First<V> {
+        N::first::<V>(
             [0, 1, 2].map(|a| lane(&self.o[a], i)),
             [0, 1, 2].map(|a| lane(&self.inv[a], i)),
             lane(&self.t_min, i),
@@ -161,34 +161,39 @@ impl RayPacket {
     }
 
     /// The slab test of chunk `k`'s rays against box `b` (`[min xyz, max xyz]`): the mask of
-    /// lanes entering it within their limits, and their entry distances. Per lane this is
-    /// [`Ray4::enter`]'s arithmetic exactly.
+    /// lanes entering it within their limits, and their entry distances. Per lane this is the
+    /// single-ray slab test's arithmetic exactly.
     #[inline(always)]
-    fn enter_chunk<B: BoxTest>(&self, k: usize, b: &[f32; 6]) -> (u32, f32x8) {
-        let slack = f32x8::splat(B::SLACK);
-        let mut near = self.t_min[k];
-        let mut far = self.limit[k] * slack;
+    fn enter_chunk<V: F8, B: BoxTest>(&self, k: usize, b: &[f32; 6]) -> (u32, V) {
+        let slack = V::splat(B::SLACK);
+        let mut near = V::of(&self.t_min[k]);
+        let mut far = V::of(&self.limit[k]).mul(slack);
         for a in 0..3 {
-            let (lo, hi) = (f32x8::splat(b[a]), f32x8::splat(b[3 + a]));
-            let neg = self.neg[a][k];
+            let (lo, hi) = (V::splat(b[a]), V::splat(b[3 + a]));
+            let neg = V::of(&self.neg[a][k]);
             let (pn, pf) = (neg.select(hi, lo), neg.select(lo, hi));
-            let tn = (pn - self.o[a][k]) * self.inv[a][k];
-            let tf = (pf - self.o[a][k]) * self.inv[a][k];
+            let (o, inv) = (V::of(&self.o[a][k]), V::of(&self.inv[a][k]));
+            let tn = pn.sub(o).mul(inv);
+            let tf = pf.sub(o).mul(inv);
             near = tn.max_nan_first(near);
-            far = (tf * slack).min_nan_first(far);
+            far = tf.mul(slack).min_nan_first(far);
         }
-        (near.simd_le(far).to_bitmask(), near)
+        (near.le(far).bitmask(), near)
     }
 
     /// The first active ray of `mask` that enters `b`, with its entry distance.
     #[inline(always)]
-    pub(super) fn find_first<B: BoxTest>(&self, b: &[f32; 6], mask: u64) -> Option<(usize, f32)> {
+    pub(super) fn find_first<V: F8, B: BoxTest>(
+        &self,
+        b: &[f32; 6],
+        mask: u64,
+    ) -> Option<(usize, f32)> {
         for (k, bits) in chunks(self.active & mask) {
-            let (m, near) = self.enter_chunk::<B>(k, b);
+            let (m, near) = self.enter_chunk::<V, B>(k, b);
             let m = m & bits;
             if m != 0 {
                 let j = m.trailing_zeros() as usize;
-                return Some((LANES * k + j, near.as_array()[j]));
+                return Some((LANES * k + j, near.to_array()[j]));
             }
         }
         None
@@ -196,13 +201,13 @@ impl RayPacket {
 
     /// The active rays of `mask` that enter `b`, and the entry distance of the first.
     #[inline(always)]
-    pub(super) fn enter_all<B: BoxTest>(&self, b: &[f32; 6], mask: u64) -> (u64, f32) {
+    pub(super) fn enter_all<V: F8, B: BoxTest>(&self, b: &[f32; 6], mask: u64) -> (u64, f32) {
         let (mut out, mut t) = (0u64, 0.0);
         for (k, bits) in chunks(self.active & mask) {
-            let (m, near) = self.enter_chunk::<B>(k, b);
+            let (m, near) = self.enter_chunk::<V, B>(k, b);
             let m = m & bits;
             if out == 0 && m != 0 {
-                t = near.as_array()[m.trailing_zeros() as usize];
+                t = near.to_array()[m.trailing_zeros() as usize];
             }
             out |= (m as u64) << (LANES * k);
         }
@@ -212,10 +217,10 @@ impl RayPacket {
     /// The active rays of `mask` that enter leaf box `b`, counted toward the packet's
     /// coherence record ([`RayPacket::came_apart`]).
     #[inline(always)]
-    pub(super) fn entering<B: BoxTest>(&mut self, b: &[f32; 6], mask: u64) -> u64 {
+    pub(super) fn entering<V: F8, B: BoxTest>(&mut self, b: &[f32; 6], mask: u64) -> u64 {
         let mut out = 0u64;
         for (k, bits) in chunks(self.active & mask) {
-            out |= ((bits & self.enter_chunk::<B>(k, b).0) as u64) << (LANES * k);
+            out |= ((bits & self.enter_chunk::<V, B>(k, b).0) as u64) << (LANES * k);
         }
         self.leaf_rays += out.count_ones();
         self.leaf_visits += 1;
@@ -270,7 +275,7 @@ mod tests {
             let mut p = RayPacket::new(&rays, active);
             assert_eq!(p.active, active);
             assert_eq!(
-                p.entering::<crate::traverse::FastBoxes>(&b, u64::MAX),
+                p.entering::<f32x8, crate::traverse::FastBoxes>(&b, u64::MAX),
                 active
             );
             for i in bits(active) {
@@ -279,7 +284,7 @@ mod tests {
             if active != 0 {
                 let first = active.trailing_zeros() as usize;
                 assert_eq!(
-                    p.find_first::<crate::traverse::FastBoxes>(&b, u64::MAX),
+                    p.find_first::<f32x8, crate::traverse::FastBoxes>(&b, u64::MAX),
                     Some((first, 1.0))
                 );
             }
@@ -292,11 +297,11 @@ mod tests {
         let p = RayPacket::new(&rays, u64::MAX);
         let b = [62.5, -1.0, 0.0, 63.5, 1.0, 1.0];
         assert_eq!(
-            p.enter_all::<crate::traverse::FastBoxes>(&b, u64::MAX),
+            p.enter_all::<f32x8, crate::traverse::FastBoxes>(&b, u64::MAX),
             (1 << 63, 1.0)
         );
         assert_eq!(
-            p.find_first::<crate::traverse::FastBoxes>(&b, !(1 << 63)),
+            p.find_first::<f32x8, crate::traverse::FastBoxes>(&b, !(1 << 63)),
             None
         );
     }
@@ -310,7 +315,7 @@ mod tests {
         assert_eq!(p.active, !(1 << 5 | 1 << 6));
         p.retire(7);
         let b = [-0.5, -1.0, 0.0, 63.5, 1.0, 1.0];
-        let entered = p.entering::<crate::traverse::FastBoxes>(&b, u64::MAX);
+        let entered = p.entering::<f32x8, crate::traverse::FastBoxes>(&b, u64::MAX);
         assert_eq!(entered & (1 << 5 | 1 << 6 | 1 << 7), 0);
         assert_eq!(entered.count_ones(), 61);
     }
@@ -322,15 +327,18 @@ mod tests {
         let b = |x: f32| [x - 0.5, -1.0, 0.0, x + 0.5, 1.0, 1.0];
         // Eleven leaves of one ray each: still on probation.
         for k in 0..11 {
-            p.entering::<crate::traverse::FastBoxes>(&b(k as f32), u64::MAX);
+            p.entering::<f32x8, crate::traverse::FastBoxes>(&b(k as f32), u64::MAX);
         }
         assert!(!p.came_apart());
         // The twelfth leaf shared by all 64 lifts the average to (11 + 64) / 12 > 2.
-        p.entering::<crate::traverse::FastBoxes>(&[-0.5, -1.0, 0.0, 63.5, 1.0, 1.0], u64::MAX);
+        p.entering::<f32x8, crate::traverse::FastBoxes>(
+            &[-0.5, -1.0, 0.0, 63.5, 1.0, 1.0],
+            u64::MAX,
+        );
         assert!(!p.came_apart());
         let mut q = RayPacket::new(&rays, u64::MAX);
         for k in 0..12 {
-            q.entering::<crate::traverse::FastBoxes>(&b(k as f32), u64::MAX);
+            q.entering::<f32x8, crate::traverse::FastBoxes>(&b(k as f32), u64::MAX);
         }
         assert!(
             q.came_apart(),

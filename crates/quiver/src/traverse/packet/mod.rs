@@ -26,13 +26,15 @@
 mod bound;
 mod lanes;
 mod leaves;
+mod node;
 mod walk;
 
 pub(crate) use lanes::RayPacket;
 pub(crate) use leaves::triangles_packet;
 pub use leaves::PacketLeaf;
+pub(crate) use node::PacketNode;
 
-use super::bvh4::{self, WideNode};
+use super::lane8::F8;
 use super::query::RayQuery;
 use super::tri4::Leaves;
 use super::{BoxTest, Stats};
@@ -133,10 +135,11 @@ fn each_packet<T>(
     }
 }
 
-/// Closest hits of any number of rays, packet by packet, over one 4-wide node format.
+/// Closest hits of any number of rays, packet by packet, over one node format, in lanes of
+/// `V`.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
-pub(crate) fn closest_rays<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
+pub(crate) fn closest_rays<N: PacketNode, V: F8, B: BoxTest, P: Primitive, S: Stats>(
     nodes: &[N],
     leaves: &Leaves<P>,
     rays: &[Ray],
@@ -145,32 +148,44 @@ pub(crate) fn closest_rays<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
     hits: &mut [Option<Hit>],
     stats: &mut S,
 ) {
-    each_packet(rays, active, mode, hits, |rays, on, packet, hits| {
-        if packet {
-            let mut pk = RayPacket::new(rays, on);
-            let mut best = [Hit::none(0.0); PACKET_RAYS];
-            for (b, r) in best.iter_mut().zip(rays) {
-                *b = Hit::none(r.t_max);
+    each_packet(
+        rays,
+        active,
+        mode,
+        hits,
+        #[inline(always)]
+        |rays, on, packet, hits| {
+            if packet {
+                let mut pk = RayPacket::new(rays, on);
+                let mut best = [Hit::none(0.0); PACKET_RAYS];
+                for (b, r) in best.iter_mut().zip(rays) {
+                    *b = Hit::none(r.t_max);
+                }
+                leaves::closest_packet::<N, V, B, P, S>(
+                    nodes, leaves, rays, &mut pk, &mut best, stats,
+                );
+                for (i, (h, b)) in hits.iter_mut().zip(best).enumerate() {
+                    *h = if on >> i & 1 == 1 { b.found() } else { None };
+                }
+            } else {
+                for (i, (h, r)) in hits.iter_mut().zip(rays).enumerate() {
+                    *h = if on >> i & 1 == 1 {
+                        let mut best = Hit::none(r.t_max);
+                        N::closest_from::<V, B, P, S>(nodes, leaves, r, 0, &mut best, stats);
+                        best.found()
+                    } else {
+                        None
+                    };
+                }
             }
-            leaves::closest_packet::<N, B, P, S>(nodes, leaves, rays, &mut pk, &mut best, stats);
-            for (i, (h, b)) in hits.iter_mut().zip(best).enumerate() {
-                *h = if on >> i & 1 == 1 { b.found() } else { None };
-            }
-        } else {
-            for (i, (h, r)) in hits.iter_mut().zip(rays).enumerate() {
-                *h = if on >> i & 1 == 1 {
-                    bvh4::closest::<N, B, P, S>(nodes, leaves, r, stats)
-                } else {
-                    None
-                };
-            }
-        }
-    });
+        },
+    );
 }
 
-/// Any-hit answers of any number of rays, packet by packet, over one 4-wide node format.
+/// Any-hit answers of any number of rays, packet by packet, over one node format, in lanes
+/// of `V`.
 #[inline(always)]
-pub(crate) fn any_rays<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
+pub(crate) fn any_rays<N: PacketNode, V: F8, B: BoxTest, P: Primitive, S: Stats>(
     nodes: &[N],
     leaves: &Leaves<P>,
     rays: &[Ray],
@@ -179,17 +194,24 @@ pub(crate) fn any_rays<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
     occluded: &mut [bool],
     stats: &mut S,
 ) {
-    each_packet(rays, active, mode, occluded, |rays, on, packet, out| {
-        out.fill(false);
-        if packet {
-            let mut pk = RayPacket::new(rays, on);
-            leaves::any_packet::<N, B, P, S>(nodes, leaves, rays, &mut pk, out, stats);
-        } else {
-            for (i, (o, r)) in out.iter_mut().zip(rays).enumerate() {
-                *o = on >> i & 1 == 1 && bvh4::any::<N, B, P, S>(nodes, leaves, r, stats);
+    each_packet(
+        rays,
+        active,
+        mode,
+        occluded,
+        #[inline(always)]
+        |rays, on, packet, out| {
+            out.fill(false);
+            if packet {
+                let mut pk = RayPacket::new(rays, on);
+                leaves::any_packet::<N, V, B, P, S>(nodes, leaves, rays, &mut pk, out, stats);
+            } else {
+                for (i, (o, r)) in out.iter_mut().zip(rays).enumerate() {
+                    *o = on >> i & 1 == 1 && N::any_from::<V, B, P, S>(nodes, leaves, r, 0, stats);
+                }
             }
-        }
-    });
+        },
+    );
 }
 
 /// The packet closest-hit query of a structure without a packet kernel: each active ray

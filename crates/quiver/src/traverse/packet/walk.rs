@@ -1,14 +1,13 @@
-//! The first-active-ray walk over a 4-wide tree, and the hand-over to single rays when a
-//! packet comes apart.
+//! The first-active-ray walk over a 4- or 8-wide tree, and the hand-over to single rays when
+//! a packet comes apart.
 
 use super::lanes::RayPacket;
+use super::node::{PacketNode, LEAF};
 use crate::build::MAX_DEPTH;
-use crate::layout::Bvh4Node;
-use crate::traverse::bvh4::WideNode;
+use crate::traverse::lane8::F8;
 use crate::traverse::simd::{bits, insert_farthest_first};
 use crate::traverse::{BoxTest, Stack, Stats};
 use std::ops::Range;
-use wide::f32x4;
 
 /// Stack entry: a child, where its box is (slot of a parent node), the first ray entering it
 /// and that ray's entry distance, and the rays that may enter it. The box is re-read only when
@@ -31,15 +30,9 @@ impl Entry {
     /// The primitives of a leaf entry.
     #[inline(always)]
     fn leaf_range(&self) -> Range<usize> {
-        let count = self.count & !Bvh4Node::LEAF;
+        let count = self.count & !LEAF;
         self.child as usize..(self.child + count) as usize
     }
-}
-
-/// Child `i`'s box out of a node's plane rows.
-#[inline(always)]
-fn slot_box(p: &[f32x4; 6], i: usize) -> [f32; 6] {
-    [0, 1, 2, 3, 4, 5].map(|r| p[r].as_array()[i])
 }
 
 /// Bits above `i`.
@@ -62,7 +55,7 @@ pub(super) enum AloneIn {
     Inner(usize),
 }
 
-/// The packet walk over one 4-wide node format. `visit(packet, what, stats)` handles a leaf
+/// The packet walk over one node format, in lanes of `V`. `visit(packet, what, stats)` handles a leaf
 /// for the packet or a subtree for one ray ([`Visit`]) and returns true once every ray is done
 /// (any-hit), which ends the walk.
 ///
@@ -72,9 +65,10 @@ pub(super) enum AloneIn {
 /// When the packet comes apart ([`RayPacket::came_apart`]), each remaining ray finishes the
 /// stacked subtrees alone with the single-ray walk.
 #[inline(always)]
-pub(super) fn walk<N, B, S, F>(nodes: &[N], pk: &mut RayPacket, stats: &mut S, mut visit: F)
+pub(super) fn walk<N, V, B, S, F>(nodes: &[N], pk: &mut RayPacket, stats: &mut S, mut visit: F)
 where
-    N: WideNode,
+    N: PacketNode,
+    V: F8,
     B: BoxTest,
     S: Stats,
     F: FnMut(&mut RayPacket, Visit, &mut S) -> bool,
@@ -82,40 +76,40 @@ where
     if pk.active == 0 {
         return;
     }
-    let mut stack: Stack<Entry, { 3 * MAX_DEPTH + 4 }> = Stack::new();
+    // Each node pushes at most seven entries beyond the one it continues with.
+    let mut stack: Stack<Entry, { 7 * MAX_DEPTH + 8 }> = Stack::new();
     let mut node = 0usize;
     let mut mask = pk.active;
     let mut first = mask.trailing_zeros() as usize;
-    // The first ray prepared for 4-wide tests; it often stays first for many nodes.
-    let (mut r4, mut r4_of) = (pk.ray4(first), first);
+    // The first ray prepared for node tests; it often stays first for many nodes.
+    let (mut r1, mut r1_of) = (pk.first::<N, V>(first), first);
     loop {
         let n = &nodes[node];
         stats.node();
-        stats.boxes(4);
-        let planes = n.planes();
+        stats.boxes(N::WIDTH as u32);
         let mut used = 0u32;
-        for i in 0..4 {
-            used |= ((n.child(i).1 != Bvh4Node::LEAF) as u32) << i;
+        for i in 0..N::WIDTH {
+            used |= ((n.child(i).1 != LEAF) as u32) << i;
         }
-        if r4_of != first {
-            (r4, r4_of) = (pk.ray4(first), first);
+        if r1_of != first {
+            (r1, r1_of) = (pk.first::<N, V>(first), first);
         }
-        let (t, hit) = r4.enter::<B>(&planes, pk.limit(first) * B::SLACK);
+        let (t, hit) = n.enter_first::<V, B>(&r1, pk.limit(first) * B::SLACK);
         let hit = hit & used;
         // (entry distance, (slot, first ray, candidates)), farthest first.
-        let mut kids = [(0.0f32, (0usize, 0usize, 0u64)); 4];
+        let mut kids = [(0.0f32, (0usize, 0usize, 0u64)); 8];
         let mut k = 0;
         // A child the first ray misses may still be entered by a later candidate.
         let rest = mask & above(first);
         let mut missed = !hit & used;
         if missed != 0 && rest & pk.active != 0 {
-            missed &= pk.bound.may_enter::<B>(&planes);
+            missed &= n.may_enter::<V, B>(&pk.bound);
         } else {
             missed = 0;
         }
         for i in bits(missed) {
             stats.boxes(1);
-            let (m, tf) = pk.enter_all::<B>(&slot_box(&planes, i), rest);
+            let (m, tf) = pk.enter_all::<V, B>(&n.slot_box(i), rest);
             if m != 0 {
                 insert_farthest_first(&mut kids, k, tf, (i, m.trailing_zeros() as usize, m));
                 k += 1;
@@ -143,16 +137,16 @@ where
                 return;
             };
             let mut f = e.first as usize;
-            let is_leaf = e.count & Bvh4Node::LEAF != 0;
+            let is_leaf = e.count & LEAF != 0;
             let valid = pk.active >> f & 1 == 1 && e.t <= pk.limit(f) * B::SLACK;
             if valid && !is_leaf {
                 (node, first, mask) = (e.child as usize, f, e.mask);
                 break;
             }
-            let b = slot_box(&nodes[e.parent as usize].planes(), e.slot as usize);
+            let b = nodes[e.parent as usize].slot_box(e.slot as usize);
             if !valid {
                 // The first ray was shortened (or retired) since the push: look for another.
-                match pk.find_first::<B>(&b, e.mask & above(f)) {
+                match pk.find_first::<V, B>(&b, e.mask & above(f)) {
                     Some((nf, _)) => f = nf,
                     None => continue,
                 }
@@ -175,7 +169,10 @@ where
                 // one by one: handing the stack itself to the (outlined) hand-over made the
                 // compiler zero the whole stack on every walk (callgrind, +12%).
                 while let Some(e) = stack.pop() {
-                    finish_alone::<N, B, S, F>(nodes, pk, &e, stats, &mut visit);
+                    V::outlined(
+                        #[inline(always)]
+                        || finish_alone::<N, V, B, S, F>(nodes, pk, &e, stats, &mut visit),
+                    );
                     if pk.active == 0 {
                         return;
                     }
@@ -189,27 +186,29 @@ where
 /// Every active ray that may enter stacked entry `e` finishes it alone: if its box is
 /// entered (tested exactly as the single-ray walk tests it), the leaf's primitives or the inner
 /// node's subtree with the single-ray walk. Called for the stacked entries nearest first, so
-/// each ray meets its entries in the order the single-ray walk would.
-#[inline(never)]
-fn finish_alone<N, B, S, F>(
+/// each ray meets its entries in the order the single-ray walk would. Outlined by the caller
+/// ([`F8::outlined`]): the hand-over is rare and long.
+#[inline(always)]
+fn finish_alone<N, V, B, S, F>(
     nodes: &[N],
     pk: &mut RayPacket,
     e: &Entry,
     stats: &mut S,
     visit: &mut F,
 ) where
-    N: WideNode,
+    N: PacketNode,
+    V: F8,
     B: BoxTest,
     S: Stats,
     F: FnMut(&mut RayPacket, Visit, &mut S) -> bool,
 {
-    let planes = nodes[e.parent as usize].planes();
+    let parent = &nodes[e.parent as usize];
     for i in bits(pk.active & e.mask) {
-        let r4 = pk.ray4(i);
-        if r4.enter::<B>(&planes, pk.limit(i) * B::SLACK).1 >> e.slot & 1 == 0 {
+        let r1 = pk.first::<N, V>(i);
+        if parent.enter_first::<V, B>(&r1, pk.limit(i) * B::SLACK).1 >> e.slot & 1 == 0 {
             continue;
         }
-        let at = match e.count & Bvh4Node::LEAF {
+        let at = match e.count & LEAF {
             0 => AloneIn::Inner(e.child as usize),
             _ => AloneIn::Leaf(e.leaf_range()),
         };

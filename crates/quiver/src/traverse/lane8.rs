@@ -1,0 +1,285 @@
+//! Eight `f32` lanes, written once for the kernels and compiled twice: on `wide::f32x8`
+//! (whatever `wide` was compiled for: two SSE halves on baseline x86-64, NEON on aarch64)
+//! and on AVX `__m256` registers. Every operation is the same IEEE operation in both, with
+//! the same NaN rules (MAXPS/MINPS return the second operand when either is NaN; ordered
+//! comparisons are false on NaN, `!=` is true), so a kernel generic over [`F8`] gives
+//! bit-identical answers on both. Nothing here fuses a multiply into an add.
+
+use super::simd::NanFirst;
+use wide::f32x8;
+
+/// Eight `f32` lanes; comparisons return lane masks (all bits set where true).
+pub(crate) trait F8: Copy {
+    fn splat(x: f32) -> Self;
+    fn load(a: &[f32; 8]) -> Self;
+    fn to_array(self) -> [f32; 8];
+    fn add(self, b: Self) -> Self;
+    fn sub(self, b: Self) -> Self;
+    fn mul(self, b: Self) -> Self;
+    fn div(self, b: Self) -> Self;
+    /// `max(self, b)`, or `b` where either is NaN.
+    fn max_nan_first(self, b: Self) -> Self;
+    /// `min(self, b)`, or `b` where either is NaN.
+    fn min_nan_first(self, b: Self) -> Self;
+    fn le(self, b: Self) -> Self;
+    fn ge(self, b: Self) -> Self;
+    fn ne(self, b: Self) -> Self;
+    fn and(self, b: Self) -> Self;
+    /// Lanes of `t` where `self` is set, of `f` elsewhere.
+    fn select(self, t: Self, f: Self) -> Self;
+    /// Bit `i` set where lane `i`'s sign bit is set (a mask lane is true).
+    fn bitmask(self) -> u32;
+
+    /// Runs `f` in a function of its own (a cold path kept out of a kernel's loop), compiled
+    /// for the same instruction set as the kernel.
+    #[inline(never)]
+    fn outlined<R>(f: impl FnOnce() -> R) -> R {
+        f()
+    }
+
+    /// Each of three values in all lanes. (Written out: `array::map` with a closure is not
+    /// always inlined, and a kernel's lanes must stay inside the kernel's instruction set.)
+    #[inline(always)]
+    fn splat3(a: [f32; 3]) -> [Self; 3] {
+        [Self::splat(a[0]), Self::splat(a[1]), Self::splat(a[2])]
+    }
+
+    /// Loads eight lanes stored as a `wide::f32x8`.
+    #[inline(always)]
+    fn of(x: &f32x8) -> Self {
+        Self::load(bytemuck::cast_ref(x))
+    }
+}
+
+impl F8 for f32x8 {
+    #[inline(always)]
+    fn splat(x: f32) -> Self {
+        f32x8::splat(x)
+    }
+    #[inline(always)]
+    fn load(a: &[f32; 8]) -> Self {
+        f32x8::from(*a)
+    }
+    #[inline(always)]
+    fn to_array(self) -> [f32; 8] {
+        f32x8::to_array(self)
+    }
+    #[inline(always)]
+    fn add(self, b: Self) -> Self {
+        self + b
+    }
+    #[inline(always)]
+    fn sub(self, b: Self) -> Self {
+        self - b
+    }
+    #[inline(always)]
+    fn mul(self, b: Self) -> Self {
+        self * b
+    }
+    #[inline(always)]
+    fn div(self, b: Self) -> Self {
+        self / b
+    }
+    #[inline(always)]
+    fn max_nan_first(self, b: Self) -> Self {
+        NanFirst::max_nan_first(self, b)
+    }
+    #[inline(always)]
+    fn min_nan_first(self, b: Self) -> Self {
+        NanFirst::min_nan_first(self, b)
+    }
+    #[inline(always)]
+    fn le(self, b: Self) -> Self {
+        self.simd_le(b)
+    }
+    #[inline(always)]
+    fn ge(self, b: Self) -> Self {
+        self.simd_ge(b)
+    }
+    #[inline(always)]
+    fn ne(self, b: Self) -> Self {
+        self.simd_ne(b)
+    }
+    #[inline(always)]
+    fn and(self, b: Self) -> Self {
+        self & b
+    }
+    #[inline(always)]
+    fn select(self, t: Self, f: Self) -> Self {
+        wide::Select::select(self, t, f)
+    }
+    #[inline(always)]
+    fn bitmask(self) -> u32 {
+        self.to_bitmask()
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+pub(crate) use avx::Avx;
+
+#[cfg(target_arch = "x86_64")]
+mod avx {
+    use super::F8;
+    use std::arch::x86_64::*;
+
+    /// Eight lanes in one AVX register. Only the AVX2 kernels make these, and they run only
+    /// where the CPU has AVX2 and FMA ([`crate::Isa::or_portable`]); every method is inlined
+    /// into those `#[target_feature]` functions.
+    #[derive(Clone, Copy)]
+    pub(crate) struct Avx(__m256);
+
+    // SAFETY (every `unsafe` block below): the intrinsics need AVX, which the CPU has wherever
+    // an `Avx` value exists (see the type's documentation); loads and stores go through
+    // references to eight floats.
+    impl F8 for Avx {
+        #[inline(always)]
+        fn splat(x: f32) -> Self {
+            Avx(unsafe { _mm256_set1_ps(x) })
+        }
+        #[inline(always)]
+        fn load(a: &[f32; 8]) -> Self {
+            Avx(unsafe { _mm256_loadu_ps(a.as_ptr()) })
+        }
+        #[inline(always)]
+        fn to_array(self) -> [f32; 8] {
+            let mut out = [0.0f32; 8];
+            unsafe { _mm256_storeu_ps(out.as_mut_ptr(), self.0) };
+            out
+        }
+        #[inline(always)]
+        fn add(self, b: Self) -> Self {
+            Avx(unsafe { _mm256_add_ps(self.0, b.0) })
+        }
+        #[inline(always)]
+        fn sub(self, b: Self) -> Self {
+            Avx(unsafe { _mm256_sub_ps(self.0, b.0) })
+        }
+        #[inline(always)]
+        fn mul(self, b: Self) -> Self {
+            Avx(unsafe { _mm256_mul_ps(self.0, b.0) })
+        }
+        #[inline(always)]
+        fn div(self, b: Self) -> Self {
+            Avx(unsafe { _mm256_div_ps(self.0, b.0) })
+        }
+        #[inline(always)]
+        fn max_nan_first(self, b: Self) -> Self {
+            Avx(unsafe { _mm256_max_ps(self.0, b.0) })
+        }
+        #[inline(always)]
+        fn min_nan_first(self, b: Self) -> Self {
+            Avx(unsafe { _mm256_min_ps(self.0, b.0) })
+        }
+        #[inline(always)]
+        fn le(self, b: Self) -> Self {
+            Avx(unsafe { _mm256_cmp_ps::<_CMP_LE_OQ>(self.0, b.0) })
+        }
+        #[inline(always)]
+        fn ge(self, b: Self) -> Self {
+            Avx(unsafe { _mm256_cmp_ps::<_CMP_GE_OQ>(self.0, b.0) })
+        }
+        #[inline(always)]
+        fn ne(self, b: Self) -> Self {
+            // Unordered: true where either is NaN, as `!=` is.
+            Avx(unsafe { _mm256_cmp_ps::<_CMP_NEQ_UQ>(self.0, b.0) })
+        }
+        #[inline(always)]
+        fn and(self, b: Self) -> Self {
+            Avx(unsafe { _mm256_and_ps(self.0, b.0) })
+        }
+        #[inline(always)]
+        fn select(self, t: Self, f: Self) -> Self {
+            Avx(unsafe { _mm256_blendv_ps(f.0, t.0, self.0) })
+        }
+        #[inline(always)]
+        fn bitmask(self) -> u32 {
+            (unsafe { _mm256_movemask_ps(self.0) }) as u32
+        }
+        #[inline(always)]
+        fn outlined<R>(f: impl FnOnce() -> R) -> R {
+            /// # Safety
+            /// The CPU must support AVX2 and FMA.
+            #[target_feature(enable = "avx2,fma")]
+            #[inline(never)]
+            unsafe fn run<R>(f: impl FnOnce() -> R) -> R {
+                f()
+            }
+            unsafe { run(f) }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every operation on awkward lanes (NaN in either operand, signed zeros, infinities,
+    /// subnormals) against the plain `f32` operation it stands for, on each implementation.
+    fn check<V: F8>() {
+        let a = [
+            f32::NAN,
+            1.0,
+            -0.0,
+            f32::INFINITY,
+            1e-40,
+            -3.5,
+            2.0,
+            f32::NAN,
+        ];
+        let b = [
+            2.0,
+            f32::NAN,
+            0.0,
+            1.0,
+            -1e-40,
+            -3.5,
+            f32::NEG_INFINITY,
+            f32::NAN,
+        ];
+        let (va, vb) = (V::load(&a), V::load(&b));
+        let same = |got: [f32; 8], want: [f32; 8], what: &str| {
+            let bits = |x: [f32; 8]| x.map(f32::to_bits);
+            assert_eq!(bits(got), bits(want), "{what}");
+        };
+        let lanes = |f: fn(f32, f32) -> f32| std::array::from_fn(|i| f(a[i], b[i]));
+        same(va.add(vb).to_array(), lanes(|x, y| x + y), "add");
+        same(va.sub(vb).to_array(), lanes(|x, y| x - y), "sub");
+        same(va.mul(vb).to_array(), lanes(|x, y| x * y), "mul");
+        same(va.div(vb).to_array(), lanes(|x, y| x / y), "div");
+        let nan_first_max = |x: f32, y: f32| if x > y { x } else { y };
+        let nan_first_min = |x: f32, y: f32| if x < y { x } else { y };
+        same(va.max_nan_first(vb).to_array(), lanes(nan_first_max), "max");
+        same(va.min_nan_first(vb).to_array(), lanes(nan_first_min), "min");
+        let mask =
+            |f: fn(f32, f32) -> bool| (0..8).fold(0u32, |m, i| m | (f(a[i], b[i]) as u32) << i);
+        assert_eq!(va.le(vb).bitmask(), mask(|x, y| x <= y), "le");
+        assert_eq!(va.ge(vb).bitmask(), mask(|x, y| x >= y), "ge");
+        assert_eq!(va.ne(vb).bitmask(), mask(|x, y| x != y), "ne");
+        assert_eq!(
+            va.le(vb).and(va.ne(vb)).bitmask(),
+            mask(|x, y| x < y),
+            "and"
+        );
+        let m = va.ge(vb);
+        same(
+            m.select(va, vb).to_array(),
+            std::array::from_fn(|i| if a[i] >= b[i] { a[i] } else { b[i] }),
+            "select",
+        );
+        same(V::splat(-0.0).to_array(), [-0.0; 8], "splat");
+        same(V::of(&f32x8::from(a)).to_array(), a, "of");
+    }
+
+    #[test]
+    fn portable_lanes_are_the_scalar_operations() {
+        check::<f32x8>();
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn avx_lanes_are_the_scalar_operations() {
+        if crate::Isa::Avx2.or_portable() == crate::Isa::Avx2 {
+            check::<Avx>();
+        }
+    }
+}

@@ -1,0 +1,164 @@
+//! What the packet walk needs of a node format, for 4-wide ([`Node4`]) and 8-wide
+//! ([`Bvh8Node`]) nodes: the first ray's test of all children, a child's box and link, the
+//! cull test, and the single-ray walks a ray continues with once the packet comes apart.
+
+use super::bound::Bound;
+use crate::geometry::{Hit, Primitive, Ray};
+use crate::layout::{Bvh4Node, Bvh8Node, Node4};
+use crate::traverse::bvh4::{self, Ray4};
+use crate::traverse::bvh8::{self, Ray8};
+use crate::traverse::lane8::F8;
+use crate::traverse::tri4::Leaves;
+use crate::traverse::{BoxTest, Stats};
+
+/// A node format the packet walk runs over. `V` is the lane type of the kernel (portable or
+/// AVX2), which the 8-wide format also tests its boxes with.
+pub(crate) trait PacketNode: Sized {
+    /// Children per node.
+    const WIDTH: usize;
+    /// The first ray of a packet prepared for the node test.
+    type First<V: F8>;
+    /// Prepares the node test for a ray with this origin, slab reciprocals and `t_min`.
+    fn first<V: F8>(origin: [f32; 3], inv: [f32; 3], t_min: f32) -> Self::First<V>;
+    /// Entry distances of the children (lanes from `WIDTH` on unused) and the mask of those
+    /// the prepared ray enters within `t_max` (already scaled by the box test's slack).
+    fn enter_first<V: F8, B: BoxTest>(&self, r: &Self::First<V>, t_max: f32) -> ([f32; 8], u32);
+    /// Child `i`: node index or first primitive, and 0 (inner) or `LEAF | count`; `LEAF`
+    /// alone marks an unused slot.
+    fn child(&self, i: usize) -> (u32, u32);
+    /// Child `i`'s box as `[min xyz, max xyz]`.
+    fn slot_box(&self, i: usize) -> [f32; 6];
+    /// Mask of the children some active ray of the bound may enter.
+    fn may_enter<V: F8, B: BoxTest>(&self, bound: &Bound) -> u32;
+    /// Closest hit of one ray in the subtree of inner node `root`, improving `best`.
+    fn closest_from<V: F8, B: BoxTest, P: Primitive, S: Stats>(
+        nodes: &[Self],
+        leaves: &Leaves<P>,
+        ray: &Ray,
+        root: usize,
+        best: &mut Hit,
+        stats: &mut S,
+    );
+    /// Whether one ray hits anything in the subtree of inner node `root`.
+    fn any_from<V: F8, B: BoxTest, P: Primitive, S: Stats>(
+        nodes: &[Self],
+        leaves: &Leaves<P>,
+        ray: &Ray,
+        root: usize,
+        stats: &mut S,
+    ) -> bool;
+}
+
+/// The leaf flag shared by both formats' child links.
+pub(crate) const LEAF: u32 = Bvh4Node::LEAF;
+const _: () = assert!(Bvh4Node::LEAF == Bvh8Node::LEAF);
+
+impl<N: Node4> PacketNode for N {
+    const WIDTH: usize = 4;
+    type First<V: F8> = Ray4;
+
+    #[inline(always)]
+    fn first<V: F8>(origin: [f32; 3], inv: [f32; 3], t_min: f32) -> Ray4 {
+        Ray4::from_parts(origin, inv, t_min)
+    }
+
+    #[inline(always)]
+    fn enter_first<V: F8, B: BoxTest>(&self, r: &Ray4, t_max: f32) -> ([f32; 8], u32) {
+        let (t, mask) = r.enter::<B>(&self.planes(), t_max);
+        let mut t8 = [0.0; 8];
+        t8[..4].copy_from_slice(&t);
+        (t8, mask)
+    }
+
+    #[inline(always)]
+    fn child(&self, i: usize) -> (u32, u32) {
+        Node4::child(self, i)
+    }
+
+    #[inline(always)]
+    fn slot_box(&self, i: usize) -> [f32; 6] {
+        let p = self.planes();
+        [0, 1, 2, 3, 4, 5].map(|r| p[r].as_array()[i])
+    }
+
+    #[inline(always)]
+    fn may_enter<V: F8, B: BoxTest>(&self, bound: &Bound) -> u32 {
+        bound.may_enter::<B>(&self.planes())
+    }
+
+    #[inline(always)]
+    fn closest_from<V: F8, B: BoxTest, P: Primitive, S: Stats>(
+        nodes: &[Self],
+        leaves: &Leaves<P>,
+        ray: &Ray,
+        root: usize,
+        best: &mut Hit,
+        stats: &mut S,
+    ) {
+        bvh4::closest_from::<N, B, P, S>(nodes, leaves, ray, root, best, stats)
+    }
+
+    #[inline(always)]
+    fn any_from<V: F8, B: BoxTest, P: Primitive, S: Stats>(
+        nodes: &[Self],
+        leaves: &Leaves<P>,
+        ray: &Ray,
+        root: usize,
+        stats: &mut S,
+    ) -> bool {
+        bvh4::any_from::<N, B, P, S>(nodes, leaves, ray, root, stats)
+    }
+}
+
+impl PacketNode for Bvh8Node {
+    const WIDTH: usize = 8;
+    type First<V: F8> = Ray8<V>;
+
+    #[inline(always)]
+    fn first<V: F8>(origin: [f32; 3], inv: [f32; 3], t_min: f32) -> Ray8<V> {
+        Ray8::from_parts(origin, inv, t_min)
+    }
+
+    #[inline(always)]
+    fn enter_first<V: F8, B: BoxTest>(&self, r: &Ray8<V>, t_max: f32) -> ([f32; 8], u32) {
+        r.enter::<B>(self, t_max)
+    }
+
+    #[inline(always)]
+    fn child(&self, i: usize) -> (u32, u32) {
+        (self.child[i], self.count[i])
+    }
+
+    #[inline(always)]
+    fn slot_box(&self, i: usize) -> [f32; 6] {
+        [0, 1, 2, 3, 4, 5].map(|r| self.planes[r][i])
+    }
+
+    #[inline(always)]
+    fn may_enter<V: F8, B: BoxTest>(&self, bound: &Bound) -> u32 {
+        bound.may_enter8::<V, B>(&self.planes)
+    }
+
+    #[inline(always)]
+    fn closest_from<V: F8, B: BoxTest, P: Primitive, S: Stats>(
+        nodes: &[Self],
+        leaves: &Leaves<P>,
+        ray: &Ray,
+        root: usize,
+        best: &mut Hit,
+        stats: &mut S,
+    ) {
+        bvh8::closest_from::<V, B, P, S>(nodes, leaves, ray, root, best, stats)
+    }
+
+    #[inline(always)]
+    fn any_from<V: F8, B: BoxTest, P: Primitive, S: Stats>(
+        nodes: &[Self],
+        leaves: &Leaves<P>,
+        ray: &Ray,
+        root: usize,
+        stats: &mut S,
+    ) -> bool {
+        bvh8::any_from::<V, B, P, S>(nodes, leaves, ray, root, stats)
+    }
+}
