@@ -43,7 +43,7 @@ enum Command {
     Accuracy(accuracy::AccuracyArgs),
     /// quiver and obvhs side by side: builds, SAH cost, eye/shadow/incoherent Mrays/s.
     Bench(bench::BenchArgs),
-    /// Packet traversal against BVH4 single rays: eye, shadow and incoherent Mrays/s.
+    /// Packet traversal against single rays of the same BVH: eye, shadow and incoherent Mrays/s.
     Packets(packets::PacketsArgs),
 }
 

@@ -33,10 +33,11 @@ pub fn random_rays(bounds: &Aabb, n: usize, seed: u64) -> Vec<Ray> {
 /// `res × res` eye rays through pixel centres, row by row from the top.
 pub fn camera_rays(camera: &Camera, res: usize) -> Vec<Ray> {
     let step = 2.0 / res as f32;
+    let view = camera.view();
     (0..res * res)
         .map(|i| {
             let (x, y) = (i % res, i / res);
-            camera.ray(
+            view.ray(
                 -1.0 + (x as f32 + 0.5) * step,
                 1.0 - (y as f32 + 0.5) * step,
             )

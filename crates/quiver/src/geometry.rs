@@ -255,6 +255,7 @@ impl Triangle {
 /// assert_eq!(unit_or_zero(Vec3A::new(0.0, 0.0, -1e-45)), -Vec3A::Z); // subnormal
 /// assert_eq!(unit_or_zero(Vec3A::ZERO), Vec3A::ZERO);
 /// ```
+#[inline]
 pub fn unit_or_zero(v: Vec3A) -> Vec3A {
     let m = v.abs().max_element();
     if !m.is_finite() {
@@ -274,6 +275,7 @@ pub fn unit_or_zero(v: Vec3A) -> Vec3A {
 /// assert_eq!(unit_scale(1e30) * 1e30, 1e30 * 2f32.powi(-99));
 /// assert!((1.0..2.0).contains(&(unit_scale(1e-30) * 1e-30)));
 /// ```
+#[inline]
 pub fn unit_scale(m: f32) -> f32 {
     const BAND: f32 = (1u64 << 40) as f32;
     if !(m.is_finite() && m > 0.0) || (1.0 / BAND..=BAND).contains(&m) {

@@ -15,6 +15,7 @@
 
 use glam::Vec3A;
 use quiver::geometry::{unit_or_zero, unit_scale, Aabb, PrimHit, Primitive, Ray, Triangle};
+use quiver::intersect::Watertight;
 
 /// A sphere.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -58,6 +59,18 @@ pub struct PatchTriangle {
     pub normals: [Vec3A; 3],
 }
 
+/// A triangle cut from a polygon (by [`crate::scene::tessellate::polygon_triangles`]), traced
+/// in the polygon's place: tested watertight, so no ray slips between two pieces of one
+/// polygon, and shaded with the polygon's normal. A polygon of `n` vertices costs a few
+/// triangle tests in the BVH's leaves instead of a walk over all `n` edges per ray.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PolygonPiece {
+    /// The geometry.
+    pub tri: Triangle,
+    /// The whole polygon's unit normal.
+    pub normal: Vec3A,
+}
+
 /// Any primitive: what a curve-mode SPD scene puts into its BVH.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Prim {
@@ -71,6 +84,8 @@ pub enum Prim {
     Cone(Cone),
     /// A polygon.
     Polygon(Polygon),
+    /// A triangle of a polygon, traced in its place.
+    Piece(PolygonPiece),
 }
 
 impl Polygon {
@@ -307,6 +322,7 @@ impl Primitive for Prim {
             Prim::Sphere(s) => s.bounds(),
             Prim::Cone(c) => c.bounds(),
             Prim::Polygon(p) => p.bounds(),
+            Prim::Piece(p) => Primitive::bounds(&p.tri),
         };
         if b.is_finite() {
             b
@@ -338,6 +354,10 @@ impl Primitive for Prim {
                 normal: p.normal,
                 axis: p.axis,
             }),
+            Prim::Piece(p) => Prim::Piece(PolygonPiece {
+                tri: p.tri.scaled(s)?,
+                normal: p.normal,
+            }),
         })
     }
 
@@ -349,6 +369,7 @@ impl Primitive for Prim {
             Prim::Sphere(s) => s.intersect(ray),
             Prim::Cone(c) => c.intersect(ray),
             Prim::Polygon(p) => p.intersect(ray),
+            Prim::Piece(p) => Watertight(p.tri).intersect(ray),
         }
     }
 }
@@ -385,6 +406,7 @@ impl Prim {
                 (radial + axis * slope).normalize_or_zero()
             }
             Prim::Polygon(poly) => poly.normal,
+            Prim::Piece(piece) => piece.normal,
         }
     }
 }

@@ -191,6 +191,10 @@ pub struct Rendered {
     /// [`RenderConfig::counters`]). With packets, each eye ray is charged the node visits of
     /// its eye packet.
     pub eye_nodes: Vec<u32>,
+    /// Rays the packet kernels traced (0 without [`RenderConfig::packets`]): eye rays, shadow
+    /// rays and first-bounce reflection rays sent as packets whose rays point alike
+    /// ([`PacketMode::Auto`]); the rest were traced ray by ray.
+    pub packet_rays: u64,
 }
 
 /// Corner rows a render task handles, and the side of a packet's square of corners.
@@ -204,6 +208,7 @@ struct Band {
     rays: RayCounts,
     work: Counters,
     eye_nodes: Vec<u32>,
+    packet_rays: u64,
 }
 
 /// Renders `scene` through `bvh` on the current rayon pool. `progress(rows)` is called as
@@ -265,6 +270,7 @@ fn render_with<W: Work>(
                 size,
                 rays: RayCounts::default(),
                 work: W::default(),
+                packet_rays: 0,
             };
             let band = tracer.band(rows.clone(), n);
             progress(rows.len());
@@ -275,9 +281,11 @@ fn render_with<W: Work>(
     let mut work = Counters::default();
     let mut eye_nodes = Vec::new();
     let mut corners = Vec::with_capacity(n * n);
+    let mut packet_rays = 0;
     for b in &bands {
         rays += b.rays;
         work += b.work;
+        packet_rays += b.packet_rays;
         eye_nodes.extend_from_slice(&b.eye_nodes);
         corners.extend_from_slice(&b.colors);
     }
@@ -296,6 +304,7 @@ fn render_with<W: Work>(
         rays,
         work,
         eye_nodes,
+        packet_rays,
     }
 }
 
@@ -315,6 +324,8 @@ struct Tracer<'a, W> {
     size: f32,
     rays: RayCounts,
     work: W,
+    /// Rays traced by the packet kernels.
+    packet_rays: u64,
 }
 
 /// What shading needs to know about a hit.
@@ -337,25 +348,30 @@ enum Query<'o> {
 }
 
 impl Query<'_> {
-    fn run<S: Stats>(self, bvh: &SceneBvh, rays: &[Ray], active: Option<&[bool]>, stats: &mut S) {
+    fn run<S: Stats>(self, bvh: &SceneBvh, rays: &[Ray], stats: &mut S) {
         let mode = PacketMode::Auto;
         match self {
             Query::Closest(h) => {
-                bvh.closest_hit_packet_with::<ConservativeBoxes, S>(rays, active, mode, h, stats)
+                bvh.closest_hit_packet_with::<ConservativeBoxes, S>(rays, None, mode, h, stats)
             }
             Query::Any(o) => {
-                bvh.any_hit_packet_with::<ConservativeBoxes, S>(rays, active, mode, o, stats)
+                bvh.any_hit_packet_with::<ConservativeBoxes, S>(rays, None, mode, o, stats)
             }
         }
     }
 }
 
-/// Where a surface learns whether its shadow rays are blocked.
-enum Shadows<'s> {
-    /// Trace each shadow ray now.
+/// Where a surface learns what its first secondary rays see.
+enum Secondary<'s> {
+    /// Trace each shadow and reflection ray now.
     Trace,
-    /// Already traced (as a packet): the answer per light, for the lights the surface faces.
-    Known(&'s [bool]),
+    /// Already traced (as packets): per light, whether the shadow ray toward it is blocked
+    /// (for the lights the surface faces), and the reflection ray's hit if the surface
+    /// spawns one.
+    Known {
+        blocked: &'s [bool],
+        reflection: Option<Option<Hit>>,
+    },
 }
 
 impl<W: Work> Tracer<'_, W> {
@@ -369,10 +385,11 @@ impl<W: Work> Tracer<'_, W> {
         if W::COUNTS {
             band.eye_nodes = vec![0; rows.len() * n];
         }
+        let view = self.scene.camera.view();
         let eye = |i: usize, j: usize| {
             let sx = -1.0 + 2.0 * i as f32 / self.config.res as f32;
             let sy = 1.0 - 2.0 * j as f32 / self.config.res as f32;
-            let mut ray = self.scene.camera.ray(sx, sy);
+            let mut ray = view.ray(sx, sy);
             ray.t_min = self.scene.hither.max(0.0);
             ray
         };
@@ -387,78 +404,105 @@ impl<W: Work> Tracer<'_, W> {
                         band.eye_nodes[k] = (self.work.counters().nodes - before) as u32;
                     }
                     let s = hit.map(|h| self.surface(&ray, &h));
-                    band.colors[k] = self.color(s, 1, Shadows::Trace);
+                    band.colors[k] = self.color(s, 1, Secondary::Trace);
                 }
             }
         } else {
+            let mut slots = Vec::with_capacity(rows.len() * n);
+            let mut surfaces = Vec::with_capacity(rows.len() * n);
             for x0 in (0..n).step_by(TILE) {
                 let cols = x0..(x0 + TILE).min(n);
-                let slots: Vec<(usize, usize)> = rows
+                let tile: Vec<(usize, usize)> = rows
                     .clone()
                     .flat_map(|j| cols.clone().map(move |i| (i, j)))
                     .collect();
-                let rays: Vec<Ray> = slots.iter().map(|&(i, j)| eye(i, j)).collect();
-                let (colors, eye_nodes) = self.trace_packet(&rays);
-                for (&(i, j), c) in slots.iter().zip(colors) {
-                    let k = (j - rows.start) * n + i;
-                    band.colors[k] = c;
+                let rays: Vec<Ray> = tile.iter().map(|&(i, j)| eye(i, j)).collect();
+                let (found, eye_nodes) = self.eye_packet(&rays);
+                for (&(i, j), s) in tile.iter().zip(found) {
                     if W::COUNTS {
-                        band.eye_nodes[k] = eye_nodes as u32;
+                        band.eye_nodes[(j - rows.start) * n + i] = eye_nodes as u32;
                     }
+                    slots.push((i, j));
+                    surfaces.push(s);
                 }
+            }
+            let colors = self.shade_packets(surfaces);
+            for (&(i, j), c) in slots.iter().zip(colors) {
+                band.colors[(j - rows.start) * n + i] = c;
             }
         }
         band.rays = self.rays;
         band.work = self.work.counters();
+        band.packet_rays = self.packet_rays;
         band
     }
 
-    /// Colours seen along a packet of eye rays, and the nodes the eye packet visited (with
-    /// counters on): the eye rays, and per light the shadow rays of the corners facing it, go
-    /// as packets; everything after that ray by ray.
-    fn trace_packet(&mut self, rays: &[Ray]) -> (Vec<Vec3A>, u64) {
+    /// The surfaces a packet of eye rays sees, and the nodes the packet visited (with
+    /// counters on).
+    fn eye_packet(&mut self, rays: &[Ray]) -> (Vec<Option<Surface>>, u64) {
         let mut hits = vec![None; rays.len()];
         let before = self.work.counters().nodes;
-        self.packet_query(rays, None, Query::Closest(&mut hits));
+        self.packet_query(rays, Query::Closest(&mut hits));
         let eye_nodes = self.work.counters().nodes - before;
-        let surfaces: Vec<Option<Surface>> = rays
+        let surfaces = rays
             .iter()
             .zip(&hits)
             .map(|(r, h)| h.map(|h| self.surface(r, &h)))
             .collect();
+        (surfaces, eye_nodes)
+    }
+
+    /// Colours of a band's eye-ray surfaces (in tile order). Their shadow rays, light by
+    /// light, and their reflection rays go as packets, gathered over the band so that each
+    /// packet is full: only the rays the surfaces call for (a light the surface faces, a
+    /// reflective or transmitting material), in tile order, so neighbouring rays share a
+    /// packet. Everything after the first bounce is traced ray by ray.
+    fn shade_packets(&mut self, surfaces: Vec<Option<Surface>>) -> Vec<Vec3A> {
         let lights = self.scene.lights.len();
         // blocked[corner * lights + light]
-        let mut blocked = vec![false; rays.len() * lights];
-        let mut shadow = vec![Ray::new(Vec3A::ZERO, Vec3A::Z); rays.len()];
-        let mut active = vec![false; rays.len()];
-        let mut answer = vec![false; rays.len()];
+        let mut blocked = vec![false; surfaces.len() * lights];
         for (l, light) in self.scene.lights.iter().enumerate() {
-            for (k, s) in surfaces.iter().enumerate() {
-                let ray = s.as_ref().and_then(|s| self.shadow_ray(s, light.pos));
-                active[k] = ray.is_some();
-                if let Some(r) = ray {
-                    shadow[k] = r;
-                }
-            }
-            self.packet_query(&shadow, Some(&active), Query::Any(&mut answer));
-            for (k, &a) in answer.iter().enumerate() {
+            let (who, rays): (Vec<usize>, Vec<Ray>) = surfaces
+                .iter()
+                .enumerate()
+                .filter_map(|(k, s)| Some((k, self.shadow_ray(s.as_ref()?, light.pos)?)))
+                .unzip();
+            let mut answer = vec![false; rays.len()];
+            self.packet_query(&rays, Query::Any(&mut answer));
+            for (k, a) in who.into_iter().zip(answer) {
                 blocked[k * lights + l] = a;
             }
         }
-        let colors = surfaces
+        let mut reflections = vec![None; surfaces.len()];
+        if self.config.max_depth > 1 {
+            let (who, rays): (Vec<usize>, Vec<Ray>) = surfaces
+                .iter()
+                .enumerate()
+                .filter_map(|(k, s)| Some((k, self.reflection_ray(s.as_ref()?)?)))
+                .unzip();
+            let mut hits = vec![None; rays.len()];
+            self.packet_query(&rays, Query::Closest(&mut hits));
+            for (k, h) in who.into_iter().zip(hits) {
+                reflections[k] = Some(h);
+            }
+        }
+        surfaces
             .into_iter()
             .enumerate()
             .map(|(k, s)| {
-                let known = &blocked[k * lights..(k + 1) * lights];
-                self.color(s, 1, Shadows::Known(known))
+                let known = Secondary::Known {
+                    blocked: &blocked[k * lights..(k + 1) * lights],
+                    reflection: reflections[k],
+                };
+                self.color(s, 1, known)
             })
-            .collect();
-        (colors, eye_nodes)
+            .collect()
     }
 
     /// A packet query through the packet kernels, recording into `work`.
-    fn packet_query(&mut self, rays: &[Ray], active: Option<&[bool]>, query: Query) {
-        query.run(self.bvh, rays, active, &mut self.work);
+    fn packet_query(&mut self, rays: &[Ray], query: Query) {
+        self.packet_rays += PacketMode::Auto.packet_rays(rays, None);
+        query.run(self.bvh, rays, &mut self.work);
     }
 
     /// Closest hit, recording into `work`.
@@ -475,19 +519,26 @@ impl<W: Work> Tracer<'_, W> {
 
     /// Colour seen along `ray`, a secondary ray of generation `depth`.
     fn trace(&mut self, ray: &Ray, depth: u32) -> Vec3A {
-        let s = self.closest(ray).map(|h| self.surface(ray, &h));
-        self.color(s, depth, Shadows::Trace)
+        let hit = self.closest(ray);
+        self.traced(ray, hit, depth)
+    }
+
+    /// Colour seen along `ray`, a secondary ray of generation `depth` whose closest hit
+    /// is `hit`.
+    fn traced(&mut self, ray: &Ray, hit: Option<Hit>, depth: u32) -> Vec3A {
+        let s = hit.map(|h| self.surface(ray, &h));
+        self.color(s, depth, Secondary::Trace)
     }
 
     /// Colour seen by a ray of generation `depth` that found surface `s` (or nothing);
     /// counts eye rays and their hits at depth 1.
-    fn color(&mut self, s: Option<Surface>, depth: u32, shadows: Shadows) -> Vec3A {
+    fn color(&mut self, s: Option<Surface>, depth: u32, known: Secondary) -> Vec3A {
         if depth == 1 {
             self.rays.eye += 1;
             self.rays.eye_hit += s.is_some() as u64;
         }
         match s {
-            Some(s) => self.shade_surface(&s, depth, shadows),
+            Some(s) => self.shade_surface(&s, depth, known),
             None => self.scene.background,
         }
     }
@@ -523,10 +574,25 @@ impl<W: Work> Tracer<'_, W> {
             .then(|| self.config.offset.ray(self.size, s.p, s.n, to_light, 1.0))
     }
 
+    /// The reflection ray off `s`, if its material spawns one: reflective and transmitting
+    /// surfaces both do (SPD rule 8; the gears' glass has Ks = 0 and still reflects).
+    fn reflection_ray(&self, s: &Surface) -> Option<Ray> {
+        if !(s.material.ks > 0.0 || s.material.t > 0.0) {
+            return None;
+        }
+        let (nf, _) = facing(s);
+        let dir = s.d - nf * (2.0 * s.d.dot(nf));
+        Some(
+            self.config
+                .offset
+                .ray(self.size, s.p, nf, dir, f32::INFINITY),
+        )
+    }
+
     /// Colour leaving `s` toward the viewer: lights, then reflection and refraction rays.
-    fn shade_surface(&mut self, s: &Surface, depth: u32, shadows: Shadows) -> Vec3A {
+    fn shade_surface(&mut self, s: &Surface, depth: u32, known: Secondary) -> Vec3A {
         let m = s.material;
-        let (p, d, n, outward) = (s.p, s.d, s.n, s.outward);
+        let (p, d, n) = (s.p, s.d, s.n);
         let offset = self.config.offset;
         let mut color = m.color * AMBIENT;
         let intensity = 1.0 / (self.scene.lights.len().max(1) as f32).sqrt();
@@ -535,9 +601,9 @@ impl<W: Work> Tracer<'_, W> {
                 continue;
             };
             self.rays.shadow += 1;
-            let blocked = match shadows {
-                Shadows::Trace => self.occluded(&shadow),
-                Shadows::Known(b) => b[i],
+            let blocked = match known {
+                Secondary::Trace => self.occluded(&shadow),
+                Secondary::Known { blocked, .. } => blocked[i],
             };
             if blocked {
                 self.rays.shadow_blocked += 1;
@@ -549,15 +615,7 @@ impl<W: Work> Tracer<'_, W> {
             return color;
         }
         // Facing the incoming ray, for reflection and refraction.
-        let (nf, entering) = if outward.dot(d) < 0.0 {
-            (outward, true)
-        } else {
-            (-outward, false)
-        };
-        let reflect_dir = d - nf * (2.0 * d.dot(nf));
-        // Reflective and transmitting surfaces both spawn reflection rays (SPD rule 8; the
-        // gears' glass has Ks = 0 and still reflects).
-        let reflect = m.ks > 0.0 || m.t > 0.0;
+        let (nf, entering) = facing(s);
         // The reflected ray carries Ks, and on total internal reflection also the T the
         // refracted ray would have carried.
         let mut reflect_weight = m.ks;
@@ -575,12 +633,28 @@ impl<W: Work> Tracer<'_, W> {
                 reflect_weight += m.t;
             }
         }
-        if reflect {
+        if let Some(r) = self.reflection_ray(s) {
             self.rays.reflect += 1;
-            let r = offset.ray(self.size, p, nf, reflect_dir, f32::INFINITY);
-            color += self.trace(&r, depth + 1) * reflect_weight;
+            let seen = match known {
+                Secondary::Known {
+                    reflection: Some(hit),
+                    ..
+                } => self.traced(&r, hit, depth + 1),
+                _ => self.trace(&r, depth + 1),
+            };
+            color += seen * reflect_weight;
         }
         color
+    }
+}
+
+/// The surface's outward normal turned to face the incoming ray, and whether the ray enters
+/// the object (meets the outward side).
+fn facing(s: &Surface) -> (Vec3A, bool) {
+    if s.outward.dot(s.d) < 0.0 {
+        (s.outward, true)
+    } else {
+        (-s.outward, false)
     }
 }
 

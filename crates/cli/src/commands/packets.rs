@@ -1,8 +1,9 @@
-//! `quiver packets`: packet traversal against the BVH4 single-ray kernel, side by side on the
+//! `quiver packets`: packet traversal against the single-ray kernel of the same BVH, side by side on the
 //! same rays: eye rays (8 x 8 pixel tiles), shadow rays (one per eye hit and light, in tile
-//! order) and incoherent rays, SPD scenes in curve and patch mode, 1 thread and all threads.
-//! Built with the `embree` feature, Intel Embree 3 joins them in patch mode (the scene's
-//! triangles): one ray at a time and as coherent streams over the same packet-ordered rays.
+//! order) and incoherent rays, SPD scenes in curve mode (analytic shapes and whole polygons)
+//! and in patch mode (the scene's triangles), 1 thread and all threads. Built with the
+//! `embree` feature, Intel Embree 3 joins them in patch mode, on the same triangles: one ray
+//! at a time and as coherent streams over the same packet-ordered rays.
 
 use super::{
     count, measured_threads, parse_layout, pool, thread_count, Result, MAX_RAYS, MAX_REPS,
@@ -36,8 +37,8 @@ pub(crate) struct PacketsArgs {
     /// Thread counts to measure, comma-separated (default: 1 and all cores).
     #[arg(allow_negative_numbers = true, long, value_delimiter = ',', value_parser = thread_count())]
     threads: Vec<u16>,
-    /// Memory layout (a 4-wide one: binary layouts have no packet kernel).
-    #[arg(long, default_value = "bvh4-dfs", value_parser = parse_layout)]
+    /// Memory layout (a 4- or 8-wide one: binary layouts have no packet kernel).
+    #[arg(long, default_value = "bvh8-dfs", value_parser = parse_layout)]
     layout: Layout,
     /// Write all rows as JSON.
     #[arg(long)]
@@ -60,7 +61,11 @@ const EMBREE_KERNELS: [&str; 2] = ["embree-1", "embree-stream"];
 pub(crate) fn run(args: PacketsArgs) -> Result<()> {
     check_outputs(&[("--json", args.json.as_deref())])?;
     if args.layout.name().starts_with("bvh2") {
-        return Err(format!("--layout {}: packets need a 4-wide layout", args.layout).into());
+        return Err(format!(
+            "--layout {}: packets need a 4- or 8-wide layout",
+            args.layout
+        )
+        .into());
     }
     let scenes = if args.scenes.is_empty() {
         ["balls3", "gears3", "teapot12", "tetra9"]
@@ -85,7 +90,9 @@ pub(crate) fn run(args: PacketsArgs) -> Result<()> {
     let mut rows = Vec::new();
     for (mode, scene) in &jobs {
         bar.set_message(format!("{} ({mode})", scene.name));
-        if scene.is_all_triangles() {
+        // Patch mode is measured on the scene's triangles, the ones Embree gets: quiver's
+        // fast leaf tests, not the shading-aware patch primitives the renderer uses.
+        if *mode == "patch" || scene.is_all_triangles() {
             measure(
                 &args,
                 scene,
@@ -124,9 +131,8 @@ fn measure<P: Primitive>(
     let lights: Vec<_> = scene.lights.iter().map(|l| l.pos).collect();
     let shadow = rays::shadow_rays(&bvh, &eye, &lights);
     let random = rays::random_rays(&scene.bounds(), args.rays, 11);
-    // Embree traces triangles only: in patch mode the same surfaces as quiver's primitives
-    // (quiver keeps polygons whole, Embree gets them triangulated: `primitives` in its rows);
-    // curve mode's spheres and cones would need Embree user geometry, so it is left out.
+    // Embree traces triangles only: in patch mode the same triangles as quiver; curve mode's
+    // spheres, cones and whole polygons would need Embree user geometry, so it is left out.
     #[cfg(feature = "embree")]
     let (embree, extra, embree_tris): (_, &[&str], _) = if mode == "patch" {
         let tris = scene.triangles();

@@ -25,7 +25,7 @@ pub(crate) struct RenderArgs {
     #[arg(allow_negative_numbers = true, long, value_parser = thread_count())]
     threads: Option<u16>,
     /// Memory layout of the BVH.
-    #[arg(long, default_value = "bvh4-dfs", value_parser = parse_layout, long_help = layout_help())]
+    #[arg(long, default_value = "bvh8-dfs", value_parser = parse_layout, long_help = layout_help())]
     layout: Layout,
     /// Tessellate spheres and cones (the SPD's patch mode).
     #[arg(long)]
@@ -124,6 +124,9 @@ pub(crate) fn run(args: RenderArgs) -> Result<()> {
         "threads": pool.current_num_threads(),
         "layout": args.layout.name(),
         "packets": rconfig.packets,
+        // Rays the packet kernels traced, and their share of all rays.
+        "packet_rays": image.packet_rays,
+        "packet_share": image.packet_rays as f64 / total,
         "rays": {
             "eye": rays.eye,
             "eye_hit": rays.eye_hit,

@@ -189,12 +189,21 @@ fn packets_on_and_off_trace_the_same_rays_and_draw_the_same_image() {
         // 100 x 100 pixels: 101 corners, so the last tile column and band are partial.
         let base = run_with(&scene, 100, Layout::Bvh4Dfs, 1, false, false);
         assert!(base.rays.eye_hit > 0 && base.rays.shadow > 0, "{spec}");
-        for layout in [Layout::Bvh4Dfs, Layout::Bvh4Quant, Layout::Bvh2Dfs] {
+        assert_eq!(base.packet_rays, 0, "{spec}: packets off");
+        for layout in [
+            Layout::Bvh4Dfs,
+            Layout::Bvh4Quant,
+            Layout::Bvh2Dfs,
+            Layout::Bvh8Dfs,
+        ] {
             for (threads, counters) in [(1, false), (2, true)] {
                 let r = run_with(&scene, 100, layout, threads, counters, true);
                 let what = format!("{spec} {layout} {threads} threads counters {counters}");
                 assert_eq!(r.rays, base.rays, "{what}");
                 assert_eq!(r.rgb, base.rgb, "{what}");
+                // Every eye ray goes in an 8 x 8 tile of corners: a coherent packet.
+                assert!(r.packet_rays >= r.rays.eye, "{what}: {}", r.packet_rays);
+                assert!(r.packet_rays <= r.rays.total(), "{what}");
             }
         }
     }

@@ -166,12 +166,50 @@ impl Camera {
     /// meaningless (zero) for a camera
     /// [`Camera::validate`] rejects.
     pub fn ray(&self, sx: f32, sy: f32) -> Ray {
+        self.view().ray(sx, sy)
+    }
+
+    /// The camera's frame, computed once for many rays: [`View::ray`] gives exactly
+    /// [`Camera::ray`]'s rays.
+    ///
+    /// ```
+    /// use quiver_scenes::Scene;
+    /// let cam = Scene::load("tetra2").unwrap().camera;
+    /// let view = cam.view();
+    /// assert_eq!(view.ray(0.25, -0.5), cam.ray(0.25, -0.5));
+    /// ```
+    pub fn view(&self) -> View {
         // `unit_or_zero`: a scene and its camera scaled to 1e30 or 1e-30 see the same rays.
         let w = unit_or_zero(self.at - self.from);
         let right = unit_or_zero(w.cross(self.up));
-        let up = right.cross(w);
-        let h = (self.angle.to_radians() * 0.5).tan();
-        let dir = unit_or_zero(w + right * (sx * h) + up * (sy * h));
+        View {
+            from: self.from,
+            w,
+            right,
+            up: right.cross(w),
+            h: (self.angle.to_radians() * 0.5).tan(),
+        }
+    }
+}
+
+/// A camera's eye point and frame: where [`Camera::ray`]'s rays come from, without
+/// recomputing the frame per ray.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct View {
+    from: Vec3A,
+    /// Unit view direction, right and up vectors.
+    w: Vec3A,
+    right: Vec3A,
+    up: Vec3A,
+    /// Tangent of half the field of view.
+    h: f32,
+}
+
+impl View {
+    /// The eye ray through screen point `(sx, sy)` (see [`Camera::ray`]).
+    #[inline]
+    pub fn ray(&self, sx: f32, sy: f32) -> Ray {
+        let dir = unit_or_zero(self.w + self.right * (sx * self.h) + self.up * (sy * self.h));
         Ray::new(self.from, dir)
     }
 }

@@ -31,9 +31,9 @@ mod soup;
 mod spd;
 pub mod tessellate;
 
-pub use camera::{Camera, CameraError};
+pub use camera::{Camera, CameraError, View};
 
-use crate::primitive::{Cone, PatchTriangle, Polygon, Prim, Sphere};
+use crate::primitive::{Cone, PatchTriangle, Polygon, PolygonPiece, Prim, Sphere};
 use glam::Vec3A;
 use quiver::geometry::{Aabb, Primitive, Triangle};
 use std::fmt;
@@ -562,8 +562,9 @@ impl Scene {
     }
 
     /// The primitives a curve-mode BVH holds, and for each the index of its object: spheres
-    /// and cones stay analytic, a polygon stays one n-gon, a patch becomes a fan of patch
-    /// triangles.
+    /// and cones stay analytic, a polygon is traced as its triangles ([`PolygonPiece`]: the
+    /// polygon's normal, a watertight test) and stays one object for shading and counts, a
+    /// patch becomes a fan of patch triangles.
     pub fn prims(&self) -> (Vec<Prim>, Vec<u32>) {
         let mut prims = Vec::with_capacity(self.objects.len());
         let mut owner = Vec::with_capacity(self.objects.len());
@@ -573,7 +574,16 @@ impl Scene {
                 Shape::Sphere(s) => prims.push(Prim::Sphere(*s)),
                 Shape::Cone(c) => prims.push(Prim::Cone(*c)),
                 Shape::Triangle(t) => prims.push(Prim::Triangle(*t)),
-                Shape::Polygon(v) => prims.push(Prim::Polygon(Polygon::new(v.clone()))),
+                // Traced as its triangles (see `PolygonPiece`), shaded as the polygon.
+                Shape::Polygon(v) => {
+                    let normal = Polygon::new(v.clone()).normal();
+                    let mut tris = Vec::with_capacity(v.len());
+                    tessellate::polygon_triangles(v, &mut tris);
+                    prims.extend(
+                        tris.into_iter()
+                            .map(|tri| Prim::Piece(PolygonPiece { tri, normal })),
+                    );
+                }
                 Shape::Patch { verts, normals } => {
                     for k in 1..verts.len().saturating_sub(1) {
                         prims.push(Prim::Patch(PatchTriangle {

@@ -68,6 +68,38 @@ pub enum PacketMode {
     Never,
 }
 
+impl PacketMode {
+    /// How many of the active rays of `rays` a packet query in this mode traces with the
+    /// packet kernel (the rest go ray by ray): the same cut into [`PACKET_RAYS`]-ray packets
+    /// and the same coherence check the query makes.
+    ///
+    /// ```
+    /// use quiver::traverse::PacketMode;
+    /// use quiver::Ray;
+    /// use glam::Vec3A;
+    /// let rays = vec![Ray::new(Vec3A::ZERO, Vec3A::Z); 10];
+    /// assert_eq!(PacketMode::Auto.packet_rays(&rays, None), 10);
+    /// assert_eq!(PacketMode::Never.packet_rays(&rays, None), 0);
+    /// let three = [true, true, true, false, false, false, false, false, false, false];
+    /// assert_eq!(PacketMode::Always.packet_rays(&rays, Some(&three)), 3);
+    /// // Fewer than four active rays never pay for a packet.
+    /// assert_eq!(PacketMode::Auto.packet_rays(&rays, Some(&three)), 0);
+    /// ```
+    ///
+    /// # Panics
+    /// When `active` differs in length from `rays`.
+    pub fn packet_rays(self, rays: &[Ray], active: Option<&[bool]>) -> u64 {
+        let mut n = 0u64;
+        let mut out = vec![(); rays.len()];
+        each_packet(rays, active, self, &mut out, |_, on, packet, _| {
+            if packet {
+                n += u64::from(on.count_ones());
+            }
+        });
+        n
+    }
+}
+
 /// Smallest cosine between a packet ray and the first active ray for [`PacketMode::Auto`] to
 /// take the packet path.
 const COHERENT_COS: f32 = 0.9;
