@@ -12,11 +12,19 @@ use std::time::Instant;
 fn main() {
     let a: Vec<String> = std::env::args().collect();
     let name = a.get(1).map_or("teapot12", |s| s.as_str());
-    let layout: Layout = a.get(2).map_or("bvh8-dfs", |s| s.as_str()).parse().expect("layout");
+    let layout: Layout = a
+        .get(2)
+        .map_or("bvh8-dfs", |s| s.as_str())
+        .parse()
+        .expect("layout");
     let size: usize = a.get(3).map_or(64, |s| s.parse().expect("size"));
     let reps: usize = a.get(4).map_or(20, |s| s.parse().expect("reps"));
-    let scene = Scene::load(name).expect("scene").into_patches(DEFAULT_RESOLUTION);
-    let bvh = BuildOptions::default().layout(layout).build(&scene.triangles());
+    let scene = Scene::load(name)
+        .expect("scene")
+        .into_patches(DEFAULT_RESOLUTION);
+    let bvh = BuildOptions::default()
+        .layout(layout)
+        .build(&scene.triangles());
     let eye = quiver_lab::rays::camera_tiles(&scene.camera, 512, 8);
     let mut out = vec![None; eye.len()];
     let mut best = f64::MAX;
@@ -36,5 +44,8 @@ fn main() {
     }
     let hits = out.iter().filter(|h| h.is_some()).count();
     let mrays = eye.len() as f64 / best / 1e6;
-    println!("{name} {} size {size}: {mrays:.2} Mrays/s, {hits} hits", layout.name());
+    println!(
+        "{name} {} size {size}: {mrays:.2} Mrays/s, {hits} hits",
+        layout.name()
+    );
 }

@@ -100,8 +100,9 @@ impl<P: Primitive> Bvh<P> {
         }
     }
 
-    /// The instruction set queries run on: the BVH's own for 8-wide nodes, portable for the
-    /// others (they have no AVX2 kernels).
+    /// The instruction set queries run on: the BVH's own for 8-wide nodes (all queries) and
+    /// 4-wide nodes (packet queries), portable for the binary layouts (they have no AVX2
+    /// kernels).
     pub fn isa(&self) -> Isa {
         self.nodes.isa()
     }
@@ -123,6 +124,8 @@ impl<P: Primitive> Nodes<P> {
     fn isa(&self) -> Isa {
         match self {
             Nodes::Bvh8(b) => b.isa,
+            Nodes::Bvh4(b) => b.isa,
+            Nodes::QBvh4(b) => b.isa,
             Nodes::Scaled(s) => s.nodes.isa(),
             _ => Isa::Portable,
         }
@@ -131,6 +134,8 @@ impl<P: Primitive> Nodes<P> {
     fn with_isa(self, isa: Isa) -> Self {
         match self {
             Nodes::Bvh8(b) => Nodes::Bvh8(b.with_isa(isa)),
+            Nodes::Bvh4(b) => Nodes::Bvh4(b.with_isa(isa)),
+            Nodes::QBvh4(b) => Nodes::QBvh4(b.with_isa(isa)),
             Nodes::Scaled(s) => {
                 let Scaled { frame, nodes } = *s;
                 nodes.with_isa(isa).framed(frame)

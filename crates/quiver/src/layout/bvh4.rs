@@ -9,6 +9,7 @@ use super::tri4::{self, Tri4};
 use super::Footprint;
 use crate::build::BuildTree;
 use crate::geometry::{Aabb, Primitive, Triangle};
+use crate::isa::Isa;
 use bytemuck::{Pod, Zeroable};
 use wide::f32x4;
 
@@ -154,6 +155,9 @@ pub struct Bvh4<P = Triangle, N = Bvh4Node> {
     pub tri4: Vec<Tri4>,
     /// Node order.
     pub mapping: Bvh4Mapping,
+    /// The instruction set packet queries run on (single rays run the same 4-lane kernel on
+    /// either).
+    pub isa: Isa,
 }
 
 /// A 4-wide BVH with quantized 64-byte nodes ([`QBvh4Node`]).
@@ -166,11 +170,22 @@ impl<P: Primitive, N: Node4> Bvh4<P, N> {
     /// For [`QBvh4`], if a leaf holds more than 65535 primitives (a
     /// [`crate::build::BuildConfig::max_leaf_size`] above that).
     pub fn from_tree(tree: &BuildTree, prims: &[P], mapping: Bvh4Mapping) -> Self {
-        Self::from_leaf_prims(tree, leaf_order(tree, prims), mapping)
+        Self::from_leaf_prims(tree, leaf_order(tree, prims), mapping, Isa::detect())
+    }
+
+    /// The same BVH with packet queries on `isa` (or [`Isa::Portable`] where unsupported).
+    pub fn with_isa(mut self, isa: Isa) -> Self {
+        self.isa = isa.or_portable();
+        self
     }
 
     /// [`Bvh4::from_tree`] with the primitives already in the tree's leaf order.
-    pub(crate) fn from_leaf_prims(tree: &BuildTree, prims: Vec<P>, mapping: Bvh4Mapping) -> Self {
+    pub(crate) fn from_leaf_prims(
+        tree: &BuildTree,
+        prims: Vec<P>,
+        mapping: Bvh4Mapping,
+        isa: Isa,
+    ) -> Self {
         let mut wide = collapse(tree);
         let groups = tri4::pack_leaves(&mut wide, &prims, &tree.prim_indices);
         let (slots, pos) = arrange(&wide, mapping, std::mem::size_of::<N>());
@@ -193,6 +208,7 @@ impl<P: Primitive, N: Node4> Bvh4<P, N> {
             prim_ids: tree.prim_indices.clone(),
             tri4: groups,
             mapping,
+            isa: isa.or_portable(),
         }
     }
 

@@ -143,13 +143,28 @@ impl Layout {
             Layout::Bvh2Compact => Bvh2Mapping::Compact,
             Layout::Bvh2CompactPage => Bvh2Mapping::CompactPage,
             Layout::Bvh4Dfs => {
-                return Nodes::Bvh4(Bvh4::from_leaf_prims(tree, prims, Bvh4Mapping::DepthFirst))
+                return Nodes::Bvh4(Bvh4::from_leaf_prims(
+                    tree,
+                    prims,
+                    Bvh4Mapping::DepthFirst,
+                    isa,
+                ))
             }
             Layout::Bvh4Subtree => {
-                return Nodes::Bvh4(Bvh4::from_leaf_prims(tree, prims, Bvh4Mapping::Subtree))
+                return Nodes::Bvh4(Bvh4::from_leaf_prims(
+                    tree,
+                    prims,
+                    Bvh4Mapping::Subtree,
+                    isa,
+                ))
             }
             Layout::Bvh4Quant => {
-                return Nodes::QBvh4(QBvh4::from_leaf_prims(tree, prims, Bvh4Mapping::DepthFirst))
+                return Nodes::QBvh4(QBvh4::from_leaf_prims(
+                    tree,
+                    prims,
+                    Bvh4Mapping::DepthFirst,
+                    isa,
+                ))
             }
             Layout::Bvh8Dfs => return Nodes::Bvh8(Bvh8::from_leaf_prims(tree, prims, isa, config)),
         };
