@@ -122,7 +122,13 @@ fn packets_match_on_every_instruction_set_and_leaf_format() {
                 check(&bvh, &tris, &shadow, None, &format!("{what} shadow"));
                 let bvh = options.build(&tight);
                 check(&bvh, &tight, &eye, None, &format!("{what} watertight eye"));
-                check(&bvh, &tight, &shadow, None, &format!("{what} watertight shadow"));
+                check(
+                    &bvh,
+                    &tight,
+                    &shadow,
+                    None,
+                    &format!("{what} watertight shadow"),
+                );
             }
         }
     }

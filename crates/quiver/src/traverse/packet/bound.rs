@@ -101,7 +101,35 @@ impl BoundBuilder {
         }
     }
 
-    /// Adds an active ray: its origin, slab reciprocals and interval.
+    /// A builder that has seen rays with these ranges (per axis: origin `[lo, hi]`,
+    /// reciprocal `[lo, hi]`), per-axis usability and negative counts, ray count and
+    /// `[t_min lo, t_max hi]`.
+    #[inline(always)]
+    pub fn from_parts(
+        o: [[f32; 2]; 3],
+        i: [[f32; 2]; 3],
+        usable: [bool; 3],
+        negs: [u32; 3],
+        rays: u32,
+        t: [f32; 2],
+    ) -> Self {
+        BoundBuilder {
+            o_lo: Vec3A::new(o[0][0], o[1][0], o[2][0]),
+            o_hi: Vec3A::new(o[0][1], o[1][1], o[2][1]),
+            i_lo: Vec3A::new(i[0][0], i[1][0], i[2][0]),
+            i_hi: Vec3A::new(i[0][1], i[1][1], i[2][1]),
+            usable,
+            negs,
+            rays,
+            t_min_lo: t[0],
+            t_max_hi: t[1],
+        }
+    }
+
+    /// Adds an active ray: its origin, slab reciprocals and interval (the packet adds whole
+    /// chunks and hands over [`BoundBuilder::from_parts`]; this is the reference the tests
+    /// build bounds with).
+    #[cfg(test)]
     #[inline(always)]
     pub fn add(&mut self, origin: Vec3A, inv: Vec3A, t_min: f32, t_max: f32) {
         for a in 0..3 {
