@@ -414,7 +414,7 @@ mod tests {
             let rays: Vec<Ray> = (0..n)
                 .map(|i| {
                     let mut d = rng.in_box(Vec3A::splat(-1.0), Vec3A::ONE);
-                    if (i as u64 + round) % 3 == 0 {
+                    if (i as u64 + round).is_multiple_of(3) {
                         d[i % 3] = odd[(rng.next_u64() % 8) as usize];
                     }
                     let o = rng.in_box(Vec3A::splat(-5.0), Vec3A::splat(5.0));
