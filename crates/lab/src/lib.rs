@@ -11,6 +11,7 @@ pub mod accuracy;
 pub mod checks;
 #[cfg(feature = "embree")]
 pub mod embree;
+pub mod lines;
 pub mod measure;
 pub mod obvhs_bridge;
 pub mod oracle;

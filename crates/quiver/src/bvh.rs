@@ -4,7 +4,7 @@
 
 use crate::build::{build, prim_bounds, BuildConfig, BuildTree, Builder};
 use crate::frame::{Back, Frame};
-use crate::geometry::{Hit, Primitive, Ray, Triangle};
+use crate::geometry::{Aabb, Hit, Primitive, Ray, Triangle};
 use crate::isa::Isa;
 use crate::layout::bvh2::leaf_order;
 use crate::layout::{Bvh2, Bvh4, Bvh8, Footprint, Layout, QBvh4};
@@ -59,7 +59,23 @@ pub(crate) struct Scaled<P> {
     nodes: Nodes<P>,
 }
 
+impl<P> Bvh<P> {
+    /// The nodes of the layout, for readers inside the crate (the cost predictor).
+    pub(crate) fn layout_nodes(&self) -> &Nodes<P> {
+        &self.nodes
+    }
+}
+
 impl<P> Nodes<P> {
+    /// The nodes of the layout itself, out of any scaled frame, and `b` (world units) in
+    /// their frame.
+    pub(crate) fn unframed(&self, b: &Aabb) -> (&Nodes<P>, Aabb) {
+        match self {
+            Nodes::Scaled(s) => (&s.nodes, s.frame.aabb(b)),
+            other => (other, *b),
+        }
+    }
+
     /// These nodes, built in `frame`.
     fn framed(self, frame: Frame) -> Nodes<P> {
         if frame.is_identity() {

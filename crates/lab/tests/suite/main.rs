@@ -12,6 +12,7 @@ mod inputs;
 mod mixed;
 mod obvhs;
 mod packets;
+mod predict;
 mod render;
 mod scale;
 mod scenes;
