@@ -8,7 +8,7 @@
 //! are checked before any work starts.
 
 use clap::{Parser, Subcommand};
-use commands::{accuracy, bench, build, gen, layouts, packets, render};
+use commands::{accuracy, bench, build, gen, layouts, packets, predict, render};
 use std::process::ExitCode;
 
 mod commands;
@@ -45,6 +45,9 @@ enum Command {
     Bench(bench::BenchArgs),
     /// Packet traversal against BVH4 single rays: eye, shadow and incoherent Mrays/s.
     Packets(packets::PacketsArgs),
+    /// Traversal work predicted from surface areas beside measurement; with --time, against
+    /// time per ray.
+    Predict(predict::PredictArgs),
 }
 
 fn main() -> ExitCode {
@@ -63,6 +66,7 @@ fn main() -> ExitCode {
         Command::Accuracy(args) => accuracy::run(args),
         Command::Bench(args) => bench::run(args),
         Command::Packets(args) => packets::run(args),
+        Command::Predict(args) => predict::run(args),
     };
     // A failed stdout is reported even when the command failed too: both went wrong.
     let stdout = output::finish_stdout();

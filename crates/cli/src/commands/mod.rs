@@ -7,6 +7,7 @@ pub(crate) mod build;
 pub(crate) mod gen;
 pub(crate) mod layouts;
 pub(crate) mod packets;
+pub(crate) mod predict;
 pub(crate) mod render;
 
 use quiver::build::{BuildTree, Builder};
