@@ -150,6 +150,50 @@ pub fn predict_within<T: Pieces + ?Sized>(t: &T, root: &Aabb) -> Prediction {
     p
 }
 
+/// The node counts of Havran's minimum testing output (thesis, section 2.5: the subset of
+/// static properties of the data structure) for the structure a walk actually traverses.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Census {
+    /// `N_G`: generic (inner) nodes.
+    pub inner: usize,
+    /// `N_E`: elementary nodes (leaves).
+    pub leaves: usize,
+    /// `N_EE`: empty elementary nodes (leaves referencing no object).
+    pub empty_leaves: usize,
+    /// `N_ER`: object references in the leaves.
+    pub references: usize,
+}
+
+/// Counts the inner nodes, leaves, empty leaves and references of `t` as a walk sees it (for
+/// a wide layout, wide nodes and leaf slots; unused slots are not leaves).
+///
+/// ```
+/// use quiver::predict::census;
+/// use quiver::{BuildOptions, Layout, Triangle};
+/// use glam::Vec3A;
+/// let tris: Vec<Triangle> = (0..100)
+///     .map(|i| Triangle::new(Vec3A::splat(i as f32), Vec3A::X, Vec3A::Y))
+///     .collect();
+/// let (bvh, tree) = BuildOptions::default().layout(Layout::Bvh4Dfs).build_with_tree(&tris);
+/// let (binary, wide) = (census(&tree), census(&bvh));
+/// assert_eq!((binary.references, wide.references), (100, 100));
+/// assert_eq!(binary.inner + 1, binary.leaves); // a binary tree
+/// assert!(wide.inner < binary.inner);
+/// ```
+pub fn census<T: Pieces + ?Sized>(t: &T) -> Census {
+    let mut c = Census::default();
+    t.pieces(&mut |p| {
+        if p.leaf {
+            c.leaves += 1;
+            c.empty_leaves += usize::from(p.prims == 0);
+            c.references += p.prims as usize;
+        } else {
+            c.inner += 1;
+        }
+    });
+    c
+}
+
 fn clip(b: &Aabb, to: &Aabb) -> Aabb {
     Aabb::new(b.min.max(to.min), b.max.min(to.max))
 }

@@ -383,11 +383,15 @@ fn print_timings(t: &[Timing], corr: &[Value], layout: Layout, threads: u16) {
         "r(work, t)",
         "r(E, work)"
     );
-    let f = |v: &Value| v.as_f64().unwrap_or(f64::NAN);
+    // A correlation over constant values (one scene and builder, an empty scene) is undefined.
+    let f = |v: &Value| match v.as_f64() {
+        Some(x) if x.is_finite() => format!("{x:.3}"),
+        _ => "-".to_string(),
+    };
     for c in corr {
         out!("{:<7} {:>6}", c["rays"].as_str().unwrap_or(""), c["points"]);
         outln!(
-            " {:>14.3} {:>14.3} {:>11.3} {:>11.3} {:>14.3}",
+            " {:>14} {:>14} {:>11} {:>11} {:>14}",
             f(&c["pearson_predicted_time"]),
             f(&c["spearman_predicted_time"]),
             f(&c["pearson_sah_time"]),

@@ -8,6 +8,7 @@ mod build;
 mod equivalence;
 mod fuzz_regressions;
 mod hard_cases;
+mod havran;
 mod inputs;
 mod mixed;
 mod obvhs;
