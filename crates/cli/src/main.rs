@@ -8,7 +8,7 @@
 //! are checked before any work starts.
 
 use clap::{Parser, Subcommand};
-use commands::{accuracy, bench, build, gen, layouts, packets, predict, render};
+use commands::{accuracy, bench, build, costs, gen, layouts, packets, predict, render};
 use std::process::ExitCode;
 
 mod commands;
@@ -48,6 +48,9 @@ enum Command {
     /// Traversal work predicted from surface areas beside measurement; with --time, against
     /// time per ray.
     Predict(predict::PredictArgs),
+    /// Build cost models (SAH, RTSAH, SRDH) side by side: SAH cost, work and time per eye,
+    /// shadow and mirror ray.
+    Costs(costs::CostsArgs),
 }
 
 fn main() -> ExitCode {
@@ -67,6 +70,7 @@ fn main() -> ExitCode {
         Command::Bench(args) => bench::run(args),
         Command::Packets(args) => packets::run(args),
         Command::Predict(args) => predict::run(args),
+        Command::Costs(args) => costs::run(args),
     };
     // A failed stdout is reported even when the command failed too: both went wrong.
     let stdout = output::finish_stdout();

@@ -131,6 +131,7 @@ fn zero_threads_is_refused_everywhere() {
         "bench tetra1 --rays 10 --reps 1",
         "packets tetra1 --rays 10 --reps 1 --res 8",
         "predict tetra1 --lines 10 --rays 10 --reps 1 --res 8 --time",
+        "costs tetra1 --res 8 --reps 1",
     ];
     let dir = tempfile::tempdir().unwrap();
     for line in commands {
@@ -228,6 +229,7 @@ fn every_output_flag_is_checked_before_work() {
         "packets tetra1 --json /nonexistent/p.json",
         "predict tetra1 --json /nonexistent/p.json",
         "predict tetra1 --plot /nonexistent/p.svg",
+        "costs tetra1 --json /nonexistent/c.json",
         "render tetra1 --res 8 --havran --json /nonexistent/h.json",
         "render tetra1 -o same.png --heatmap same.png",
     ];
@@ -407,6 +409,8 @@ fn zero_and_nonsense_numbers_are_refused_naming_the_flag() {
         ("render tetra1 --res 0", "--res"),
         ("render tetra1 --res 8 --havran --reps 0", "--reps"),
         ("predict tetra1 --lines 0", "--lines"),
+        ("costs tetra1 --reps 0", "--reps"),
+        ("build tetra1 --cost-model best", "--cost-model"),
         ("predict tetra1 --time --reps 0", "--reps"),
         ("render tetra1 --threads -2", "--threads"),
         ("gen tetra1 --patches --resolution 0", "--resolution"),
