@@ -8,7 +8,7 @@
 //! are checked before any work starts.
 
 use clap::{Parser, Subcommand};
-use commands::{accuracy, bench, build, gen, layouts, packets, render};
+use commands::{accuracy, bench, build, costs, gen, layouts, packets, predict, render};
 use std::process::ExitCode;
 
 mod commands;
@@ -45,6 +45,12 @@ enum Command {
     Bench(bench::BenchArgs),
     /// Packet traversal against single rays of the same BVH: eye, shadow and incoherent Mrays/s.
     Packets(packets::PacketsArgs),
+    /// Traversal work predicted from surface areas beside measurement; with --time, against
+    /// time per ray.
+    Predict(predict::PredictArgs),
+    /// Build cost models (SAH, RTSAH, SRDH) side by side: SAH cost, work and time per eye,
+    /// shadow and mirror ray.
+    Costs(costs::CostsArgs),
 }
 
 fn main() -> ExitCode {
@@ -63,6 +69,8 @@ fn main() -> ExitCode {
         Command::Accuracy(args) => accuracy::run(args),
         Command::Bench(args) => bench::run(args),
         Command::Packets(args) => packets::run(args),
+        Command::Predict(args) => predict::run(args),
+        Command::Costs(args) => costs::run(args),
     };
     // A failed stdout is reported even when the command failed too: both went wrong.
     let stdout = output::finish_stdout();

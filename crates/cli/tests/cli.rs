@@ -49,6 +49,16 @@ fn every_command(scene: &str, dir: &Path) -> Vec<Vec<String>> {
         with(&["accuracy", scene, "--sphere", "0"], &tiny),
         with(&["bench", scene], &tiny),
         with(&["packets", scene, "--res", "8"], &tiny),
+        with(
+            &["predict", scene, "--lines", "10", "--res", "8", "--time"],
+            &tiny,
+        ),
+        with(
+            &[
+                "render", scene, "--res", "8", "--havran", "--reps", "1", "-o", &png,
+            ],
+            &[],
+        ),
     ]
 }
 
@@ -120,6 +130,8 @@ fn zero_threads_is_refused_everywhere() {
         "accuracy tetra1 --rays 10 --reps 1 --sphere 0",
         "bench tetra1 --rays 10 --reps 1",
         "packets tetra1 --rays 10 --reps 1 --res 8",
+        "predict tetra1 --lines 10 --rays 10 --reps 1 --res 8 --time",
+        "costs tetra1 --res 8 --reps 1",
     ];
     let dir = tempfile::tempdir().unwrap();
     for line in commands {
@@ -215,6 +227,10 @@ fn every_output_flag_is_checked_before_work() {
         "accuracy tetra1 --json /nonexistent/a.json",
         "bench tetra1 --json /nonexistent/b.json",
         "packets tetra1 --json /nonexistent/p.json",
+        "predict tetra1 --json /nonexistent/p.json",
+        "predict tetra1 --plot /nonexistent/p.svg",
+        "costs tetra1 --json /nonexistent/c.json",
+        "render tetra1 --res 8 --havran --json /nonexistent/h.json",
         "render tetra1 -o same.png --heatmap same.png",
     ];
     let dir = tempfile::tempdir().unwrap();
@@ -391,6 +407,11 @@ fn zero_and_nonsense_numbers_are_refused_naming_the_flag() {
         ("accuracy tetra1 --rays 10 --reps 0 --sphere 0", "--reps"),
         ("accuracy tetra1 --rays -5", "--rays"),
         ("render tetra1 --res 0", "--res"),
+        ("render tetra1 --res 8 --havran --reps 0", "--reps"),
+        ("predict tetra1 --lines 0", "--lines"),
+        ("costs tetra1 --reps 0", "--reps"),
+        ("build tetra1 --cost-model best", "--cost-model"),
+        ("predict tetra1 --time --reps 0", "--reps"),
         ("render tetra1 --threads -2", "--threads"),
         ("gen tetra1 --patches --resolution 0", "--resolution"),
         ("build tetra1 --bins 1", "--bins"),

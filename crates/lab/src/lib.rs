@@ -1,5 +1,6 @@
 //! quiver-lab: quiver's harness, apart from the library an embedder uses. Deterministic ray
-//! sets ([`rays`]), parallel tracing and interleaved median timing ([`measure`]), the
+//! sets ([`rays`]), isotropic random lines and the walk that counts what they pierce
+//! ([`lines`]), parallel tracing and interleaved median timing ([`measure`]), the
 //! accuracy study ([`accuracy`]), the checks the fuzz targets run ([`checks`]) and quiver's
 //! data in obvhs's terms ([`obvhs_bridge`]); with the `embree` feature, Intel Embree 3 as a
 //! second comparison engine (`embree`, which links `libembree3`). The integration tests
@@ -11,6 +12,7 @@ pub mod accuracy;
 pub mod checks;
 #[cfg(feature = "embree")]
 pub mod embree;
+pub mod lines;
 pub mod measure;
 pub mod obvhs_bridge;
 pub mod oracle;

@@ -99,3 +99,38 @@ pub fn shadow_rays<Q: RayQuery + Sync>(bvh: &Q, eye: &[Ray], lights: &[Vec3A]) -
         })
         .collect()
 }
+
+/// Mirror reflection rays from every point where an `eye` ray hits `bvh` (built over `tris`):
+/// the eye direction reflected about the hit triangle's plane, starting a relative epsilon
+/// off the surface on the side the eye ray came from. The secondary rays of a renderer's
+/// mirrors, in the eye rays' order.
+///
+/// ```
+/// use quiver::{Bvh, RayQuery};
+/// use quiver_lab::rays;
+/// use quiver_scenes::Scene;
+/// let tris = Scene::load("tetra3").unwrap().triangles();
+/// let s = Scene::load("tetra3").unwrap();
+/// let bvh = Bvh::new(&tris);
+/// let eye = rays::camera_rays(&s.camera, 16);
+/// let hits = eye.iter().filter(|r| bvh.closest_hit(r).is_some()).count();
+/// assert_eq!(rays::reflection_rays(&bvh, &tris, &eye).len(), hits);
+/// ```
+pub fn reflection_rays<Q: RayQuery + Sync>(
+    bvh: &Q,
+    tris: &[quiver::Triangle],
+    eye: &[Ray],
+) -> Vec<Ray> {
+    eye.par_iter()
+        .filter_map(|r| {
+            let h = bvh.closest_hit(r)?;
+            let t = &tris[h.prim as usize];
+            let n = (t.v[1] - t.v[0]).cross(t.v[2] - t.v[0]).normalize_or_zero();
+            let d = r.dir - 2.0 * r.dir.dot(n) * n;
+            let facing = if r.dir.dot(n) < 0.0 { n } else { -n };
+            let p = r.at(h.t);
+            let eps = 1e-4 * (1.0 + p.abs().max_element());
+            Some(Ray::new(p + facing * eps, d))
+        })
+        .collect()
+}

@@ -2,9 +2,9 @@
 //! defaults or by [`BuildOptions`] with every choice (builder, layout, leaf size, bins, thread
 //! pool), from a primitive slice or an indexed mesh.
 
-use crate::build::{build, prim_bounds, BuildConfig, BuildTree, Builder};
+use crate::build::{build_with_areas, prim_bounds, BuildConfig, BuildTree, Builder, CostModel};
 use crate::frame::{Back, Frame};
-use crate::geometry::{Hit, Primitive, Ray, Triangle};
+use crate::geometry::{Aabb, Hit, Primitive, Ray, Triangle};
 use crate::isa::Isa;
 use crate::layout::bvh2::leaf_order;
 use crate::layout::{Bvh2, Bvh4, Bvh8, Footprint, Layout, QBvh4};
@@ -59,7 +59,23 @@ pub(crate) struct Scaled<P> {
     nodes: Nodes<P>,
 }
 
+impl<P> Bvh<P> {
+    /// The nodes of the layout, for readers inside the crate (the cost predictor).
+    pub(crate) fn layout_nodes(&self) -> &Nodes<P> {
+        &self.nodes
+    }
+}
+
 impl<P> Nodes<P> {
+    /// The nodes of the layout itself, out of any scaled frame, and `b` (world units) in
+    /// their frame.
+    pub(crate) fn unframed(&self, b: &Aabb) -> (&Nodes<P>, Aabb) {
+        match self {
+            Nodes::Scaled(s) => (&s.nodes, s.frame.aabb(b)),
+            other => (other, *b),
+        }
+    }
+
     /// These nodes, built in `frame`.
     fn framed(self, frame: Frame) -> Nodes<P> {
         if frame.is_identity() {
@@ -432,6 +448,13 @@ impl<'p> BuildOptions<'p> {
         self
     }
 
+    /// How splits are scored: the SAH (default) or a ray-termination variant
+    /// ([`CostModel`]); the variants weigh each primitive's [`Primitive::surface_area`].
+    pub fn cost_model(mut self, model: CostModel) -> Self {
+        self.config.cost_model = model;
+        self
+    }
+
     /// All build settings at once.
     pub fn config(self, config: BuildConfig) -> Self {
         BuildOptions { config, ..self }
@@ -481,12 +504,14 @@ impl<'p> BuildOptions<'p> {
             } else {
                 Frame::default()
             };
-            let tree = build(
+            let in_frame = local.as_deref().unwrap_or(prims);
+            let tree = build_with_areas(
                 &frame.boxes(&bounds),
+                self.areas(in_frame).as_deref(),
                 &self.effective_config(),
                 self.builder,
             );
-            let nodes = self.lay_out(&tree, leaf_order(&tree, local.as_deref().unwrap_or(prims)));
+            let nodes = self.lay_out(&tree, leaf_order(&tree, in_frame));
             (
                 Bvh {
                     nodes: nodes.framed(frame),
@@ -529,19 +554,24 @@ impl<'p> BuildOptions<'p> {
             use rayon::prelude::*;
             let bounds = mesh.bounds();
             let frame = Frame::for_prims(&bounds);
-            let tree = build(
+            let framed = |i: u32| match frame.is_identity() {
+                true => mesh.triangle(i),
+                false => frame.prim(&mesh.triangle(i)).expect("triangles scale"),
+            };
+            // Surface areas only for a cost model that weighs them.
+            let areas: Option<Vec<f32>> = (self.config.cost_model != CostModel::Sah).then(|| {
+                (0..bounds.len() as u32)
+                    .into_par_iter()
+                    .map(|i| framed(i).surface_area())
+                    .collect()
+            });
+            let tree = build_with_areas(
                 &frame.boxes(&bounds),
+                areas.as_deref(),
                 &self.effective_config(),
                 self.builder,
             );
-            let leaf_tris = tree
-                .prim_indices
-                .par_iter()
-                .map(|&i| match frame.is_identity() {
-                    true => mesh.triangle(i),
-                    false => frame.prim(&mesh.triangle(i)).expect("triangles scale"),
-                })
-                .collect();
+            let leaf_tris = tree.prim_indices.par_iter().map(|&i| framed(i)).collect();
             let nodes = self.lay_out(&tree, leaf_tris);
             (
                 Bvh {
@@ -550,6 +580,14 @@ impl<'p> BuildOptions<'p> {
                 frame.world_tree(tree, &bounds),
             )
         }))
+    }
+
+    /// Each primitive's surface area (in the build's frame), for a cost model that weighs
+    /// them; `None` for the SAH, which does not.
+    fn areas<P: Primitive>(&self, prims: &[P]) -> Option<Vec<f32>> {
+        use rayon::prelude::*;
+        (self.config.cost_model != CostModel::Sah)
+            .then(|| prims.par_iter().map(|p| p.surface_area()).collect())
     }
 
     /// The settings the build runs with: the quantized layout stores leaf sizes in 16 bits,

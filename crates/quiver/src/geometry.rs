@@ -360,6 +360,20 @@ pub trait Primitive: Clone + Send + Sync {
     /// The hit within `[ray.t_min, ray.t_max]`, if any: distance and two surface parameters
     /// (barycentrics for triangles).
     fn intersect(&self, ray: &Ray) -> Option<PrimHit>;
+    /// Surface area, which the build cost models other than the SAH weigh
+    /// ([`crate::build::CostModel`]): the measure of the lines that meet the primitive, so a
+    /// flat primitive counts both sides. The default is the bounding box's half surface area
+    /// (a flat primitive across its box's largest face); [`Triangle`] gives its own.
+    ///
+    /// ```
+    /// use quiver::{Primitive, Triangle};
+    /// use glam::Vec3A;
+    /// let t = Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y);
+    /// assert_eq!(t.surface_area(), 1.0); // both sides of a triangle of area 1/2
+    /// ```
+    fn surface_area(&self) -> f32 {
+        self.bounds().half_area()
+    }
     /// True when every coordinate is finite; others are invisible (builds drop them).
     fn is_finite(&self) -> bool {
         self.bounds().is_finite()
@@ -469,6 +483,13 @@ impl Primitive for Triangle {
         F: FnMut(usize, u32, PrimHit) -> Option<f32>,
     {
         crate::traverse::packet::triangles_packet(leaf, rays)
+    }
+
+    #[inline]
+    fn surface_area(&self) -> f32 {
+        (self.v[1] - self.v[0])
+            .cross(self.v[2] - self.v[0])
+            .length()
     }
 }
 

@@ -139,6 +139,10 @@ impl Primitive for Watertight {
             v: w * inv,
         })
     }
+
+    fn surface_area(&self) -> f32 {
+        self.0.surface_area()
+    }
 }
 
 impl Primitive for Exact {
@@ -169,5 +173,9 @@ impl Primitive for Exact {
         let w = x[1] * y[0] - y[1] * x[0];
         let z = rel.map(|p| sz * p[kz]);
         finish(u, v, w, u * z[0] + v * z[1] + w * z[2], ray)
+    }
+
+    fn surface_area(&self) -> f32 {
+        self.0.surface_area()
     }
 }

@@ -40,6 +40,7 @@ pub mod intersect;
 mod isa;
 pub mod layout;
 mod mesh;
+pub mod predict;
 mod rng;
 #[cfg(test)]
 mod testing;

@@ -16,8 +16,11 @@ use crate::scene::Scene;
 use glam::Vec3A;
 use quiver::build::BuildTree;
 use quiver::layout::Footprint;
+use quiver::predict::{Piece, Pieces};
+use quiver::traverse::NoStats;
 use quiver::traverse::{BoxTest, PacketMode, RayQuery, Stats};
-use quiver::{BuildOptions, Bvh, Hit, PrimHit, Ray, Triangle};
+use quiver::{BuildOptions, Bvh, Hit, PrimHit, Primitive, Ray, Triangle};
+use std::sync::Mutex;
 
 /// The BVH of one scene.
 #[derive(Clone, Debug)]
@@ -32,6 +35,40 @@ enum Kind {
     /// Triangles and, where they came from patches, their vertex normals.
     Triangles(Bvh<Triangle>, Vec<Triangle>, Vec<Option<[Vec3A; 3]>>),
     Mixed(Bvh<Prim>, Vec<Prim>),
+    /// A BVH that also records every query it answers (see [`SceneBvh::recording`]).
+    Record(Box<SceneBvh>, Recording),
+}
+
+/// The queries recorded so far; a clone copies them.
+#[derive(Debug, Default)]
+struct Recording(Mutex<Vec<(usize, Traced)>>);
+
+impl Recording {
+    fn list(&self) -> std::sync::MutexGuard<'_, Vec<(usize, Traced)>> {
+        // A panic while recording leaves whole entries behind: the list is usable.
+        self.0.lock().unwrap_or_else(|e| e.into_inner())
+    }
+}
+
+impl Clone for Recording {
+    fn clone(&self) -> Self {
+        Recording(Mutex::new(self.list().clone()))
+    }
+}
+
+/// One query a recording BVH answered, for timing the same rays apart from the application
+/// that asked for them (Havran's split of the running time, see [`SceneBvh::recording`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Traced {
+    /// The ray.
+    pub ray: Ray,
+    /// Whether it was an any-hit (shadow) query; closest hit otherwise.
+    pub any: bool,
+    /// The answer: a hit (closest hit) or an occluder (any hit) was found.
+    pub found: bool,
+    /// The primitive hit (any hit: the nearest blocker, which a closest-hit search may round
+    /// away where the any-hit walk still admits one), if any.
+    pub hit: Option<u32>,
 }
 
 impl SceneBvh {
@@ -87,7 +124,10 @@ impl SceneBvh {
 
     /// True for the pure triangle path.
     pub fn is_triangles(&self) -> bool {
-        matches!(self.kind, Kind::Triangles(..))
+        match &self.kind {
+            Kind::Record(inner, _) => inner.is_triangles(),
+            kind => matches!(kind, Kind::Triangles(..)),
+        }
     }
 
     /// The scene object primitive `prim` came from.
@@ -111,6 +151,7 @@ impl SceneBvh {
                 }
             }
             Kind::Mixed(_, prims) => prims[hit.prim as usize].normal(ray, &th),
+            Kind::Record(inner, _) => inner.normal(ray, hit),
         }
     }
 
@@ -119,6 +160,84 @@ impl SceneBvh {
         match &self.kind {
             Kind::Triangles(b, ..) => b.footprint(),
             Kind::Mixed(b, _) => b.footprint(),
+            Kind::Record(inner, _) => inner.footprint(),
+        }
+    }
+
+    /// This BVH, also recording every query it answers, each worker thread's in the order it
+    /// asked them (so a render band's rays stay in the band's order): Havran's ideal algorithm reads stored answers in
+    /// sequence, and the recorded rays traced on their own time the ray shooting apart from
+    /// the application. Queries go ray by ray and take a lock each: a recording run is for
+    /// counting, not for timing.
+    ///
+    /// ```
+    /// use quiver::{BuildOptions, RayQuery};
+    /// use quiver_scenes::{accel::SceneBvh, Scene};
+    /// let scene = Scene::load("tetra3").unwrap();
+    /// let rec = SceneBvh::build(&scene, &BuildOptions::default()).recording();
+    /// let ray = scene.camera.ray(0.0, 0.0);
+    /// let hit = rec.closest_hit(&ray);
+    /// let traced = rec.recorded();
+    /// assert_eq!(traced.len(), 1);
+    /// assert_eq!(traced[0].hit, hit.map(|h| h.prim));
+    /// // The ideal algorithm's one test finds the same hit.
+    /// assert_eq!(rec.intersect_one(&ray, traced[0].hit.unwrap()).map(|h| h.t), hit.map(|h| h.t));
+    /// ```
+    pub fn recording(self) -> SceneBvh {
+        let owner = self.owner.clone();
+        SceneBvh {
+            kind: Kind::Record(Box::new(self), Recording::default()),
+            owner,
+        }
+    }
+
+    /// The queries a [`SceneBvh::recording`] answered so far, in order; empty for other BVHs.
+    pub fn recorded(&self) -> Vec<Traced> {
+        match &self.kind {
+            Kind::Record(_, rec) => {
+                // Each worker's queries together, in the order it asked them: threads record
+                // into one list, and interleaved they would lose the coherence of a band.
+                let mut list = rec.list().clone();
+                list.sort_by_key(|&(thread, _)| thread);
+                list.into_iter().map(|(_, t)| t).collect()
+            }
+            _ => Vec::new(),
+        }
+    }
+
+    /// The BVH a recording wraps (itself for others): the one to time the recorded rays on.
+    pub fn unrecorded(&self) -> &SceneBvh {
+        match &self.kind {
+            Kind::Record(inner, _) => inner,
+            _ => self,
+        }
+    }
+
+    /// Primitive `prim`'s own test against `ray`: the one test Havran's ideal algorithm makes
+    /// for a ray that hits.
+    pub fn intersect_one(&self, ray: &Ray, prim: u32) -> Option<PrimHit> {
+        match &self.kind {
+            Kind::Triangles(_, tris, _) => tris[prim as usize].intersect(ray),
+            Kind::Mixed(_, prims) => prims[prim as usize].intersect(ray),
+            Kind::Record(inner, _) => inner.intersect_one(ray, prim),
+        }
+    }
+
+    fn record(&self, t: Traced) {
+        if let Kind::Record(_, rec) = &self.kind {
+            rec.list()
+                .push((rayon::current_thread_index().unwrap_or(0), t));
+        }
+    }
+}
+
+impl Pieces for SceneBvh {
+    /// The traversed layout's nodes (see `quiver::predict`).
+    fn pieces(&self, f: &mut dyn FnMut(Piece)) {
+        match &self.kind {
+            Kind::Triangles(b, ..) => b.pieces(f),
+            Kind::Mixed(b, _) => b.pieces(f),
+            Kind::Record(inner, _) => inner.pieces(f),
         }
     }
 }
@@ -129,6 +248,16 @@ impl RayQuery for SceneBvh {
         match &self.kind {
             Kind::Triangles(b, ..) => b.closest_hit_with::<B, S>(ray, stats),
             Kind::Mixed(b, _) => b.closest_hit_with::<B, S>(ray, stats),
+            Kind::Record(inner, _) => {
+                let hit = inner.closest_hit_with::<B, S>(ray, stats);
+                self.record(Traced {
+                    ray: *ray,
+                    any: false,
+                    found: hit.is_some(),
+                    hit: hit.map(|h| h.prim),
+                });
+                hit
+            }
         }
     }
 
@@ -137,6 +266,22 @@ impl RayQuery for SceneBvh {
         match &self.kind {
             Kind::Triangles(b, ..) => b.any_hit_with::<B, S>(ray, stats),
             Kind::Mixed(b, _) => b.any_hit_with::<B, S>(ray, stats),
+            Kind::Record(inner, _) => {
+                let blocked = inner.any_hit_with::<B, S>(ray, stats);
+                // The ideal algorithm tests one blocker: the nearest, found without counting.
+                let hit = if blocked {
+                    inner.closest_hit_with::<B, _>(ray, &mut NoStats)
+                } else {
+                    None
+                };
+                self.record(Traced {
+                    ray: *ray,
+                    any: true,
+                    found: blocked,
+                    hit: hit.map(|h| h.prim),
+                });
+                blocked
+            }
         }
     }
 
@@ -153,6 +298,13 @@ impl RayQuery for SceneBvh {
                 b.closest_hit_packet_with::<B, S>(rays, active, mode, hits, stats)
             }
             Kind::Mixed(b, _) => b.closest_hit_packet_with::<B, S>(rays, active, mode, hits, stats),
+            Kind::Record(..) => {
+                for (i, (r, h)) in rays.iter().zip(hits.iter_mut()).enumerate() {
+                    if active.is_none_or(|a| a[i]) {
+                        *h = self.closest_hit_with::<B, S>(r, stats);
+                    }
+                }
+            }
         }
     }
 
@@ -169,6 +321,13 @@ impl RayQuery for SceneBvh {
                 b.any_hit_packet_with::<B, S>(rays, active, mode, occluded, stats)
             }
             Kind::Mixed(b, _) => b.any_hit_packet_with::<B, S>(rays, active, mode, occluded, stats),
+            Kind::Record(..) => {
+                for (i, (r, o)) in rays.iter().zip(occluded.iter_mut()).enumerate() {
+                    if active.is_none_or(|a| a[i]) {
+                        *o = self.any_hit_with::<B, S>(r, stats);
+                    }
+                }
+            }
         }
     }
 }

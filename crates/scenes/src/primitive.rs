@@ -140,6 +140,10 @@ impl Primitive for Sphere {
         Aabb::new(self.center - self.radius, self.center + self.radius)
     }
 
+    fn surface_area(&self) -> f32 {
+        4.0 * std::f32::consts::PI * self.radius * self.radius
+    }
+
     fn intersect(&self, ray: &Ray) -> Option<PrimHit> {
         // Roots of |o + t d - c|^2 = r^2, with the half-b form and the smaller root computed
         // without cancellation, solved from the ray's point nearest the centre: from the
@@ -312,6 +316,10 @@ impl Primitive for PatchTriangle {
     fn intersect(&self, ray: &Ray) -> Option<PrimHit> {
         self.tri.intersect(ray)
     }
+
+    fn surface_area(&self) -> f32 {
+        self.tri.surface_area()
+    }
 }
 
 impl Primitive for Prim {
@@ -359,6 +367,16 @@ impl Primitive for Prim {
                 normal: p.normal,
             }),
         })
+    }
+
+    /// Triangles and spheres give their own; cones and polygons their box's stand-in.
+    fn surface_area(&self) -> f32 {
+        match self {
+            Prim::Triangle(t) => t.surface_area(),
+            Prim::Patch(p) => p.surface_area(),
+            Prim::Sphere(s) => s.surface_area(),
+            other => other.bounds().half_area(),
+        }
     }
 
     #[inline]

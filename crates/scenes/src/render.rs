@@ -152,6 +152,9 @@ pub struct RayCounts {
     pub reflect: u64,
     /// Refraction rays.
     pub refract: u64,
+    /// Reflection and refraction rays that hit an object (with the eye hits and the blocked
+    /// shadow rays, the rays that needed an intersection test: Havran's `r_SI · N_rays`).
+    pub secondary_hit: u64,
     /// Shadow rays.
     pub shadow: u64,
     /// Shadow rays that found an occluder.
@@ -163,6 +166,12 @@ impl RayCounts {
     pub fn total(&self) -> u64 {
         self.eye + self.reflect + self.refract + self.shadow
     }
+
+    /// Rays whose answer needs at least one successful intersection test: eye and secondary
+    /// rays that hit, shadow rays that are blocked (Havran's `r_SI · N_rays`).
+    pub fn hits(&self) -> u64 {
+        self.eye_hit + self.secondary_hit + self.shadow_blocked
+    }
 }
 
 impl AddAssign for RayCounts {
@@ -171,6 +180,7 @@ impl AddAssign for RayCounts {
         self.eye_hit += o.eye_hit;
         self.reflect += o.reflect;
         self.refract += o.refract;
+        self.secondary_hit += o.secondary_hit;
         self.shadow += o.shadow;
         self.shadow_blocked += o.shadow_blocked;
     }
@@ -527,6 +537,7 @@ impl<W: Work> Tracer<'_, W> {
     /// is `hit`.
     fn traced(&mut self, ray: &Ray, hit: Option<Hit>, depth: u32) -> Vec3A {
         let s = hit.map(|h| self.surface(ray, &h));
+        self.rays.secondary_hit += s.is_some() as u64;
         self.color(s, depth, Secondary::Trace)
     }
 

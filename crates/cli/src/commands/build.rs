@@ -5,7 +5,7 @@ use super::{
     thread_count, Result,
 };
 use crate::output::{check_outputs, print_table, write_json};
-use quiver::build::{BuildConfig, Builder};
+use quiver::build::{BuildConfig, Builder, CostModel};
 use quiver::{BuildOptions, Layout};
 use serde_json::json;
 use std::path::PathBuf;
@@ -33,6 +33,10 @@ pub(crate) struct BuildArgs {
     /// Largest leaf the build may make.
     #[arg(allow_negative_numbers = true, long, default_value_t = 8, value_parser = clap::value_parser!(u16).range(1..=255))]
     max_leaf: u16,
+    /// How splits are scored: sah, rtsah (ray termination SAH) or srdh (shadow ray
+    /// distribution heuristic), both after Moulin and Dutré.
+    #[arg(long, default_value = "sah", value_parser = |s: &str| s.parse::<CostModel>())]
+    cost_model: CostModel,
     /// SAH cost of an inner-node visit (c_T).
     #[arg(allow_negative_numbers = true, long, default_value_t = 1.0)]
     traversal_cost: f32,
@@ -52,6 +56,7 @@ pub(crate) fn run(args: BuildArgs) -> Result<()> {
         max_leaf_size: args.max_leaf as usize,
         traversal_cost: finite_cost("--traversal-cost", args.traversal_cost)?,
         intersection_cost: finite_cost("--intersection-cost", args.intersection_cost)?,
+        cost_model: args.cost_model,
         ..BuildConfig::default()
     };
     let builder = args.builder;
@@ -74,6 +79,7 @@ pub(crate) fn run(args: BuildArgs) -> Result<()> {
         "primitive_kind": if bvh.is_triangles() { "triangles" } else { "mixed" },
         "dropped": tree.dropped,
         "builder": builder.name(),
+        "cost_model": args.cost_model.name(),
         "layout": args.layout.name(),
         "threads": pool.current_num_threads(),
         "nodes": footprint.nodes,

@@ -4,9 +4,11 @@
 pub(crate) mod accuracy;
 pub(crate) mod bench;
 pub(crate) mod build;
+pub(crate) mod costs;
 pub(crate) mod gen;
 pub(crate) mod layouts;
 pub(crate) mod packets;
+pub(crate) mod predict;
 pub(crate) mod render;
 
 use quiver::build::{BuildTree, Builder};

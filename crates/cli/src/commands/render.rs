@@ -2,11 +2,12 @@
 //! statistics, optionally a heatmap of nodes per eye ray.
 
 use super::{layout_help, load_and_build, parse_layout, pool, scene_help, thread_count, Result};
-use crate::output::{check_outputs, heatmap, print_table, write_json, write_png};
+use crate::output::{check_outputs, heatmap, outln, print_table, write_json, write_png};
 use clap::ValueEnum;
 use quiver::{BuildOptions, Layout};
-use quiver_scenes::render::{render, Offset, RenderConfig};
-use serde_json::json;
+use quiver_scenes::accel::SceneBvh;
+use quiver_scenes::render::{render, Offset, RenderConfig, Rendered};
+use serde_json::{json, Value};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -41,6 +42,15 @@ pub(crate) struct RenderArgs {
     /// the SPD's counts) or ulps (offset along the normal, Wächter & Binder).
     #[arg(long, value_enum, default_value = "epsilon")]
     offset: OffsetArg,
+    /// Also split the running time as Havran does (the rays recorded, traced alone, and his
+    /// ideal algorithm's one test per hit, each timed) and print his minimum testing output
+    /// as a table in his layout.
+    #[arg(long)]
+    havran: bool,
+    /// Timed rounds with --havran: the render ray by ray, its rays alone, the ideal
+    /// algorithm (medians reported).
+    #[arg(allow_negative_numbers = true, long, default_value_t = 5, value_parser = super::count(super::MAX_REPS))]
+    reps: usize,
     /// Write the report as JSON to this file.
     #[arg(long)]
     json: Option<PathBuf>,
@@ -95,26 +105,74 @@ pub(crate) fn run(args: RenderArgs) -> Result<()> {
     write_png(&args.output, image.res, image.res, &image.rgb)?;
     // Havran's statistics come from a second, counting pass: the timed pass above runs the
     // plain kernels. The counting pass traces ray by ray, so the statistics are per ray as
-    // Havran defines them; both passes must trace the same rays and draw the same image.
+    // Havran defines them; both passes must trace the same rays and draw the same image. With
+    // --havran it also records every answer for the ideal runs.
     let counted_config = RenderConfig {
         counters: true,
         packets: false,
         ..rconfig.clone()
     };
-    let counted = pool.install(|| render(&scene, &bvh, &counted_config, &|_| {}));
-    if counted.rays != image.rays || counted.rgb != image.rgb {
-        return Err(
-            "internal error: the counting pass traced different rays than the plain pass".into(),
-        );
-    }
+    let counting_bvh = if args.havran {
+        bvh.clone().recording()
+    } else {
+        bvh.clone()
+    };
+    let counted = pool.install(|| render(&scene, &counting_bvh, &counted_config, &|_| {}));
+    same_render(&counted, &image, "counting")?;
+    let theta = if args.havran {
+        Some(ideal_runs(
+            &pool,
+            &scene,
+            &bvh,
+            &counting_bvh,
+            &rconfig,
+            &image,
+            args.reps,
+        )?)
+    } else {
+        None
+    };
     if let Some(h) = &args.heatmap {
         let (w, px) = heatmap(&counted.eye_nodes, args.res as usize + 1);
         write_png(h, w as u32, w as u32, &px)?;
     }
+    let census = quiver::predict::census(&bvh);
     let stats = tree.stats();
     let rays = image.rays;
     let total = rays.total().max(1) as f64;
     let work = counted.work;
+    let mut havran = json!({
+        "N_G": census.inner,
+        "N_E": census.leaves,
+        "N_EE": census.empty_leaves,
+        "N_ER": census.references,
+        "r_ITM": work.prim_tests as f64 / rays.hits().max(1) as f64,
+        "N_TS": work.nodes as f64 / total,
+        "N_ETS": work.leaves as f64 / total,
+        "N_EETS": work.empty_leaves as f64 / total,
+        "N_IT": work.prim_tests as f64 / total,
+        "r_SI": rays.hits() as f64 / total,
+        "N_rays": rays.total(),
+        "box_tests_per_ray": work.box_tests as f64 / total,
+        "build_tree_inner": stats.nodes - stats.leaves,
+        "build_tree_leaves": stats.leaves,
+        "T_B_ms": build_ms,
+        "T_R_ms": trace_ms,
+    });
+    if let Some(t) = &theta {
+        let t_app = t.t_r_ms - t.t_rsa_ms;
+        havran["T_R_ms"] = json!(t.t_r_ms);
+        havran["T_R_timed_pass_ms"] = json!(trace_ms);
+        havran["T_RSA_ms"] = json!(t.t_rsa_ms);
+        havran["T_app_ms"] = json!(t_app);
+        havran["T_RSA_MIN_ms"] = json!(t.t_rsa_min_ms);
+        havran["C_IT_succ_ns"] = json!(t.c_it_ns);
+        havran["Theta_APP"] = json!(t_app / t.t_rsa_min_ms);
+        havran["Theta_RUN"] = json!(t.t_rsa_ms / t.t_rsa_min_ms);
+        // His Θ_rat weighs failed and successful tests by their own costs; only successful
+        // ones are timed here, so every test is charged C_IT^succ.
+        havran["Theta_rat"] = json!(work.prim_tests as f64 * t.c_it_ns * 1e-6 / t.t_rsa_ms);
+    }
     let report = json!({
         "scene": scene.name,
         "objects": scene.objects.len(),
@@ -132,6 +190,7 @@ pub(crate) fn run(args: RenderArgs) -> Result<()> {
             "eye_hit": rays.eye_hit,
             "reflect": rays.reflect,
             "refract": rays.refract,
+            "secondary_hit": rays.secondary_hit,
             "shadow": rays.shadow,
             "shadow_blocked": rays.shadow_blocked,
             "total": rays.total(),
@@ -139,21 +198,157 @@ pub(crate) fn run(args: RenderArgs) -> Result<()> {
         "build_ms": build_ms,
         "trace_ms": trace_ms,
         "mrays_per_s": rays.total() as f64 / (trace_ms * 1e3),
-        "havran": {
-            "N_G": stats.nodes - stats.leaves,
-            "N_E": stats.leaves,
-            "N_EE": 0,
-            "N_ER": bvh.primitives(),
-            "N_TS": work.nodes as f64 / total,
-            "N_ETS": work.leaves as f64 / total,
-            "N_EETS": work.empty_leaves as f64 / total,
-            "N_IT": work.prim_tests as f64 / total,
-            "box_tests_per_ray": work.box_tests as f64 / total,
-            "T_B_ms": build_ms,
-            "T_R_ms": trace_ms,
-        },
+        "havran": havran,
         "output": args.output.display().to_string(),
     });
-    print_table(&report);
+    if args.havran {
+        print_havran(&report);
+    } else {
+        print_table(&report);
+    }
     write_json(args.json.as_ref(), &report)
+}
+
+/// Fails unless `other` traced the same rays and drew the same image as the timed pass.
+fn same_render(other: &Rendered, image: &Rendered, pass: &str) -> Result<()> {
+    if other.rays != image.rays || other.rgb != image.rgb {
+        return Err(format!(
+            "internal error: the {pass} pass traced different rays than the plain pass"
+        )
+        .into());
+    }
+    Ok(())
+}
+
+/// Havran's split of the running time (thesis, sections 2.4-2.5), measured on the rays the
+/// counting pass recorded.
+struct Theta {
+    /// `T_R`: the render traced ray by ray (as the counts were), median of the rounds.
+    t_r_ms: f64,
+    /// The recorded rays traced on their own through the BVH: the time `T_R - T_app` the
+    /// render spends shooting rays.
+    t_rsa_ms: f64,
+    /// `T_RSA^MIN = C_IT^succ · N_rays · r_SI`: Havran's ideal algorithm, which reads each
+    /// stored answer in sequence and makes one successful test per ray that hits.
+    t_rsa_min_ms: f64,
+    /// `C_IT^succ`: one successful intersection test.
+    c_it_ns: f64,
+}
+
+/// Times, in alternating rounds (medians): the render ray by ray; the recorded rays traced
+/// alone in their recorded order; and Havran's ideal algorithm over the same list (one test
+/// of the recorded primitive per hit). `T_app` is then `T_R` less the tracing. Havran gets
+/// `T_app` from repeated runs of the ideal algorithm inside the application (his multiple run
+/// profiling); a triangle test of a few ns made twice changes a render of hundreds of ms by
+/// less than this shared machine's noise, so the parts are timed apart instead.
+fn ideal_runs(
+    pool: &rayon::ThreadPool,
+    scene: &quiver_scenes::Scene,
+    bvh: &SceneBvh,
+    recording: &SceneBvh,
+    config: &RenderConfig,
+    image: &Rendered,
+    reps: usize,
+) -> Result<Theta> {
+    use quiver::traverse::{ConservativeBoxes, NoStats, RayQuery};
+    use rayon::prelude::*;
+    let traced = recording.recorded();
+    if traced.len() as u64 != image.rays.total() {
+        return Err("internal error: the recording missed rays the render traced".into());
+    }
+    let single = RenderConfig {
+        packets: false,
+        ..config.clone()
+    };
+    let mut renders = Vec::new();
+    let times = pool.install(|| {
+        quiver_lab::measure::median_times_interleaved(reps, 3, |i| match i {
+            0 => renders.push(render(scene, bvh, &single, &|_| {})),
+            1 => {
+                let hits: usize = traced
+                    .par_chunks(1024)
+                    .map(|c| {
+                        c.iter()
+                            .filter(|t| {
+                                if t.any {
+                                    bvh.any_hit_with::<ConservativeBoxes, _>(&t.ray, &mut NoStats)
+                                } else {
+                                    bvh.closest_hit_with::<ConservativeBoxes, _>(
+                                        &t.ray,
+                                        &mut NoStats,
+                                    )
+                                    .is_some()
+                                }
+                            })
+                            .count()
+                    })
+                    .sum();
+                std::hint::black_box(hits);
+            }
+            _ => {
+                let hits: usize = traced
+                    .par_chunks(1024)
+                    .map(|c| {
+                        c.iter()
+                            .filter_map(|t| t.hit.map(|p| bvh.intersect_one(&t.ray, p)))
+                            .count()
+                    })
+                    .sum();
+                std::hint::black_box(hits);
+            }
+        })
+    });
+    for r in &renders {
+        same_render(r, image, "single-ray")?;
+    }
+    let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3;
+    let tests = traced.iter().filter(|t| t.hit.is_some()).count().max(1) as f64;
+    Ok(Theta {
+        t_r_ms: ms(times[0]),
+        t_rsa_ms: ms(times[1]),
+        t_rsa_min_ms: ms(times[2]),
+        c_it_ns: ms(times[2]) * 1e6 / tests,
+    })
+}
+
+/// Havran's minimum testing output in his tables' layout: one parameter per line, in the
+/// order Σ (static), Δ (dynamic), Θ (time), for this scene's column.
+fn print_havran(report: &Value) {
+    let h = &report["havran"];
+    let scene = report["scene"].as_str().unwrap_or("");
+    outln!("{:<24} {:>14}", "Parameter", scene);
+    let rows: [(&str, &str, usize); 20] = [
+        ("N_G", "N_G", 0),
+        ("N_E", "N_E", 0),
+        ("N_EE", "N_EE", 0),
+        ("N_ER", "N_ER", 0),
+        ("r_ITM", "r_ITM [-]", 2),
+        ("N_TS", "N_TS [-]", 2),
+        ("N_ETS", "N_ETS [-]", 2),
+        ("N_EETS", "N_EETS [-]", 2),
+        ("N_IT", "N_IT [-]", 2),
+        ("r_SI", "r_SI [-]", 3),
+        ("N_rays", "N_rays", 0),
+        ("T_B_ms", "T_B [ms]", 1),
+        ("T_R_ms", "T_R [ms]", 1),
+        ("Theta_APP", "Theta_APP [-]", 2),
+        ("Theta_rat", "Theta_rat [-]", 3),
+        ("Theta_RUN", "Theta_RUN [-]", 2),
+        ("T_RSA_ms", "T_R - T_app [ms]", 1),
+        ("T_app_ms", "T_app [ms]", 1),
+        ("T_RSA_MIN_ms", "T_RSA^MIN [ms]", 2),
+        ("C_IT_succ_ns", "C_IT^succ [ns]", 1),
+    ];
+    for (key, name, digits) in rows {
+        match h[key].as_f64() {
+            Some(v) => outln!("{name:<24} {v:>14.digits$}"),
+            None => outln!("{name:<24} {:>14}", "-"),
+        }
+    }
+    outln!(
+        "(N_EETS: leaf visits that changed nothing; layout {}, {} thread(s); T_R and Theta \
+         ray by ray)",
+        report["layout"].as_str().unwrap_or(""),
+        report["threads"],
+    );
 }

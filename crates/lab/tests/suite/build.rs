@@ -273,3 +273,61 @@ fn binned_sah_within_3_percent_of_sweep() {
         );
     }
 }
+
+/// The ray-termination cost models keep the build invariants: valid trees, identical for any
+/// thread count (their float area sums are added in a fixed order, also on the horizontal
+/// path).
+#[test]
+fn cost_models_build_valid_trees_independent_of_threads() {
+    use quiver::build::{build_with_areas, CostModel};
+    use quiver::Primitive;
+    let tris = Scene::load("soup40000").unwrap().triangles();
+    let bounds = prim_bounds(&tris);
+    let areas: Vec<f32> = tris.iter().map(|t| t.surface_area()).collect();
+    for cost_model in [CostModel::Rtsah, CostModel::Srdh] {
+        let config = BuildConfig {
+            cost_model,
+            horizontal_threshold: 4_000,
+            ..BuildConfig::default()
+        };
+        for builder in BUILDERS {
+            let at = |threads| {
+                in_pool(threads, || {
+                    build_with_areas(&bounds, Some(&areas), &config, builder)
+                })
+            };
+            let one = at(1);
+            one.validate(&bounds, &config)
+                .unwrap_or_else(|e| panic!("{cost_model} {builder}: {e}"));
+            assert!(one == at(2), "{cost_model} {builder}: 1 vs 2 threads");
+            assert!(one == at(3), "{cost_model} {builder}: 1 vs 3 threads");
+        }
+    }
+}
+
+/// RTSAH spares a child's primitive tests only for rays stopped in the other child: with
+/// primitives of no surface (nothing stops a ray) it is the SAH, split for split and leaf for
+/// leaf. And the SAH ignores the areas it is given.
+#[test]
+fn rtsah_without_occlusion_is_the_sah() {
+    use quiver::build::{build_with_areas, CostModel};
+    let tris = Scene::load("teapot6").unwrap().triangles();
+    let bounds = prim_bounds(&tris);
+    let zeros = vec![0.0; bounds.len()];
+    let ones = vec![1.0; bounds.len()];
+    for builder in BUILDERS {
+        let sah = build(&bounds, &BuildConfig::default(), builder);
+        let rtsah = BuildConfig {
+            cost_model: CostModel::Rtsah,
+            ..BuildConfig::default()
+        };
+        assert!(
+            build_with_areas(&bounds, Some(&zeros), &rtsah, builder) == sah,
+            "{builder}: RTSAH with no occlusion differs from the SAH"
+        );
+        let with_areas = build_with_areas(&bounds, Some(&ones), &BuildConfig::default(), builder);
+        assert!(with_areas == sah, "{builder}: the SAH read the areas");
+        // Occluding primitives do change it (else the model would be dead weight).
+        assert!(build_with_areas(&bounds, Some(&ones), &rtsah, builder) != sah);
+    }
+}

@@ -3,17 +3,18 @@
 //! by all threads at once (private bins merged by an exact reduction).
 
 use super::recurse::{build_tree, stable_partition, take_split, Ctx, Partition, Splitter, CHUNK};
-use super::{BuildConfig, BuildNode};
+use super::{model_score, BuildConfig, BuildNode, Side};
 use crate::geometry::Aabb;
 use glam::{UVec3, Vec3A};
 use rayon::prelude::*;
 
 pub(super) fn build(
     bounds: &[Aabb],
+    areas: Option<&[f32]>,
     idx: Vec<u32>,
     config: &BuildConfig,
 ) -> (Vec<BuildNode>, Vec<u32>) {
-    build_tree(&Binned, bounds, idx, config)
+    build_tree(&Binned, bounds, areas, idx, config)
 }
 
 struct Binned;
@@ -136,6 +137,84 @@ fn best_plane(bins: &[Bin], k: usize, map: &Mapper) -> Option<Plane> {
     best
 }
 
+/// Σ surface area of the primitives in each bin, per axis (for the cost models other than the
+/// SAH). Large nodes are summed chunk by chunk in parallel and the chunks' sums added in chunk
+/// order, so the float sums, and the tree, do not depend on the number of threads.
+fn bin_areas(ctx: &Ctx, areas: &[f32], idx: &[u32], map: &Mapper, horizontal: bool) -> Vec<f32> {
+    let k = map.last.x as usize + 1;
+    let one = |ch: &[u32]| {
+        let mut sums = vec![0f32; 3 * k];
+        for &i in ch {
+            let at = map.bins(ctx.centroids[i as usize]);
+            let a = areas[i as usize];
+            sums[at.x as usize] += a;
+            sums[k + at.y as usize] += a;
+            sums[2 * k + at.z as usize] += a;
+        }
+        sums
+    };
+    if !horizontal {
+        return one(idx);
+    }
+    let parts: Vec<Vec<f32>> = idx.par_chunks(CHUNK).map(one).collect();
+    parts.into_iter().fold(vec![0f32; 3 * k], |mut acc, p| {
+        acc.iter_mut().zip(&p).for_each(|(a, b)| *a += b);
+        acc
+    })
+}
+
+/// [`best_plane`] under the configured cost model: the lowest score, with the weighted child
+/// cost the leaf test reads.
+fn best_plane_model(
+    ctx: &Ctx,
+    bins: &[Bin],
+    areas: &[f32],
+    k: usize,
+    map: &Mapper,
+    parent_area: f32,
+) -> Option<Plane> {
+    let mut best: Option<(f32, Plane)> = None;
+    let mut right = vec![(Bin::EMPTY, 0f32); k];
+    for axis in 0..3 {
+        if map.scale[axis] == 0.0 {
+            continue;
+        }
+        let bins = &bins[axis * k..(axis + 1) * k];
+        let areas = &areas[axis * k..(axis + 1) * k];
+        let mut acc = (Bin::EMPTY, 0f32);
+        for b in (1..k).rev() {
+            acc = (acc.0.merge(&bins[b]), acc.1 + areas[b]);
+            right[b] = acc;
+        }
+        let total = acc.0.count + bins[0].count;
+        let mut left = (Bin::EMPTY, 0f32);
+        for b in 1..k {
+            left = (left.0.merge(&bins[b - 1]), left.1 + areas[b - 1]);
+            if left.0.count == 0 || left.0.count == total {
+                continue;
+            }
+            let side = |(bin, a): (Bin, f32)| Side {
+                half_area: bin.bounds.half_area(),
+                count: bin.count as usize,
+                prim_area: a,
+            };
+            let (score, weighted) =
+                model_score(ctx.config, parent_area, &side(left), &side(right[b]));
+            if best.as_ref().is_none_or(|(s, _)| score < *s) {
+                best = Some((
+                    score,
+                    Plane {
+                        axis,
+                        bin: b,
+                        weighted,
+                    },
+                ));
+            }
+        }
+    }
+    best.map(|(_, p)| p)
+}
+
 impl Splitter for Binned {
     fn split(
         &self,
@@ -158,7 +237,13 @@ impl Splitter for Binned {
         } else {
             bin_prims(ctx, idx, &map)
         };
-        let plane = best_plane(&bins, k, &map)?;
+        let plane = match ctx.areas {
+            None => best_plane(&bins, k, &map)?,
+            Some(areas) => {
+                let sums = bin_areas(ctx, areas, idx, &map, horizontal);
+                best_plane_model(ctx, &bins, &sums, k, &map, node.half_area())?
+            }
+        };
         if !take_split(ctx.config, node.half_area(), plane.weighted, idx.len()) {
             return None;
         }

@@ -39,6 +39,151 @@ pub struct BuildConfig {
     /// Nodes with at least this many primitives are built *horizontally* (all threads bin and
     /// partition the one node); smaller nodes are built *vertically* (each subtree is a task).
     pub horizontal_threshold: usize,
+    /// How a split is scored: the plain SAH (the default), or one of Moulin and Dutré's
+    /// variants for rays that terminate ([`CostModel`]).
+    pub cost_model: CostModel,
+}
+
+/// The cost a builder minimises when it picks a split, for both builders.
+///
+/// The SAH assumes rays that never stop. Moulin and Dutré ("On the use of local ray
+/// termination for efficiently constructing qualitative BSPs, BIHs and (S)BVHs") adapt it to
+/// rays that end at their first hit. Both variants here use their *average projected surface
+/// area* (APSA) approximation of the chance that a ray crossing a child's box hits one of its
+/// primitives: `H = min(ΣSA(primitives) / SA(box), 1)` (their equation 5.19), which needs each
+/// primitive's surface area ([`crate::Primitive::surface_area`]).
+///
+/// ```
+/// use quiver::build::CostModel;
+/// assert_eq!(CostModel::default(), CostModel::Sah);
+/// assert_eq!("rtsah".parse::<CostModel>(), Ok(CostModel::Rtsah));
+/// ```
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum CostModel {
+    /// `c_T + c_I·(p_L·n_L + p_R·n_R)` with `p = SA(child) / SA(parent)`.
+    #[default]
+    Sah,
+    /// The ray termination SAH (their equation 3.4) with local ray termination: of the rays
+    /// that pierce both children, half meet the left one first (`p_fL = p_fR = 1/2`), and
+    /// those stopped there never test the right one's primitives (probability `H_L`, APSA).
+    /// The share of rays piercing both children, `p_L↔R`, is taken as
+    /// `max(0, p_L + p_R - 1)`: exact when the children tile the parent (a BSP split), a
+    /// lower bound for a BVH's children (their grid-transport estimate is not built), so
+    /// splits whose children's areas do not sum past the parent's are scored as by the SAH.
+    /// Also decides when a node becomes a leaf.
+    Rtsah,
+    /// The shadow ray distribution heuristic (their equation 3.23), a gain to maximise for
+    /// any-hit rays: `max(p_L·H_L·(c + p_R·n_R), p_R·H_R·(c + p_L·n_L))` (the tests saved when
+    /// the child visited first stops the ray), with `c = c_T / c_I` as the box test's cost
+    /// relative to a primitive's. Leaves are decided by the SAH of the chosen split. quiver's
+    /// kernels keep their own child order (nearest first, or slot order for any hit), so
+    /// the traversal-order half of SRDH is not used.
+    Srdh,
+}
+
+impl CostModel {
+    /// Every cost model, in the order reports list them.
+    pub const ALL: [CostModel; 3] = [CostModel::Sah, CostModel::Rtsah, CostModel::Srdh];
+
+    /// The name used on the command line and in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            CostModel::Sah => "sah",
+            CostModel::Rtsah => "rtsah",
+            CostModel::Srdh => "srdh",
+        }
+    }
+}
+
+impl fmt::Display for CostModel {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for CostModel {
+    type Err = String;
+
+    /// A cost model by its [`CostModel::name`]; the error lists the names.
+    fn from_str(s: &str) -> Result<Self, String> {
+        by_name(s, &CostModel::ALL, CostModel::name, "cost model")
+    }
+}
+
+/// The item of `all` called `s`; the error names `what` and lists the names.
+fn by_name<T: Copy>(
+    s: &str,
+    all: &[T],
+    name: fn(T) -> &'static str,
+    what: &str,
+) -> Result<T, String> {
+    all.iter().copied().find(|&x| name(x) == s).ok_or_else(|| {
+        let names: Vec<&str> = all.iter().map(|&x| name(x)).collect();
+        format!("unknown {what} '{s}': expected one of {}", names.join(", "))
+    })
+}
+
+/// One side of a candidate split as the cost models see it.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Side {
+    /// Half the surface area of the side's box.
+    pub half_area: f32,
+    /// Primitives on the side.
+    pub count: usize,
+    /// Σ surface area of those primitives.
+    pub prim_area: f32,
+}
+
+impl Side {
+    /// APSA: the chance that a ray crossing the box hits one of the primitives.
+    fn hit_chance(&self) -> f32 {
+        if self.half_area > 0.0 {
+            (self.prim_area / (2.0 * self.half_area)).min(1.0)
+        } else if self.prim_area > 0.0 {
+            1.0
+        } else {
+            0.0
+        }
+    }
+}
+
+/// A candidate split's score under `config.cost_model`, lower is better, and its weighted
+/// child cost for the leaf test ([`split_beats_leaf`]): `(score, weighted)`. For the SAH
+/// both are `Σ half area · count`.
+pub(crate) fn model_score(
+    config: &BuildConfig,
+    parent_area: f32,
+    l: &Side,
+    r: &Side,
+) -> (f32, f32) {
+    let sah = l.half_area * l.count as f32 + r.half_area * r.count as f32;
+    match config.cost_model {
+        CostModel::Sah => (sah, sah),
+        CostModel::Rtsah => {
+            // p_L↔R · A_P, and the tests each side's primitives are spared by the other.
+            let both = (l.half_area + r.half_area - parent_area).max(0.0);
+            let spared =
+                0.5 * both * (r.hit_chance() * l.count as f32 + l.hit_chance() * r.count as f32);
+            (sah - spared, sah - spared)
+        }
+        CostModel::Srdh => {
+            let c = if config.intersection_cost > 0.0 {
+                config.traversal_cost / config.intersection_cost
+            } else {
+                1.0
+            };
+            let p = |s: &Side| {
+                if parent_area > 0.0 {
+                    s.half_area / parent_area
+                } else {
+                    1.0
+                }
+            };
+            let gain = (p(l) * l.hit_chance() * (c + p(r) * r.count as f32))
+                .max(p(r) * r.hit_chance() * (c + p(l) * l.count as f32));
+            (-gain, sah)
+        }
+    }
 }
 
 impl Default for BuildConfig {
@@ -49,6 +194,7 @@ impl Default for BuildConfig {
             traversal_cost: 1.0,
             intersection_cost: 1.0,
             horizontal_threshold: 1 << 16,
+            cost_model: CostModel::Sah,
         }
     }
 }
@@ -122,16 +268,7 @@ impl std::str::FromStr for Builder {
 
     /// A builder by its [`Builder::name`]; the error lists the names.
     fn from_str(s: &str) -> Result<Self, String> {
-        Builder::ALL
-            .into_iter()
-            .find(|b| b.name() == s)
-            .ok_or_else(|| {
-                let names: Vec<&str> = Builder::ALL.iter().map(|b| b.name()).collect();
-                format!(
-                    "unknown builder '{s}': expected one of {}",
-                    names.join(", ")
-                )
-            })
+        by_name(s, &Builder::ALL, Builder::name, "builder")
     }
 }
 
@@ -191,19 +328,64 @@ pub struct TreeStats {
 /// Builds a tree over `bounds` (one box per primitive) on the current rayon thread pool.
 ///
 /// Primitives whose box is not finite (a NaN or infinite coordinate) are dropped and counted in
-/// [`BuildTree::dropped`]; an empty input gives a single empty leaf.
+/// [`BuildTree::dropped`]; an empty input gives a single empty leaf. A cost model other than
+/// the SAH needs each primitive's surface area: here it is taken from its box (see
+/// [`build_with_areas`] to give the real ones).
 ///
 /// # Panics
 /// When [`BuildConfig::check`] finds a setting out of range (call it first to report the
 /// error instead).
 pub fn build(bounds: &[Aabb], config: &BuildConfig, builder: Builder) -> BuildTree {
+    build_with_areas(bounds, None, config, builder)
+}
+
+/// [`build`] with each primitive's surface area (`areas[i]` for `bounds[i]`), which the cost
+/// models other than the SAH weigh ([`CostModel`]); the SAH ignores them. Without areas a
+/// primitive's box's half surface area stands in (a flat primitive's two sides, exact for a
+/// right triangle spanning its box's largest face, more otherwise).
+///
+/// # Panics
+/// As [`build`], and when `areas` is given with another length than `bounds`.
+///
+/// ```
+/// use quiver::build::{build_with_areas, BuildConfig, Builder, CostModel};
+/// use quiver::Aabb;
+/// use glam::Vec3A;
+/// let boxes: Vec<Aabb> = (0..100)
+///     .map(|i| Aabb::new(Vec3A::splat(i as f32), Vec3A::splat(i as f32 + 0.5)))
+///     .collect();
+/// let areas = vec![0.1; 100];
+/// let config = BuildConfig { cost_model: CostModel::Rtsah, ..BuildConfig::default() };
+/// let tree = build_with_areas(&boxes, Some(&areas), &config, Builder::Sweep);
+/// tree.validate(&boxes, &config).unwrap();
+/// ```
+pub fn build_with_areas(
+    bounds: &[Aabb],
+    areas: Option<&[f32]>,
+    config: &BuildConfig,
+    builder: Builder,
+) -> BuildTree {
     if let Err(e) = config.check() {
         panic!("BuildConfig: {e}");
+    }
+    if let Some(a) = areas {
+        assert_eq!(a.len(), bounds.len(), "one surface area per primitive");
     }
     let indices: Vec<u32> = (0..bounds.len() as u32)
         .filter(|&i| is_finite(&bounds[i as usize]))
         .collect();
     let dropped = bounds.len() - indices.len();
+    // The SAH never reads areas; the other models get the given ones or the boxes' stand-in.
+    let proxy: Vec<f32>;
+    let areas = match (config.cost_model, areas) {
+        (CostModel::Sah, _) => None,
+        (_, Some(a)) => Some(a),
+        (_, None) => {
+            use rayon::prelude::*;
+            proxy = bounds.par_iter().map(|b| b.half_area()).collect();
+            Some(&proxy[..])
+        }
+    };
     let (nodes, prim_indices) = if indices.is_empty() {
         let empty = BuildNode {
             bounds: Aabb::EMPTY,
@@ -212,8 +394,8 @@ pub fn build(bounds: &[Aabb], config: &BuildConfig, builder: Builder) -> BuildTr
         (vec![empty], indices)
     } else {
         match builder {
-            Builder::Binned => binned::build(bounds, indices, config),
-            Builder::Sweep => sweep::build(bounds, indices, config),
+            Builder::Binned => binned::build(bounds, areas, indices, config),
+            Builder::Sweep => sweep::build(bounds, areas, indices, config),
         }
     };
     BuildTree {

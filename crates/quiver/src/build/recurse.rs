@@ -21,6 +21,8 @@ pub(crate) struct Ctx<'a> {
     pub config: &'a BuildConfig,
     pub bounds: &'a [Aabb],
     pub centroids: &'a [Vec3A],
+    /// Each primitive's surface area, for cost models other than the SAH (`None` for it).
+    pub areas: Option<&'a [f32]>,
 }
 
 /// A node's primitives after a split: the first `left_len` go left.
@@ -57,6 +59,7 @@ pub(crate) fn take_split(config: &BuildConfig, node_area: f32, weighted: f32, n:
 pub(crate) fn build_tree<S: Splitter>(
     splitter: &S,
     bounds: &[Aabb],
+    areas: Option<&[f32]>,
     mut idx: Vec<u32>,
     config: &BuildConfig,
 ) -> (Vec<BuildNode>, Vec<u32>) {
@@ -69,6 +72,7 @@ pub(crate) fn build_tree<S: Splitter>(
         config,
         bounds,
         centroids: &centroids,
+        areas,
     };
     let (node, cent) = idx
         .par_chunks(CHUNK)

@@ -1,0 +1,78 @@
+//! The surface-area predictor against measurement: over isotropic random lines through the
+//! root box, the nodes, leaves, box tests and primitive tests a non-stopping walk makes per
+//! line equal `quiver::predict`'s sums in expectation (Cauchy–Crofton), for every builder and
+//! layout. The oracle is the identity; the tolerance is four standard errors of the sample.
+
+use quiver::build::Builder;
+use quiver::predict::{predict, Prediction};
+use quiver::{BuildOptions, Bvh, Layout};
+use quiver_lab::lines::{isotropic_lines, pierced, Pierce, Sample};
+use quiver_scenes::Scene;
+
+fn within(what: &str, scene: &str, s: Sample, predicted: f64) {
+    let tol = 4.0 * s.std_error + 1e-9 * predicted.abs();
+    assert!(
+        (s.mean - predicted).abs() <= tol,
+        "{scene} {what}: measured {} ± {} (1 s.e.), predicted {predicted}",
+        s.mean,
+        s.std_error
+    );
+}
+
+fn check(
+    scene: &str,
+    name: &str,
+    p: &Prediction,
+    ghost: &Bvh<Pierce<quiver::Triangle>>,
+    lines: &[quiver::Ray],
+) {
+    let m = pierced(ghost, lines);
+    within(&format!("{name} nodes"), scene, m.nodes, p.nodes);
+    within(&format!("{name} leaves"), scene, m.leaves, p.leaves);
+    within(
+        &format!("{name} box tests"),
+        scene,
+        m.box_tests,
+        p.box_tests,
+    );
+    within(
+        &format!("{name} primitive tests"),
+        scene,
+        m.prim_tests,
+        p.prim_tests,
+    );
+}
+
+#[test]
+fn crofton_prediction_matches_pierced_lines() {
+    // Closed meshes, scattered spheres as triangles, a fractal with holes, and a flat-ish
+    // random soup: different shapes of tree.
+    for scene in ["tetra4", "balls1", "gears1", "teapot6", "soup2000"] {
+        let tris = Scene::load(scene).unwrap().triangles();
+        let ghosts = Pierce::of(&tris);
+        for builder in Builder::ALL {
+            let (_, tree) = BuildOptions::default()
+                .builder(builder)
+                .build_with_tree(&tris);
+            let root = tree.nodes[0].bounds;
+            let lines = isotropic_lines(&root, 40_000, 17);
+            let ghost2 = Bvh::from_tree(&tree, &ghosts, Layout::Bvh2Dfs);
+            check(
+                scene,
+                &format!("{builder} tree"),
+                &predict(&tree),
+                &ghost2,
+                &lines,
+            );
+            for layout in Layout::ALL {
+                let bvh = BuildOptions::default()
+                    .builder(builder)
+                    .layout(layout)
+                    .build(&tris);
+                let ghost = Bvh::from_tree(&tree, &ghosts, layout);
+                let p = bvh.predict_within(&root);
+                check(scene, &format!("{builder} {layout}"), &p, &ghost, &lines);
+            }
+        }
+    }
+}
