@@ -8,7 +8,7 @@ use quiver_lab::rays;
 use quiver_scenes::rng::Rng;
 use quiver_scenes::Scene;
 
-const BUILDERS: [Builder; 2] = Builder::ALL;
+const BUILDERS: [Builder; Builder::ALL.len()] = Builder::ALL;
 
 #[test]
 fn same_tree_for_one_and_two_threads() {
