@@ -13,20 +13,25 @@ use quiver::build::{build, prim_bounds, BuildConfig, BuildTree, Builder, NodeKin
 use quiver::{Aabb, Bvh, Layout, Ray, Triangle};
 use quiver_lab::measure::{self, median_times_interleaved, Query};
 use quiver_lab::rays;
+use quiver_scenes::scene::tessellate;
 use serde_json::{json, Value};
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
-/// The default scenes: small enough for a run of about a minute.
-const SMALL: [&str; 3] = ["teapot12", "crates/lab/tests/data/bunny.obj", "tetra7"];
-/// What `--big` adds: up to a million triangles and an architectural-style scene.
-const BIG: [&str; 4] = ["soup200000", "tetra9", "balls5", "tetra10"];
+/// The default scenes: generated (so the default runs from anywhere), small enough for a run
+/// of about a minute.
+const SMALL: [&str; 2] = ["teapot12", "tetra8"];
+/// What `--big` adds: 158k to 1M triangles.
+const BIG: [&str; 4] = ["balls3", "soup200000", "tetra9", "tetra10"];
 
 #[derive(clap::Args)]
 pub(crate) struct BuildersArgs {
-    /// Scenes (generator names or .obj files); default teapot12, the bunny and tetra7.
+    /// Scenes (generator names or .obj/.nff files), measured as triangles (SPD scenes in patch
+    /// mode). Default: teapot12 (9.4k triangles) and tetra8 (65k). Name a mesh to add it,
+    /// e.g. `quiver builders teapot12 crates/lab/tests/data/bunny.obj tetra8`.
     scenes: Vec<String>,
-    /// Also measure soup200000, tetra9, balls5 and tetra10 (1M triangles): minutes, not one.
+    /// Also measure balls3 (158k triangles), soup200000, tetra9 (262k) and tetra10 (1M):
+    /// minutes, not one.
     #[arg(long)]
     big: bool,
     /// Builders to measure (default: all).
@@ -147,7 +152,7 @@ pub(crate) fn run(args: BuildersArgs) -> Result<()> {
     let ray_threads = *threads.iter().max().unwrap_or(&1);
     let loaded = names
         .iter()
-        .map(|name| super::load_scene(name))
+        .map(|name| Ok(super::load_scene(name)?.into_patches(tessellate::DEFAULT_RESOLUTION)))
         .collect::<Result<Vec<_>>>()?;
     let pools = threads
         .iter()
@@ -336,9 +341,9 @@ fn print_rows(rows: &[Row], threads: &[usize], ray_threads: usize, args: &Builde
 
 /// SAH cost against build time (log scales), one point per builder and scene.
 fn plot(rows: &[Row]) -> String {
-    const COLORS: [&str; 12] = [
+    const COLORS: [&str; 15] = [
         "#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f",
-        "#bcbd22", "#17becf", "#393b79", "#637939",
+        "#bcbd22", "#17becf", "#393b79", "#637939", "#843c39", "#7b4173", "#000000",
     ];
     let points: Vec<Point> = rows
         .iter()

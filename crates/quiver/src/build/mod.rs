@@ -22,6 +22,7 @@
 
 mod aac;
 mod binned;
+mod bonsai;
 mod cluster;
 mod insertion;
 mod morton;
@@ -129,6 +130,13 @@ pub enum Builder {
     AacHq,
     /// AAC-HQ over extended Morton codes.
     AacHqEmc,
+    /// Bonsai (Ganestam et al. 2015): spatial-median groups of 512, full-sweep mini trees,
+    /// a full-sweep top tree over them; no pruning.
+    Bonsai,
+    /// BonsaiP: groups of 512, mini trees larger than 0.1 × the mean pruned.
+    BonsaiP,
+    /// BonsaiP*: groups of 4096, pruning threshold 0.01 × the mean.
+    BonsaiP4096,
     /// Insertion-based construction (Bittner et al. 2015): batch 8000, 1% of nodes
     /// optimised per batch, coherence threshold 1.5. Sequential.
     Insertion,
@@ -136,7 +144,7 @@ pub enum Builder {
 
 impl Builder {
     /// Every builder, in the order reports list them.
-    pub const ALL: [Builder; 12] = [
+    pub const ALL: [Builder; 15] = [
         Builder::Binned,
         Builder::Sweep,
         Builder::BinnedOpt,
@@ -148,6 +156,9 @@ impl Builder {
         Builder::AacFast,
         Builder::AacHq,
         Builder::AacHqEmc,
+        Builder::Bonsai,
+        Builder::BonsaiP,
+        Builder::BonsaiP4096,
         Builder::Insertion,
     ];
 
@@ -165,6 +176,9 @@ impl Builder {
             Builder::AacFast => "aac-fast",
             Builder::AacHq => "aac-hq",
             Builder::AacHqEmc => "aac-hq-emc",
+            Builder::Bonsai => "bonsai",
+            Builder::BonsaiP => "bonsai-p",
+            Builder::BonsaiP4096 => "bonsai-p4096",
             Builder::Insertion => "insertion",
         }
     }
@@ -311,6 +325,9 @@ fn build_finite(
         Builder::AacFast => aac::build(bounds, indices, config, aac::FAST, Morton),
         Builder::AacHq => aac::build(bounds, indices, config, aac::HQ, Morton),
         Builder::AacHqEmc => aac::build(bounds, indices, config, aac::HQ, Extended),
+        Builder::Bonsai => bonsai::build(bounds, indices, config, bonsai::PLAIN),
+        Builder::BonsaiP => bonsai::build(bounds, indices, config, bonsai::PRUNED),
+        Builder::BonsaiP4096 => bonsai::build(bounds, indices, config, bonsai::PRUNED_4096),
         Builder::Insertion => {
             let mut links = cluster::Links::singletons(indices, bounds);
             insertion::construct(&mut links);
