@@ -281,10 +281,12 @@ pub(crate) struct Point {
 
 /// How a [`scatter_svg`] plot scales its x axis.
 #[derive(Clone, Copy)]
-pub(crate) struct Axes {
+pub(crate) struct Axes<'a> {
     /// Logarithmic x over the decades the points span (positive x only) instead of linear
     /// from 0: for quantities spanning several orders of magnitude, such as build times.
     pub x_log: bool,
+    /// Colour key drawn at the top right: (name, SVG colour); empty for none.
+    pub legend: &'a [(&'a str, &'a str)],
 }
 
 /// A scatter plot as SVG: linear x from 0 (or logarithmic, see [`Axes`]), logarithmic y
@@ -294,7 +296,7 @@ pub(crate) fn scatter_svg(
     x_label: &str,
     y_label: &str,
     points: &[Point],
-    axes: Axes,
+    axes: Axes<'_>,
 ) -> String {
     let (w, h, m) = (760.0, 480.0, 70.0);
     let xmax = points.iter().map(|p| p.x).fold(0.0f64, f64::max).max(1e-12) * 1.1;
@@ -357,6 +359,15 @@ pub(crate) fn scatter_svg(
             "<text x='{}' y='{}' text-anchor='middle'>{text}</text>\n",
             x(v),
             h - m + 16.0
+        );
+    }
+    for (i, (name, color)) in axes.legend.iter().enumerate() {
+        let ly = m + 12.0 * i as f64;
+        s += &format!(
+            "<circle cx='{}' cy='{ly}' r='4' fill='{color}'/><text x='{}' y='{}'>{name}</text>\n",
+            w - m - 90.0,
+            w - m - 82.0,
+            ly + 4.0
         );
     }
     for (i, p) in points.iter().enumerate() {

@@ -49,6 +49,10 @@ fn every_command(scene: &str, dir: &Path) -> Vec<Vec<String>> {
         with(&["accuracy", scene, "--sphere", "0"], &tiny),
         with(&["bench", scene], &tiny),
         with(&["packets", scene, "--res", "8"], &tiny),
+        with(
+            &["builders", scene, "--res", "8", "--build-reps", "1"],
+            &tiny,
+        ),
     ]
 }
 
@@ -215,6 +219,8 @@ fn every_output_flag_is_checked_before_work() {
         "accuracy tetra1 --json /nonexistent/a.json",
         "bench tetra1 --json /nonexistent/b.json",
         "packets tetra1 --json /nonexistent/p.json",
+        "builders tetra1 --json /nonexistent/b.json",
+        "builders tetra1 --plot /nonexistent/b.svg",
         "render tetra1 -o same.png --heatmap same.png",
     ];
     let dir = tempfile::tempdir().unwrap();

@@ -119,6 +119,9 @@ fn plot(rows: &[Row], scene: &str) -> String {
         "ns per ray (closest hit, incoherent)",
         "leaks + self-hits + reference mismatches per million (log)",
         &points,
-        Axes { x_log: false },
+        Axes {
+            x_log: false,
+            legend: &[],
+        },
     )
 }

@@ -109,18 +109,23 @@ fn time_builds(reps: usize, f: impl Fn() -> BuildTree) -> (BuildTree, f64, f64) 
     (tree, median(real), median(user))
 }
 
-/// Σ A(inner) / A(root) and Σ A(leaf)·n(leaf) / A(root) (Frantál's Tables 18 and 19).
+/// Σ A(inner) / A(root) and Σ A(leaf)·n(leaf) / A(root) (Frantál's Tables 18 and 19). A
+/// root of zero area (no geometry, or all of it on a point or line) counts every node as
+/// area 1, as [`BuildTree::sah_cost`] does.
 fn area_ratios(tree: &BuildTree) -> (f64, f64) {
     let root = tree.nodes[0].bounds.half_area() as f64;
-    if root <= 0.0 {
-        return (f64::NAN, f64::NAN);
-    }
+    let rel = |b: &Aabb| {
+        if root > 0.0 {
+            b.half_area() as f64 / root
+        } else {
+            1.0
+        }
+    };
     let (mut inner, mut leaf) = (0.0, 0.0);
     for n in &tree.nodes {
-        let a = n.bounds.half_area() as f64 / root;
         match n.kind {
-            NodeKind::Inner { .. } => inner += a,
-            NodeKind::Leaf { count, .. } => leaf += a * count as f64,
+            NodeKind::Inner { .. } => inner += rel(&n.bounds),
+            NodeKind::Leaf { count, .. } => leaf += rel(&n.bounds) * count as f64,
         }
     }
     (inner, leaf)
@@ -186,7 +191,7 @@ pub(crate) fn run(args: BuildersArgs) -> Result<()> {
             let stats = tree.stats();
             let (inner_area, leaf_area) = area_ratios(&tree);
             scene_rows.push(Row {
-                scene: scene.name.clone(),
+                scene: short_name(&scene.name),
                 prims: tris.len(),
                 builder,
                 builds,
@@ -264,6 +269,15 @@ fn ray_sets(
         (shadow, Query::Any),
         (random, Query::Closest),
     ]
+}
+
+/// A scene's name for the table: a file by its name without directories or extension.
+fn short_name(name: &str) -> String {
+    let path = std::path::Path::new(name);
+    match (path.file_stem(), path.extension()) {
+        (Some(stem), Some(_)) => stem.to_string_lossy().into_owned(),
+        _ => name.to_string(),
+    }
 }
 
 fn row_json(r: &Row) -> Value {
@@ -352,21 +366,37 @@ fn plot(rows: &[Row]) -> String {
                 .iter()
                 .position(|&b| b == r.builder)
                 .unwrap_or(0);
-            // The build time at the largest thread count measured.
+            // The build time at the last thread count listed (by default 2).
             let ms = r.builds.last().map_or(0.0, |b| b.1);
+            // One label per scene (at its binned point) keeps a hundred points readable; the
+            // legend tells the builders apart.
+            let label = if r.builder == Builder::Binned {
+                r.scene.clone()
+            } else {
+                String::new()
+            };
             Point {
                 x: ms,
                 y: r.sah,
-                label: format!("{} {}", r.builder.name(), r.scene),
+                label,
                 color: COLORS[i % COLORS.len()],
             }
         })
+        .collect();
+    let legend: Vec<(&str, &str)> = Builder::ALL
+        .iter()
+        .enumerate()
+        .filter(|(_, b)| rows.iter().any(|r| r.builder == **b))
+        .map(|(i, b)| (b.name(), COLORS[i % COLORS.len()]))
         .collect();
     scatter_svg(
         "SAH cost against build time, one point per builder and scene",
         "build time, ms (log)",
         "SAH cost, c_T = c_I = 1 (log)",
         &points,
-        Axes { x_log: true },
+        Axes {
+            x_log: true,
+            legend: &legend,
+        },
     )
 }

@@ -2,7 +2,9 @@
 
 use crate::common::{in_pool, tri};
 use glam::Vec3A;
-use quiver::build::{build, prim_bounds, BuildConfig, BuildTree, Builder, NodeKind, MAX_DEPTH};
+use quiver::build::{
+    build, optimize, prim_bounds, BuildConfig, BuildTree, Builder, NodeKind, MAX_DEPTH,
+};
 use quiver::{reference, Aabb, Bvh2, RayQuery, Triangle};
 use quiver_lab::rays;
 use quiver_scenes::rng::Rng;
@@ -271,5 +273,31 @@ fn binned_sah_within_3_percent_of_sweep() {
             binned <= sweep * 1.03,
             "{name}: binned {binned} vs sweep {sweep}"
         );
+    }
+}
+
+/// The insertion-based optimisation keeps the tree of least inner-node area it saw (the
+/// leaves, and so their cost, stay as they are), and the SAH compaction after it merges only
+/// where that is cheaper, so as a pass over any builder's tree it never raises the SAH cost
+/// (up to the order in which f64 sums add the same areas), and its output is a valid tree
+/// over the same primitives.
+#[test]
+fn optimisation_never_raises_the_cost() {
+    let config = BuildConfig::default();
+    for name in ["teapot6", "soup5000"] {
+        let tris = Scene::load(name).unwrap().triangles();
+        let bounds = prim_bounds(&tris);
+        for builder in BUILDERS {
+            let tree = build(&bounds, &config, builder);
+            let better = optimize(&tree, &bounds, &config);
+            better
+                .validate(&bounds, &config)
+                .unwrap_or_else(|e| panic!("{name} {builder}: {e}"));
+            let (before, after) = (tree.sah_cost(&config), better.sah_cost(&config));
+            assert!(
+                after <= before * (1.0 + 1e-9),
+                "{name} {builder}: {before} -> {after}"
+            );
+        }
     }
 }
