@@ -143,7 +143,7 @@ impl<'a> Editable<'a> {
         heap.push(Reverse((key(0.0), root)));
         while let Some(Reverse((k, node))) = heap.pop() {
             let induced = f32::from_bits(k);
-            if !(induced + ax < best.0) {
+            if (induced + ax).total_cmp(&best.0).is_ge() {
                 break;
             }
             let merged = self.links.bounds[node as usize].union(&bx).half_area();
@@ -229,7 +229,7 @@ impl<'a> Editable<'a> {
                 }
             }
             let now = self.inner_area();
-            if !(now < best) {
+            if now.total_cmp(&best).is_ge() {
                 misses += 1;
                 if misses == PATIENCE {
                     break;
