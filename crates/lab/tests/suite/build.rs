@@ -175,6 +175,25 @@ fn coordinates_spanning_1e_minus6_to_1e7() {
 }
 
 #[test]
+fn coordinates_near_the_largest_float() {
+    // Finite but huge: box areas overflow to infinity (and SAH sums to NaN), which must not
+    // stop any builder, and every tree must still hold every triangle once.
+    let mut rng = Rng::new(6);
+    let tris: Vec<Triangle> = (0..2000)
+        .map(|i| {
+            // 1.5e38: the box from -s to s spans 3e38, still below f32::MAX.
+            let s = [1.5e38f32, 1e20, 1.0, 1e-30][i % 4];
+            let mut v = || rng.in_box(Vec3A::splat(-s), Vec3A::splat(s));
+            Triangle::new(v(), v(), v())
+        })
+        .collect();
+    assert!(tris.iter().all(|t| t.is_finite()));
+    for tree in check_degenerate("huge", &tris) {
+        assert_eq!(tree.dropped, 0);
+    }
+}
+
+#[test]
 fn non_finite_vertices_are_dropped_and_counted() {
     let good = tri([0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]);
     let mut tris = vec![good; 10];
