@@ -8,7 +8,7 @@
 //! are checked before any work starts.
 
 use clap::{Parser, Subcommand};
-use commands::{accuracy, bench, build, costs, gen, layouts, packets, predict, render};
+use commands::{accuracy, bench, build, builders, costs, gen, layouts, packets, predict, render};
 use std::process::ExitCode;
 
 mod commands;
@@ -33,6 +33,8 @@ struct Cli {
 enum Command {
     /// Build a BVH over a scene and report its size, SAH cost and build time.
     Build(build::BuildArgs),
+    /// Every tree builder side by side: SAH cost, build and ray times, work per ray, areas.
+    Builders(builders::BuildersArgs),
     /// Measure traversal throughput of every memory layout on several scenes.
     Layouts(layouts::LayoutsArgs),
     /// Write a scene as NFF (to stdout, or to a file with -o).
@@ -63,6 +65,7 @@ fn main() -> ExitCode {
     }
     let result = match cli.command {
         Command::Build(args) => build::run(args),
+        Command::Builders(args) => builders::run(args),
         Command::Layouts(args) => layouts::run(args),
         Command::Gen(args) => gen::run(args),
         Command::Render(args) => render::run(args),

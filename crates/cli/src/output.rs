@@ -279,8 +279,25 @@ pub(crate) struct Point {
     pub color: &'static str,
 }
 
-/// A scatter plot as SVG: linear x from 0, logarithmic y (`1 + y`), labelled points.
-pub(crate) fn scatter_svg(title: &str, x_label: &str, y_label: &str, points: &[Point]) -> String {
+/// How a [`scatter_svg`] plot scales its x axis.
+#[derive(Clone, Copy)]
+pub(crate) struct Axes<'a> {
+    /// Logarithmic x over the decades the points span (positive x only) instead of linear
+    /// from 0: for quantities spanning several orders of magnitude, such as build times.
+    pub x_log: bool,
+    /// Colour key drawn at the top right: (name, SVG colour); empty for none.
+    pub legend: &'a [(&'a str, &'a str)],
+}
+
+/// A scatter plot as SVG: linear x from 0 (or logarithmic, see [`Axes`]), logarithmic y
+/// (`1 + y`), labelled points.
+pub(crate) fn scatter_svg(
+    title: &str,
+    x_label: &str,
+    y_label: &str,
+    points: &[Point],
+    axes: Axes<'_>,
+) -> String {
     let (w, h, m) = (760.0, 480.0, 70.0);
     let xmax = points.iter().map(|p| p.x).fold(0.0f64, f64::max).max(1e-12) * 1.1;
     let ymax = points
@@ -289,7 +306,24 @@ pub(crate) fn scatter_svg(title: &str, x_label: &str, y_label: &str, points: &[P
         .fold(10.0f64, f64::max)
         .log10()
         .ceil();
-    let x = |v: f64| m + v / xmax * (w - 2.0 * m);
+    // Decades for a log x axis: from the smallest positive x's to the largest's.
+    let lo = points
+        .iter()
+        .map(|p| p.x)
+        .filter(|&x| x > 0.0)
+        .fold(f64::INFINITY, f64::min)
+        .min(xmax)
+        .log10()
+        .floor();
+    let hi = xmax.log10().ceil().max(lo + 1.0);
+    let x = |v: f64| {
+        let f = if axes.x_log {
+            (v.max(1e-300).log10() - lo) / (hi - lo)
+        } else {
+            v / xmax
+        };
+        m + f * (w - 2.0 * m)
+    };
     let y = |v: f64| h - m - (1.0 + v).log10() / ymax * (h - 2.0 * m);
     let mut s = format!(
         "<svg xmlns='http://www.w3.org/2000/svg' width='{w}' height='{h}' font-family='sans-serif' font-size='11'>\n\
@@ -309,12 +343,31 @@ pub(crate) fn scatter_svg(title: &str, x_label: &str, y_label: &str, points: &[P
             10f64.powi(k) as u64 - 1
         );
     }
-    for k in 0..=4 {
-        let v = xmax * k as f64 / 4.0;
+    let ticks: Vec<f64> = if axes.x_log {
+        (lo as i32..=hi as i32).map(|k| 10f64.powi(k)).collect()
+    } else {
+        (0..=4).map(|k| xmax * k as f64 / 4.0).collect()
+    };
+    for v in ticks {
+        // Log ticks are powers of ten (0.01 … 1000); linear ones whole numbers.
+        let text = if axes.x_log {
+            format!("{v}")
+        } else {
+            format!("{v:.0}")
+        };
         s += &format!(
-            "<text x='{}' y='{}' text-anchor='middle'>{v:.0}</text>\n",
+            "<text x='{}' y='{}' text-anchor='middle'>{text}</text>\n",
             x(v),
             h - m + 16.0
+        );
+    }
+    for (i, (name, color)) in axes.legend.iter().enumerate() {
+        let ly = m + 12.0 * i as f64;
+        s += &format!(
+            "<circle cx='{}' cy='{ly}' r='4' fill='{color}'/><text x='{}' y='{}'>{name}</text>\n",
+            w - m - 90.0,
+            w - m - 82.0,
+            ly + 4.0
         );
     }
     for (i, p) in points.iter().enumerate() {

@@ -59,6 +59,10 @@ fn every_command(scene: &str, dir: &Path) -> Vec<Vec<String>> {
             ],
             &[],
         ),
+        with(
+            &["builders", scene, "--res", "8", "--build-reps", "1"],
+            &tiny,
+        ),
     ]
 }
 
@@ -231,6 +235,8 @@ fn every_output_flag_is_checked_before_work() {
         "predict tetra1 --plot /nonexistent/p.svg",
         "costs tetra1 --json /nonexistent/c.json",
         "render tetra1 --res 8 --havran --json /nonexistent/h.json",
+        "builders tetra1 --json /nonexistent/b.json",
+        "builders tetra1 --plot /nonexistent/b.svg",
         "render tetra1 -o same.png --heatmap same.png",
     ];
     let dir = tempfile::tempdir().unwrap();

@@ -2,7 +2,7 @@
 //! errors, as a table and, with `--plot`, a scatter plot.
 
 use super::{count, pool, scene_help, thread_count, Result, MAX_RAYS, MAX_REPS};
-use crate::output::{check_outputs, outln, scatter_svg, write_json, write_text, Point};
+use crate::output::{check_outputs, outln, scatter_svg, write_json, write_text, Axes, Point};
 use quiver_lab::accuracy::{evaluate, Row};
 use serde_json::{json, Value};
 use std::path::PathBuf;
@@ -119,5 +119,9 @@ fn plot(rows: &[Row], scene: &str) -> String {
         "ns per ray (closest hit, incoherent)",
         "leaks + self-hits + reference mismatches per million (log)",
         &points,
+        Axes {
+            x_log: false,
+            legend: &[],
+        },
     )
 }

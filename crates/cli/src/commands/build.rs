@@ -15,7 +15,9 @@ pub(crate) struct BuildArgs {
     /// A generator name with optional size (see `--help`), or a .obj file.
     #[arg(long_help = scene_help())]
     scene: String,
-    /// Which SAH builder.
+    /// Which builder: binned (default), sweep, binned+opt, sweep+opt, ploc10, ploc25, ploc100,
+    /// ploc10-emc, aac-fast, aac-hq, aac-hq-emc, bonsai, bonsai-p, bonsai-p4096, insertion
+    /// (`quiver builders` compares them).
     #[arg(long, default_value = "binned", value_parser = parse_builder)]
     builder: Builder,
     /// Memory layout of the nodes.

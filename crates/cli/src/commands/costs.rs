@@ -41,8 +41,9 @@ pub(crate) struct CostsArgs {
 /// Runs `quiver costs`.
 pub(crate) fn run(args: CostsArgs) -> Result<()> {
     check_outputs(&[("--json", args.json.as_deref())])?;
+    // The cost models are read by the top-down builders only.
     let builders = if args.builders.is_empty() {
-        Builder::ALL.to_vec()
+        vec![Builder::Binned, Builder::Sweep]
     } else {
         args.builders.clone()
     };

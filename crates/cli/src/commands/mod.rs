@@ -4,6 +4,7 @@
 pub(crate) mod accuracy;
 pub(crate) mod bench;
 pub(crate) mod build;
+pub(crate) mod builders;
 pub(crate) mod costs;
 pub(crate) mod gen;
 pub(crate) mod layouts;

@@ -4,7 +4,7 @@
 //! shadow rays across scenes (correlations, and `--plot` a scatter plot).
 
 use super::{count, parse_builder, parse_layout, pool, thread_count, Result, MAX_RAYS, MAX_REPS};
-use crate::output::{check_outputs, out, outln, scatter_svg, write_json, write_text, Point};
+use crate::output::{check_outputs, out, outln, scatter_svg, write_json, write_text, Axes, Point};
 use quiver::build::Builder;
 use quiver::predict::Prediction;
 use quiver::{BuildOptions, Bvh, Layout, Ray, Triangle};
@@ -19,7 +19,7 @@ pub(crate) struct PredictArgs {
     /// Scenes (generator names with sizes, or .obj files), traced as triangles.
     #[arg(default_values_t = ["tetra4".to_string(), "teapot6".to_string(), "balls2".to_string()])]
     scenes: Vec<String>,
-    /// Builders (default: all).
+    /// Builders (default: binned and sweep, the top-down pair; any of `quiver build --help`'s).
     #[arg(long = "builder", value_parser = parse_builder)]
     builders: Vec<Builder>,
     /// Layouts (default: all; with --time, the first is the one timed, default bvh8-dfs).
@@ -98,7 +98,7 @@ pub(crate) fn run(args: PredictArgs) -> Result<()> {
         ("--json", args.json.as_deref()),
         ("--plot", args.plot.as_deref()),
     ])?;
-    let builders = distinct(&args.builders, &Builder::ALL);
+    let builders = distinct(&args.builders, &[Builder::Binned, Builder::Sweep]);
     let layouts = distinct(&args.layouts, &Layout::ALL);
     let timed_layout = args.layouts.first().copied().unwrap_or(Layout::Bvh8Dfs);
     let time = args.time || args.plot.is_some();
@@ -422,12 +422,18 @@ fn plot(t: &[Timing], layout: Layout) -> String {
         })
         .collect();
     scatter_svg(
-        &format!(
-            "Predicted cost E(T) against time per ray ({layout}; red random, blue eye, green shadow)"
-        ),
+        &format!("Predicted cost E(T) against time per ray ({layout})"),
         "Aronov et al.'s E(T) for the layout (predicted before tracing)",
         "ns per ray (log)",
         &points,
+        Axes {
+            x_log: false,
+            legend: &[
+                ("random", "#d62728"),
+                ("eye", "#1f77b4"),
+                ("shadow", "#2ca02c"),
+            ],
+        },
     )
 }
 

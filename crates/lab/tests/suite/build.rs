@@ -2,13 +2,15 @@
 
 use crate::common::{in_pool, tri};
 use glam::Vec3A;
-use quiver::build::{build, prim_bounds, BuildConfig, BuildTree, Builder, NodeKind, MAX_DEPTH};
+use quiver::build::{
+    build, optimize, prim_bounds, BuildConfig, BuildTree, Builder, NodeKind, MAX_DEPTH,
+};
 use quiver::{reference, Aabb, Bvh2, RayQuery, Triangle};
 use quiver_lab::rays;
 use quiver_scenes::rng::Rng;
 use quiver_scenes::Scene;
 
-const BUILDERS: [Builder; 2] = Builder::ALL;
+const BUILDERS: [Builder; Builder::ALL.len()] = Builder::ALL;
 
 #[test]
 fn same_tree_for_one_and_two_threads() {
@@ -173,6 +175,25 @@ fn coordinates_spanning_1e_minus6_to_1e7() {
 }
 
 #[test]
+fn coordinates_near_the_largest_float() {
+    // Finite but huge: box areas overflow to infinity (and SAH sums to NaN), which must not
+    // stop any builder, and every tree must still hold every triangle once.
+    let mut rng = Rng::new(6);
+    let tris: Vec<Triangle> = (0..2000)
+        .map(|i| {
+            // 1.5e38: the box from -s to s spans 3e38, still below f32::MAX.
+            let s = [1.5e38f32, 1e20, 1.0, 1e-30][i % 4];
+            let mut v = || rng.in_box(Vec3A::splat(-s), Vec3A::splat(s));
+            Triangle::new(v(), v(), v())
+        })
+        .collect();
+    assert!(tris.iter().all(|t| t.is_finite()));
+    for tree in check_degenerate("huge", &tris) {
+        assert_eq!(tree.dropped, 0);
+    }
+}
+
+#[test]
 fn non_finite_vertices_are_dropped_and_counted() {
     let good = tri([0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]);
     let mut tris = vec![good; 10];
@@ -290,7 +311,8 @@ fn cost_models_build_valid_trees_independent_of_threads() {
             horizontal_threshold: 4_000,
             ..BuildConfig::default()
         };
-        for builder in BUILDERS {
+        // The cost models are the top-down builders' (see `build_with_areas`).
+        for builder in [Builder::Binned, Builder::Sweep] {
             let at = |threads| {
                 in_pool(threads, || {
                     build_with_areas(&bounds, Some(&areas), &config, builder)
@@ -315,7 +337,7 @@ fn rtsah_without_occlusion_is_the_sah() {
     let bounds = prim_bounds(&tris);
     let zeros = vec![0.0; bounds.len()];
     let ones = vec![1.0; bounds.len()];
-    for builder in BUILDERS {
+    for builder in [Builder::Binned, Builder::Sweep] {
         let sah = build(&bounds, &BuildConfig::default(), builder);
         let rtsah = BuildConfig {
             cost_model: CostModel::Rtsah,
@@ -329,5 +351,31 @@ fn rtsah_without_occlusion_is_the_sah() {
         assert!(with_areas == sah, "{builder}: the SAH read the areas");
         // Occluding primitives do change it (else the model would be dead weight).
         assert!(build_with_areas(&bounds, Some(&ones), &rtsah, builder) != sah);
+    }
+}
+
+/// The insertion-based optimisation keeps the tree of least inner-node area it saw (the
+/// leaves, and so their cost, stay as they are), and the SAH compaction after it merges only
+/// where that is cheaper, so as a pass over any builder's tree it never raises the SAH cost
+/// (up to the order in which f64 sums add the same areas), and its output is a valid tree
+/// over the same primitives.
+#[test]
+fn optimisation_never_raises_the_cost() {
+    let config = BuildConfig::default();
+    for name in ["teapot6", "soup5000"] {
+        let tris = Scene::load(name).unwrap().triangles();
+        let bounds = prim_bounds(&tris);
+        for builder in BUILDERS {
+            let tree = build(&bounds, &config, builder);
+            let better = optimize(&tree, &bounds, &config);
+            better
+                .validate(&bounds, &config)
+                .unwrap_or_else(|e| panic!("{name} {builder}: {e}"));
+            let (before, after) = (tree.sah_cost(&config), better.sah_cost(&config));
+            assert!(
+                after <= before * (1.0 + 1e-9),
+                "{name} {builder}: {before} -> {after}"
+            );
+        }
     }
 }

@@ -1,9 +1,12 @@
-//! BVH construction over primitive bounds: parallel binned SAH and the full-sweep SAH reference.
+//! BVH construction over primitive bounds: parallel binned SAH, the full-sweep SAH reference,
+//! and the other builders of Frantál's comparison (2019): PLOC, AAC, insertion-based
+//! optimisation and construction, extended Morton codes (see [`Builder`]).
 //!
-//! Both builders take one [`Aabb`] per primitive and produce a [`BuildTree`]: a binary tree of
-//! boxes whose leaves are contiguous ranges of a primitive index array. The tree depends only on
-//! the input and the [`BuildConfig`], never on the number of threads: every reduction a build
-//! does (box min/max, counts) is exact, and every partition is stable.
+//! Every builder takes one [`Aabb`] per primitive and produces a [`BuildTree`]: a binary tree
+//! of boxes whose leaves are contiguous ranges of a primitive index array. The tree depends
+//! only on the input and the [`BuildConfig`], never on the number of threads: every reduction a
+//! build does (box min/max, counts) is exact, every partition is stable, and the clustering
+//! builders break every tie by position.
 //!
 //! ```
 //! use quiver::build::{build, BuildConfig, Builder};
@@ -17,7 +20,13 @@
 //! assert!(tree.sah_cost(&BuildConfig::default()) > 0.0);
 //! ```
 
+mod aac;
 mod binned;
+mod bonsai;
+mod cluster;
+mod insertion;
+mod morton;
+mod ploc;
 mod recurse;
 mod sweep;
 
@@ -230,10 +239,16 @@ impl BuildConfig {
 
 /// Which algorithm builds the tree.
 ///
+/// The bottom-up builders (PLOC, AAC, insertion) build down to one primitive per leaf and
+/// then collapse every subtree into a leaf where the SAH prefers it and it fits in
+/// [`BuildConfig::max_leaf_size`] (Bittner et al.'s compaction), so their trees obey the same
+/// leaf limit as the top-down ones. Parameters are those of Frantál's Table 8.
+///
 /// ```
 /// use quiver::build::Builder;
 /// assert_eq!(Builder::default(), Builder::Binned);
 /// assert_eq!("sweep".parse::<Builder>(), Ok(Builder::Sweep));
+/// assert_eq!("ploc10".parse::<Builder>(), Ok(Builder::Ploc10));
 /// ```
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum Builder {
@@ -242,17 +257,75 @@ pub enum Builder {
     Binned,
     /// Full-sweep SAH: every primitive boundary is a candidate plane. The quality reference.
     Sweep,
+    /// The binned tree built to single-primitive leaves, improved by the insertion-based
+    /// optimisation ([`optimize`]), then compacted into SAH leaves.
+    BinnedOpt,
+    /// The full-sweep tree, optimised the same way (the thesis's FSWO).
+    SweepOpt,
+    /// Parallel locally-ordered clustering (Meister and Bittner 2018), search radius 10.
+    Ploc10,
+    /// PLOC with search radius 25.
+    Ploc25,
+    /// PLOC with search radius 100.
+    Ploc100,
+    /// PLOC (radius 10) over extended Morton codes (EMC-64-var, Vinkler et al. 2017).
+    Ploc10Emc,
+    /// Approximate agglomerative clustering (Gu et al. 2013), fast setting: δ = 4, ε = 0.2.
+    AacFast,
+    /// AAC, high-quality setting: δ = 20, ε = 0.1.
+    AacHq,
+    /// AAC-HQ over extended Morton codes.
+    AacHqEmc,
+    /// Bonsai (Ganestam et al. 2015): spatial-median groups of 512, full-sweep mini trees,
+    /// a full-sweep top tree over them; no pruning.
+    Bonsai,
+    /// BonsaiP: groups of 512, mini trees larger than 0.1 × the mean pruned.
+    BonsaiP,
+    /// BonsaiP*: groups of 4096, pruning threshold 0.01 × the mean.
+    BonsaiP4096,
+    /// Insertion-based construction (Bittner et al. 2015): batch 8000, 1% of nodes
+    /// optimised per batch, coherence threshold 1.5. Sequential.
+    Insertion,
 }
 
 impl Builder {
     /// Every builder, in the order reports list them.
-    pub const ALL: [Builder; 2] = [Builder::Binned, Builder::Sweep];
+    pub const ALL: [Builder; 15] = [
+        Builder::Binned,
+        Builder::Sweep,
+        Builder::BinnedOpt,
+        Builder::SweepOpt,
+        Builder::Ploc10,
+        Builder::Ploc25,
+        Builder::Ploc100,
+        Builder::Ploc10Emc,
+        Builder::AacFast,
+        Builder::AacHq,
+        Builder::AacHqEmc,
+        Builder::Bonsai,
+        Builder::BonsaiP,
+        Builder::BonsaiP4096,
+        Builder::Insertion,
+    ];
 
     /// The name used on the command line and in reports.
     pub fn name(self) -> &'static str {
         match self {
             Builder::Binned => "binned",
             Builder::Sweep => "sweep",
+            Builder::BinnedOpt => "binned+opt",
+            Builder::SweepOpt => "sweep+opt",
+            Builder::Ploc10 => "ploc10",
+            Builder::Ploc25 => "ploc25",
+            Builder::Ploc100 => "ploc100",
+            Builder::Ploc10Emc => "ploc10-emc",
+            Builder::AacFast => "aac-fast",
+            Builder::AacHq => "aac-hq",
+            Builder::AacHqEmc => "aac-hq-emc",
+            Builder::Bonsai => "bonsai",
+            Builder::BonsaiP => "bonsai-p",
+            Builder::BonsaiP4096 => "bonsai-p4096",
+            Builder::Insertion => "insertion",
         }
     }
 }
@@ -393,15 +466,94 @@ pub fn build_with_areas(
         };
         (vec![empty], indices)
     } else {
-        match builder {
-            Builder::Binned => binned::build(bounds, areas, indices, config),
-            Builder::Sweep => sweep::build(bounds, areas, indices, config),
-        }
+        build_finite(bounds, areas, indices, config, builder)
     };
     BuildTree {
         nodes,
         prim_indices,
         dropped,
+    }
+}
+
+/// The chosen builder over the finite primitives `indices` (at least one). `areas` feeds the
+/// cost models of the top-down builders (binned and sweep); the bottom-up builders and the
+/// clustering ones minimise the plain SAH whatever `config.cost_model` says.
+fn build_finite(
+    bounds: &[Aabb],
+    areas: Option<&[f32]>,
+    indices: Vec<u32>,
+    config: &BuildConfig,
+    builder: Builder,
+) -> (Vec<BuildNode>, Vec<u32>) {
+    use morton::Curve::{Extended, Morton};
+    match builder {
+        Builder::Binned => binned::build(bounds, areas, indices, config),
+        Builder::Sweep => sweep::build(bounds, areas, indices, config),
+        Builder::BinnedOpt | Builder::SweepOpt => {
+            let singles = BuildConfig {
+                max_leaf_size: 1,
+                ..config.clone()
+            };
+            let (nodes, prims) = if builder == Builder::BinnedOpt {
+                binned::build(bounds, areas, indices, &singles)
+            } else {
+                sweep::build(bounds, areas, indices, &singles)
+            };
+            let mut links = cluster::from_build_tree(&nodes, &prims);
+            insertion::optimize(&mut links);
+            links.into_build_tree(bounds, config)
+        }
+        Builder::Ploc10 => ploc::build(bounds, indices, config, 10, Morton),
+        Builder::Ploc25 => ploc::build(bounds, indices, config, 25, Morton),
+        Builder::Ploc100 => ploc::build(bounds, indices, config, 100, Morton),
+        Builder::Ploc10Emc => ploc::build(bounds, indices, config, 10, Extended),
+        Builder::AacFast => aac::build(bounds, indices, config, aac::FAST, Morton),
+        Builder::AacHq => aac::build(bounds, indices, config, aac::HQ, Morton),
+        Builder::AacHqEmc => aac::build(bounds, indices, config, aac::HQ, Extended),
+        Builder::Bonsai => bonsai::build(bounds, indices, config, bonsai::PLAIN),
+        Builder::BonsaiP => bonsai::build(bounds, indices, config, bonsai::PRUNED),
+        Builder::BonsaiP4096 => bonsai::build(bounds, indices, config, bonsai::PRUNED_4096),
+        Builder::Insertion => {
+            let mut links = cluster::Links::singletons(indices, bounds);
+            insertion::construct(&mut links);
+            links.into_build_tree(bounds, config)
+        }
+    }
+}
+
+/// Bittner et al.'s insertion-based optimisation as a pass over any tree: its leaves stay as
+/// they are, the inner nodes are rearranged to lower the SAH cost, and subtrees are then
+/// collapsed into leaves where that is cheaper (within `config.max_leaf_size`). `bounds` are
+/// the boxes the tree was built from. [`Builder::BinnedOpt`] applies it to a binned tree
+/// built down to single primitives, which leaves it more to rearrange.
+///
+/// ```
+/// use quiver::build::{build, optimize, BuildConfig, Builder};
+/// use quiver::Aabb;
+/// use glam::Vec3A;
+/// let boxes: Vec<Aabb> = (0..200)
+///     .map(|i| {
+///         let p = Vec3A::new((i * 37 % 101) as f32, (i * 13 % 7) as f32, 0.0);
+///         Aabb::new(p, p + Vec3A::splat(0.5))
+///     })
+///     .collect();
+/// let config = BuildConfig::default();
+/// let tree = build(&boxes, &config, Builder::Binned);
+/// let better = optimize(&tree, &boxes, &config);
+/// better.validate(&boxes, &config).unwrap();
+/// assert!(better.sah_cost(&config) <= tree.sah_cost(&config) * 1.0001);
+/// ```
+pub fn optimize(tree: &BuildTree, bounds: &[Aabb], config: &BuildConfig) -> BuildTree {
+    if tree.prim_indices.is_empty() {
+        return tree.clone();
+    }
+    let mut links = cluster::from_build_tree(&tree.nodes, &tree.prim_indices);
+    insertion::optimize(&mut links);
+    let (nodes, prim_indices) = links.into_build_tree(bounds, config);
+    BuildTree {
+        nodes,
+        prim_indices,
+        dropped: tree.dropped,
     }
 }
 
