@@ -514,6 +514,32 @@ impl EmbreeScene {
             }
         }
     }
+
+    /// How many of `rays` hit (closest hit, or any hit with `any`), traced on the current
+    /// thread pool one at a time (`stream: false`) or as coherent streams, in the tasks the
+    /// other engines' timed loops use ([`crate::measure::count_hits`]).
+    pub fn count_hits(&self, rays: &[Ray], any: bool, stream: bool) -> usize {
+        use rayon::prelude::*;
+        rays.par_chunks(crate::measure::RAYS_PER_TASK)
+            .map(|chunk| match (any, stream) {
+                (false, false) => chunk
+                    .iter()
+                    .filter(|r| self.closest_hit(r).is_some())
+                    .count(),
+                (true, false) => chunk.iter().filter(|r| self.any_hit(r)).count(),
+                (false, true) => {
+                    let mut hits = vec![None; chunk.len()];
+                    self.closest_hit_stream(chunk, &mut hits);
+                    hits.iter().filter(|h| h.is_some()).count()
+                }
+                (true, true) => {
+                    let mut hit = vec![false; chunk.len()];
+                    self.any_hit_stream(chunk, &mut hit);
+                    hit.iter().filter(|&&h| h).count()
+                }
+            })
+            .sum()
+    }
 }
 
 /// Copies the triangles into Embree-owned buffers (Embree pads them for its 16-byte loads).

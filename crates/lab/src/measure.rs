@@ -37,7 +37,7 @@ impl Query {
 }
 
 /// Rays per rayon task: big enough that scheduling is noise, small enough to balance.
-const RAYS_PER_TASK: usize = 1024;
+pub const RAYS_PER_TASK: usize = 1024;
 
 /// Traces every ray on the current thread pool; returns how many hit.
 pub fn trace<Q: RayQuery + Sync>(bvh: &Q, rays: &[Ray], query: Query) -> usize {

@@ -1,7 +1,9 @@
 //! `quiver bench`: quiver and obvhs 0.4 side by side in one process, on the same triangles and
 //! the same rays: build time and SAH cost, then Mrays/s for eye, shadow and incoherent rays.
 //! Built with the `embree` feature, Intel Embree 3 joins them (`rtcIntersect1` / `rtcOccluded1`
-//! in the same interleaved rounds, and its build time).
+//! in the same interleaved rounds, and its build time). Coherent rays (the eye rays in 8 x 8
+//! tiles and their shadow rays) also go through quiver's packet kernel and, with the
+//! feature, Embree's coherent streams (`rtcIntersect1M` / `rtcOccluded1M`).
 
 use super::{count, measured_threads, pool, thread_count, Result, MAX_RAYS, MAX_REPS};
 use crate::output::{check_outputs, out, outln, write_json};
@@ -10,10 +12,13 @@ use obvhs::{
     BvhBuildParams,
 };
 use quiver::build::{build, prim_bounds, BuildConfig, Builder};
+use quiver::traverse::PacketMode;
 use quiver::{BuildOptions, Bvh, Layout, RayQuery};
 #[cfg(feature = "embree")]
 use quiver_lab::embree::{EmbreeDevice, EmbreeScene};
-use quiver_lab::measure::{count_hits, median_times_interleaved, mrays_per_s};
+use quiver_lab::measure::{
+    count_hits, median_times_interleaved, mrays_per_s, trace_packets, Query,
+};
 use quiver_lab::{obvhs_bridge, rays};
 use quiver_scenes::scene::tessellate;
 use serde_json::{json, Value};
@@ -182,8 +187,58 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
             .unwrap_or(scene.camera.from);
         let shadow = rays::shadow_rays(&bvhs[2], &eye, &[light]);
         let incoherent = rays::random_rays(&scene.bounds(), args.rays, 11);
+        // The same eye rays in 8 x 8 tiles, and their shadow rays in that order: coherent
+        // input for the packet kernels (quiver's, and Embree's streams).
+        let tiles = rays::camera_tiles(&scene.camera, 256, 8);
+        let tile_shadow = rays::shadow_rays(&bvhs[2], &tiles, &[light]);
         for &threads in &thread_counts {
             let p = pool(Some(threads))?;
+            for (kind, set, any) in [
+                ("eye-tiles", &tiles, false),
+                ("shadow-tiles", &tile_shadow, true),
+            ] {
+                let packets = &bvhs[KERNELS.len() - 1];
+                let query = if any { Query::Any } else { Query::Closest };
+                let n = 1 + usize::from(cfg!(feature = "embree"));
+                let times = p.install(|| {
+                    median_times_interleaved(args.reps, n, |i| {
+                        #[cfg(feature = "embree")]
+                        if i == 1 {
+                            std::hint::black_box(embree.count_hits(set, any, true));
+                            return;
+                        }
+                        let _ = i;
+                        std::hint::black_box(trace_packets(packets, set, query, PacketMode::Auto));
+                    })
+                });
+                let packet_kernel = format!("{}-packets", KERNELS[KERNELS.len() - 1].name());
+                rows.push(row(
+                    "quiver",
+                    &packet_kernel,
+                    kind,
+                    threads,
+                    Some(mrays_per_s(set.len(), times[0])),
+                    None,
+                    None,
+                ));
+                #[cfg(feature = "embree")]
+                {
+                    let stream = if any {
+                        "rtcOccluded1M"
+                    } else {
+                        "rtcIntersect1M"
+                    };
+                    rows.push(row(
+                        "embree",
+                        stream,
+                        kind,
+                        threads,
+                        Some(mrays_per_s(set.len(), times[1])),
+                        None,
+                        None,
+                    ));
+                }
+            }
             for (kind, set, any) in [
                 ("eye", &eye, false),
                 ("shadow", &shadow, true),

@@ -153,7 +153,7 @@ fn measure<P: Primitive>(
                 median_times_interleaved(args.reps, KERNELS.len() + extra.len(), |i| {
                     #[cfg(feature = "embree")]
                     if let (Some(e), Some(j)) = (&embree, i.checked_sub(KERNELS.len())) {
-                        std::hint::black_box(trace_embree(e, set, query, j == 1));
+                        std::hint::black_box(e.count_hits(set, query == Query::Any, j == 1));
                         return;
                     }
                     let hits = match KERNELS[i].1 {
@@ -187,30 +187,6 @@ fn measure<P: Primitive>(
 /// Traces every ray through Embree on the current pool, in tasks of 1024 rays as
 /// `measure::trace` and `measure::trace_packets` cut them, so a stream sees the same runs of
 /// packet-ordered rays as quiver's packets; returns how many hit.
-#[cfg(feature = "embree")]
-fn trace_embree(scene: &EmbreeScene, rays: &[quiver::Ray], query: Query, stream: bool) -> usize {
-    use rayon::prelude::*;
-    rays.par_chunks(1024)
-        .map(|chunk| match (query, stream) {
-            (Query::Closest, false) => chunk
-                .iter()
-                .filter(|r| scene.closest_hit(r).is_some())
-                .count(),
-            (Query::Any, false) => chunk.iter().filter(|r| scene.any_hit(r)).count(),
-            (Query::Closest, true) => {
-                let mut hits = vec![None; chunk.len()];
-                scene.closest_hit_stream(chunk, &mut hits);
-                hits.iter().filter(|h| h.is_some()).count()
-            }
-            (Query::Any, true) => {
-                let mut hit = vec![false; chunk.len()];
-                scene.any_hit_stream(chunk, &mut hit);
-                hit.iter().filter(|&&h| h).count()
-            }
-        })
-        .sum()
-}
-
 fn print_rows(rows: &[Value]) {
     out!(
         "{:<12} {:<6} {:>8} {:<11} {:>3} {:>14} {:>14} {:>6} {:>14} {:>6}",
