@@ -1,17 +1,15 @@
 //! Single-ray traversal of 4-wide BVHs: the four child boxes of a node are tested at once
 //! with `wide::f32x4`, hit children are visited nearest first, any-hit exits at the first hit.
 
-use super::lane8::F8;
-use super::packet::{any_rays, closest_rays};
+use super::packet::{any_rays_on, closest_rays_on};
 use super::simd::{bits, insert_farthest_first, NanFirst};
 use super::stats::Stats;
 use super::tri4::Leaves;
 use super::{slab_reciprocal, BoxTest, PacketMode, RayQuery, Stack};
 use crate::build::MAX_DEPTH;
 use crate::geometry::{Hit, Primitive, Ray};
-use crate::isa::Isa;
 use crate::layout::{Bvh4, Bvh4Node, Node4};
-use wide::{f32x4, f32x8};
+use wide::f32x4;
 
 /// The kernels' name for a 4-wide node format.
 pub(crate) use crate::layout::Node4 as WideNode;
@@ -229,14 +227,17 @@ impl<P: Primitive, N: Node4> RayQuery for Bvh4<P, N> {
         hits: &mut [Option<Hit>],
         stats: &mut S,
     ) {
-        match self.isa {
-            #[cfg(target_arch = "x86_64")]
-            // SAFETY: `isa` is Avx2 only where the CPU has AVX2 and FMA (`Isa::or_portable`).
-            Isa::Avx2 => unsafe {
-                avx2::closest_packet::<N, B, P, S>(self, rays, active, mode, hits, stats)
-            },
-            _ => closest_packet::<N, f32x8, B, P, S>(self, rays, active, mode, hits, stats),
-        }
+        let leaves = self.leaves();
+        closest_rays_on::<N, B, P, S>(
+            self.isa,
+            &self.nodes,
+            &leaves,
+            rays,
+            active,
+            mode,
+            hits,
+            stats,
+        )
     }
 
     fn any_hit_packet_with<B: BoxTest, S: Stats>(
@@ -247,77 +248,16 @@ impl<P: Primitive, N: Node4> RayQuery for Bvh4<P, N> {
         occluded: &mut [bool],
         stats: &mut S,
     ) {
-        match self.isa {
-            #[cfg(target_arch = "x86_64")]
-            // SAFETY: as in `closest_hit_packet_with`.
-            Isa::Avx2 => unsafe {
-                avx2::any_packet::<N, B, P, S>(self, rays, active, mode, occluded, stats)
-            },
-            _ => any_packet::<N, f32x8, B, P, S>(self, rays, active, mode, occluded, stats),
-        }
-    }
-}
-
-/// Packet closest hits over lanes of `V`.
-#[inline(always)]
-fn closest_packet<N: Node4, V: F8, B: BoxTest, P: Primitive, S: Stats>(
-    bvh: &Bvh4<P, N>,
-    rays: &[Ray],
-    active: Option<&[bool]>,
-    mode: PacketMode,
-    hits: &mut [Option<Hit>],
-    stats: &mut S,
-) {
-    let leaves = bvh.leaves();
-    closest_rays::<N, V, B, P, S>(&bvh.nodes, &leaves, rays, active, mode, hits, stats)
-}
-
-/// Packet any-hit answers over lanes of `V`.
-#[inline(always)]
-fn any_packet<N: Node4, V: F8, B: BoxTest, P: Primitive, S: Stats>(
-    bvh: &Bvh4<P, N>,
-    rays: &[Ray],
-    active: Option<&[bool]>,
-    mode: PacketMode,
-    occluded: &mut [bool],
-    stats: &mut S,
-) {
-    let leaves = bvh.leaves();
-    any_rays::<N, V, B, P, S>(&bvh.nodes, &leaves, rays, active, mode, occluded, stats)
-}
-
-/// The packet kernels with their lanes on AVX2 (the first ray's 4-wide node test stays on
-/// 128-bit lanes, compiled with AVX encodings here).
-#[cfg(target_arch = "x86_64")]
-mod avx2 {
-    use super::*;
-    use crate::traverse::lane8::Avx;
-
-    /// # Safety
-    /// The CPU must support AVX2 and FMA.
-    #[target_feature(enable = "avx2,fma")]
-    pub(super) unsafe fn closest_packet<N: Node4, B: BoxTest, P: Primitive, S: Stats>(
-        bvh: &Bvh4<P, N>,
-        rays: &[Ray],
-        active: Option<&[bool]>,
-        mode: PacketMode,
-        hits: &mut [Option<Hit>],
-        stats: &mut S,
-    ) {
-        super::closest_packet::<N, Avx, B, P, S>(bvh, rays, active, mode, hits, stats)
-    }
-
-    /// # Safety
-    /// The CPU must support AVX2 and FMA.
-    #[target_feature(enable = "avx2,fma")]
-    pub(super) unsafe fn any_packet<N: Node4, B: BoxTest, P: Primitive, S: Stats>(
-        bvh: &Bvh4<P, N>,
-        rays: &[Ray],
-        active: Option<&[bool]>,
-        mode: PacketMode,
-        occluded: &mut [bool],
-        stats: &mut S,
-    ) {
-        super::any_packet::<N, Avx, B, P, S>(bvh, rays, active, mode, occluded, stats)
+        let leaves = self.leaves();
+        any_rays_on::<N, B, P, S>(
+            self.isa,
+            &self.nodes,
+            &leaves,
+            rays,
+            active,
+            mode,
+            occluded,
+            stats,
+        )
     }
 }

@@ -217,48 +217,6 @@ fn any<V: F8, B: BoxTest, P: Primitive, S: Stats>(bvh: &Bvh8<P>, ray: &Ray, stat
     any_from::<V, B, P, S>(&bvh.nodes, &bvh.leaves(), ray, 0, stats)
 }
 
-/// Packet closest hits over lanes of `V`.
-#[inline(always)]
-fn closest_packet<V: F8, B: BoxTest, P: Primitive, S: Stats>(
-    bvh: &Bvh8<P>,
-    rays: &[Ray],
-    active: Option<&[bool]>,
-    mode: PacketMode,
-    hits: &mut [Option<Hit>],
-    stats: &mut S,
-) {
-    packet::closest_rays::<Bvh8Node, V, B, P, S>(
-        &bvh.nodes,
-        &bvh.leaves(),
-        rays,
-        active,
-        mode,
-        hits,
-        stats,
-    )
-}
-
-/// Packet any-hit answers over lanes of `V`.
-#[inline(always)]
-fn any_packet<V: F8, B: BoxTest, P: Primitive, S: Stats>(
-    bvh: &Bvh8<P>,
-    rays: &[Ray],
-    active: Option<&[bool]>,
-    mode: PacketMode,
-    occluded: &mut [bool],
-    stats: &mut S,
-) {
-    packet::any_rays::<Bvh8Node, V, B, P, S>(
-        &bvh.nodes,
-        &bvh.leaves(),
-        rays,
-        active,
-        mode,
-        occluded,
-        stats,
-    )
-}
-
 impl<P: Primitive> Bvh8<P> {
     #[inline(always)]
     fn leaves(&self) -> Leaves<'_, P> {
@@ -297,13 +255,17 @@ impl<P: Primitive> RayQuery for Bvh8<P> {
         hits: &mut [Option<Hit>],
         stats: &mut S,
     ) {
-        match self.isa {
-            #[cfg(target_arch = "x86_64")]
-            Isa::Avx2 => unsafe {
-                avx2::closest_packet::<B, P, S>(self, rays, active, mode, hits, stats)
-            },
-            _ => closest_packet::<f32x8, B, P, S>(self, rays, active, mode, hits, stats),
-        }
+        let leaves = self.leaves();
+        packet::closest_rays_on::<Bvh8Node, B, P, S>(
+            self.isa,
+            &self.nodes,
+            &leaves,
+            rays,
+            active,
+            mode,
+            hits,
+            stats,
+        )
     }
 
     fn any_hit_packet_with<B: BoxTest, S: Stats>(
@@ -314,13 +276,17 @@ impl<P: Primitive> RayQuery for Bvh8<P> {
         occluded: &mut [bool],
         stats: &mut S,
     ) {
-        match self.isa {
-            #[cfg(target_arch = "x86_64")]
-            Isa::Avx2 => unsafe {
-                avx2::any_packet::<B, P, S>(self, rays, active, mode, occluded, stats)
-            },
-            _ => any_packet::<f32x8, B, P, S>(self, rays, active, mode, occluded, stats),
-        }
+        let leaves = self.leaves();
+        packet::any_rays_on::<Bvh8Node, B, P, S>(
+            self.isa,
+            &self.nodes,
+            &leaves,
+            rays,
+            active,
+            mode,
+            occluded,
+            stats,
+        )
     }
 }
 
@@ -351,33 +317,5 @@ mod avx2 {
         stats: &mut S,
     ) -> bool {
         super::any::<Avx, B, P, S>(bvh, ray, stats)
-    }
-
-    /// # Safety
-    /// The CPU must support AVX2 and FMA.
-    #[target_feature(enable = "avx2,fma")]
-    pub(super) unsafe fn closest_packet<B: BoxTest, P: Primitive, S: Stats>(
-        bvh: &Bvh8<P>,
-        rays: &[Ray],
-        active: Option<&[bool]>,
-        mode: PacketMode,
-        hits: &mut [Option<Hit>],
-        stats: &mut S,
-    ) {
-        super::closest_packet::<Avx, B, P, S>(bvh, rays, active, mode, hits, stats)
-    }
-
-    /// # Safety
-    /// The CPU must support AVX2 and FMA.
-    #[target_feature(enable = "avx2,fma")]
-    pub(super) unsafe fn any_packet<B: BoxTest, P: Primitive, S: Stats>(
-        bvh: &Bvh8<P>,
-        rays: &[Ray],
-        active: Option<&[bool]>,
-        mode: PacketMode,
-        occluded: &mut [bool],
-        stats: &mut S,
-    ) {
-        super::any_packet::<Avx, B, P, S>(bvh, rays, active, mode, occluded, stats)
     }
 }

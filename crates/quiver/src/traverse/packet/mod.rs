@@ -39,6 +39,8 @@ use super::query::RayQuery;
 use super::tri4::Leaves;
 use super::{BoxTest, Stats};
 use crate::geometry::{Hit, Primitive, Ray};
+use crate::isa::Isa;
+use wide::f32x8;
 
 /// Rays per packet. Longer inputs are cut into packets of this size.
 pub const PACKET_RAYS: usize = 64;
@@ -171,7 +173,7 @@ fn each_packet<T>(
 /// `V`.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
-pub(crate) fn closest_rays<N: PacketNode, V: F8, B: BoxTest, P: Primitive, S: Stats>(
+fn closest_rays<N: PacketNode, V: F8, B: BoxTest, P: Primitive, S: Stats>(
     nodes: &[N],
     leaves: &Leaves<P>,
     rays: &[Ray],
@@ -217,7 +219,7 @@ pub(crate) fn closest_rays<N: PacketNode, V: F8, B: BoxTest, P: Primitive, S: St
 /// Any-hit answers of any number of rays, packet by packet, over one node format, in lanes
 /// of `V`.
 #[inline(always)]
-pub(crate) fn any_rays<N: PacketNode, V: F8, B: BoxTest, P: Primitive, S: Stats>(
+fn any_rays<N: PacketNode, V: F8, B: BoxTest, P: Primitive, S: Stats>(
     nodes: &[N],
     leaves: &Leaves<P>,
     rays: &[Ray],
@@ -244,6 +246,94 @@ pub(crate) fn any_rays<N: PacketNode, V: F8, B: BoxTest, P: Primitive, S: Stats>
             }
         },
     );
+}
+
+/// [`closest_rays`] on the lanes of `isa`: the one place a packet query picks its
+/// instruction set, for every node format.
+#[allow(clippy::too_many_arguments)]
+#[inline]
+pub(crate) fn closest_rays_on<N: PacketNode, B: BoxTest, P: Primitive, S: Stats>(
+    isa: Isa,
+    nodes: &[N],
+    leaves: &Leaves<P>,
+    rays: &[Ray],
+    active: Option<&[bool]>,
+    mode: PacketMode,
+    hits: &mut [Option<Hit>],
+    stats: &mut S,
+) {
+    match isa {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: a BVH's `isa` is Avx2 only where the CPU has AVX2 and FMA
+        // (`Isa::or_portable`).
+        Isa::Avx2 => unsafe {
+            avx2::closest_rays::<N, B, P, S>(nodes, leaves, rays, active, mode, hits, stats)
+        },
+        _ => closest_rays::<N, f32x8, B, P, S>(nodes, leaves, rays, active, mode, hits, stats),
+    }
+}
+
+/// [`any_rays`] on the lanes of `isa` (see [`closest_rays_on`]).
+#[allow(clippy::too_many_arguments)]
+#[inline]
+pub(crate) fn any_rays_on<N: PacketNode, B: BoxTest, P: Primitive, S: Stats>(
+    isa: Isa,
+    nodes: &[N],
+    leaves: &Leaves<P>,
+    rays: &[Ray],
+    active: Option<&[bool]>,
+    mode: PacketMode,
+    occluded: &mut [bool],
+    stats: &mut S,
+) {
+    match isa {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: as in `closest_rays_on`.
+        Isa::Avx2 => unsafe {
+            avx2::any_rays::<N, B, P, S>(nodes, leaves, rays, active, mode, occluded, stats)
+        },
+        _ => any_rays::<N, f32x8, B, P, S>(nodes, leaves, rays, active, mode, occluded, stats),
+    }
+}
+
+/// The packet kernels with their lanes on AVX2, compiled with AVX2 enabled (everything they
+/// call is inlined into these).
+#[cfg(target_arch = "x86_64")]
+mod avx2 {
+    use super::*;
+    use crate::traverse::lane8::Avx;
+
+    /// # Safety
+    /// The CPU must support AVX2 and FMA.
+    #[allow(clippy::too_many_arguments)]
+    #[target_feature(enable = "avx2,fma")]
+    pub(super) unsafe fn closest_rays<N: PacketNode, B: BoxTest, P: Primitive, S: Stats>(
+        nodes: &[N],
+        leaves: &Leaves<P>,
+        rays: &[Ray],
+        active: Option<&[bool]>,
+        mode: PacketMode,
+        hits: &mut [Option<Hit>],
+        stats: &mut S,
+    ) {
+        super::closest_rays::<N, Avx, B, P, S>(nodes, leaves, rays, active, mode, hits, stats)
+    }
+
+    /// # Safety
+    /// The CPU must support AVX2 and FMA.
+    #[allow(clippy::too_many_arguments)]
+    #[target_feature(enable = "avx2,fma")]
+    pub(super) unsafe fn any_rays<N: PacketNode, B: BoxTest, P: Primitive, S: Stats>(
+        nodes: &[N],
+        leaves: &Leaves<P>,
+        rays: &[Ray],
+        active: Option<&[bool]>,
+        mode: PacketMode,
+        occluded: &mut [bool],
+        stats: &mut S,
+    ) {
+        super::any_rays::<N, Avx, B, P, S>(nodes, leaves, rays, active, mode, occluded, stats)
+    }
 }
 
 /// The packet closest-hit query of a structure without a packet kernel: each active ray
