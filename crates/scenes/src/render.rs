@@ -376,11 +376,11 @@ enum Secondary<'s> {
     /// Trace each shadow and reflection ray now.
     Trace,
     /// Already traced (as packets): per light, whether the shadow ray toward it is blocked
-    /// (for the lights the surface faces), and the reflection ray's hit if the surface
-    /// spawns one.
+    /// (`None` for a light the surface does not face), and the reflection ray with its hit if
+    /// the surface spawns one. The rays are not made again.
     Known {
-        blocked: &'s [bool],
-        reflection: Option<Option<Hit>>,
+        shadows: &'s [Option<bool>],
+        reflection: Option<(Ray, Option<Hit>)>,
     },
 }
 
@@ -469,8 +469,8 @@ impl<W: Work> Tracer<'_, W> {
     /// packet. Everything after the first bounce is traced ray by ray.
     fn shade_packets(&mut self, surfaces: Vec<Option<Surface>>) -> Vec<Vec3A> {
         let lights = self.scene.lights.len();
-        // blocked[corner * lights + light]
-        let mut blocked = vec![false; surfaces.len() * lights];
+        // shadows[corner * lights + light]
+        let mut shadows = vec![None; surfaces.len() * lights];
         for (l, light) in self.scene.lights.iter().enumerate() {
             let (who, rays): (Vec<usize>, Vec<Ray>) = surfaces
                 .iter()
@@ -480,7 +480,7 @@ impl<W: Work> Tracer<'_, W> {
             let mut answer = vec![false; rays.len()];
             self.packet_query(&rays, Query::Any(&mut answer));
             for (k, a) in who.into_iter().zip(answer) {
-                blocked[k * lights + l] = a;
+                shadows[k * lights + l] = Some(a);
             }
         }
         let mut reflections = vec![None; surfaces.len()];
@@ -492,8 +492,8 @@ impl<W: Work> Tracer<'_, W> {
                 .unzip();
             let mut hits = vec![None; rays.len()];
             self.packet_query(&rays, Query::Closest(&mut hits));
-            for (k, h) in who.into_iter().zip(hits) {
-                reflections[k] = Some(h);
+            for ((k, r), h) in who.into_iter().zip(rays).zip(hits) {
+                reflections[k] = Some((r, h));
             }
         }
         surfaces
@@ -501,7 +501,7 @@ impl<W: Work> Tracer<'_, W> {
             .enumerate()
             .map(|(k, s)| {
                 let known = Secondary::Known {
-                    blocked: &blocked[k * lights..(k + 1) * lights],
+                    shadows: &shadows[k * lights..(k + 1) * lights],
                     reflection: reflections[k],
                 };
                 self.color(s, 1, known)
@@ -608,14 +608,14 @@ impl<W: Work> Tracer<'_, W> {
         let mut color = m.color * AMBIENT;
         let intensity = 1.0 / (self.scene.lights.len().max(1) as f32).sqrt();
         for (i, l) in self.scene.lights.iter().enumerate() {
-            let Some(shadow) = self.shadow_ray(s, l.pos) else {
+            let blocked = match known {
+                Secondary::Trace => self.shadow_ray(s, l.pos).map(|r| self.occluded(&r)),
+                Secondary::Known { shadows, .. } => shadows[i],
+            };
+            let Some(blocked) = blocked else {
                 continue;
             };
             self.rays.shadow += 1;
-            let blocked = match known {
-                Secondary::Trace => self.occluded(&shadow),
-                Secondary::Known { blocked, .. } => blocked[i],
-            };
             if blocked {
                 self.rays.shadow_blocked += 1;
                 continue;
@@ -644,16 +644,13 @@ impl<W: Work> Tracer<'_, W> {
                 reflect_weight += m.t;
             }
         }
-        if let Some(r) = self.reflection_ray(s) {
+        let reflection = match known {
+            Secondary::Trace => self.reflection_ray(s).map(|r| (r, self.closest(&r))),
+            Secondary::Known { reflection, .. } => reflection,
+        };
+        if let Some((r, hit)) = reflection {
             self.rays.reflect += 1;
-            let seen = match known {
-                Secondary::Known {
-                    reflection: Some(hit),
-                    ..
-                } => self.traced(&r, hit, depth + 1),
-                _ => self.trace(&r, depth + 1),
-            };
-            color += seen * reflect_weight;
+            color += self.traced(&r, hit, depth + 1) * reflect_weight;
         }
         color
     }
