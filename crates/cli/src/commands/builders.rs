@@ -9,7 +9,7 @@ use super::{
 };
 use crate::output::{check_outputs, outln, scatter_svg, write_json, write_text, Axes, Point};
 use glam::Vec3A;
-use quiver::build::{build, prim_bounds, BuildConfig, BuildTree, Builder, NodeKind};
+use quiver::build::{build, prim_bounds, BuildConfig, BuildTree, Builder};
 use quiver::{Aabb, Bvh, Layout, Ray, Triangle};
 use quiver_lab::measure::{self, median_times_interleaved, Query};
 use quiver_lab::rays;
@@ -109,28 +109,6 @@ fn time_builds(reps: usize, f: impl Fn() -> BuildTree) -> (BuildTree, f64, f64) 
     (tree, median(real), median(user))
 }
 
-/// Σ A(inner) / A(root) and Σ A(leaf)·n(leaf) / A(root) (Frantál's Tables 18 and 19). A
-/// root of zero area (no geometry, or all of it on a point or line) counts every node as
-/// area 1, as [`BuildTree::sah_cost`] does.
-fn area_ratios(tree: &BuildTree) -> (f64, f64) {
-    let root = tree.nodes[0].bounds.half_area() as f64;
-    let rel = |b: &Aabb| {
-        if root > 0.0 {
-            b.half_area() as f64 / root
-        } else {
-            1.0
-        }
-    };
-    let (mut inner, mut leaf) = (0.0, 0.0);
-    for n in &tree.nodes {
-        match n.kind {
-            NodeKind::Inner { .. } => inner += rel(&n.bounds),
-            NodeKind::Leaf { count, .. } => leaf += rel(&n.bounds) * count as f64,
-        }
-    }
-    (inner, leaf)
-}
-
 /// Runs `quiver builders`.
 pub(crate) fn run(args: BuildersArgs) -> Result<()> {
     check_outputs(&[
@@ -189,7 +167,10 @@ pub(crate) fn run(args: BuildersArgs) -> Result<()> {
             let same_tree = trees.windows(2).all(|w| w[0] == w[1]);
             let tree = trees.swap_remove(0);
             let stats = tree.stats();
-            let (inner_area, leaf_area) = area_ratios(&tree);
+            // Σ A(inner) / A(root) and Σ A(leaf)·n(leaf) / A(root) (Frantál's Tables 18 and
+            // 19): the predicted inner nodes and primitive tests per random line.
+            let areas = quiver::predict::predict(&tree);
+            let (inner_area, leaf_area) = (areas.inner, areas.prim_tests);
             scene_rows.push(Row {
                 scene: short_name(&scene.name),
                 prims: tris.len(),
