@@ -1,6 +1,7 @@
 //! Render probe: `cargo run --release --example rp -- SCENE RES REPS [LAYOUT]` renders the
 //! scene (curve mode) with packets off and on, alternating, one thread, and prints the
-//! fastest and median trace time of each and their ratio.
+//! fastest and median trace time of each and their ratio. A fifth argument `off` or `on`
+//! renders in that mode only (for profiling one side).
 use quiver::{BuildOptions, Layout};
 use quiver_scenes::accel::SceneBvh;
 use quiver_scenes::render::{render, RenderConfig};
@@ -17,6 +18,7 @@ fn main() {
         .map_or("bvh8-dfs", |s| s.as_str())
         .parse()
         .expect("layout");
+    let only = a.get(5).map(|s| s == "on");
     let scene = Scene::load(name).expect("scene");
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(1)
@@ -28,6 +30,9 @@ fn main() {
         let mut total = 0;
         for _ in 0..reps {
             for (k, packets) in [false, true].into_iter().enumerate() {
+                if only.is_some_and(|o| o != packets) {
+                    continue;
+                }
                 let config = RenderConfig {
                     res,
                     two_sided: scene.two_sided_materials(),
@@ -42,6 +47,11 @@ fn main() {
         }
         for t in &mut times {
             t.sort_by(f64::total_cmp);
+        }
+        if let Some(o) = only {
+            let t = &times[o as usize];
+            println!("{name} {res} {}: {total} rays; min {:.1} med {:.1} ms", layout.name(), t[0], t[reps / 2]);
+            return;
         }
         let (off, on) = (&times[0], &times[1]);
         println!(

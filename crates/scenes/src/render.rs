@@ -25,7 +25,7 @@ use glam::Vec3A;
 use quiver::geometry::{offset_ray_origin, unit_or_zero, Hit, Ray};
 use quiver::traverse::{ConservativeBoxes, Counters, NoStats, PacketMode, RayQuery, Stats};
 use rayon::prelude::*;
-use std::ops::AddAssign;
+use std::ops::{AddAssign, Range};
 
 /// Render settings.
 #[derive(Clone, Debug)]
@@ -78,6 +78,7 @@ impl Offset {
     /// let small = Offset::Epsilon.ray(0.01, Vec3A::ZERO, Vec3A::Z, Vec3A::Z, 1.0);
     /// assert!((small.t_min - 1e-7).abs() < 1e-12);
     /// ```
+    #[inline]
     pub fn ray(self, size: f32, p: Vec3A, side: Vec3A, dir: Vec3A, t_max: f32) -> Ray {
         match self {
             Offset::Epsilon => {
@@ -210,15 +211,42 @@ pub struct Rendered {
 /// Corner rows a render task handles, and the side of a packet's square of corners.
 const TILE: usize = 8;
 
-/// One band of [`TILE`] corner rows.
+/// Tiles a packet render traces and shades together: their eye rays tile by tile, then each
+/// light's shadow rays and the reflection rays gathered over the group. Small enough that the
+/// group's surfaces and rays stay in the core's cache, large enough that most secondary
+/// packets are full.
+const GROUP: usize = 16;
+
+/// What one band of [`TILE`] corner rows adds to the render's totals (its colours go straight
+/// into the image's corner buffer).
 #[derive(Default)]
-struct Band {
-    /// Colours of the band's corners, row by row.
-    colors: Vec<Vec3A>,
+struct Tally {
     rays: RayCounts,
     work: Counters,
+    /// Nodes visited per eye ray of the band, row by row (empty unless counting).
     eye_nodes: Vec<u32>,
     packet_rays: u64,
+}
+
+/// The buffers a packet render fills for each tile group, kept from group to group so a
+/// band allocates them once.
+#[derive(Default)]
+struct Scratch {
+    /// Where each of the group's corners lies in its band (row-major), in tile order.
+    slots: Vec<usize>,
+    /// The group's eye rays and their closest hits, in tile order.
+    eye: Vec<Ray>,
+    eye_hits: Vec<Option<Hit>>,
+    surfaces: Vec<Option<Surface>>,
+    /// `shadows[corner * lights + light]`: whether the shadow ray is blocked, `None` for a
+    /// light the surface does not face.
+    shadows: Vec<Option<bool>>,
+    reflections: Vec<Option<(Ray, Option<Hit>)>>,
+    /// One secondary packet query: the corners that asked, their rays and the answers.
+    who: Vec<usize>,
+    rays: Vec<Ray>,
+    blocked: Vec<bool>,
+    hits: Vec<Option<Hit>>,
 }
 
 /// Renders `scene` through `bvh` on the current rayon pool. `progress(rows)` is called as
@@ -269,9 +297,11 @@ fn render_with<W: Work>(
 ) -> Rendered {
     let n = config.res as usize + 1;
     let size = scene_size(scene);
-    let bands: Vec<Band> = (0..n.div_ceil(TILE))
-        .into_par_iter()
-        .map(|b| {
+    let mut corners = vec![Vec3A::ZERO; n * n];
+    let tallies: Vec<Tally> = corners
+        .par_chunks_mut(TILE * n)
+        .enumerate()
+        .map(|(b, colors)| {
             let rows = b * TILE..((b + 1) * TILE).min(n);
             let mut tracer = Tracer {
                 scene,
@@ -282,22 +312,25 @@ fn render_with<W: Work>(
                 work: W::default(),
                 packet_rays: 0,
             };
-            let band = tracer.band(rows.clone(), n);
+            let eye_nodes = tracer.band(rows.clone(), n, colors);
             progress(rows.len());
-            band
+            Tally {
+                rays: tracer.rays,
+                work: tracer.work.counters(),
+                eye_nodes,
+                packet_rays: tracer.packet_rays,
+            }
         })
         .collect();
     let mut rays = RayCounts::default();
     let mut work = Counters::default();
     let mut eye_nodes = Vec::new();
-    let mut corners = Vec::with_capacity(n * n);
     let mut packet_rays = 0;
-    for b in &bands {
-        rays += b.rays;
-        work += b.work;
-        packet_rays += b.packet_rays;
-        eye_nodes.extend_from_slice(&b.eye_nodes);
-        corners.extend_from_slice(&b.colors);
+    for t in &tallies {
+        rays += t.rays;
+        work += t.work;
+        packet_rays += t.packet_rays;
+        eye_nodes.extend_from_slice(&t.eye_nodes);
     }
     let res = config.res as usize;
     let at = |x: usize, y: usize| corners[y * n + x];
@@ -339,6 +372,7 @@ struct Tracer<'a, W> {
 }
 
 /// What shading needs to know about a hit.
+#[derive(Clone, Copy)]
 struct Surface {
     /// Hit point.
     p: Vec3A,
@@ -385,16 +419,11 @@ enum Secondary<'s> {
 }
 
 impl<W: Work> Tracer<'_, W> {
-    /// The corners of rows `rows` (of `n` corners each): eye rays in packets of
-    /// `TILE x TILE` corners, or one by one.
-    fn band(&mut self, rows: std::ops::Range<usize>, n: usize) -> Band {
-        let mut band = Band {
-            colors: vec![Vec3A::ZERO; rows.len() * n],
-            ..Default::default()
-        };
-        if W::COUNTS {
-            band.eye_nodes = vec![0; rows.len() * n];
-        }
+    /// Colours the corners of rows `rows` (of `n` corners each) into `colors` (row-major):
+    /// eye rays in packets of `TILE x TILE` corners, or one by one. Returns the nodes each
+    /// eye ray visited (row-major; empty unless counting).
+    fn band(&mut self, rows: Range<usize>, n: usize, colors: &mut [Vec3A]) -> Vec<u32> {
+        let mut eye_nodes = vec![0; if W::COUNTS { rows.len() * n } else { 0 }];
         let view = self.scene.camera.view();
         let eye = |i: usize, j: usize| {
             let sx = -1.0 + 2.0 * i as f32 / self.config.res as f32;
@@ -411,102 +440,97 @@ impl<W: Work> Tracer<'_, W> {
                     let hit = self.closest(&ray);
                     let k = (j - rows.start) * n + i;
                     if W::COUNTS {
-                        band.eye_nodes[k] = (self.work.counters().nodes - before) as u32;
+                        eye_nodes[k] = (self.work.counters().nodes - before) as u32;
                     }
                     let s = hit.map(|h| self.surface(&ray, &h));
-                    band.colors[k] = self.color(s, 1, Secondary::Trace);
+                    colors[k] = self.color(s, 1, Secondary::Trace);
                 }
             }
-        } else {
-            let mut slots = Vec::with_capacity(rows.len() * n);
-            let mut surfaces = Vec::with_capacity(rows.len() * n);
-            for x0 in (0..n).step_by(TILE) {
-                let cols = x0..(x0 + TILE).min(n);
-                let tile: Vec<(usize, usize)> = rows
-                    .clone()
-                    .flat_map(|j| cols.clone().map(move |i| (i, j)))
-                    .collect();
-                let rays: Vec<Ray> = tile.iter().map(|&(i, j)| eye(i, j)).collect();
-                let (found, eye_nodes) = self.eye_packet(&rays);
-                for (&(i, j), s) in tile.iter().zip(found) {
-                    if W::COUNTS {
-                        band.eye_nodes[(j - rows.start) * n + i] = eye_nodes as u32;
-                    }
-                    slots.push((i, j));
-                    surfaces.push(s);
-                }
-            }
-            let colors = self.shade_packets(surfaces);
-            for (&(i, j), c) in slots.iter().zip(colors) {
-                band.colors[(j - rows.start) * n + i] = c;
-            }
+            return eye_nodes;
         }
-        band.rays = self.rays;
-        band.work = self.work.counters();
-        band.packet_rays = self.packet_rays;
-        band
+        let mut sc = Scratch::default();
+        for x0 in (0..n).step_by(TILE * GROUP) {
+            sc.slots.clear();
+            sc.eye.clear();
+            for t0 in (x0..(x0 + TILE * GROUP).min(n)).step_by(TILE) {
+                let from = sc.eye.len();
+                for j in rows.clone() {
+                    for i in t0..(t0 + TILE).min(n) {
+                        sc.slots.push((j - rows.start) * n + i);
+                        sc.eye.push(eye(i, j));
+                    }
+                }
+                sc.eye_hits.resize(sc.eye.len(), None);
+                let before = self.work.counters().nodes;
+                self.packet_query(&sc.eye[from..], Query::Closest(&mut sc.eye_hits[from..]));
+                if W::COUNTS {
+                    let nodes = (self.work.counters().nodes - before) as u32;
+                    for &k in &sc.slots[from..] {
+                        eye_nodes[k] = nodes;
+                    }
+                }
+            }
+            sc.surfaces.clear();
+            for (r, h) in sc.eye.iter().zip(&sc.eye_hits) {
+                sc.surfaces.push(h.map(|h| self.surface(r, &h)));
+            }
+            self.shade_group(&mut sc, colors);
+        }
+        eye_nodes
     }
 
-    /// The surfaces a packet of eye rays sees, and the nodes the packet visited (with
-    /// counters on).
-    fn eye_packet(&mut self, rays: &[Ray]) -> (Vec<Option<Surface>>, u64) {
-        let mut hits = vec![None; rays.len()];
-        let before = self.work.counters().nodes;
-        self.packet_query(rays, Query::Closest(&mut hits));
-        let eye_nodes = self.work.counters().nodes - before;
-        let surfaces = rays
-            .iter()
-            .zip(&hits)
-            .map(|(r, h)| h.map(|h| self.surface(r, &h)))
-            .collect();
-        (surfaces, eye_nodes)
-    }
-
-    /// Colours of a band's eye-ray surfaces (in tile order). Their shadow rays, light by
-    /// light, and their reflection rays go as packets, gathered over the band so that each
-    /// packet is full: only the rays the surfaces call for (a light the surface faces, a
+    /// Colours a tile group's eye-ray surfaces into `colors`. Their shadow rays, light by
+    /// light, and their reflection rays go as packets, gathered over the group so that most
+    /// packets are full: only the rays the surfaces call for (a light the surface faces, a
     /// reflective or transmitting material), in tile order, so neighbouring rays share a
     /// packet. Everything after the first bounce is traced ray by ray.
-    fn shade_packets(&mut self, surfaces: Vec<Option<Surface>>) -> Vec<Vec3A> {
+    fn shade_group(&mut self, sc: &mut Scratch, colors: &mut [Vec3A]) {
         let lights = self.scene.lights.len();
-        // shadows[corner * lights + light]
-        let mut shadows = vec![None; surfaces.len() * lights];
-        for (l, light) in self.scene.lights.iter().enumerate() {
-            let (who, rays): (Vec<usize>, Vec<Ray>) = surfaces
-                .iter()
-                .enumerate()
-                .filter_map(|(k, s)| Some((k, self.shadow_ray(s.as_ref()?, light.pos)?)))
-                .unzip();
-            let mut answer = vec![false; rays.len()];
-            self.packet_query(&rays, Query::Any(&mut answer));
-            for (k, a) in who.into_iter().zip(answer) {
-                shadows[k * lights + l] = Some(a);
+        let m = sc.surfaces.len();
+        sc.shadows.clear();
+        sc.shadows.resize(m * lights, None);
+        for l in 0..lights {
+            let pos = self.scene.lights[l].pos;
+            sc.who.clear();
+            sc.rays.clear();
+            for (k, s) in sc.surfaces.iter().enumerate() {
+                if let Some(r) = s.as_ref().and_then(|s| self.shadow_ray(s, pos)) {
+                    sc.who.push(k);
+                    sc.rays.push(r);
+                }
+            }
+            sc.blocked.clear();
+            sc.blocked.resize(sc.rays.len(), false);
+            self.packet_query(&sc.rays, Query::Any(&mut sc.blocked));
+            for (&k, &a) in sc.who.iter().zip(&sc.blocked) {
+                sc.shadows[k * lights + l] = Some(a);
             }
         }
-        let mut reflections = vec![None; surfaces.len()];
+        sc.reflections.clear();
+        sc.reflections.resize(m, None);
         if self.config.max_depth > 1 {
-            let (who, rays): (Vec<usize>, Vec<Ray>) = surfaces
-                .iter()
-                .enumerate()
-                .filter_map(|(k, s)| Some((k, self.reflection_ray(s.as_ref()?)?)))
-                .unzip();
-            let mut hits = vec![None; rays.len()];
-            self.packet_query(&rays, Query::Closest(&mut hits));
-            for ((k, r), h) in who.into_iter().zip(rays).zip(hits) {
-                reflections[k] = Some((r, h));
+            sc.who.clear();
+            sc.rays.clear();
+            for (k, s) in sc.surfaces.iter().enumerate() {
+                if let Some(r) = s.as_ref().and_then(|s| self.reflection_ray(s)) {
+                    sc.who.push(k);
+                    sc.rays.push(r);
+                }
+            }
+            sc.hits.clear();
+            sc.hits.resize(sc.rays.len(), None);
+            self.packet_query(&sc.rays, Query::Closest(&mut sc.hits));
+            for ((&k, &r), &h) in sc.who.iter().zip(&sc.rays).zip(&sc.hits) {
+                sc.reflections[k] = Some((r, h));
             }
         }
-        surfaces
-            .into_iter()
-            .enumerate()
-            .map(|(k, s)| {
-                let known = Secondary::Known {
-                    shadows: &shadows[k * lights..(k + 1) * lights],
-                    reflection: reflections[k],
-                };
-                self.color(s, 1, known)
-            })
-            .collect()
+        for (k, &slot) in sc.slots.iter().enumerate() {
+            let known = Secondary::Known {
+                shadows: &sc.shadows[k * lights..(k + 1) * lights],
+                reflection: sc.reflections[k],
+            };
+            colors[slot] = self.color(sc.surfaces[k], 1, known);
+        }
     }
 
     /// A packet query through the packet kernels, recording into `work`.
