@@ -406,7 +406,8 @@ pub trait Primitive: Clone + Send + Sync {
     /// [`PacketLeaf::report`]. Each ray's hits must be exactly what
     /// [`Primitive::intersect`] finds for it.
     ///
-    /// The default goes ray by ray; [`Triangle`] tests eight rays at a time with SIMD.
+    /// The default goes ray by ray; [`Triangle`] tests eight rays at a time with SIMD, and a
+    /// type of its own can too ([`PacketLeaf::lanes`]).
     #[inline(always)]
     fn intersect_packet<F>(leaf: &[Self], rays: &mut PacketLeaf<'_, F>)
     where

@@ -16,6 +16,8 @@
 use glam::Vec3A;
 use quiver::geometry::{unit_or_zero, unit_scale, Aabb, PrimHit, Primitive, Ray, Triangle};
 use quiver::intersect::Watertight;
+use quiver::traverse::{PacketLanes, PacketLeaf, PACKET_RAYS};
+use wide::f32x8;
 
 /// A sphere.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -174,6 +176,29 @@ impl Primitive for Sphere {
     }
 }
 
+impl Sphere {
+    /// [`Sphere::intersect`] for eight rays at once, operation for operation (so bit for bit
+    /// the same answer): the lanes that hit, and their `t`.
+    #[inline(always)]
+    pub fn intersect_lanes(&self, l: &PacketLanes) -> (u32, f32x8) {
+        let shift = nearest_t8(l, self.center);
+        let oc = point_from8(l, shift, self.center);
+        let a = dot8(&l.dir, &l.dir);
+        let b = dot8(&oc, &l.dir);
+        let c = dot8(&oc, &oc) - f32x8::splat(self.radius * self.radius);
+        let disc = b * b - a * c;
+        let ok = disc.simd_ge(f32x8::ZERO) & a.simd_ne(f32x8::ZERO);
+        if ok.to_bitmask() & l.live == 0 {
+            return (0, f32x8::ZERO);
+        }
+        let (t0, t1) = roots8(a, b, c, disc);
+        let (t0, t1) = (t0 + shift, t1 + shift);
+        let within = |t: f32x8| t.simd_ge(l.t_min) & t.simd_le(l.t_max);
+        let (in0, in1) = (within(t0), within(t1));
+        ((ok & (in0 | in1)).to_bitmask(), in0.select(t0, t1))
+    }
+}
+
 /// The `t` of the ray's point nearest `p` (0 for a zero direction): solving a quadric from
 /// there keeps its coefficients small, so they do not cancel.
 #[inline]
@@ -254,6 +279,77 @@ impl Primitive for Cone {
                 u: 0.0,
                 v: 0.0,
             })
+    }
+}
+
+impl Cone {
+    /// [`Cone::intersect`] for eight rays at once, operation for operation (so bit for bit
+    /// the same answer): the lanes that hit, and their `t`. Lanes whose ray runs parallel to
+    /// a line of the surface (one root) take the scalar test.
+    #[inline(always)]
+    pub fn intersect_lanes(&self, l: &PacketLanes) -> (u32, f32x8) {
+        let axis = self.apex - self.base;
+        let h = axis.length();
+        if !(h > 0.0) {
+            return (0, f32x8::ZERO);
+        }
+        let w = axis / h;
+        let k = (self.apex_radius - self.base_radius) / h;
+        let shift = nearest_t8(l, (self.base + self.apex) * 0.5);
+        let o = point_from8(l, shift, self.base);
+        let w8 = [f32x8::splat(w.x), f32x8::splat(w.y), f32x8::splat(w.z)];
+        let (os, ds) = (dot8(&o, &w8), dot8(&l.dir, &w8));
+        let op = [o[0] - w8[0] * os, o[1] - w8[1] * os, o[2] - w8[2] * os];
+        let dp = [
+            l.dir[0] - w8[0] * ds,
+            l.dir[1] - w8[1] * ds,
+            l.dir[2] - w8[2] * ds,
+        ];
+        let k8 = f32x8::splat(k);
+        let (r0, r1) = (f32x8::splat(self.base_radius) + k8 * os, k8 * ds);
+        let dpdp = dot8(&dp, &dp);
+        let a = dpdp - r1 * r1;
+        let b = dot8(&op, &dp) - r0 * r1;
+        let c = dot8(&op, &op) - r0 * r0;
+        // Where `a` is not clearly away from 0 (or is NaN) the scalar test decides.
+        let eps = f32x8::splat(f32::EPSILON);
+        let quadratic = a.abs().simd_gt(eps * dpdp.max(r1 * r1));
+        let disc = b * b - a * c;
+        let ok = quadratic & disc.simd_ge(f32x8::ZERO);
+        let (x, y) = roots8(a, b, c, disc);
+        let hh = f32x8::splat(h);
+        let within = |t: f32x8| {
+            let (s, tt) = (os + t * ds, t + shift);
+            tt.simd_ge(l.t_min)
+                & tt.simd_le(l.t_max)
+                & s.simd_ge(f32x8::ZERO)
+                & s.simd_le(hh)
+                & (r0 + r1 * t).simd_ge(f32x8::ZERO)
+        };
+        let (in0, in1) = (within(x), within(y));
+        let mut hit = (ok & (in0 | in1)).to_bitmask() & l.live;
+        let mut t = in0.select(x, y) + shift;
+        let odd = !quadratic.to_bitmask() & l.live & 0xFF;
+        if odd != 0 {
+            let mut ts = t.to_array();
+            for (lane, tl) in ts.iter_mut().enumerate() {
+                if odd >> lane & 1 == 1 {
+                    let at = |v: &f32x8| v.to_array()[lane];
+                    let ray = Ray::segment(
+                        Vec3A::new(at(&l.origin[0]), at(&l.origin[1]), at(&l.origin[2])),
+                        Vec3A::new(at(&l.dir[0]), at(&l.dir[1]), at(&l.dir[2])),
+                        at(&l.t_min),
+                        at(&l.t_max),
+                    );
+                    if let Some(found) = self.intersect(&ray) {
+                        hit |= 1 << lane;
+                        *tl = found.t;
+                    }
+                }
+            }
+            t = f32x8::from(ts);
+        }
+        (hit, t)
     }
 }
 
@@ -390,6 +486,124 @@ impl Primitive for Prim {
             Prim::Piece(p) => Watertight(p.tri).intersect(ray),
         }
     }
+
+    /// Spheres and cones eight rays at a time ([`Sphere::intersect_lanes`],
+    /// [`Cone::intersect_lanes`]), the other kinds ray by ray. Primitive by primitive: each
+    /// ray still meets the leaf's primitives in order, each with its interval as shortened
+    /// by the ones before, so its answer is the ray-by-ray one.
+    #[inline]
+    fn intersect_packet<F>(leaf: &[Self], rays: &mut PacketLeaf<'_, F>)
+    where
+        F: FnMut(usize, u32, PrimHit) -> Option<f32>,
+    {
+        for (j, p) in leaf.iter().enumerate() {
+            if rays.rays() == 0 {
+                return;
+            }
+            match p {
+                Prim::Sphere(s) => lanes_packet(rays, j, |l| s.intersect_lanes(l)),
+                Prim::Cone(c) => lanes_packet(rays, j, |l| c.intersect_lanes(l)),
+                other => {
+                    let mut m = rays.rays();
+                    while m != 0 {
+                        let i = m.trailing_zeros() as usize;
+                        m &= m - 1;
+                        if let Some(h) = other.intersect(&rays.ray(i)) {
+                            rays.report(i, j, h);
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Runs an eight-ray test (hit lanes and their `t`) of primitive `j` over the packet's live
+/// rays, chunk by chunk, and reports the hits.
+#[inline(always)]
+fn lanes_packet<F>(
+    rays: &mut PacketLeaf<'_, F>,
+    j: usize,
+    test: impl Fn(&PacketLanes) -> (u32, f32x8),
+) where
+    F: FnMut(usize, u32, PrimHit) -> Option<f32>,
+{
+    for k in 0..PACKET_RAYS / 8 {
+        let l = rays.lanes(k);
+        if l.live == 0 {
+            continue;
+        }
+        let (hit, t) = test(&l);
+        let mut hit = hit & l.live;
+        if hit == 0 {
+            continue;
+        }
+        let t = t.to_array();
+        while hit != 0 {
+            let lane = hit.trailing_zeros() as usize;
+            hit &= hit - 1;
+            let h = PrimHit {
+                t: t[lane],
+                u: 0.0,
+                v: 0.0,
+            };
+            rays.report(8 * k + lane, j, h);
+        }
+    }
+}
+
+/// `a · b` of lane vectors, summed as glam sums a `Vec3A` dot product: `(x + y) + z`.
+#[inline(always)]
+fn dot8(a: &[f32x8; 3], b: &[f32x8; 3]) -> f32x8 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// [`nearest_t`] in eight lanes, operation for operation.
+#[inline(always)]
+fn nearest_t8(l: &PacketLanes, p: Vec3A) -> f32x8 {
+    let dd = dot8(&l.dir, &l.dir);
+    let to_p = [
+        f32x8::splat(p.x) - l.origin[0],
+        f32x8::splat(p.y) - l.origin[1],
+        f32x8::splat(p.z) - l.origin[2],
+    ];
+    let t = dot8(&to_p, &l.dir) / dd;
+    let inf = f32x8::splat(f32::INFINITY);
+    let ok = dd.simd_gt(f32x8::ZERO) & dd.simd_lt_inf(inf) & t.abs().simd_lt_inf(inf);
+    ok.select(t, f32x8::ZERO)
+}
+
+/// `x < +inf`, false for NaN (what `is_finite` is for a non-negative `x`).
+trait LtInf {
+    fn simd_lt_inf(self, inf: f32x8) -> f32x8;
+}
+
+impl LtInf for f32x8 {
+    #[inline(always)]
+    fn simd_lt_inf(self, inf: f32x8) -> f32x8 {
+        inf.simd_gt(self)
+    }
+}
+
+/// `o + d * s - c` in lanes (the ray's point at `s`, relative to `c`).
+#[inline(always)]
+fn point_from8(l: &PacketLanes, s: f32x8, c: Vec3A) -> [f32x8; 3] {
+    [
+        (l.origin[0] + l.dir[0] * s) - f32x8::splat(c.x),
+        (l.origin[1] + l.dir[1] * s) - f32x8::splat(c.y),
+        (l.origin[2] + l.dir[2] * s) - f32x8::splat(c.z),
+    ]
+}
+
+/// The two roots of `a t^2 - 2 b t + c` as the scalar tests take them (the half-b form, the
+/// smaller root without cancellation), ascending where both are numbers.
+#[inline(always)]
+fn roots8(a: f32x8, b: f32x8, c: f32x8, disc: f32x8) -> (f32x8, f32x8) {
+    let q = -(b + disc.sqrt().copysign(b));
+    let x = q / a;
+    let y = q.simd_ne(f32x8::ZERO).select(c / q, -b / a);
+    let sorted = x.simd_le(y);
+    (sorted.select(x, y), sorted.select(y, x))
 }
 
 impl Prim {
@@ -478,6 +692,156 @@ mod tests {
             (b.min, b.max),
             (Vec3A::new(-2.0, -2.0, 0.0), Vec3A::new(2.0, 2.0, 2.0))
         );
+    }
+
+    /// Eight rays as packet lanes, all live.
+    fn lanes_of(rays: &[Ray; 8]) -> PacketLanes {
+        let pick = |f: &dyn Fn(&Ray) -> f32| {
+            f32x8::from(std::array::from_fn::<f32, 8, _>(|l| f(&rays[l])))
+        };
+        PacketLanes {
+            origin: [
+                pick(&|r| r.origin.x),
+                pick(&|r| r.origin.y),
+                pick(&|r| r.origin.z),
+            ],
+            dir: [pick(&|r| r.dir.x), pick(&|r| r.dir.y), pick(&|r| r.dir.z)],
+            t_min: pick(&|r| r.t_min),
+            t_max: pick(&|r| r.t_max),
+            live: 0xFF,
+        }
+    }
+
+    /// Rays that hit, graze and miss `p` (whose surface passes through the points `on`),
+    /// run parallel to the lines `along` (a cone's generators and axis), start on and
+    /// inside it, or are degenerate (zero, NaN and infinite directions, empty intervals).
+    fn hard_rays(rng: &mut crate::rng::Rng, on: &[Vec3A], along: &[Vec3A]) -> Vec<Ray> {
+        let mut rays = Vec::new();
+        for _ in 0..400 {
+            let target = on[rng.next_u64() as usize % on.len()];
+            let from = target + rng.unit_vector() * rng.range(0.0, 4.0);
+            let jitter = rng.unit_vector() * rng.range(0.0, 0.01);
+            let mut ray = Ray::new(from, target + jitter - from);
+            match rng.next_u64() % 8 {
+                0 => ray.dir = along[rng.next_u64() as usize % along.len()],
+                1 => ray.t_max = rng.range(0.0, 1.5),
+                2 => ray.t_min = rng.range(0.0, 1.5),
+                3 => ray.origin = target,
+                _ => {}
+            }
+            rays.push(ray);
+        }
+        let o = on[0] + Vec3A::new(0.3, -0.2, 0.1);
+        for dir in [
+            Vec3A::ZERO,
+            Vec3A::X,
+            -Vec3A::Z,
+            Vec3A::new(f32::NAN, 1.0, 0.0),
+            Vec3A::new(f32::INFINITY, 0.0, 0.0),
+            Vec3A::new(1e-30, 1e-30, 0.0),
+        ] {
+            rays.push(Ray::new(o, dir));
+        }
+        rays.push(Ray::segment(o, Vec3A::X, 2.0, 1.0));
+        rays.push(Ray::segment(o, Vec3A::X, 0.0, f32::NEG_INFINITY));
+        rays
+    }
+
+    /// `intersect_lanes` against `intersect`, lane by lane, bit for bit.
+    fn lanes_match(
+        what: &str,
+        p: &impl Primitive,
+        lanes: impl Fn(&PacketLanes) -> (u32, f32x8),
+        rays: &[Ray],
+    ) -> usize {
+        let mut hits = 0;
+        for chunk in rays.chunks(8) {
+            let mut eight = [chunk[0]; 8];
+            eight[..chunk.len()].copy_from_slice(chunk);
+            let (mask, t) = lanes(&lanes_of(&eight));
+            let t = t.to_array();
+            for (l, ray) in eight.iter().enumerate() {
+                let want = p.intersect(ray).map(|h| h.t.to_bits());
+                let got = (mask >> l & 1 == 1).then(|| t[l].to_bits());
+                assert_eq!(got, want, "{what}: {ray:?}");
+                hits += want.is_some() as usize;
+            }
+        }
+        hits
+    }
+
+    #[test]
+    fn eight_lane_spheres_and_cones_answer_as_the_scalar_tests() {
+        let mut rng = crate::rng::Rng::new(17);
+        for (c, r) in [
+            (Vec3A::ZERO, 1.0),
+            (Vec3A::new(5.0, -2.0, 0.5), 0.002),
+            (Vec3A::splat(1e4), 3.0),
+        ] {
+            let s = Sphere {
+                center: c,
+                radius: r,
+            };
+            let on: Vec<Vec3A> = (0..16).map(|_| c + rng.unit_vector() * r).collect();
+            let rays = hard_rays(&mut rng, &on, &[Vec3A::X, Vec3A::Y]);
+            let hits = lanes_match("sphere", &s, |l| s.intersect_lanes(l), &rays);
+            assert!(hits > rays.len() / 10, "sphere {r}: {hits} hits");
+        }
+        let cones = [
+            (Vec3A::ZERO, 1.0, Vec3A::new(0.0, 0.0, 2.0), 1.0),
+            (Vec3A::ZERO, 2.0, Vec3A::new(0.0, 0.0, 2.0), 0.0),
+            (
+                Vec3A::new(1.0, 2.0, 3.0),
+                0.3,
+                Vec3A::new(1.5, 2.2, 2.0),
+                0.1,
+            ),
+            (
+                Vec3A::new(5.0, 0.0, 0.0),
+                0.002,
+                Vec3A::new(5.0, 0.01, 0.003),
+                0.001,
+            ),
+        ];
+        for (base, base_radius, apex, apex_radius) in cones {
+            let c = Cone {
+                base,
+                base_radius,
+                apex,
+                apex_radius,
+            };
+            let axis = apex - base;
+            let u = unit_or_zero(axis).any_orthonormal_vector();
+            let mut on = Vec::new();
+            let mut along = vec![axis, -axis];
+            for k in 0..8 {
+                let a = k as f32 * std::f32::consts::TAU / 8.0;
+                let out = u * a.cos() + unit_or_zero(axis).cross(u) * a.sin();
+                let (b, e) = (base + out * base_radius, apex + out * apex_radius);
+                along.push(e - b);
+                on.push(b + (e - b) * rng.f32());
+            }
+            let rays = hard_rays(&mut rng, &on, &along);
+            let hits = lanes_match("cone", &c, |l| c.intersect_lanes(l), &rays);
+            assert!(hits > rays.len() / 10, "cone {base_radius}: {hits} hits");
+            // Parallel to one generator and through a point of another: one root (the
+            // scalar test's other branch), at that point.
+            let mut parallel = Vec::new();
+            let generator = |a: f32| {
+                let out = u * a.cos() + unit_or_zero(axis).cross(u) * a.sin();
+                (base + out * base_radius, apex + out * apex_radius)
+            };
+            for k in 0..40 {
+                let (b, e) = generator(k as f32 * 0.7);
+                let (qb, qe) = generator(k as f32 * 0.7 + rng.range(0.5, 3.0));
+                let q = qb + (qe - qb) * rng.range(0.1, 0.9);
+                parallel.push(Ray::new(q - (e - b) * 2.0, e - b));
+            }
+            let hits = lanes_match("cone, parallel", &c, |l| c.intersect_lanes(l), &parallel);
+            if base_radius != apex_radius {
+                assert!(hits > 0, "cone {base_radius}: no parallel ray hits");
+            }
+        }
     }
 
     #[test]

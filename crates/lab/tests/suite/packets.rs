@@ -135,8 +135,9 @@ fn packets_match_on_every_instruction_set_and_leaf_format() {
 }
 
 #[test]
-fn mixed_primitives_take_the_per_ray_leaf_path_and_still_match() {
-    // Curve mode: spheres, cones and polygons next to triangles.
+fn mixed_primitives_match_with_eight_lane_spheres_and_cones() {
+    // Curve mode: spheres and cones (tested eight rays at a time) and polygons (ray by ray)
+    // next to triangles.
     for spec in ["balls2", "gears1", "tree3"] {
         let scene = Scene::load(spec).unwrap();
         assert!(

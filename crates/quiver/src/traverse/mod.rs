@@ -18,7 +18,7 @@ pub(crate) mod simd;
 mod stats;
 mod tri4;
 
-pub use packet::{PacketLeaf, PacketMode, PACKET_RAYS};
+pub use packet::{PacketLanes, PacketLeaf, PacketMode, PACKET_RAYS};
 pub use query::RayQuery;
 pub use stats::{Counters, NoStats, Stats};
 

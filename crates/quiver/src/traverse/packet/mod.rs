@@ -31,7 +31,7 @@ mod walk;
 
 pub(crate) use lanes::RayPacket;
 pub(crate) use leaves::triangles_packet;
-pub use leaves::PacketLeaf;
+pub use leaves::{PacketLanes, PacketLeaf};
 pub(crate) use node::PacketNode;
 
 use super::lane8::F8;
