@@ -78,7 +78,8 @@ impl<N: Node4> PacketNode for N {
     #[inline(always)]
     fn slot_box(&self, i: usize) -> [f32; 6] {
         let p = self.planes();
-        [0, 1, 2, 3, 4, 5].map(|r| p[r].as_array()[i])
+        let at = |r: usize| p[r].as_array()[i];
+        [at(0), at(1), at(2), at(3), at(4), at(5)]
     }
 
     #[inline(always)]
@@ -131,7 +132,8 @@ impl PacketNode for Bvh8Node {
 
     #[inline(always)]
     fn slot_box(&self, i: usize) -> [f32; 6] {
-        [0, 1, 2, 3, 4, 5].map(|r| self.planes[r][i])
+        let p = &self.planes;
+        [p[0][i], p[1][i], p[2][i], p[3][i], p[4][i], p[5][i]]
     }
 
     #[inline(always)]
