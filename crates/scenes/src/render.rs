@@ -23,7 +23,9 @@ use crate::accel::SceneBvh;
 use crate::scene::{Material, Scene};
 use glam::Vec3A;
 use quiver::geometry::{offset_ray_origin, unit_or_zero, Hit, Ray};
-use quiver::traverse::{ConservativeBoxes, Counters, NoStats, PacketMode, RayQuery, Stats};
+use quiver::traverse::{
+    ConservativeBoxes, Counters, NoStats, PacketMode, RayQuery, Stats, PACKET_RAYS,
+};
 use rayon::prelude::*;
 use std::ops::{AddAssign, Range};
 
@@ -237,15 +239,19 @@ struct Scratch {
     /// The group's eye rays and their closest hits, in tile order.
     eye: Vec<Ray>,
     eye_hits: Vec<Option<Hit>>,
-    surfaces: Vec<Option<Surface>>,
-    /// `shadows[corner * lights + light]`: whether the shadow ray is blocked, `None` for a
+    /// The corners whose eye ray hit something (indices into `slots`), and what they see.
+    hit: Vec<usize>,
+    surfaces: Vec<Surface>,
+    /// `shadows[surface * lights + light]`: whether the shadow ray is blocked, `None` for a
     /// light the surface does not face.
     shadows: Vec<Option<bool>>,
+    /// Per light, the surfaces that face it and their shadow rays.
+    toward: Vec<(Vec<usize>, Vec<Ray>)>,
+    blocked: Vec<bool>,
+    /// Per surface, its reflection ray and that ray's hit, if it spawns one.
     reflections: Vec<Option<(Ray, Option<Hit>)>>,
-    /// One secondary packet query: the corners that asked, their rays and the answers.
     who: Vec<usize>,
     rays: Vec<Ray>,
-    blocked: Vec<bool>,
     hits: Vec<Option<Hit>>,
 }
 
@@ -333,14 +339,20 @@ fn render_with<W: Work>(
         eye_nodes.extend_from_slice(&t.eye_nodes);
     }
     let res = config.res as usize;
-    let at = |x: usize, y: usize| corners[y * n + x];
-    let mut rgb = Vec::with_capacity(res * res);
-    for y in 0..res {
-        for x in 0..res {
-            let c = (at(x, y) + at(x + 1, y) + at(x, y + 1) + at(x + 1, y + 1)) * 0.25;
-            rgb.push(to_rgb8(c));
-        }
-    }
+    // Each pixel averages its four corners (rows of pixels in parallel, as the bands were).
+    let mut rgb = vec![[0u8; 3]; res * res];
+    rgb.par_chunks_mut(res.max(1))
+        .zip(
+            corners
+                .par_chunks(n)
+                .zip(corners[n.min(corners.len())..].par_chunks(n)),
+        )
+        .for_each(|(pixels, (top, bottom))| {
+            for (x, p) in pixels.iter_mut().enumerate() {
+                let c = (top[x] + top[x + 1] + bottom[x] + bottom[x + 1]) * 0.25;
+                *p = to_rgb8(c);
+            }
+        });
     Rendered {
         res: config.res,
         rgb,
@@ -392,16 +404,38 @@ enum Query<'o> {
 }
 
 impl Query<'_> {
-    fn run<S: Stats>(self, bvh: &SceneBvh, rays: &[Ray], stats: &mut S) {
-        let mode = PacketMode::Auto;
-        match self {
-            Query::Closest(h) => {
-                bvh.closest_hit_packet_with::<ConservativeBoxes, S>(rays, None, mode, h, stats)
+    /// Runs the query packet by packet, each packet down the packet kernel or ray by ray as
+    /// [`PacketMode::Auto`] would send it (decided here, once, so the query does not check
+    /// again); returns the rays traced as packets.
+    fn run<S: Stats>(self, bvh: &SceneBvh, rays: &[Ray], stats: &mut S) -> u64 {
+        let mut packet_rays = 0;
+        let mode = |rays: &[Ray], packet_rays: &mut u64| {
+            let n = PacketMode::Auto.packet_rays(rays, None);
+            *packet_rays += n;
+            if n > 0 {
+                PacketMode::Always
+            } else {
+                PacketMode::Never
             }
-            Query::Any(o) => {
-                bvh.any_hit_packet_with::<ConservativeBoxes, S>(rays, None, mode, o, stats)
+        };
+        match self {
+            Query::Closest(hits) => {
+                for (r, h) in rays.chunks(PACKET_RAYS).zip(hits.chunks_mut(PACKET_RAYS)) {
+                    let m = mode(r, &mut packet_rays);
+                    bvh.closest_hit_packet_with::<ConservativeBoxes, S>(r, None, m, h, stats);
+                }
+            }
+            Query::Any(blocked) => {
+                for (r, o) in rays
+                    .chunks(PACKET_RAYS)
+                    .zip(blocked.chunks_mut(PACKET_RAYS))
+                {
+                    let m = mode(r, &mut packet_rays);
+                    bvh.any_hit_packet_with::<ConservativeBoxes, S>(r, None, m, o, stats);
+                }
             }
         }
+        packet_rays
     }
 }
 
@@ -422,14 +456,22 @@ impl<W: Work> Tracer<'_, W> {
     /// Colours the corners of rows `rows` (of `n` corners each) into `colors` (row-major):
     /// eye rays in packets of `TILE x TILE` corners, or one by one. Returns the nodes each
     /// eye ray visited (row-major; empty unless counting).
+    #[inline(never)]
     fn band(&mut self, rows: Range<usize>, n: usize, colors: &mut [Vec3A]) -> Vec<u32> {
         let mut eye_nodes = vec![0; if W::COUNTS { rows.len() * n } else { 0 }];
         let view = self.scene.camera.view();
+        let res = self.config.res as f32;
+        let across: Vec<Vec3A> = (0..n)
+            .map(|i| view.across(-1.0 + 2.0 * i as f32 / res))
+            .collect();
+        let down: Vec<Vec3A> = rows
+            .clone()
+            .map(|j| view.down(1.0 - 2.0 * j as f32 / res))
+            .collect();
+        let hither = self.scene.hither.max(0.0);
         let eye = |i: usize, j: usize| {
-            let sx = -1.0 + 2.0 * i as f32 / self.config.res as f32;
-            let sy = 1.0 - 2.0 * j as f32 / self.config.res as f32;
-            let mut ray = view.ray(sx, sy);
-            ray.t_min = self.scene.hither.max(0.0);
+            let mut ray = view.ray_through(across[i], down[j - rows.start]);
+            ray.t_min = hither;
             ray
         };
         if !self.config.packets {
@@ -470,39 +512,52 @@ impl<W: Work> Tracer<'_, W> {
                     }
                 }
             }
+            sc.hit.clear();
             sc.surfaces.clear();
-            for (r, h) in sc.eye.iter().zip(&sc.eye_hits) {
-                sc.surfaces.push(h.map(|h| self.surface(r, &h)));
+            for (k, (r, h)) in sc.eye.iter().zip(&sc.eye_hits).enumerate() {
+                match h {
+                    Some(h) => {
+                        sc.hit.push(k);
+                        sc.surfaces.push(self.surface(r, h));
+                    }
+                    None => colors[sc.slots[k]] = self.color(None, 1, Secondary::Trace),
+                }
             }
             self.shade_group(&mut sc, colors);
         }
         eye_nodes
     }
 
-    /// Colours a tile group's eye-ray surfaces into `colors`. Their shadow rays, light by
-    /// light, and their reflection rays go as packets, gathered over the group so that most
-    /// packets are full: only the rays the surfaces call for (a light the surface faces, a
-    /// reflective or transmitting material), in tile order, so neighbouring rays share a
-    /// packet. Everything after the first bounce is traced ray by ray.
+    /// Colours the surfaces a tile group's eye rays hit into `colors`. Their shadow rays,
+    /// light by light, and their reflection rays go as packets, gathered over the group so
+    /// that most packets are full: only the rays the surfaces call for (a light the surface
+    /// faces, a reflective or transmitting material), in tile order, so neighbouring rays
+    /// share a packet. Everything after the first bounce is traced ray by ray.
     fn shade_group(&mut self, sc: &mut Scratch, colors: &mut [Vec3A]) {
         let lights = self.scene.lights.len();
         let m = sc.surfaces.len();
+        sc.toward.resize_with(lights, Default::default);
+        for (who, rays) in &mut sc.toward {
+            who.clear();
+            rays.clear();
+        }
+        // One pass over the surfaces for all lights.
+        for (k, s) in sc.surfaces.iter().enumerate() {
+            for (light, (who, rays)) in self.scene.lights.iter().zip(&mut sc.toward) {
+                if let Some(r) = self.shadow_ray(s, light.pos) {
+                    who.push(k);
+                    rays.push(r);
+                }
+            }
+        }
         sc.shadows.clear();
         sc.shadows.resize(m * lights, None);
         for l in 0..lights {
-            let pos = self.scene.lights[l].pos;
-            sc.who.clear();
-            sc.rays.clear();
-            for (k, s) in sc.surfaces.iter().enumerate() {
-                if let Some(r) = s.as_ref().and_then(|s| self.shadow_ray(s, pos)) {
-                    sc.who.push(k);
-                    sc.rays.push(r);
-                }
-            }
+            let (who, rays) = &sc.toward[l];
             sc.blocked.clear();
-            sc.blocked.resize(sc.rays.len(), false);
-            self.packet_query(&sc.rays, Query::Any(&mut sc.blocked));
-            for (&k, &a) in sc.who.iter().zip(&sc.blocked) {
+            sc.blocked.resize(rays.len(), false);
+            self.packet_query(rays, Query::Any(&mut sc.blocked));
+            for (&k, &a) in who.iter().zip(&sc.blocked) {
                 sc.shadows[k * lights + l] = Some(a);
             }
         }
@@ -512,7 +567,7 @@ impl<W: Work> Tracer<'_, W> {
             sc.who.clear();
             sc.rays.clear();
             for (k, s) in sc.surfaces.iter().enumerate() {
-                if let Some(r) = s.as_ref().and_then(|s| self.reflection_ray(s)) {
+                if let Some(r) = self.reflection_ray(s) {
                     sc.who.push(k);
                     sc.rays.push(r);
                 }
@@ -524,19 +579,18 @@ impl<W: Work> Tracer<'_, W> {
                 sc.reflections[k] = Some((r, h));
             }
         }
-        for (k, &slot) in sc.slots.iter().enumerate() {
+        for (k, &corner) in sc.hit.iter().enumerate() {
             let known = Secondary::Known {
                 shadows: &sc.shadows[k * lights..(k + 1) * lights],
                 reflection: sc.reflections[k],
             };
-            colors[slot] = self.color(sc.surfaces[k], 1, known);
+            colors[sc.slots[corner]] = self.color(Some(sc.surfaces[k]), 1, known);
         }
     }
 
     /// A packet query through the packet kernels, recording into `work`.
     fn packet_query(&mut self, rays: &[Ray], query: Query) {
-        self.packet_rays += PacketMode::Auto.packet_rays(rays, None);
-        query.run(self.bvh, rays, &mut self.work);
+        self.packet_rays += query.run(self.bvh, rays, &mut self.work);
     }
 
     /// Closest hit, recording into `work`.

@@ -209,7 +209,33 @@ impl View {
     /// The eye ray through screen point `(sx, sy)` (see [`Camera::ray`]).
     #[inline]
     pub fn ray(&self, sx: f32, sy: f32) -> Ray {
-        let dir = unit_or_zero(self.w + self.right * (sx * self.h) + self.up * (sy * self.h));
-        Ray::new(self.from, dir)
+        self.ray_through(self.across(sx), self.down(sy))
+    }
+
+    /// The horizontal part of the direction toward screen x `sx`: with [`View::down`] and
+    /// [`View::ray_through`], [`View::ray`]'s arithmetic with each column's and each row's
+    /// part computed once.
+    ///
+    /// ```
+    /// use quiver_scenes::Scene;
+    /// let view = Scene::load("tetra2").unwrap().camera.view();
+    /// let ray = view.ray_through(view.across(0.25), view.down(-0.5));
+    /// assert_eq!(ray, view.ray(0.25, -0.5));
+    /// ```
+    #[inline]
+    pub fn across(&self, sx: f32) -> Vec3A {
+        self.right * (sx * self.h)
+    }
+
+    /// The vertical part of the direction toward screen y `sy` (see [`View::across`]).
+    #[inline]
+    pub fn down(&self, sy: f32) -> Vec3A {
+        self.up * (sy * self.h)
+    }
+
+    /// The eye ray whose direction has the parts `across` and `down` (see [`View::across`]).
+    #[inline]
+    pub fn ray_through(&self, across: Vec3A, down: Vec3A) -> Ray {
+        Ray::new(self.from, unit_or_zero(self.w + across + down))
     }
 }
