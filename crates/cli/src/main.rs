@@ -45,7 +45,8 @@ enum Command {
     Accuracy(accuracy::AccuracyArgs),
     /// quiver and obvhs side by side: builds, SAH cost, eye/shadow/incoherent Mrays/s.
     Bench(bench::BenchArgs),
-    /// Packet traversal against single rays of the same BVH: eye, shadow and incoherent Mrays/s.
+    /// Packet traversal against single rays of the same BVH: eye, shadow, mirror and incoherent
+    /// Mrays/s.
     Packets(packets::PacketsArgs),
     /// Traversal work predicted from surface areas beside measurement; with --time, against
     /// time per ray.

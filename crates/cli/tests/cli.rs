@@ -172,6 +172,11 @@ fn bench_and_packets_measure_the_thread_counts_asked_for() {
         let rows = report["rows"].as_array().unwrap();
         assert!(!rows.is_empty());
         assert!(rows.iter().all(|r| r["threads"] == 1), "{line}: {rows:?}");
+        if line.starts_with("packets") {
+            // Patch mode adds the first-bounce mirror rays of every eye hit.
+            let mirror = rows.iter().find(|r| r["rays"] == "mirror");
+            assert!(mirror.is_some_and(|r| r["count"].as_u64() > Some(0)), "{rows:?}");
+        }
     }
 }
 

@@ -1,6 +1,7 @@
 //! `quiver packets`: packet traversal against the single-ray kernel of the same BVH, side by side on the
 //! same rays: eye rays (8 x 8 pixel tiles), shadow rays (one per eye hit and light, in tile
-//! order) and incoherent rays, SPD scenes in curve mode (analytic shapes and whole polygons)
+//! order), mirror rays (patch mode: every eye hit reflected about its triangle, in tile order)
+//! and incoherent rays, SPD scenes in curve mode (analytic shapes and whole polygons)
 //! and in patch mode (the scene's triangles), 1 thread and all threads. Built with the
 //! `embree` feature, Intel Embree 3 joins them in patch mode, on the same triangles: one ray
 //! at a time and as coherent streams over the same packet-ordered rays.
@@ -98,6 +99,7 @@ pub(crate) fn run(args: PacketsArgs) -> Result<()> {
                 scene,
                 mode,
                 &scene.triangles(),
+                true,
                 &thread_counts,
                 &mut rows,
             )?;
@@ -107,6 +109,7 @@ pub(crate) fn run(args: PacketsArgs) -> Result<()> {
                 scene,
                 mode,
                 &scene.prims().0,
+                false,
                 &thread_counts,
                 &mut rows,
             )?;
@@ -118,11 +121,14 @@ pub(crate) fn run(args: PacketsArgs) -> Result<()> {
     write_json(args.json.as_ref(), &json!({ "rows": rows }))
 }
 
+/// Times every kernel on the scene's ray sets over `prims`; `mirrors` (when `prims` are the
+/// scene's triangles) adds the first-bounce mirror rays.
 fn measure<P: Primitive>(
     args: &PacketsArgs,
     scene: &Scene,
     mode: &str,
     prims: &[P],
+    mirrors: bool,
     thread_counts: &[usize],
     rows: &mut Vec<Value>,
 ) -> Result<()> {
@@ -130,6 +136,12 @@ fn measure<P: Primitive>(
     let eye = rays::camera_tiles(&scene.camera, args.res as usize, 8);
     let lights: Vec<_> = scene.lights.iter().map(|l| l.pos).collect();
     let shadow = rays::shadow_rays(&bvh, &eye, &lights);
+    let mirror = if mirrors {
+        let tris = scene.triangles();
+        rays::reflection_rays(&quiver::Bvh::new(&tris), &tris, &eye)
+    } else {
+        Vec::new()
+    };
     let random = rays::random_rays(&scene.bounds(), args.rays, 11);
     // Embree traces triangles only: in patch mode the same triangles as quiver; curve mode's
     // spheres, cones and whole polygons would need Embree user geometry, so it is left out.
@@ -147,8 +159,12 @@ fn measure<P: Primitive>(
         for (kind, set, query) in [
             ("eye", &eye, Query::Closest),
             ("shadow", &shadow, Query::Any),
+            ("mirror", &mirror, Query::Closest),
             ("incoherent", &random, Query::Closest),
         ] {
+            if kind == "mirror" && !mirrors {
+                continue;
+            }
             let times = p.install(|| {
                 median_times_interleaved(args.reps, KERNELS.len() + extra.len(), |i| {
                     #[cfg(feature = "embree")]
