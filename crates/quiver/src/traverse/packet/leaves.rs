@@ -52,6 +52,7 @@ impl<F: FnMut(usize, u32, PrimHit) -> Option<f32>> PacketLeaf<'_, F> {
     /// use glam::Vec3A;
     /// use wide::f32x8;
     ///
+    /// #[derive(Clone)]
     /// struct Square;
     /// impl Primitive for Square {
     ///     fn bounds(&self) -> Aabb {

@@ -57,8 +57,9 @@ const CHUNKS: usize = PACKET_RAYS / LANES;
 /// ```
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum PacketMode {
-    /// Packets of coherent rays (every direction within about 25° of the first active ray's,
-    /// at least four active rays) go down the packet kernel; others are traced ray by ray.
+    /// Packets of coherent rays (at least four active rays whose direction signs agree on at
+    /// least two axes, or whose directions lie within about 25° of the first active ray's) go
+    /// down the packet kernel; others are traced ray by ray.
     /// Rays that point alike but scatter anyway (shadow rays from far-apart points of fine
     /// geometry) are handed to the single-ray walk once the packet sees it, which keeps them
     /// near, though not always at, single-ray speed (README, "Packets").
@@ -102,10 +103,6 @@ impl PacketMode {
     }
 }
 
-/// Smallest cosine between a packet ray and the first active ray for [`PacketMode::Auto`] to
-/// take the packet path.
-const COHERENT_COS: f32 = 0.9;
-
 /// Bit mask of the rays to trace in one packet of `n` rays.
 fn active_bits(n: usize, active: Option<&[bool]>) -> u64 {
     match active {
@@ -118,25 +115,55 @@ fn active_bits(n: usize, active: Option<&[bool]>) -> u64 {
     }
 }
 
-/// Whether the active rays point closely enough the same way for a packet to pay: sampled
-/// directions within `acos(COHERENT_COS)` of the first active ray's, tested without square
-/// roots or divisions (the check runs once per packet, on the fast path).
+/// Smallest cosine between a packet ray and the first active ray for [`PacketMode::Auto`] to
+/// take the packet path when the direction signs differ on two axes.
+const COHERENT_COS: f32 = 0.9;
+
+/// Whether the active rays point closely enough the same way for a packet to pay: on at least
+/// two axes every sampled direction has the same sign (a zero counts by its sign bit), or
+/// every sampled direction lies within `acos(COHERENT_COS)` of the first active ray's (a
+/// narrow bundle around an axis, which flips signs). The sample is every fourth active ray
+/// and the last: the answer only picks the faster path (both give the same hits). The sign
+/// test comes first since it is a few integer operations per ray without branches; random
+/// directions fail both, most of them at the dot test's first sample.
+#[inline(always)]
 fn coherent(rays: &[Ray], active: u64) -> bool {
     if active.count_ones() < 4 {
         return false;
     }
+    let sampled = |i: usize| active >> i & 1 == 1 && (i.is_multiple_of(4) || i + 1 == rays.len());
+    let (mut all, mut any) = (u32::MAX, 0u32);
+    let mut i = 0;
+    while i < rays.len() {
+        if sampled(i) {
+            let d = rays[i].dir;
+            let sign = |c: f32| c.to_bits() >> 31;
+            let signs = sign(d.x) | sign(d.y) << 1 | sign(d.z) << 2;
+            all &= signs;
+            any |= signs;
+            // Axes whose sign bit is the same in every sample: set in `all`, clear in `any`.
+            if ((all | !any) & 0b111).count_ones() < 2 {
+                break;
+            }
+        }
+        // Every fourth ray, then the last.
+        i = if i + 4 < rays.len() || i + 1 == rays.len() {
+            i + 4
+        } else {
+            rays.len() - 1
+        };
+    }
+    if ((all | !any) & 0b111).count_ones() >= 2 {
+        return true;
+    }
     let d0 = rays[active.trailing_zeros() as usize].dir;
     let (l0, c2) = (d0.length_squared(), COHERENT_COS * COHERENT_COS);
-    // Every fourth ray and the last: the answer only picks the faster path (both give the
-    // same hits), so a sample suffices and keeps the check cheap.
-    (0..rays.len())
-        .filter(|&i| active >> i & 1 == 1 && (i % 4 == 0 || i + 1 == rays.len()))
-        .all(|i| {
-            let d = rays[i].dir;
-            let dot = d.dot(d0);
-            // False for NaN: such packets go ray by ray.
-            dot > 0.0 && dot * dot >= c2 * l0 * d.length_squared()
-        })
+    (0..rays.len()).filter(|&i| sampled(i)).all(|i| {
+        let d = rays[i].dir;
+        let dot = d.dot(d0);
+        // False for NaN: such packets go ray by ray.
+        dot > 0.0 && dot * dot >= c2 * l0 * d.length_squared()
+    })
 }
 
 /// Cuts `rays` into packets and hands each to `run(rays, active bits, use packets, out)`,
@@ -414,21 +441,44 @@ mod tests {
     }
 
     #[test]
-    fn the_coherence_threshold_is_about_25_degrees_from_the_first_ray() {
-        // acos(0.9) = 25.8°. The last ray of a fan of spread s is s · 63/64 from the first.
+    fn packets_are_coherent_when_direction_signs_agree_on_two_axes() {
         let deg = std::f32::consts::PI / 180.0;
-        assert!(coherent(&fan(64, 25.0 * deg), u64::MAX));
-        assert!(!coherent(&fan(64, 27.0 * deg), u64::MAX));
-        // Measured from the first active ray: rays 24..=40 of an 80° fan span 20°.
-        let wide = fan(64, 80.0 * deg);
-        assert!(!coherent(&wide, u64::MAX));
-        assert!(coherent(&wide, ((1u64 << 17) - 1) << 24));
-        // Fewer than four active rays never pay; opposite and NaN directions are incoherent.
+        // A fan around +z in the xz plane: x changes sign, y (zero) and z do not.
+        assert!(coherent(&fan(64, 80.0 * deg), u64::MAX));
+        // Directions into every octant (rays 4k point into octant k mod 8) are not ...
+        let octants: Vec<Ray> = (0..64)
+            .map(|i| {
+                let k = i / 4;
+                let s = |bit: usize| if k >> bit & 1 == 0 { 1.0 } else { -1.0 };
+                Ray::new(Vec3A::ZERO, Vec3A::new(s(0), s(1), s(2)))
+            })
+            .collect();
+        assert!(!coherent(&octants, u64::MAX));
+        // ... unless the active rays share two signs: octants 0 and 1 differ in x only.
+        assert!(coherent(&octants, 0xFF));
+        // Octants 0 and 3 differ in x and y.
+        assert!(!coherent(&octants, 0xF | 0xF << 12));
+        // Fewer than four active rays never pay.
         assert!(!coherent(&fan(64, 0.0), 0b111));
+        // A ray pointing back flips every sign.
         let mut back = fan(64, 0.0);
         back[4].dir = -back[4].dir;
         assert!(!coherent(&back, u64::MAX));
-        back[4].dir = Vec3A::NAN;
-        assert!(!coherent(&back, u64::MAX));
+        // A narrow bundle around -z flips the signs of x and y and still pays: within 25°.
+        let around = |spread: f32| -> Vec<Ray> {
+            (0..64)
+                .map(|i| {
+                    let a = spread * i as f32 / 64.0;
+                    let (x, y) = (a.cos(), a.sin());
+                    Ray::new(Vec3A::ZERO, Vec3A::new(x * 0.1, y * 0.1, -1.0))
+                })
+                .collect()
+        };
+        assert!(coherent(&around(std::f32::consts::TAU), u64::MAX));
+        let wide: Vec<Ray> = around(std::f32::consts::TAU)
+            .into_iter()
+            .map(|r| Ray::new(r.origin, r.dir * Vec3A::new(10.0, 10.0, 1.0)))
+            .collect();
+        assert!(!coherent(&wide, u64::MAX));
     }
 }
