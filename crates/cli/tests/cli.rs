@@ -175,7 +175,10 @@ fn bench_and_packets_measure_the_thread_counts_asked_for() {
         if line.starts_with("packets") {
             // Patch mode adds the first-bounce mirror rays of every eye hit.
             let mirror = rows.iter().find(|r| r["rays"] == "mirror");
-            assert!(mirror.is_some_and(|r| r["count"].as_u64() > Some(0)), "{rows:?}");
+            assert!(
+                mirror.is_some_and(|r| r["count"].as_u64() > Some(0)),
+                "{rows:?}"
+            );
         }
     }
 }

@@ -201,6 +201,8 @@ pub(super) fn closest_packet<N: PacketNode, V: F8, B: BoxTest, P: Primitive, S: 
         pk,
         stats,
         #[inline(always)]
+        |first| leaves.prefetch(first),
+        #[inline(always)]
         |pk, visit, stats| {
             let (range, b, cand) = match visit {
                 Visit::Leaf(range, b, cand) => (range, b, cand),
@@ -268,6 +270,8 @@ pub(super) fn any_packet<N: PacketNode, V: F8, B: BoxTest, P: Primitive, S: Stat
         nodes,
         pk,
         stats,
+        #[inline(always)]
+        |first| leaves.prefetch(first),
         #[inline(always)]
         |pk, visit, stats| {
             let (range, b, cand) = match visit {

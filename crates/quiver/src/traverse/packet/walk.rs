@@ -65,8 +65,13 @@ pub(super) enum AloneIn {
 /// When the packet comes apart ([`RayPacket::came_apart`]), each remaining ray finishes the
 /// stacked subtrees alone with the single-ray walk.
 #[inline(always)]
-pub(super) fn walk<N, V, B, S, F>(nodes: &[N], pk: &mut RayPacket, stats: &mut S, mut visit: F)
-where
+pub(super) fn walk<N, V, B, S, F>(
+    nodes: &[N],
+    pk: &mut RayPacket,
+    stats: &mut S,
+    prefetch: impl Fn(usize),
+    mut visit: F,
+) where
     N: PacketNode,
     V: F8,
     B: BoxTest,
@@ -121,6 +126,9 @@ where
         }
         for &(ti, (i, f, m)) in &kids[..k] {
             let (child, count) = n.child(i);
+            if count & LEAF != 0 {
+                prefetch(child as usize);
+            }
             stack.push(Entry {
                 child,
                 count,
