@@ -7,6 +7,7 @@
 //! quiver_lab::checks::build_and_trace(&[0u8; 200]);
 //! quiver_lab::checks::packets_against_oracle(&[9u8; 300]);
 //! quiver_lab::checks::nff_round_trip(b"f 1 1 1 1 0 0 0 1\ns 0 0 0 1\n");
+//! quiver_lab::checks::analytic_lanes(&[7u8; 400]);
 //! quiver_lab::checks::render_nff(b"v\nfrom 0 0 5\nat 0 0 0\nup 0 1 0\nangle 45\nhither 1\nresolution 8 8\nl 1 1 5\nf 1 1 1 1 0 0 0 1\ns 0 0 0 1\n");
 //! ```
 
@@ -307,6 +308,75 @@ pub fn render_nff(data: &[u8]) {
         let (on, off) = (run(true), run(false));
         assert_eq!(on.rays, off.rays, "patches {patches}: ray counts");
         assert_eq!(on.rgb, off.rgb, "patches {patches}: pixels");
+    }
+}
+
+/// A sphere's and a cone's eight-ray tests (`intersect_lanes`, what packets run) give each
+/// lane exactly the scalar test's answer, bit for bit, on any numbers: the bytes make a
+/// sphere, a cone and eight rays, NaN, infinities and all, and a second round repeats them
+/// with tame numbers (as [`packets_against_oracle`] tames them), where most rays meet the
+/// shapes: each ray aims at the shape's centre.
+pub fn analytic_lanes(data: &[u8]) {
+    use quiver::traverse::PacketLanes;
+    use quiver_scenes::primitive::{Cone, Sphere};
+    use wide::f32x8;
+    let f = floats(data);
+    if f.len() < 12 + 8 * 8 {
+        return;
+    }
+    for tamed in [false, true] {
+        let g = |i: usize| if tamed { tame(f[i]) } else { f[i] };
+        let v = |i: usize| Vec3A::new(g(i), g(i + 1), g(i + 2));
+        let sphere = Sphere {
+            center: v(0),
+            radius: g(3).abs(),
+        };
+        let cone = Cone {
+            base: v(4),
+            base_radius: g(7).abs(),
+            apex: v(8),
+            apex_radius: g(11).abs(),
+        };
+        let rays: Vec<Ray> = (0..8)
+            .map(|k| {
+                let at = 12 + 8 * k;
+                let (o, d) = (v(at), v(at + 3));
+                // Tame rays point from their origin toward the shapes, off by `d`.
+                let d = if tamed {
+                    (sphere.center + cone.base) * 0.5 - o + d * 0.01
+                } else {
+                    d
+                };
+                Ray::segment(o, d, g(at + 6), g(at + 7))
+            })
+            .collect();
+        let lane = |c: fn(&Ray) -> f32| f32x8::from(std::array::from_fn(|l| c(&rays[l])));
+        let lanes = PacketLanes {
+            origin: [
+                lane(|r| r.origin.x),
+                lane(|r| r.origin.y),
+                lane(|r| r.origin.z),
+            ],
+            dir: [lane(|r| r.dir.x), lane(|r| r.dir.y), lane(|r| r.dir.z)],
+            t_min: lane(|r| r.t_min),
+            t_max: lane(|r| r.t_max),
+            live: 0xFF,
+        };
+        let lane_answers = [
+            ("sphere", sphere.intersect_lanes(&lanes)),
+            ("cone", cone.intersect_lanes(&lanes)),
+        ];
+        for (what, (mask, t)) in lane_answers {
+            let t = t.to_array();
+            for (l, r) in rays.iter().enumerate() {
+                let want = match what {
+                    "sphere" => sphere.intersect(r),
+                    _ => cone.intersect(r),
+                };
+                let got = (mask >> l & 1 == 1).then(|| t[l].to_bits());
+                assert_eq!(got, want.map(|h| h.t.to_bits()), "{what} lane {l}: {r:?}");
+            }
+        }
     }
 }
 

@@ -53,3 +53,8 @@ fn packets_inputs() {
 fn render_inputs() {
     assert!(replay("render", quiver_lab::checks::render_nff) >= 3);
 }
+
+#[test]
+fn lanes_inputs() {
+    assert!(replay("lanes", quiver_lab::checks::analytic_lanes) >= 3);
+}
