@@ -271,9 +271,28 @@ fn packets_check<P: Primitive>(setup: Setup, tris: &[Triangle], rays: &[Ray], bv
     }
 }
 
+/// Whether every number that decides where a scene's rays go (object bounds, lights, the
+/// camera) is finite and at most `2^TAME_EXPONENT` in magnitude: where packets and single rays
+/// must draw the same image. Beyond it a rounded hit can lie outside its leaf's box (a
+/// triangle 1e7 across hit at a vertex it shares, its `t` 40 ulps early), and which of two
+/// such hits a walk keeps depends on the order it visits leaves, which packets and single rays
+/// choose differently: the undecidable rays [`packets_against_oracle`] exempts, here for a
+/// whole scene (fuzz/artifacts/render/crash-2e1d…: a mirror ray in a scene with a sphere of
+/// radius 1.7e7).
+fn tame_scene(scene: &quiver_scenes::Scene) -> bool {
+    let limit = 2f32.powi(TAME_EXPONENT);
+    let ok = |v: Vec3A| v.is_finite() && v.abs().max_element() <= limit;
+    let b = scene.bounds();
+    (b.is_empty() || (ok(b.min) && ok(b.max)))
+        && scene.lights.iter().all(|l| ok(l.pos))
+        && ok(scene.camera.from)
+        && ok(scene.camera.at)
+}
+
 /// Small NFF scenes from the bytes, rendered: parsing and rendering must not panic, and packets
-/// on and off must trace the same rays and draw the same image. Scenes over a size limit are
-/// skipped (the fuzzer's time goes into variety, not into one big render).
+/// on and off must trace the same rays and draw the same image wherever the scene is tame
+/// ([`tame_scene`]). Scenes over a size limit are skipped (the fuzzer's time goes into
+/// variety, not into one big render).
 pub fn render_nff(data: &[u8]) {
     use quiver_scenes::accel::SceneBvh;
     use quiver_scenes::render::{render, RenderConfig};
@@ -306,8 +325,10 @@ pub fn render_nff(data: &[u8]) {
             render(&scene, &bvh, &config, &|_| {})
         };
         let (on, off) = (run(true), run(false));
-        assert_eq!(on.rays, off.rays, "patches {patches}: ray counts");
-        assert_eq!(on.rgb, off.rgb, "patches {patches}: pixels");
+        if tame_scene(&scene) {
+            assert_eq!(on.rays, off.rays, "patches {patches}: ray counts");
+            assert_eq!(on.rgb, off.rgb, "patches {patches}: pixels");
+        }
     }
 }
 
