@@ -291,8 +291,10 @@ fn tame_scene(scene: &quiver_scenes::Scene) -> bool {
 
 /// Small NFF scenes from the bytes, rendered: parsing and rendering must not panic, and packets
 /// on and off must trace the same rays and draw the same image wherever the scene is tame
-/// ([`tame_scene`]). Scenes over a size limit are skipped (the fuzzer's time goes into
-/// variety, not into one big render).
+/// (object bounds, lights and camera finite and within `2^20`: beyond that a rounded hit can
+/// lie outside its leaf's box, and which of two such hits a walk keeps depends on its leaf
+/// order). Scenes over a size limit are skipped (the fuzzer's time goes into variety, not
+/// into one big render).
 pub fn render_nff(data: &[u8]) {
     use quiver_scenes::accel::SceneBvh;
     use quiver_scenes::render::{render, RenderConfig};
