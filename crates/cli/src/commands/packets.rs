@@ -11,7 +11,7 @@ use super::{
 };
 use crate::output::{check_outputs, out, outln, write_json};
 use quiver::traverse::PacketMode;
-use quiver::{BuildOptions, Layout, Primitive};
+use quiver::{BuildOptions, Layout, Primitive, Triangle};
 #[cfg(feature = "embree")]
 use quiver_lab::embree::EmbreeScene;
 use quiver_lab::measure::{median_times_interleaved, mrays_per_s, trace, trace_packets, Query};
@@ -94,12 +94,13 @@ pub(crate) fn run(args: PacketsArgs) -> Result<()> {
         // Patch mode is measured on the scene's triangles, the ones Embree gets: quiver's
         // fast leaf tests, not the shading-aware patch primitives the renderer uses.
         if *mode == "patch" || scene.is_all_triangles() {
+            let tris = scene.triangles();
             measure(
                 &args,
                 scene,
                 mode,
-                &scene.triangles(),
-                true,
+                &tris,
+                Some(&tris),
                 &thread_counts,
                 &mut rows,
             )?;
@@ -109,7 +110,7 @@ pub(crate) fn run(args: PacketsArgs) -> Result<()> {
                 scene,
                 mode,
                 &scene.prims().0,
-                false,
+                None,
                 &thread_counts,
                 &mut rows,
             )?;
@@ -121,14 +122,15 @@ pub(crate) fn run(args: PacketsArgs) -> Result<()> {
     write_json(args.json.as_ref(), &json!({ "rows": rows }))
 }
 
-/// Times every kernel on the scene's ray sets over `prims`; `mirrors` (when `prims` are the
-/// scene's triangles) adds the first-bounce mirror rays.
+/// Times every kernel on the scene's ray sets over `prims`. `tris`, given when `prims` are
+/// the scene's triangles (patch mode), adds the first-bounce mirror rays off them and
+/// Embree, which traces the same triangles.
 fn measure<P: Primitive>(
     args: &PacketsArgs,
     scene: &Scene,
     mode: &str,
     prims: &[P],
-    mirrors: bool,
+    tris: Option<&[Triangle]>,
     thread_counts: &[usize],
     rows: &mut Vec<Value>,
 ) -> Result<()> {
@@ -136,21 +138,15 @@ fn measure<P: Primitive>(
     let eye = rays::camera_tiles(&scene.camera, args.res as usize, 8);
     let lights: Vec<_> = scene.lights.iter().map(|l| l.pos).collect();
     let shadow = rays::shadow_rays(&bvh, &eye, &lights);
-    let mirror = if mirrors {
-        let tris = scene.triangles();
-        rays::reflection_rays(&quiver::Bvh::new(&tris), &tris, &eye)
-    } else {
-        Vec::new()
-    };
+    // `bvh` is over `tris` itself here, so its hits index them.
+    let mirror = tris.map_or_else(Vec::new, |t| rays::reflection_rays(&bvh, t, &eye));
     let random = rays::random_rays(&scene.bounds(), args.rays, 11);
     // Embree traces triangles only: in patch mode the same triangles as quiver; curve mode's
     // spheres, cones and whole polygons would need Embree user geometry, so it is left out.
     #[cfg(feature = "embree")]
-    let (embree, extra, embree_tris): (_, &[&str], _) = if mode == "patch" {
-        let tris = scene.triangles();
-        (Some(EmbreeScene::new(&tris)?), &EMBREE_KERNELS, tris.len())
-    } else {
-        (None, &[], 0)
+    let (embree, extra, embree_tris): (_, &[&str], _) = match tris {
+        Some(tris) => (Some(EmbreeScene::new(tris)?), &EMBREE_KERNELS, tris.len()),
+        None => (None, &[], 0),
     };
     #[cfg(not(feature = "embree"))]
     let (extra, embree_tris): (&[&str], usize) = (&[], 0);
@@ -162,7 +158,7 @@ fn measure<P: Primitive>(
             ("mirror", &mirror, Query::Closest),
             ("incoherent", &random, Query::Closest),
         ] {
-            if kind == "mirror" && !mirrors {
+            if kind == "mirror" && tris.is_none() {
                 continue;
             }
             let times = p.install(|| {
