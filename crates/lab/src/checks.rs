@@ -342,7 +342,6 @@ pub fn render_nff(data: &[u8]) {
 pub fn analytic_lanes(data: &[u8]) {
     use quiver::traverse::PacketLanes;
     use quiver_scenes::primitive::{Cone, Sphere};
-    use wide::f32x8;
     let f = floats(data);
     if f.len() < 12 + 8 * 8 {
         return;
@@ -360,31 +359,18 @@ pub fn analytic_lanes(data: &[u8]) {
             apex: v(8),
             apex_radius: g(11).abs(),
         };
-        let rays: Vec<Ray> = (0..8)
-            .map(|k| {
-                let at = 12 + 8 * k;
-                let (o, d) = (v(at), v(at + 3));
-                // Tame rays point from their origin toward the shapes, off by `d`.
-                let d = if tamed {
-                    (sphere.center + cone.base) * 0.5 - o + d * 0.01
-                } else {
-                    d
-                };
-                Ray::segment(o, d, g(at + 6), g(at + 7))
-            })
-            .collect();
-        let lane = |c: fn(&Ray) -> f32| f32x8::from(std::array::from_fn(|l| c(&rays[l])));
-        let lanes = PacketLanes {
-            origin: [
-                lane(|r| r.origin.x),
-                lane(|r| r.origin.y),
-                lane(|r| r.origin.z),
-            ],
-            dir: [lane(|r| r.dir.x), lane(|r| r.dir.y), lane(|r| r.dir.z)],
-            t_min: lane(|r| r.t_min),
-            t_max: lane(|r| r.t_max),
-            live: 0xFF,
-        };
+        let rays: [Ray; 8] = std::array::from_fn(|k| {
+            let at = 12 + 8 * k;
+            let (o, d) = (v(at), v(at + 3));
+            // Tame rays point from their origin toward the shapes, off by `d`.
+            let d = if tamed {
+                (sphere.center + cone.base) * 0.5 - o + d * 0.01
+            } else {
+                d
+            };
+            Ray::segment(o, d, g(at + 6), g(at + 7))
+        });
+        let lanes = PacketLanes::from_rays(&rays);
         let lane_answers = [
             ("sphere", sphere.intersect_lanes(&lanes)),
             ("cone", cone.intersect_lanes(&lanes)),

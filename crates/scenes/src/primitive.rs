@@ -16,7 +16,7 @@
 use glam::Vec3A;
 use quiver::geometry::{unit_or_zero, unit_scale, Aabb, PrimHit, Primitive, Ray, Triangle};
 use quiver::intersect::Watertight;
-use quiver::traverse::{PacketLanes, PacketLeaf, PACKET_RAYS};
+use quiver::traverse::{PacketLanes, PacketLeaf};
 use wide::f32x8;
 
 /// A sphere.
@@ -334,14 +334,7 @@ impl Cone {
             let mut ts = t.to_array();
             for (lane, tl) in ts.iter_mut().enumerate() {
                 if odd >> lane & 1 == 1 {
-                    let at = |v: &f32x8| v.to_array()[lane];
-                    let ray = Ray::segment(
-                        Vec3A::new(at(&l.origin[0]), at(&l.origin[1]), at(&l.origin[2])),
-                        Vec3A::new(at(&l.dir[0]), at(&l.dir[1]), at(&l.dir[2])),
-                        at(&l.t_min),
-                        at(&l.t_max),
-                    );
-                    if let Some(found) = self.intersect(&ray) {
+                    if let Some(found) = self.intersect(&l.ray(lane)) {
                         hit |= 1 << lane;
                         *tl = found.t;
                     }
@@ -501,8 +494,8 @@ impl Primitive for Prim {
                 return;
             }
             match p {
-                Prim::Sphere(s) => lanes_packet(rays, j, |l| s.intersect_lanes(l)),
-                Prim::Cone(c) => lanes_packet(rays, j, |l| c.intersect_lanes(l)),
+                Prim::Sphere(s) => rays.test_lanes(j, |l| no_uv(s.intersect_lanes(l))),
+                Prim::Cone(c) => rays.test_lanes(j, |l| no_uv(c.intersect_lanes(l))),
                 other => {
                     let mut m = rays.rays();
                     while m != 0 {
@@ -518,38 +511,10 @@ impl Primitive for Prim {
     }
 }
 
-/// Runs an eight-ray test (hit lanes and their `t`) of primitive `j` over the packet's live
-/// rays, chunk by chunk, and reports the hits.
+/// An eight-ray test's hits and `t` as [`PacketLeaf::test_lanes`] takes them (`u = v = 0`).
 #[inline(always)]
-fn lanes_packet<F>(
-    rays: &mut PacketLeaf<'_, F>,
-    j: usize,
-    test: impl Fn(&PacketLanes) -> (u32, f32x8),
-) where
-    F: FnMut(usize, u32, PrimHit) -> Option<f32>,
-{
-    for k in 0..PACKET_RAYS / 8 {
-        let l = rays.lanes(k);
-        if l.live == 0 {
-            continue;
-        }
-        let (hit, t) = test(&l);
-        let mut hit = hit & l.live;
-        if hit == 0 {
-            continue;
-        }
-        let t = t.to_array();
-        while hit != 0 {
-            let lane = hit.trailing_zeros() as usize;
-            hit &= hit - 1;
-            let h = PrimHit {
-                t: t[lane],
-                u: 0.0,
-                v: 0.0,
-            };
-            rays.report(8 * k + lane, j, h);
-        }
-    }
+fn no_uv((hit, t): (u32, f32x8)) -> (u32, [f32x8; 3]) {
+    (hit, [t, f32x8::ZERO, f32x8::ZERO])
 }
 
 /// `a · b` of lane vectors, summed as glam sums a `Vec3A` dot product: `(x + y) + z`.
@@ -694,24 +659,6 @@ mod tests {
         );
     }
 
-    /// Eight rays as packet lanes, all live.
-    fn lanes_of(rays: &[Ray; 8]) -> PacketLanes {
-        let pick = |f: &dyn Fn(&Ray) -> f32| {
-            f32x8::from(std::array::from_fn::<f32, 8, _>(|l| f(&rays[l])))
-        };
-        PacketLanes {
-            origin: [
-                pick(&|r| r.origin.x),
-                pick(&|r| r.origin.y),
-                pick(&|r| r.origin.z),
-            ],
-            dir: [pick(&|r| r.dir.x), pick(&|r| r.dir.y), pick(&|r| r.dir.z)],
-            t_min: pick(&|r| r.t_min),
-            t_max: pick(&|r| r.t_max),
-            live: 0xFF,
-        }
-    }
-
     /// Rays that hit, graze and miss `p` (whose surface passes through the points `on`),
     /// run parallel to the lines `along` (a cone's generators and axis), start on and
     /// inside it, or are degenerate (zero, NaN and infinite directions, empty intervals).
@@ -758,7 +705,7 @@ mod tests {
         for chunk in rays.chunks(8) {
             let mut eight = [chunk[0]; 8];
             eight[..chunk.len()].copy_from_slice(chunk);
-            let (mask, t) = lanes(&lanes_of(&eight));
+            let (mask, t) = lanes(&PacketLanes::from_rays(&eight));
             let t = t.to_array();
             for (l, ray) in eight.iter().enumerate() {
                 let want = p.intersect(ray).map(|h| h.t.to_bits());

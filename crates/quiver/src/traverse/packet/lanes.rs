@@ -67,7 +67,7 @@ fn lane_mask(bits: u32) -> f32x8 {
 /// coherent packet's time in `perf`).
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
-fn ray_rows(r: &[Ray; LANES]) -> [f32x8; 8] {
+pub(super) fn ray_rows(r: &[Ray; LANES]) -> [f32x8; 8] {
     use std::arch::x86_64::*;
     // Four vectors' lanes, rows to columns.
     #[inline(always)]
@@ -124,7 +124,7 @@ fn ray_rows(r: &[Ray; LANES]) -> [f32x8; 8] {
 /// Eight rays' fields as lanes (see the x86-64 version).
 #[cfg(not(target_arch = "x86_64"))]
 #[inline(always)]
-fn ray_rows(r: &[Ray; LANES]) -> [f32x8; 8] {
+pub(super) fn ray_rows(r: &[Ray; LANES]) -> [f32x8; 8] {
     let row = |f: fn(&Ray) -> f32| f32x8::from([0, 1, 2, 3, 4, 5, 6, 7].map(|j| f(&r[j])));
     [
         row(|r| r.origin.x),

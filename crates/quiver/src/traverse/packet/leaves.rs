@@ -2,7 +2,7 @@
 //! ([`crate::Primitive::intersect_packet`]) over the rays that enter the leaf, through a
 //! [`PacketLeaf`]; and the triangle's own 8-lane test.
 
-use super::lanes::RayPacket;
+use super::lanes::{ray_rows, RayPacket};
 use super::node::PacketNode;
 use super::walk::{walk, AloneIn, Visit};
 use super::{CHUNKS, LANES};
@@ -43,11 +43,27 @@ impl<F: FnMut(usize, u32, PrimHit) -> Option<f32>> PacketLeaf<'_, F> {
     /// Rays `8k .. 8k + 8` of the packet in SIMD lanes, for a primitive's own eight-ray test
     /// (`k` in `0..PACKET_RAYS / 8`): lane `l` holds ray `8k + l` as [`PacketLeaf::ray`]
     /// gives it. Lanes of rays that stopped searching hold `t_max = -inf`.
+    /// [`PacketLeaf::test_lanes`] runs such a test over a whole packet.
+    #[inline(always)]
+    pub fn lanes(&self, k: usize) -> PacketLanes {
+        let p = &*self.packet;
+        PacketLanes {
+            origin: [p.o[0][k], p.o[1][k], p.o[2][k]],
+            dir: [p.d[0][k], p.d[1][k], p.d[2][k]],
+            t_min: p.t_min[k],
+            t_max: p.limit[k],
+            live: (self.live >> (LANES * k)) as u32 & 0xFF,
+        }
+    }
+
+    /// Runs `test`, an eight-ray test of primitive `j` of the leaf, over the rays still
+    /// searching, eight at a time ([`PacketLeaf::lanes`]), and reports its hits. `test` gives
+    /// the lanes that hit and their `t`, `u` and `v`; lanes that do not search are ignored.
     ///
     /// A unit square at `z = 0` tested eight rays at a time:
     ///
     /// ```
-    /// use quiver::traverse::{FastBoxes, NoStats, PacketLeaf, PacketMode, PACKET_RAYS};
+    /// use quiver::traverse::{FastBoxes, NoStats, PacketLeaf, PacketMode};
     /// use quiver::{Aabb, Bvh, PrimHit, Primitive, Ray, RayQuery};
     /// use glam::Vec3A;
     /// use wide::f32x8;
@@ -70,25 +86,15 @@ impl<F: FnMut(usize, u32, PrimHit) -> Option<f32>> PacketLeaf<'_, F> {
     ///     {
     ///         let (zero, one) = (f32x8::splat(0.0), f32x8::splat(1.0));
     ///         for j in 0..leaf.len() {
-    ///             for k in 0..PACKET_RAYS / 8 {
-    ///                 let l = rays.lanes(k);
-    ///                 if l.live == 0 {
-    ///                     continue;
-    ///                 }
+    ///             rays.test_lanes(j, |l| {
     ///                 // The scalar test's operations, lane by lane.
     ///                 let t = -l.origin[2] / l.dir[2];
     ///                 let x = l.origin[0] + t * l.dir[0];
     ///                 let y = l.origin[1] + t * l.dir[1];
     ///                 let ok = x.simd_ge(zero) & x.simd_le(one) & y.simd_ge(zero)
     ///                     & y.simd_le(one) & t.simd_ge(l.t_min) & t.simd_le(l.t_max);
-    ///                 let (t, x, y) = (t.to_array(), x.to_array(), y.to_array());
-    ///                 for lane in 0..8 {
-    ///                     if ok.to_bitmask() & l.live >> lane & 1 == 1 {
-    ///                         let hit = PrimHit { t: t[lane], u: x[lane], v: y[lane] };
-    ///                         rays.report(8 * k + lane, j, hit);
-    ///                     }
-    ///                 }
-    ///             }
+    ///                 (ok.to_bitmask(), [t, x, y])
+    ///             });
     ///         }
     ///     }
     /// }
@@ -102,19 +108,35 @@ impl<F: FnMut(usize, u32, PrimHit) -> Option<f32>> PacketLeaf<'_, F> {
     ///     &rays, None, PacketMode::Always, &mut hits, &mut NoStats,
     /// );
     /// for (r, h) in rays.iter().zip(&hits) {
-    ///     assert_eq!(h.map(|h| h.t), bvh.closest_hit(r).map(|h| h.t));
+    ///     assert_eq!(*h, bvh.closest_hit(r));
     /// }
     /// assert_eq!(hits.iter().filter(|h| h.is_some()).count(), 11);
     /// ```
     #[inline(always)]
-    pub fn lanes(&self, k: usize) -> PacketLanes {
-        let p = &*self.packet;
-        PacketLanes {
-            origin: [p.o[0][k], p.o[1][k], p.o[2][k]],
-            dir: [p.d[0][k], p.d[1][k], p.d[2][k]],
-            t_min: p.t_min[k],
-            t_max: p.limit[k],
-            live: (self.live >> (LANES * k)) as u32 & 0xFF,
+    pub fn test_lanes(
+        &mut self,
+        j: usize,
+        mut test: impl FnMut(&PacketLanes) -> (u32, [f32x8; 3]),
+    ) {
+        for k in 0..CHUNKS {
+            let l = self.lanes(k);
+            if l.live == 0 {
+                continue;
+            }
+            let (hit, [t, u, v]) = test(&l);
+            let hit = hit & l.live;
+            if hit == 0 {
+                continue;
+            }
+            let (t, u, v) = (t.to_array(), u.to_array(), v.to_array());
+            for lane in bits(hit) {
+                let h = PrimHit {
+                    t: t[lane],
+                    u: u[lane],
+                    v: v[lane],
+                };
+                self.report(LANES * k + lane, j, h);
+            }
         }
     }
 
@@ -152,6 +174,47 @@ pub struct PacketLanes {
     pub t_max: f32x8,
     /// Bit `l` set: ray `8k + l` still searches this leaf.
     pub live: u32,
+}
+
+impl PacketLanes {
+    /// Eight rays as lanes, every one live: what [`PacketLeaf::lanes`] hands a test, for
+    /// testing an eight-ray test against its scalar twin.
+    ///
+    /// ```
+    /// use quiver::traverse::PacketLanes;
+    /// use quiver::Ray;
+    /// use glam::Vec3A;
+    /// let rays: [Ray; 8] = std::array::from_fn(|i| Ray::new(Vec3A::ZERO, Vec3A::X * i as f32));
+    /// let lanes = PacketLanes::from_rays(&rays);
+    /// assert_eq!(lanes.ray(5), rays[5]);
+    /// assert_eq!(lanes.live, 0xFF);
+    /// ```
+    pub fn from_rays(rays: &[Ray; LANES]) -> PacketLanes {
+        let f = ray_rows(rays);
+        PacketLanes {
+            origin: [f[0], f[1], f[2]],
+            dir: [f[3], f[4], f[5]],
+            t_min: f[6],
+            t_max: f[7],
+            live: 0xFF,
+        }
+    }
+
+    /// Lane `l` (`0..8`) as a ray, within its current interval.
+    #[inline]
+    pub fn ray(&self, l: usize) -> Ray {
+        let at = |v: &f32x8| v.to_array()[l];
+        Ray::segment(
+            glam::Vec3A::new(
+                at(&self.origin[0]),
+                at(&self.origin[1]),
+                at(&self.origin[2]),
+            ),
+            glam::Vec3A::new(at(&self.dir[0]), at(&self.dir[1]), at(&self.dir[2])),
+            at(&self.t_min),
+            at(&self.t_max),
+        )
+    }
 }
 
 /// Runs the leaf `range` (primitives, or groups holding `range.len()` triangles) for the
