@@ -131,34 +131,34 @@ fn coherent(rays: &[Ray], active: u64) -> bool {
     if active.count_ones() < 4 {
         return false;
     }
-    let sampled = |i: usize| active >> i & 1 == 1 && (i.is_multiple_of(4) || i + 1 == rays.len());
+    // Every fourth ray and the last, where active (at least four rays, so `n >= 4`).
+    let n = rays.len();
+    let last = (!(n - 1).is_multiple_of(4)).then_some(n - 1);
+    let samples = || {
+        (0..n)
+            .step_by(4)
+            .chain(last)
+            .filter(move |&i| active >> i & 1 == 1)
+    };
+    // Whether two axes' sign bits are the same in every sample: set in `all`, clear in `any`.
+    let shared = |all: u32, any: u32| ((all | !any) & 0b111).count_ones() >= 2;
     let (mut all, mut any) = (u32::MAX, 0u32);
-    let mut i = 0;
-    while i < rays.len() {
-        if sampled(i) {
-            let d = rays[i].dir;
-            let sign = |c: f32| c.to_bits() >> 31;
-            let signs = sign(d.x) | sign(d.y) << 1 | sign(d.z) << 2;
-            all &= signs;
-            any |= signs;
-            // Axes whose sign bit is the same in every sample: set in `all`, clear in `any`.
-            if ((all | !any) & 0b111).count_ones() < 2 {
-                break;
-            }
+    for i in samples() {
+        let d = rays[i].dir;
+        let sign = |c: f32| c.to_bits() >> 31;
+        let signs = sign(d.x) | sign(d.y) << 1 | sign(d.z) << 2;
+        all &= signs;
+        any |= signs;
+        if !shared(all, any) {
+            break;
         }
-        // Every fourth ray, then the last.
-        i = if i + 4 < rays.len() || i + 1 == rays.len() {
-            i + 4
-        } else {
-            rays.len() - 1
-        };
     }
-    if ((all | !any) & 0b111).count_ones() >= 2 {
+    if shared(all, any) {
         return true;
     }
     let d0 = rays[active.trailing_zeros() as usize].dir;
     let (l0, c2) = (d0.length_squared(), COHERENT_COS * COHERENT_COS);
-    (0..rays.len()).filter(|&i| sampled(i)).all(|i| {
+    samples().all(|i| {
         let d = rays[i].dir;
         let dot = d.dot(d0);
         // False for NaN: such packets go ray by ray.
