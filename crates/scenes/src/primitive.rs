@@ -533,21 +533,8 @@ fn nearest_t8(l: &PacketLanes, p: Vec3A) -> f32x8 {
         f32x8::splat(p.z) - l.origin[2],
     ];
     let t = dot8(&to_p, &l.dir) / dd;
-    let inf = f32x8::splat(f32::INFINITY);
-    let ok = dd.simd_gt(f32x8::ZERO) & dd.simd_lt_inf(inf) & t.abs().simd_lt_inf(inf);
+    let ok = dd.simd_gt(f32x8::ZERO) & dd.is_finite() & t.is_finite();
     ok.select(t, f32x8::ZERO)
-}
-
-/// `x < +inf`, false for NaN (what `is_finite` is for a non-negative `x`).
-trait LtInf {
-    fn simd_lt_inf(self, inf: f32x8) -> f32x8;
-}
-
-impl LtInf for f32x8 {
-    #[inline(always)]
-    fn simd_lt_inf(self, inf: f32x8) -> f32x8 {
-        inf.simd_gt(self)
-    }
 }
 
 /// `o + d * s - c` in lanes (the ray's point at `s`, relative to `c`).
