@@ -6,8 +6,8 @@
 //! `quiver layouts` command measures the same matrix on several scenes in one table.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
-use quiver::build::prim_bounds;
-use quiver::build::{build, BuildConfig, Builder};
+use quiver::builders::prim_bounds;
+use quiver::builders::{build, BuildConfig, Builder};
 use quiver::{Bvh, Layout};
 use quiver_lab::measure::{trace, Query};
 use quiver_lab::rays;

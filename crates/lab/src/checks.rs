@@ -13,7 +13,7 @@
 
 use crate::oracle::{Answer, Oracle};
 use glam::Vec3A;
-use quiver::build::{BuildConfig, Builder};
+use quiver::builders::{BuildConfig, Builder};
 use quiver::intersect::Watertight;
 use quiver::traverse::{FastBoxes, NoStats, PacketMode};
 use quiver::{BuildOptions, Bvh, Isa, Layout, Primitive, Ray, RayQuery, Triangle};
@@ -118,7 +118,7 @@ fn fuzz_bvh<P: Primitive>(setup: Setup, tris: &[Triangle], wrap: fn(Triangle) ->
         .layout(setup.layout)
         .config(config.clone())
         .build_with_tree(&prims);
-    tree.validate(&quiver::build::prim_bounds(&prims), &config)
+    tree.validate(&quiver::builders::prim_bounds(&prims), &config)
         .expect("tree invariants");
     bvh
 }

@@ -2,7 +2,7 @@
 //! defaults or by [`BuildOptions`] with every choice (builder, layout, leaf size, bins, thread
 //! pool), from a primitive slice or an indexed mesh.
 
-use crate::build::{build_with_areas, prim_bounds, BuildConfig, BuildTree, Builder, CostModel};
+use crate::builders::{build_with_areas, prim_bounds, BuildConfig, BuildTree, Builder, CostModel};
 use crate::frame::{Back, Frame};
 use crate::geometry::{Aabb, Hit, Primitive, Ray, Triangle};
 use crate::isa::Isa;
@@ -374,7 +374,7 @@ impl<P: Primitive> Scaled<P> {
 /// uses, [`BuildOptions::quality`] and [`BuildOptions::compact`] are presets.
 ///
 /// ```
-/// use quiver::{build::Builder, BuildOptions, Layout, Triangle};
+/// use quiver::{builders::Builder, BuildOptions, Layout, Triangle};
 /// use glam::Vec3A;
 /// let tris = vec![Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y); 100];
 /// let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();

@@ -13,7 +13,7 @@
 //! scaled (see [`Frame::for_prims`]); every other BVH keeps the identity frame and pays
 //! nothing for it (the scaled BVH is a variant of its own).
 
-use crate::build::BuildTree;
+use crate::builders::BuildTree;
 use crate::geometry::{exponent, pow2, scale2, Aabb, Hit, Primitive, Ray};
 
 /// Extents from `2^-SAFE` to `2^SAFE` keep the identity frame: the tests' products of up to

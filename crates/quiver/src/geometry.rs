@@ -361,7 +361,7 @@ pub trait Primitive: Clone + Send + Sync {
     /// (barycentrics for triangles).
     fn intersect(&self, ray: &Ray) -> Option<PrimHit>;
     /// Surface area, which the build cost models other than the SAH weigh
-    /// ([`crate::build::CostModel`]): the measure of the lines that meet the primitive, so a
+    /// ([`crate::builders::CostModel`]): the measure of the lines that meet the primitive, so a
     /// flat primitive counts both sides. The default is the bounding box's half surface area
     /// (a flat primitive across its box's largest face); [`Triangle`] gives its own.
     ///

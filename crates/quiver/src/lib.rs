@@ -19,7 +19,7 @@
 //! assert!(bvh.any_hit(&ray));
 //! ```
 //!
-//! The pipeline, one module per stage: [`build`] (SAH trees over primitive bounds) →
+//! The pipeline, one module per stage: [`builders`] (SAH trees over primitive bounds) →
 //! [`layout`] (compact node arrays: binary, 4-wide, quantized; in several memory orders) →
 //! [`traverse`] (single-ray and packet kernels, closest and any hit, statistics).
 //! [`Bvh::new`] and [`BuildOptions`] run the first two; [`geometry`] holds rays, boxes,
@@ -32,7 +32,7 @@
 
 #![warn(missing_docs)]
 
-pub mod build;
+pub mod builders;
 mod bvh;
 mod frame;
 pub mod geometry;

@@ -89,7 +89,7 @@ impl<'a> Mesh<'a> {
     }
 
     /// One box per triangle, in parallel; NaN boxes for non-finite triangles, as
-    /// [`crate::build::prim_bounds`] gives.
+    /// [`crate::builders::prim_bounds`] gives.
     pub fn bounds(&self) -> Vec<Aabb> {
         use crate::geometry::Primitive;
         use rayon::prelude::*;

@@ -33,7 +33,7 @@
 //! assert!(p.leaves <= p.nodes && p.prim_tests >= p.leaves);
 //! ```
 
-use crate::build::{BuildTree, NodeKind};
+use crate::builders::{BuildTree, NodeKind};
 use crate::bvh::{Bvh, Nodes};
 use crate::geometry::{Aabb, Primitive};
 use crate::layout::bvh2::{compact_children, Addressing};

@@ -14,7 +14,7 @@
 use crate::primitive::{PatchTriangle, Prim};
 use crate::scene::Scene;
 use glam::Vec3A;
-use quiver::build::BuildTree;
+use quiver::builders::BuildTree;
 use quiver::layout::Footprint;
 use quiver::predict::{Piece, Pieces};
 use quiver::traverse::NoStats;

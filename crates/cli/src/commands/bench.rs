@@ -11,7 +11,7 @@ use obvhs::{
     bvh2::builder::build_bvh2_from_tris, cwbvh::builder::build_cwbvh_from_tris, ray::RayHit,
     BvhBuildParams,
 };
-use quiver::build::{build, prim_bounds, BuildConfig, Builder};
+use quiver::builders::{build, prim_bounds, BuildConfig, Builder};
 use quiver::traverse::PacketMode;
 use quiver::{BuildOptions, Bvh, Layout, RayQuery};
 #[cfg(feature = "embree")]

@@ -5,7 +5,7 @@ use super::{
     thread_count, Result,
 };
 use crate::output::{check_outputs, print_table, write_json};
-use quiver::build::{BuildConfig, Builder, CostModel};
+use quiver::builders::{BuildConfig, Builder, CostModel};
 use quiver::{BuildOptions, Layout};
 use serde_json::json;
 use std::path::PathBuf;

@@ -9,7 +9,7 @@ use super::{
 };
 use crate::output::{check_outputs, outln, scatter_svg, write_json, write_text, Axes, Point};
 use glam::Vec3A;
-use quiver::build::{build, prim_bounds, BuildConfig, BuildTree, Builder};
+use quiver::builders::{build, prim_bounds, BuildConfig, BuildTree, Builder};
 use quiver::{Aabb, Bvh, Layout, Ray, Triangle};
 use quiver_lab::measure::{self, median_times_interleaved, Query};
 use quiver_lab::rays;

@@ -4,7 +4,7 @@
 
 use super::{count, parse_builder, parse_layout, pool, thread_count, Result, MAX_REPS};
 use crate::output::{check_outputs, outln, write_json};
-use quiver::build::{BuildConfig, Builder, CostModel};
+use quiver::builders::{BuildConfig, Builder, CostModel};
 use quiver::{BuildOptions, Bvh, Layout, Ray};
 use quiver_lab::measure::{self, Query};
 use quiver_lab::rays;

@@ -5,7 +5,7 @@ use super::{
     count, measured_threads, parse_layout, pool, thread_count, Result, MAX_RAYS, MAX_REPS,
 };
 use crate::output::{check_outputs, out, outln, write_json};
-use quiver::build::{build, prim_bounds, BuildConfig, Builder};
+use quiver::builders::{build, prim_bounds, BuildConfig, Builder};
 use quiver::{Bvh, Layout};
 use quiver_lab::measure::{self, Query};
 use quiver_lab::rays;

@@ -12,7 +12,7 @@ pub(crate) mod packets;
 pub(crate) mod predict;
 pub(crate) mod render;
 
-use quiver::build::{BuildTree, Builder};
+use quiver::builders::{BuildTree, Builder};
 use quiver::{BuildOptions, Layout};
 use quiver_scenes::accel::SceneBvh;
 use quiver_scenes::scene::{tessellate, LoadOptions, NonFinite, Scene, GENERATORS};

@@ -5,7 +5,7 @@
 
 use super::{count, parse_builder, parse_layout, pool, thread_count, Result, MAX_RAYS, MAX_REPS};
 use crate::output::{check_outputs, out, outln, scatter_svg, write_json, write_text, Axes, Point};
-use quiver::build::Builder;
+use quiver::builders::Builder;
 use quiver::predict::Prediction;
 use quiver::{BuildOptions, Bvh, Layout, Ray, Triangle};
 use quiver_lab::lines::{counters_per_ray, isotropic_lines, Pierce, Work};
@@ -144,7 +144,7 @@ pub(crate) fn run(args: PredictArgs) -> Result<()> {
                 let bvh = Bvh::from_tree(&tree, &tris, timed_layout);
                 let sets = ray_sets(scene, &bvh, &args);
                 let aronov = bvh.predict_within(&root).aronov(objects);
-                let sah = tree.sah_cost(&quiver::build::BuildConfig::default());
+                let sah = tree.sah_cost(&quiver::builders::BuildConfig::default());
                 // The ray kinds side by side, round after round, so a slow spell on the
                 // shared machine hits all of them alike.
                 let times = time_pool.install(|| {

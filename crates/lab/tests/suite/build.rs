@@ -2,7 +2,7 @@
 
 use crate::common::{in_pool, tri};
 use glam::Vec3A;
-use quiver::build::{
+use quiver::builders::{
     build, optimize, prim_bounds, BuildConfig, BuildTree, Builder, NodeKind, MAX_DEPTH,
 };
 use quiver::{reference, Aabb, Bvh2, RayQuery, Triangle};
@@ -300,7 +300,7 @@ fn binned_sah_within_3_percent_of_sweep() {
 /// path).
 #[test]
 fn cost_models_build_valid_trees_independent_of_threads() {
-    use quiver::build::{build_with_areas, CostModel};
+    use quiver::builders::{build_with_areas, CostModel};
     use quiver::Primitive;
     let tris = Scene::load("soup40000").unwrap().triangles();
     let bounds = prim_bounds(&tris);
@@ -332,7 +332,7 @@ fn cost_models_build_valid_trees_independent_of_threads() {
 /// leaf. And the SAH ignores the areas it is given.
 #[test]
 fn rtsah_without_occlusion_is_the_sah() {
-    use quiver::build::{build_with_areas, CostModel};
+    use quiver::builders::{build_with_areas, CostModel};
     let tris = Scene::load("teapot6").unwrap().triangles();
     let bounds = prim_bounds(&tris);
     let zeros = vec![0.0; bounds.len()];

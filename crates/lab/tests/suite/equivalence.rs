@@ -12,7 +12,7 @@
 //!   answers, exactly.
 
 use glam::Vec3A;
-use quiver::build::{build, prim_bounds, BuildConfig, Builder};
+use quiver::builders::{build, prim_bounds, BuildConfig, Builder};
 use quiver::intersect::Watertight;
 use quiver::traverse::Counters;
 use quiver::{reference, BuildOptions, Bvh, Hit, Isa, Layout, Primitive, Ray, RayQuery, Triangle};

@@ -3,7 +3,7 @@
 
 use crate::common::reference_hits;
 use glam::Vec3A;
-use quiver::build::Builder;
+use quiver::builders::Builder;
 use quiver::{Aabb, BuildOptions, Layout, Primitive, Ray, RayQuery, Triangle};
 use quiver_lab::rays;
 use quiver_scenes::primitive::{Cone, PatchTriangle, Polygon, Prim, Sphere};

@@ -3,7 +3,7 @@
 //! line equal `quiver::predict`'s sums in expectation (Cauchy–Crofton), for every builder and
 //! layout. The oracle is the identity; the tolerance is four standard errors of the sample.
 
-use quiver::build::Builder;
+use quiver::builders::Builder;
 use quiver::predict::{predict, Prediction};
 use quiver::{BuildOptions, Bvh, Layout};
 use quiver_lab::lines::{isotropic_lines, pierced, Pierce, Sample};

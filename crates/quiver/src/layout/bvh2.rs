@@ -1,6 +1,6 @@
 use super::order::{self, Shape, HOLE};
 use super::Footprint;
-use crate::build::{BuildTree, NodeKind};
+use crate::builders::{BuildTree, NodeKind};
 use crate::geometry::{Aabb, Primitive, Triangle};
 use bytemuck::{Pod, Zeroable};
 
@@ -187,7 +187,7 @@ impl<P: Primitive> Bvh2<P> {
     ///
     /// ```
     /// use quiver::layout::{Bvh2, Bvh2Mapping};
-    /// use quiver::build::{build, prim_bounds, BuildConfig, Builder};
+    /// use quiver::builders::{build, prim_bounds, BuildConfig, Builder};
     /// use quiver::{Ray, RayQuery, Triangle};
     /// use glam::Vec3A;
     /// let tris: Vec<Triangle> = (0..64)

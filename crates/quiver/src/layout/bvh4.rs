@@ -7,7 +7,7 @@ use super::collapse::{self, collapse, Child};
 use super::order::{self, Shape, HOLE};
 use super::tri4::{self, Tri4};
 use super::Footprint;
-use crate::build::BuildTree;
+use crate::builders::BuildTree;
 use crate::geometry::{Aabb, Primitive, Triangle};
 use crate::isa::Isa;
 use bytemuck::{Pod, Zeroable};
@@ -168,7 +168,7 @@ impl<P: Primitive, N: Node4> Bvh4<P, N> {
     ///
     /// # Panics
     /// For [`QBvh4`], if a leaf holds more than 65535 primitives (a
-    /// [`crate::build::BuildConfig::max_leaf_size`] above that).
+    /// [`crate::builders::BuildConfig::max_leaf_size`] above that).
     pub fn from_tree(tree: &BuildTree, prims: &[P], mapping: Bvh4Mapping) -> Self {
         Self::from_leaf_prims(tree, leaf_order(tree, prims), mapping, Isa::detect())
     }

@@ -5,7 +5,7 @@ use super::bvh2::leaf_order;
 use super::collapse::{collapse_sah, Wide};
 use super::tri4::{self, Tri4};
 use super::Footprint;
-use crate::build::{BuildConfig, BuildTree};
+use crate::builders::{BuildConfig, BuildTree};
 use crate::geometry::{LeafFormat, Primitive, Triangle};
 use crate::isa::Isa;
 use bytemuck::{Pod, Zeroable};

@@ -5,7 +5,7 @@
 //! child of largest surface area (the one a ray is most likely to enter, so pulling its
 //! children up saves the most visits) until it has `W` children or only leaves.
 
-use crate::build::{BuildTree, NodeKind};
+use crate::builders::{BuildTree, NodeKind};
 
 /// The collapsed tree's types are `pub` inside a private module so that the node formats'
 /// `encode` (a public trait method) can name them while nobody outside the crate can.
@@ -296,7 +296,7 @@ impl<const W: usize> Plan<'_, W> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::build::BuildNode;
+    use crate::builders::BuildNode;
     use crate::geometry::Aabb;
     use glam::Vec3A;
 
@@ -354,7 +354,7 @@ mod tests {
     #[test]
     fn a_leaf_root_collapses_to_one_node_and_an_empty_tree_to_an_empty_node() {
         let one = BuildTree {
-            nodes: vec![crate::build::BuildNode {
+            nodes: vec![crate::builders::BuildNode {
                 bounds: Aabb::new(Vec3A::ZERO, Vec3A::ONE),
                 kind: NodeKind::Leaf { first: 0, count: 3 },
             }],
@@ -365,7 +365,8 @@ mod tests {
         assert_eq!(wide.len(), 1);
         assert_eq!(wide[0].kids[0], Child::Leaf { first: 0, count: 3 });
         assert_eq!(wide[0].kids[1..], [Child::Empty; 3]);
-        let empty = crate::build::build(&[], &Default::default(), crate::build::Builder::Binned);
+        let empty =
+            crate::builders::build(&[], &Default::default(), crate::builders::Builder::Binned);
         let wide = collapse::<4>(&empty);
         assert_eq!(wide.len(), 1);
         assert_eq!(wide[0].kids, [Child::Empty; 4]);
@@ -374,7 +375,11 @@ mod tests {
     #[test]
     fn collapse_keeps_every_leaf_once() {
         let bounds = crate::testing::soup_bounds(3000, 1);
-        let tree = crate::build::build(&bounds, &Default::default(), crate::build::Builder::Binned);
+        let tree = crate::builders::build(
+            &bounds,
+            &Default::default(),
+            crate::builders::Builder::Binned,
+        );
         let wide = collapse::<4>(&tree);
         check_cover(&wide, tree.prim_indices.len(), tree.stats().max_leaf as u32);
         assert_greedy_fill(&wide);
@@ -399,10 +404,10 @@ mod tests {
 
     #[test]
     fn eight_wide_nodes_open_until_eight_children() {
-        let tree = crate::build::build(
+        let tree = crate::builders::build(
             &crate::testing::soup_bounds(3000, 2),
             &Default::default(),
-            crate::build::Builder::Binned,
+            crate::builders::Builder::Binned,
         );
         let wide = collapse::<8>(&tree);
         assert_greedy_fill(&wide);
@@ -473,8 +478,11 @@ mod tests {
     fn sah_collapse_covers_everything_and_beats_the_greedy_one() {
         for (n, seed) in [(40, 1), (3000, 2), (20000, 3)] {
             let bounds = crate::testing::soup_bounds(n, seed);
-            let tree =
-                crate::build::build(&bounds, &Default::default(), crate::build::Builder::Binned);
+            let tree = crate::builders::build(
+                &bounds,
+                &Default::default(),
+                crate::builders::Builder::Binned,
+            );
             for max_leaf in [1usize, 4, 8] {
                 let dp = collapse_sah::<8>(&tree, max_leaf, 1.0, |n| n as f32);
                 let limit = max_leaf.max(tree.stats().max_leaf) as u32;
@@ -510,7 +518,11 @@ mod tests {
                 )
             })
             .collect();
-        let tree = crate::build::build(&bounds, &Default::default(), crate::build::Builder::Binned);
+        let tree = crate::builders::build(
+            &bounds,
+            &Default::default(),
+            crate::builders::Builder::Binned,
+        );
         for leaf_cost in [1.0, f32::NAN] {
             let wide = collapse_sah::<8>(&tree, 8, 1.0, |n| leaf_cost * n as f32);
             check_cover(&wide, 40, 8.max(tree.stats().max_leaf as u32));
@@ -530,11 +542,11 @@ mod tests {
                 )
             })
             .collect();
-        let config = crate::build::BuildConfig {
+        let config = crate::builders::BuildConfig {
             max_leaf_size: 1,
             ..Default::default()
         };
-        let tree = crate::build::build(&bounds, &config, crate::build::Builder::Binned);
+        let tree = crate::builders::build(&bounds, &config, crate::builders::Builder::Binned);
         let dp = collapse_sah::<8>(&tree, 1, 1.0, |n| n as f32);
         check_cover(&dp, 64, 1);
         assert_eq!(dp.len(), 9, "a root and eight full nodes");

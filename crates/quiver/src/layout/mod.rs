@@ -21,7 +21,7 @@ pub use bvh4::{Bvh4, Bvh4Mapping, Bvh4Node, Node4, QBvh4, QBvh4Node};
 pub use bvh8::{Bvh8, Bvh8Node};
 pub use tri4::Tri4;
 
-use crate::build::{BuildConfig, BuildTree};
+use crate::builders::{BuildConfig, BuildTree};
 use crate::bvh::Nodes;
 use crate::geometry::Primitive;
 use crate::isa::Isa;

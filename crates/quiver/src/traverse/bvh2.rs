@@ -2,7 +2,7 @@
 
 use super::stats::Stats;
 use super::{leaf_any_hit, leaf_closest_hit, BoxTest, RayQuery, SlabRay, Stack};
-use crate::build::MAX_DEPTH;
+use crate::builders::MAX_DEPTH;
 use crate::geometry::{Hit, Primitive, Ray};
 use crate::layout::bvh2::{compact_children, Addressing};
 use crate::layout::{Bvh2, Bvh2Node};

@@ -6,7 +6,7 @@ use super::simd::{bits, insert_farthest_first, NanFirst};
 use super::stats::Stats;
 use super::tri4::Leaves;
 use super::{slab_reciprocal, BoxTest, PacketMode, RayQuery, Stack};
-use crate::build::MAX_DEPTH;
+use crate::builders::MAX_DEPTH;
 use crate::geometry::{Hit, Primitive, Ray};
 use crate::layout::{Bvh4, Bvh4Node, Node4};
 use wide::f32x4;

@@ -11,7 +11,7 @@ use super::simd::{bits, insert_farthest_first};
 use super::stats::Stats;
 use super::tri4::Leaves;
 use super::{slab_reciprocal, BoxTest, RayQuery, Stack};
-use crate::build::MAX_DEPTH;
+use crate::builders::MAX_DEPTH;
 use crate::geometry::{Hit, Primitive, Ray};
 use crate::isa::Isa;
 use crate::layout::{Bvh8, Bvh8Node};

@@ -3,7 +3,7 @@
 
 use super::lanes::RayPacket;
 use super::node::{PacketNode, LEAF};
-use crate::build::MAX_DEPTH;
+use crate::builders::MAX_DEPTH;
 use crate::traverse::lane8::F8;
 use crate::traverse::simd::{bits, insert_farthest_first};
 use crate::traverse::{BoxTest, Stack, Stats};

@@ -349,7 +349,7 @@ pub(crate) fn construct(links: &mut Links) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::build::cluster::Links;
+    use crate::builders::cluster::Links;
     use glam::Vec3A;
 
     /// Small boxes scattered at random, joined pairwise in input order: every inner node
