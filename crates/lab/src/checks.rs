@@ -340,7 +340,7 @@ pub fn render_nff(data: &[u8]) {
 /// with tame numbers (as [`packets_against_oracle`] tames them), where most rays meet the
 /// shapes: each ray aims at the shape's centre.
 pub fn analytic_lanes(data: &[u8]) {
-    use quiver::traverse::PacketLanes;
+    use quiver::primitive::PacketLanes;
     use quiver_scenes::primitive::{Cone, Sphere};
     let f = floats(data);
     if f.len() < 12 + 8 * 8 {

@@ -4,11 +4,12 @@
 
 use crate::builders::{build_with_areas, prim_bounds, BuildConfig, BuildTree, Builder, CostModel};
 use crate::frame::{Back, Frame};
-use crate::geometry::{Aabb, Hit, Primitive, Ray, Triangle};
+use crate::geometry::{Aabb, Hit, Ray, Triangle};
 use crate::isa::Isa;
 use crate::layout::bvh2::leaf_order;
 use crate::layout::{Bvh2, Bvh4, Bvh8, Footprint, Layout, QBvh4};
 use crate::mesh::{Mesh, MeshError};
+use crate::primitive::Primitive;
 use crate::traverse::{BoxTest, PacketMode, RayQuery, Stats};
 use rayon::ThreadPool;
 

@@ -14,7 +14,8 @@
 //! nothing for it (the scaled BVH is a variant of its own).
 
 use crate::builders::BuildTree;
-use crate::geometry::{exponent, pow2, scale2, Aabb, Hit, Primitive, Ray};
+use crate::geometry::{exponent, pow2, scale2, Aabb, Hit, Ray};
+use crate::primitive::Primitive;
 
 /// Extents from `2^-SAFE` to `2^SAFE` keep the identity frame: the tests' products of up to
 /// three lengths stay far inside f32's normal range there (`2^60` and `2^-60`).

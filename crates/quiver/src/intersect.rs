@@ -21,7 +21,8 @@
 //! assert_eq!(Exact(a).intersect(&ray).unwrap().t, 1.0);
 //! ```
 
-use crate::geometry::{Aabb, PrimHit, Primitive, Ray, Triangle};
+use crate::geometry::{Aabb, PrimHit, Ray, Triangle};
+use crate::primitive::Primitive;
 use glam::{DVec3, Vec3A};
 
 /// A triangle tested with the watertight algorithm.
@@ -77,8 +78,8 @@ fn finish<T: Into<f64> + Copy>(u: T, v: T, w: T, t_scaled: T, ray: &Ray) -> Opti
 }
 
 impl Primitive for Watertight {
-    const LEAF_FORMAT: crate::geometry::LeafFormat =
-        crate::geometry::LeafFormat::WatertightTriangles;
+    const LEAF_FORMAT: crate::primitive::LeafFormat =
+        crate::primitive::LeafFormat::WatertightTriangles;
 
     #[inline]
     fn triangle(&self) -> Option<Triangle> {

@@ -39,16 +39,19 @@ pub mod geometry;
 pub mod intersect;
 mod isa;
 pub mod layout;
+mod mask;
 mod mesh;
 pub mod predict;
+pub mod primitive;
 mod rng;
 #[cfg(test)]
 mod testing;
 pub mod traverse;
 
 pub use bvh::{BuildOptions, Bvh};
-pub use geometry::{Aabb, Hit, LeafFormat, PrimHit, Primitive, Ray, Triangle};
+pub use geometry::{Aabb, Hit, PrimHit, Ray, Triangle};
 pub use isa::{Isa, ISA_ENV};
 pub use layout::{Bvh2, Layout};
 pub use mesh::MeshError;
+pub use primitive::{LeafFormat, Primitive};
 pub use traverse::{reference, RayQuery};

@@ -91,7 +91,7 @@ impl<'a> Mesh<'a> {
     /// One box per triangle, in parallel; NaN boxes for non-finite triangles, as
     /// [`crate::builders::prim_bounds`] gives.
     pub fn bounds(&self) -> Vec<Aabb> {
-        use crate::geometry::Primitive;
+        use crate::primitive::Primitive;
         use rayon::prelude::*;
         (0..self.indices.len() as u32)
             .into_par_iter()

@@ -35,9 +35,10 @@
 
 use crate::builders::{BuildTree, NodeKind};
 use crate::bvh::{Bvh, Nodes};
-use crate::geometry::{Aabb, Primitive};
+use crate::geometry::Aabb;
 use crate::layout::bvh2::{compact_children, Addressing};
 use crate::layout::{Bvh2, Bvh4, Bvh8, Bvh8Node, Node4};
+use crate::primitive::Primitive;
 
 /// One node as a traversal meets it: its box, the boxes it tests when entered, and the
 /// primitives it tests when it is a leaf.

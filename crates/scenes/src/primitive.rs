@@ -14,9 +14,10 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 use glam::Vec3A;
-use quiver::geometry::{unit_or_zero, unit_scale, Aabb, PrimHit, Primitive, Ray, Triangle};
+use quiver::geometry::{unit_or_zero, unit_scale, Aabb, PrimHit, Ray, Triangle};
 use quiver::intersect::Watertight;
-use quiver::traverse::{PacketLanes, PacketLeaf};
+use quiver::primitive::Primitive;
+use quiver::primitive::{PacketLanes, PacketLeaf};
 use wide::f32x8;
 
 /// A sphere.

@@ -735,7 +735,7 @@ fn mutated_files_fail_cleanly_or_load_sanely() {
                     let (prims, _) = s.prims();
                     assert!(
                         prims.iter().all(|p| {
-                            use quiver::geometry::Primitive;
+                            use quiver::Primitive;
                             p.bounds().is_finite()
                         }),
                         "{mutated}"

@@ -43,7 +43,8 @@ pub(crate) use split::{bounds_of, median_split, widest_axis};
 pub(crate) use tree::MEDIAN_DEPTH;
 pub use tree::{BuildNode, BuildTree, NodeKind, TreeStats, MAX_DEPTH};
 
-use crate::geometry::{Aabb, Primitive};
+use crate::geometry::Aabb;
+use crate::primitive::Primitive;
 
 /// Builds a tree over `bounds` (one box per primitive) on the current rayon thread pool.
 ///

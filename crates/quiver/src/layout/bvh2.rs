@@ -1,7 +1,8 @@
 use super::order::{self, Shape, HOLE};
 use super::Footprint;
 use crate::builders::{BuildTree, NodeKind};
-use crate::geometry::{Aabb, Primitive, Triangle};
+use crate::geometry::{Aabb, Triangle};
+use crate::primitive::Primitive;
 use bytemuck::{Pod, Zeroable};
 
 /// A binary BVH node: 32 bytes, two to a 64-byte cache line.

@@ -8,8 +8,9 @@ use super::order::{self, Shape, HOLE};
 use super::tri4::{self, Tri4};
 use super::Footprint;
 use crate::builders::BuildTree;
-use crate::geometry::{Aabb, Primitive, Triangle};
+use crate::geometry::{Aabb, Triangle};
 use crate::isa::Isa;
+use crate::primitive::Primitive;
 use bytemuck::{Pod, Zeroable};
 use wide::f32x4;
 

@@ -6,8 +6,9 @@ use super::collapse::{collapse_sah, Wide};
 use super::tri4::{self, Tri4};
 use super::Footprint;
 use crate::builders::{BuildConfig, BuildTree};
-use crate::geometry::{LeafFormat, Primitive, Triangle};
+use crate::geometry::Triangle;
 use crate::isa::Isa;
+use crate::primitive::{LeafFormat, Primitive};
 use bytemuck::{Pod, Zeroable};
 
 /// An 8-wide node with exact boxes: 256 bytes (four cache lines), 64-byte aligned.

@@ -23,8 +23,8 @@ pub use tri4::Tri4;
 
 use crate::builders::{BuildConfig, BuildTree};
 use crate::bvh::Nodes;
-use crate::geometry::Primitive;
 use crate::isa::Isa;
+use crate::primitive::Primitive;
 use std::fmt;
 use std::str::FromStr;
 

@@ -3,7 +3,8 @@
 //! laid out ([`crate::LeafFormat`]).
 
 use super::collapse::{Child, Wide};
-use crate::geometry::{LeafFormat, Primitive, Triangle};
+use crate::geometry::Triangle;
+use crate::primitive::{LeafFormat, Primitive};
 use bytemuck::{Pod, Zeroable};
 
 use glam::Vec3A;
@@ -41,9 +42,9 @@ fn pack<P: Primitive>(prims: &[P], ids: &[u32], format: LeafFormat, out: &mut Ve
             id: [u32::MAX; 4],
         };
         for (lane, (p, &id)) in chunk.iter().zip(chunk_ids).enumerate() {
-            let t: Triangle = p
-                .triangle()
-                .expect("a triangle leaf format gives its triangle");
+            g.id[lane] = id;
+            // A triangle type without a triangle is never hit: its lane stays NaN.
+            let Some(t) = p.triangle() else { continue };
             let vectors: [Vec3A; 4] = match format {
                 LeafFormat::FastTriangles => {
                     let e1 = t.v[0] - t.v[1];
@@ -58,7 +59,6 @@ fn pack<P: Primitive>(prims: &[P], ids: &[u32], format: LeafFormat, out: &mut Ve
                     row[a][lane] = v[a];
                 }
             }
-            g.id[lane] = id;
         }
         out.push(g);
     }

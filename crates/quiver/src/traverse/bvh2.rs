@@ -3,9 +3,10 @@
 use super::stats::Stats;
 use super::{leaf_any_hit, leaf_closest_hit, BoxTest, RayQuery, SlabRay, Stack};
 use crate::builders::MAX_DEPTH;
-use crate::geometry::{Hit, Primitive, Ray};
+use crate::geometry::{Hit, Ray};
 use crate::layout::bvh2::{compact_children, Addressing};
 use crate::layout::{Bvh2, Bvh2Node};
+use crate::primitive::Primitive;
 use std::ops::Range;
 
 /// The node's box as eight floats: min at 0..3, max at 4..7.

@@ -7,8 +7,9 @@ use super::stats::Stats;
 use super::tri4::Leaves;
 use super::{slab_reciprocal, BoxTest, PacketMode, RayQuery, Stack};
 use crate::builders::MAX_DEPTH;
-use crate::geometry::{Hit, Primitive, Ray};
+use crate::geometry::{Hit, Ray};
 use crate::layout::{Bvh4, Bvh4Node, Node4};
+use crate::primitive::Primitive;
 use wide::f32x4;
 
 /// The kernels' name for a 4-wide node format.

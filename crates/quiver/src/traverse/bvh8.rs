@@ -12,9 +12,10 @@ use super::stats::Stats;
 use super::tri4::Leaves;
 use super::{slab_reciprocal, BoxTest, RayQuery, Stack};
 use crate::builders::MAX_DEPTH;
-use crate::geometry::{Hit, Primitive, Ray};
+use crate::geometry::{Hit, Ray};
 use crate::isa::Isa;
 use crate::layout::{Bvh8, Bvh8Node};
+use crate::primitive::Primitive;
 use wide::f32x8;
 
 /// A ray prepared for the slab test of a node's eight boxes in eight lanes of `V`.

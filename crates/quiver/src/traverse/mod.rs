@@ -18,11 +18,27 @@ pub(crate) mod simd;
 mod stats;
 mod tri4;
 
-pub use packet::{PacketLanes, PacketLeaf, PacketMode, PACKET_RAYS};
+pub use packet::{PacketMode, PACKET_RAYS};
 pub use query::RayQuery;
 pub use stats::{Counters, NoStats, Stats};
 
-use crate::geometry::{Hit, Primitive, Ray};
+use crate::geometry::{Hit, PrimHit, Ray};
+use crate::intersect::Watertight;
+use crate::primitive::{LeafFormat, Primitive};
+
+/// The test every kernel and the reference apply to a primitive: [`Primitive::intersect`] for
+/// plain types; for a triangle [`LeafFormat`], the triangle [`Primitive::triangle`] gives,
+/// with the format's arithmetic (what the SIMD groups compute), so a type is tested alike in
+/// every layout and `intersect` is never consulted. A triangle type without a triangle is
+/// never hit.
+#[inline(always)]
+pub(crate) fn prim_hit<P: Primitive>(p: &P, ray: &Ray) -> Option<PrimHit> {
+    match P::LEAF_FORMAT {
+        LeafFormat::Plain => p.intersect(ray),
+        LeafFormat::FastTriangles => p.triangle()?.intersect(ray),
+        LeafFormat::WatertightTriangles => Watertight(p.triangle()?).intersect(ray),
+    }
+}
 
 /// Tests a leaf's primitives for the closest hit, updating `best`; `prim_ids` gives each
 /// primitive's input index. Returns true when `best` changed.
@@ -41,7 +57,7 @@ pub(crate) fn leaf_closest_hit<P: Primitive, S: Stats>(
     };
     let mut found = false;
     for (tri, &prim) in tris.iter().zip(prim_ids) {
-        if let Some(h) = tri.intersect(&r) {
+        if let Some(h) = prim_hit(tri, &r) {
             found |= best.offer(prim, h);
         }
     }
@@ -55,7 +71,7 @@ pub(crate) fn leaf_closest_hit<P: Primitive, S: Stats>(
 #[inline(always)]
 pub(crate) fn leaf_any_hit<P: Primitive, S: Stats>(tris: &[P], ray: &Ray, stats: &mut S) -> bool {
     for (i, tri) in tris.iter().enumerate() {
-        if tri.intersect(ray).is_some() {
+        if prim_hit(tri, ray).is_some() {
             stats.prims(i as u32 + 1);
             return true;
         }

@@ -9,7 +9,8 @@
 //! assert!(reference::any_hit(&tris, &ray));
 //! ```
 
-use crate::geometry::{Hit, Primitive, Ray};
+use crate::geometry::{Hit, Ray};
+use crate::primitive::Primitive;
 
 /// A primitive the builders keep. Others are invisible.
 fn visible<P: Primitive>(p: &P) -> bool {
@@ -17,13 +18,15 @@ fn visible<P: Primitive>(p: &P) -> bool {
 }
 
 /// The nearest hit; on equal distance the lowest index. Non-finite primitives are skipped.
+/// Each primitive is tested as every kernel tests it (for a triangle [`crate::LeafFormat`],
+/// as its triangle).
 pub fn closest_hit<P: Primitive>(prims: &[P], ray: &Ray) -> Option<Hit> {
     let mut best: Option<Hit> = None;
     for (i, p) in prims.iter().enumerate() {
         if !visible(p) {
             continue;
         }
-        if let Some(h) = p.intersect(ray) {
+        if let Some(h) = super::prim_hit(p, ray) {
             if best.is_none_or(|b| b.is_beaten_by(h.t, i as u32)) {
                 best = Some(Hit {
                     t: h.t,
@@ -41,5 +44,5 @@ pub fn closest_hit<P: Primitive>(prims: &[P], ray: &Ray) -> Option<Hit> {
 pub fn any_hit<P: Primitive>(prims: &[P], ray: &Ray) -> bool {
     prims
         .iter()
-        .any(|p| visible(p) && p.intersect(ray).is_some())
+        .any(|p| visible(p) && super::prim_hit(p, ray).is_some())
 }

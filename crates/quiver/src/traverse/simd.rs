@@ -1,6 +1,7 @@
 //! Small pieces every kernel shares: NaN-aware SIMD min/max, bit-mask iteration, and the
 //! farthest-first order a stack is filled in.
 
+pub(crate) use crate::mask::bits;
 use wide::{f32x4, f32x8};
 
 /// `max` and `min` where the first operand may be NaN and the second never is: a NaN slab
@@ -43,19 +44,6 @@ macro_rules! nan_first {
     )*};
 }
 nan_first!(f32x4, f32x8);
-
-/// Set bits of a mask (packet or lane mask), lowest first.
-#[inline(always)]
-pub(crate) fn bits(mask: impl Into<u64>) -> impl Iterator<Item = usize> {
-    let mut m = mask.into();
-    std::iter::from_fn(move || {
-        (m != 0).then(|| {
-            let i = m.trailing_zeros() as usize;
-            m &= m - 1;
-            i
-        })
-    })
-}
 
 /// Inserts `(t, item)` into `list[..len]`, which is kept in decreasing order of distance: the
 /// order a traversal stack must receive a node's children in so that the nearest is popped
@@ -101,14 +89,6 @@ mod tests {
             a4.min_nan_first(b4).to_array(),
             [0.5, 0.5, 2.0, f32::NEG_INFINITY]
         );
-    }
-
-    #[test]
-    fn bits_lists_set_bits_lowest_first() {
-        assert_eq!(bits(0u64).count(), 0);
-        assert_eq!(bits(0b1011_0001u32).collect::<Vec<_>>(), vec![0, 4, 5, 7]);
-        assert_eq!(bits(u64::MAX).count(), 64);
-        assert_eq!(bits(1u64 << 63).collect::<Vec<_>>(), vec![63]);
     }
 
     #[test]

@@ -5,9 +5,10 @@
 
 use super::simd::bits;
 use super::Stats;
-use crate::geometry::{Hit, LeafFormat, PrimHit, Primitive, Ray};
+use crate::geometry::{Hit, PrimHit, Ray};
 use crate::intersect::Watertight;
 use crate::layout::Tri4;
+use crate::primitive::{LeafFormat, Primitive};
 use wide::f32x4;
 
 /// A ray's terms for the group tests, splatted once per leaf.
@@ -211,7 +212,7 @@ impl<P: Primitive> Leaves<'_, P> {
     #[inline(always)]
     pub fn prefetch(&self, first: usize) {
         #[cfg(target_arch = "x86_64")]
-        if P::LEAF_FORMAT != crate::geometry::LeafFormat::Plain {
+        if P::LEAF_FORMAT != crate::primitive::LeafFormat::Plain {
             if let Some(g) = self.tri4.get(first) {
                 let p = (g as *const Tri4).cast::<i8>();
                 // SAFETY: SSE is part of every x86-64 CPU; a prefetch reads nothing and

@@ -35,7 +35,8 @@ pub use camera::{Camera, CameraError, View};
 
 use crate::primitive::{Cone, PatchTriangle, Polygon, PolygonPiece, Prim, Sphere};
 use glam::Vec3A;
-use quiver::geometry::{Aabb, Primitive, Triangle};
+use quiver::geometry::{Aabb, Triangle};
+use quiver::primitive::Primitive;
 use std::fmt;
 use std::path::{Path, PathBuf};
 

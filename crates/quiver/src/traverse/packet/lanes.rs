@@ -3,27 +3,13 @@
 
 use super::bound::{Bound, BoundBuilder};
 use super::node::PacketNode;
-use super::{CHUNKS, LANES, PACKET_RAYS};
 use crate::geometry::Ray;
+use crate::primitive::{lane, ray_rows, Lanes, PacketRays, CHUNKS, LANES, PACKET_RAYS};
 use crate::traverse::lane8::F8;
 #[cfg(doc)]
 use crate::traverse::slab_reciprocal;
 use crate::traverse::BoxTest;
-use glam::Vec3A;
 use wide::f32x8;
-
-/// One value per ray of a packet, eight rays to a SIMD chunk.
-pub(super) type Lanes = [f32x8; CHUNKS];
-
-#[inline(always)]
-pub(super) fn lane(l: &Lanes, i: usize) -> f32 {
-    bytemuck::cast_ref::<Lanes, [f32; PACKET_RAYS]>(l)[i]
-}
-
-#[inline(always)]
-fn lane_mut(l: &mut Lanes, i: usize) -> &mut f32 {
-    &mut bytemuck::cast_mut::<Lanes, [f32; PACKET_RAYS]>(l)[i]
-}
 
 /// The chunks a packet mask touches: (chunk, its 8-lane mask), lowest first.
 #[inline(always)]
@@ -58,84 +44,6 @@ fn lane_mask(bits: u32) -> f32x8 {
         lane(6),
         lane(7),
     ])
-}
-
-/// Eight rays' fields as lanes: origin x, y, z, direction x, y, z, `t_min`, `t_max`.
-///
-/// Transposed in registers: gathering the fields into an array with scalar stores and
-/// loading its rows as vectors stalls every load on store forwarding (a tenth of a
-/// coherent packet's time in `perf`).
-#[cfg(target_arch = "x86_64")]
-#[inline(always)]
-pub(super) fn ray_rows(r: &[Ray; LANES]) -> [f32x8; 8] {
-    use std::arch::x86_64::*;
-    // Four vectors' lanes, rows to columns.
-    #[inline(always)]
-    fn transpose(v: [__m128; 4]) -> [__m128; 4] {
-        // SAFETY: SSE is part of every x86-64 CPU; register operations only.
-        unsafe {
-            let (ab_lo, cd_lo) = (_mm_unpacklo_ps(v[0], v[1]), _mm_unpacklo_ps(v[2], v[3]));
-            let (ab_hi, cd_hi) = (_mm_unpackhi_ps(v[0], v[1]), _mm_unpackhi_ps(v[2], v[3]));
-            [
-                _mm_movelh_ps(ab_lo, cd_lo),
-                _mm_movehl_ps(cd_lo, ab_lo),
-                _mm_movelh_ps(ab_hi, cd_hi),
-                _mm_movehl_ps(cd_hi, ab_hi),
-            ]
-        }
-    }
-    #[inline(always)]
-    fn half(r: &[Ray]) -> [__m128; 8] {
-        let o = transpose([
-            r[0].origin.into(),
-            r[1].origin.into(),
-            r[2].origin.into(),
-            r[3].origin.into(),
-        ]);
-        let d = transpose([
-            r[0].dir.into(),
-            r[1].dir.into(),
-            r[2].dir.into(),
-            r[3].dir.into(),
-        ]);
-        // SAFETY: as in `transpose`.
-        let (t_min, t_max) = unsafe {
-            (
-                _mm_setr_ps(r[0].t_min, r[1].t_min, r[2].t_min, r[3].t_min),
-                _mm_setr_ps(r[0].t_max, r[1].t_max, r[2].t_max, r[3].t_max),
-            )
-        };
-        [o[0], o[1], o[2], d[0], d[1], d[2], t_min, t_max]
-    }
-    let (lo, hi) = (half(&r[..4]), half(&r[4..]));
-    let row = |c: usize| -> f32x8 { bytemuck::cast([lo[c], hi[c]]) };
-    [
-        row(0),
-        row(1),
-        row(2),
-        row(3),
-        row(4),
-        row(5),
-        row(6),
-        row(7),
-    ]
-}
-
-/// Eight rays' fields as lanes (see the x86-64 version).
-#[cfg(not(target_arch = "x86_64"))]
-#[inline(always)]
-pub(super) fn ray_rows(r: &[Ray; LANES]) -> [f32x8; 8] {
-    let row = |f: fn(&Ray) -> f32| f32x8::from([0, 1, 2, 3, 4, 5, 6, 7].map(|j| f(&r[j])));
-    [
-        row(|r| r.origin.x),
-        row(|r| r.origin.y),
-        row(|r| r.origin.z),
-        row(|r| r.dir.x),
-        row(|r| r.dir.y),
-        row(|r| r.dir.z),
-        row(|r| r.t_min),
-        row(|r| r.t_max),
-    ]
 }
 
 /// All bits set in the lanes whose sign bit is set.
@@ -260,15 +168,11 @@ const MIN_RAYS_PER_LEAF: u32 = 2;
 
 /// Up to [`PACKET_RAYS`] rays in SIMD lanes, with their search limits.
 pub(crate) struct RayPacket {
-    pub(crate) o: [Lanes; 3],
-    pub(crate) d: [Lanes; 3],
+    /// Origins, directions and intervals, as a leaf test reads them.
+    pub(crate) rays: PacketRays,
     inv: [Lanes; 3],
     /// All bits set where the reciprocal direction is negative (a select mask).
     neg: [Lanes; 3],
-    pub(crate) t_min: Lanes,
-    /// How far each ray still searches: `t_max`, then the best hit so far; `-inf` once a ray
-    /// is inactive, so every test fails for it.
-    pub(crate) limit: Lanes,
     /// Bit `i`: ray `i` is still searching.
     pub(super) active: u64,
     pub(super) bound: Bound,
@@ -290,12 +194,14 @@ impl RayPacket {
         debug_assert!(rays.len() <= PACKET_RAYS);
         let zero = [f32x8::ZERO; CHUNKS];
         let mut p = RayPacket {
-            o: [zero; 3],
-            d: [zero; 3],
+            rays: PacketRays {
+                o: [zero; 3],
+                d: [zero; 3],
+                t_min: zero,
+                limit: [f32x8::NEG_INFINITY; CHUNKS],
+            },
             inv: [zero; 3],
             neg: [zero; 3],
-            t_min: zero,
-            limit: [f32x8::NEG_INFINITY; CHUNKS],
             active: 0,
             bound: BoundBuilder::new().finish(),
             leaf_visits: 0,
@@ -325,49 +231,37 @@ impl RayPacket {
             let d = [f[3], f[4], f[5]];
             let inv = [reciprocal8(d[0]), reciprocal8(d[1]), reciprocal8(d[2])];
             for a in 0..3 {
-                p.o[a][k] = o[a];
-                p.d[a][k] = d[a];
+                p.rays.o[a][k] = o[a];
+                p.rays.d[a][k] = d[a];
                 p.inv[a][k] = inv[a];
                 p.neg[a][k] = sign_mask(inv[a]);
             }
             let (t_min, t_max) = (f[6], f[7]);
-            p.t_min[k] = t_min;
-            p.limit[k] = sel(vm, t_max, f32x8::NEG_INFINITY);
+            p.rays.t_min[k] = t_min;
+            p.rays.limit[k] = sel(vm, t_max, f32x8::NEG_INFINITY);
             bound.add(o, inv, t_min, t_max, valid, vm);
         }
         p.bound = bound.finish();
         p
     }
 
-    /// Ray `i` with its current search limit as `t_max`.
-    #[inline(always)]
-    pub(crate) fn ray(&self, i: usize) -> Ray {
-        let at = |l: &Lanes| lane(l, i);
-        Ray::segment(
-            Vec3A::new(at(&self.o[0]), at(&self.o[1]), at(&self.o[2])),
-            Vec3A::new(at(&self.d[0]), at(&self.d[1]), at(&self.d[2])),
-            at(&self.t_min),
-            at(&self.limit),
-        )
-    }
-
     /// Ray `i`'s search limit.
     #[inline(always)]
     pub(super) fn limit(&self, i: usize) -> f32 {
-        lane(&self.limit, i)
+        self.rays.limit(i)
     }
 
     /// Shortens ray `i`'s search to `t` (a nearer hit was found).
     #[inline(always)]
     pub(crate) fn set_limit(&mut self, i: usize, t: f32) {
-        *lane_mut(&mut self.limit, i) = t;
+        self.rays.set_limit(i, t)
     }
 
     /// Lowers the bound's `t_max` after hits shortened some rays.
     #[inline(always)]
     pub(super) fn refresh_limit_bound(&mut self) {
         let mut m = f32x8::NEG_INFINITY;
-        for &l in &self.limit {
+        for &l in &self.rays.limit {
             m = m.fast_max(l);
         }
         let mut hi = f32::NEG_INFINITY;
@@ -380,11 +274,11 @@ impl RayPacket {
     /// Ray `i` prepared for a node format's test of all its children.
     #[inline(always)]
     pub(super) fn first<N: PacketNode, V: F8>(&self, i: usize) -> N::First<V> {
-        let (o, inv) = (&self.o, &self.inv);
+        let (o, inv) = (&self.rays.o, &self.inv);
         N::first::<V>(
             [lane(&o[0], i), lane(&o[1], i), lane(&o[2], i)],
             [lane(&inv[0], i), lane(&inv[1], i), lane(&inv[2], i)],
-            lane(&self.t_min, i),
+            lane(&self.rays.t_min, i),
         )
     }
 
@@ -394,13 +288,13 @@ impl RayPacket {
     #[inline(always)]
     fn enter_chunk<V: F8, B: BoxTest>(&self, k: usize, b: &[f32; 6]) -> (u32, V) {
         let slack = V::splat(B::SLACK);
-        let mut near = V::of(&self.t_min[k]);
-        let mut far = V::of(&self.limit[k]).mul(slack);
+        let mut near = V::of(&self.rays.t_min[k]);
+        let mut far = V::of(&self.rays.limit[k]).mul(slack);
         for a in 0..3 {
             let (lo, hi) = (V::splat(b[a]), V::splat(b[3 + a]));
             let neg = V::of(&self.neg[a][k]);
             let (pn, pf) = (neg.select(hi, lo), neg.select(lo, hi));
-            let (o, inv) = (V::of(&self.o[a][k]), V::of(&self.inv[a][k]));
+            let (o, inv) = (V::of(&self.rays.o[a][k]), V::of(&self.inv[a][k]));
             let tn = pn.sub(o).mul(inv);
             let tf = pf.sub(o).mul(inv);
             near = tn.max_nan_first(near);
@@ -467,7 +361,7 @@ impl RayPacket {
     #[inline(always)]
     pub(super) fn retire(&mut self, i: usize) {
         self.active &= !(1 << i);
-        *lane_mut(&mut self.limit, i) = f32::NEG_INFINITY;
+        self.rays.set_limit(i, f32::NEG_INFINITY);
     }
 }
 
@@ -475,6 +369,7 @@ impl RayPacket {
 mod tests {
     use super::*;
     use crate::traverse::simd::bits;
+    use glam::Vec3A;
 
     fn ray(k: usize) -> Ray {
         Ray::segment(Vec3A::new(k as f32, 0.0, -1.0), Vec3A::Z, 0.0, 10.0)
@@ -507,7 +402,7 @@ mod tests {
                 active
             );
             for i in bits(active) {
-                assert_eq!(p.ray(i), rays[i]);
+                assert_eq!(p.rays.ray(i), rays[i]);
             }
             if active != 0 {
                 let first = active.trailing_zeros() as usize;
@@ -553,7 +448,7 @@ mod tests {
                 let on = active >> i & 1 == 1 && !r.t_min.is_nan() && !r.t_max.is_nan();
                 assert_eq!(p.active >> i & 1 == 1, on, "round {round} ray {i}");
                 if !on {
-                    assert_eq!(lane(&p.limit, i), f32::NEG_INFINITY);
+                    assert_eq!(p.limit(i), f32::NEG_INFINITY);
                     continue;
                 }
                 let inv = crate::traverse::slab_reciprocal(r.dir);
@@ -566,7 +461,7 @@ mod tests {
                     let (o, d): ([f32; 3], [f32; 3]) = (r.origin.into(), r.dir.into());
                     [o, d, [r.t_min, r.t_max, 0.0]].map(|v| v.map(f32::to_bits))
                 };
-                assert_eq!(bits(p.ray(i)), bits(*r), "{r:?}");
+                assert_eq!(bits(p.rays.ray(i)), bits(*r), "{r:?}");
             }
             assert_eq!(
                 format!("{:?}", p.bound),

@@ -2,220 +2,19 @@
 //! ([`crate::Primitive::intersect_packet`]) over the rays that enter the leaf, through a
 //! [`PacketLeaf`]; and the triangle's own 8-lane test.
 
-use super::lanes::{ray_rows, RayPacket};
+use super::lanes::RayPacket;
 use super::node::PacketNode;
 use super::walk::{walk, AloneIn, Visit};
 use super::{CHUNKS, LANES};
-use crate::geometry::{Hit, LeafFormat, PrimHit, Primitive, Ray, Triangle};
+use crate::geometry::{Hit, PrimHit, Ray};
 use crate::layout::Tri4;
+use crate::primitive::{LeafFormat, Primitive};
+use crate::primitive::{PacketLeaf, PacketRays};
 use crate::traverse::lane8::F8;
 use crate::traverse::simd::bits;
 use crate::traverse::tri4::{group_hits, Leaves, Ray4Tri};
 use crate::traverse::{BoxTest, Stats};
 use std::ops::Range;
-use wide::f32x8;
-
-/// The rays of a packet that enter one leaf, as a primitive type's packet test
-/// ([`crate::Primitive::intersect_packet`]) sees them: which rays still search, each ray
-/// within its current interval, and where to report hits.
-pub struct PacketLeaf<'a, F> {
-    pub(crate) packet: &'a mut RayPacket,
-    live: u64,
-    /// The leaf's primitive ids (plain leaves; SIMD groups carry their own).
-    ids: &'a [u32],
-    on_hit: F,
-}
-
-impl<F: FnMut(usize, u32, PrimHit) -> Option<f32>> PacketLeaf<'_, F> {
-    /// The rays still searching this leaf: bit `i` for ray `i` of the packet.
-    #[inline(always)]
-    pub fn rays(&self) -> u64 {
-        self.live
-    }
-
-    /// Ray `i` as it searches now: `t_max` is its current limit (in a closest-hit query, the
-    /// nearest hit so far).
-    #[inline(always)]
-    pub fn ray(&self, i: usize) -> Ray {
-        self.packet.ray(i)
-    }
-
-    /// Rays `8k .. 8k + 8` of the packet in SIMD lanes, for a primitive's own eight-ray test
-    /// (`k` in `0..PACKET_RAYS / 8`): lane `l` holds ray `8k + l` as [`PacketLeaf::ray`]
-    /// gives it. Lanes of rays that stopped searching hold `t_max = -inf`.
-    /// [`PacketLeaf::test_lanes`] runs such a test over a whole packet.
-    #[inline(always)]
-    pub fn lanes(&self, k: usize) -> PacketLanes {
-        let p = &*self.packet;
-        PacketLanes {
-            origin: [p.o[0][k], p.o[1][k], p.o[2][k]],
-            dir: [p.d[0][k], p.d[1][k], p.d[2][k]],
-            t_min: p.t_min[k],
-            t_max: p.limit[k],
-            live: (self.live >> (LANES * k)) as u32 & 0xFF,
-        }
-    }
-
-    /// Runs `test`, an eight-ray test of primitive `j` of the leaf, over the rays still
-    /// searching, eight at a time ([`PacketLeaf::lanes`]), and reports its hits. `test` gives
-    /// the lanes that hit and their `t`, `u` and `v`; lanes that do not search are ignored.
-    ///
-    /// A unit square at `z = 0` tested eight rays at a time:
-    ///
-    /// ```
-    /// use quiver::traverse::{FastBoxes, NoStats, PacketLeaf, PacketMode};
-    /// use quiver::{Aabb, Bvh, PrimHit, Primitive, Ray, RayQuery};
-    /// use glam::Vec3A;
-    /// use wide::f32x8;
-    ///
-    /// #[derive(Clone)]
-    /// struct Square;
-    /// impl Primitive for Square {
-    ///     fn bounds(&self) -> Aabb {
-    ///         Aabb::new(Vec3A::new(0.0, 0.0, 0.0), Vec3A::new(1.0, 1.0, 0.0))
-    ///     }
-    ///     fn intersect(&self, r: &Ray) -> Option<PrimHit> {
-    ///         let t = -r.origin.z / r.dir.z;
-    ///         let (x, y) = (r.origin.x + t * r.dir.x, r.origin.y + t * r.dir.y);
-    ///         let inside = (0.0..=1.0).contains(&x) && (0.0..=1.0).contains(&y);
-    ///         (inside && t >= r.t_min && t <= r.t_max).then_some(PrimHit { t, u: x, v: y })
-    ///     }
-    ///     fn intersect_packet<F>(leaf: &[Self], rays: &mut PacketLeaf<'_, F>)
-    ///     where
-    ///         F: FnMut(usize, u32, PrimHit) -> Option<f32>,
-    ///     {
-    ///         let (zero, one) = (f32x8::splat(0.0), f32x8::splat(1.0));
-    ///         for j in 0..leaf.len() {
-    ///             rays.test_lanes(j, |l| {
-    ///                 // The scalar test's operations, lane by lane.
-    ///                 let t = -l.origin[2] / l.dir[2];
-    ///                 let x = l.origin[0] + t * l.dir[0];
-    ///                 let y = l.origin[1] + t * l.dir[1];
-    ///                 let ok = x.simd_ge(zero) & x.simd_le(one) & y.simd_ge(zero)
-    ///                     & y.simd_le(one) & t.simd_ge(l.t_min) & t.simd_le(l.t_max);
-    ///                 (ok.to_bitmask(), [t, x, y])
-    ///             });
-    ///         }
-    ///     }
-    /// }
-    ///
-    /// let bvh = Bvh::new(&[Square]);
-    /// let rays: Vec<Ray> = (0..16)
-    ///     .map(|i| Ray::new(Vec3A::new(i as f32 / 10.0, 0.5, 1.0), -Vec3A::Z))
-    ///     .collect();
-    /// let mut hits = vec![None; rays.len()];
-    /// bvh.closest_hit_packet_with::<FastBoxes, NoStats>(
-    ///     &rays, None, PacketMode::Always, &mut hits, &mut NoStats,
-    /// );
-    /// for (r, h) in rays.iter().zip(&hits) {
-    ///     assert_eq!(*h, bvh.closest_hit(r));
-    /// }
-    /// assert_eq!(hits.iter().filter(|h| h.is_some()).count(), 11);
-    /// ```
-    #[inline(always)]
-    pub fn test_lanes(
-        &mut self,
-        j: usize,
-        mut test: impl FnMut(&PacketLanes) -> (u32, [f32x8; 3]),
-    ) {
-        for k in 0..CHUNKS {
-            let l = self.lanes(k);
-            if l.live == 0 {
-                continue;
-            }
-            let (hit, [t, u, v]) = test(&l);
-            let hit = hit & l.live;
-            if hit == 0 {
-                continue;
-            }
-            let (t, u, v) = (t.to_array(), u.to_array(), v.to_array());
-            for lane in bits(hit) {
-                let h = PrimHit {
-                    t: t[lane],
-                    u: u[lane],
-                    v: v[lane],
-                };
-                self.report(LANES * k + lane, j, h);
-            }
-        }
-    }
-
-    /// Ray `i` hits primitive `j` of the leaf at `hit`: a closest-hit query shortens the ray
-    /// to its nearest hit so far, an any-hit query takes the ray out of [`PacketLeaf::rays`].
-    #[inline(always)]
-    pub fn report(&mut self, i: usize, j: usize, hit: PrimHit) {
-        self.report_id(i, self.ids[j], hit)
-    }
-
-    /// [`PacketLeaf::report`] by the primitive's input index.
-    #[inline(always)]
-    fn report_id(&mut self, i: usize, id: u32, hit: PrimHit) {
-        match (self.on_hit)(i, id, hit) {
-            Some(limit) => self.packet.set_limit(i, limit),
-            None => {
-                self.packet.set_limit(i, f32::NEG_INFINITY);
-                self.live &= !(1 << i);
-            }
-        }
-    }
-}
-
-/// Eight rays of a packet in SIMD lanes ([`PacketLeaf::lanes`]).
-#[derive(Clone, Copy, Debug)]
-pub struct PacketLanes {
-    /// Origins, one `f32x8` per axis.
-    pub origin: [f32x8; 3],
-    /// Directions, one `f32x8` per axis.
-    pub dir: [f32x8; 3],
-    /// Smallest accepted hit distances.
-    pub t_min: f32x8,
-    /// Largest accepted hit distances now: `t_max`, in a closest-hit query the nearest hit so
-    /// far, `-inf` for a ray that stopped searching.
-    pub t_max: f32x8,
-    /// Bit `l` set: ray `8k + l` still searches this leaf.
-    pub live: u32,
-}
-
-impl PacketLanes {
-    /// Eight rays as lanes, every one live: what [`PacketLeaf::lanes`] hands a test, for
-    /// testing an eight-ray test against its scalar twin.
-    ///
-    /// ```
-    /// use quiver::traverse::PacketLanes;
-    /// use quiver::Ray;
-    /// use glam::Vec3A;
-    /// let rays: [Ray; 8] = std::array::from_fn(|i| Ray::new(Vec3A::ZERO, Vec3A::X * i as f32));
-    /// let lanes = PacketLanes::from_rays(&rays);
-    /// assert_eq!(lanes.ray(5), rays[5]);
-    /// assert_eq!(lanes.live, 0xFF);
-    /// ```
-    pub fn from_rays(rays: &[Ray; LANES]) -> PacketLanes {
-        let f = ray_rows(rays);
-        PacketLanes {
-            origin: [f[0], f[1], f[2]],
-            dir: [f[3], f[4], f[5]],
-            t_min: f[6],
-            t_max: f[7],
-            live: 0xFF,
-        }
-    }
-
-    /// Lane `l` (`0..8`) as a ray, within its current interval.
-    #[inline]
-    pub fn ray(&self, l: usize) -> Ray {
-        let at = |v: &f32x8| v.to_array()[l];
-        Ray::segment(
-            glam::Vec3A::new(
-                at(&self.origin[0]),
-                at(&self.origin[1]),
-                at(&self.origin[2]),
-            ),
-            glam::Vec3A::new(at(&self.dir[0]), at(&self.dir[1]), at(&self.dir[2])),
-            at(&self.t_min),
-            at(&self.t_max),
-        )
-    }
-}
 
 /// Runs the leaf `range` (primitives, or groups holding `range.len()` triangles) for the
 /// `live` rays of the packet, answering hits with `on_hit`.
@@ -234,7 +33,7 @@ fn test_leaf<V: F8, P: Primitive, F>(
         _ => &[],
     };
     let mut leaf = PacketLeaf {
-        packet,
+        packet: &mut packet.rays,
         live,
         ids,
         on_hit,
@@ -381,61 +180,6 @@ pub(super) fn any_packet<N: PacketNode, V: F8, B: BoxTest, P: Primitive, S: Stat
     );
 }
 
-/// A triangle's ray-independent terms, splatted once per packet test.
-struct TriSetup {
-    v0: [f32x8; 3],
-    e1: [f32x8; 3],
-    e2: [f32x8; 3],
-    n: [f32x8; 3],
-}
-
-impl TriSetup {
-    #[inline(always)]
-    fn new(tri: &Triangle) -> Self {
-        // The same vectors (and glam arithmetic) as `Triangle::intersect`.
-        let e1 = tri.v[0] - tri.v[1];
-        let e2 = tri.v[2] - tri.v[0];
-        let n = e1.cross(e2);
-        let splat = |v: glam::Vec3A| [v.x, v.y, v.z].map(f32x8::splat);
-        TriSetup {
-            v0: splat(tri.v[0]),
-            e1: splat(e1),
-            e2: splat(e2),
-            n: splat(n),
-        }
-    }
-
-    /// Möller–Trumbore for the eight rays of chunk `k` of `pk`, operation for operation as
-    /// [`Triangle::intersect`] computes it for one ray (glam's `cross` and `dot` orders, fused
-    /// where glam fuses), so every lane gets the single-ray result. Returns the mask of lanes
-    /// hit within `[t_min, limit]` and their `t`, `u`, `v`.
-    #[inline(always)]
-    fn intersect8(&self, pk: &RayPacket, k: usize) -> (u32, f32x8, f32x8, f32x8) {
-        let [dx, dy, dz] = [0, 1, 2].map(|a| pk.d[a][k]);
-        let [nx, ny, nz] = self.n;
-        let det = (nx * dx + ny * dy) + nz * dz;
-        let inv = f32x8::ONE / det;
-        let [cx, cy, cz] = [0, 1, 2].map(|a| self.v0[a] - pk.o[a][k]);
-        // d × c, as glam writes it: (a.y·b.z − b.y·a.z, …) with the second product fused
-        // into the subtraction when the target has FMA.
-        let rx = cy.mul_neg_add(dz, dy * cz);
-        let ry = cz.mul_neg_add(dx, dz * cx);
-        let rz = cx.mul_neg_add(dy, dx * cy);
-        let [e1x, e1y, e1z] = self.e1;
-        let [e2x, e2y, e2z] = self.e2;
-        let u = ((rx * e2x + ry * e2y) + rz * e2z) * inv;
-        let v = ((rx * e1x + ry * e1y) + rz * e1z) * inv;
-        let t = ((nx * cx + ny * cy) + nz * cz) * inv;
-        let ok = det.simd_ne(f32x8::ZERO)
-            & u.simd_ge(f32x8::ZERO)
-            & v.simd_ge(f32x8::ZERO)
-            & (u + v).simd_le(f32x8::ONE)
-            & t.simd_ge(pk.t_min[k])
-            & t.simd_le(pk.limit[k]);
-        (ok.to_bitmask(), t, u, v)
-    }
-}
-
 /// One triangle's test over the live rays of a leaf, eight at a time: `test(packet, k)` gives
 /// the mask of chunk `k`'s rays it hits and their `t`, `u`, `v`; the hits are reported as
 /// primitive `id`'s.
@@ -443,7 +187,7 @@ impl TriSetup {
 fn chunks_packet<V: F8, F>(
     id: u32,
     rays: &mut PacketLeaf<'_, F>,
-    test: impl Fn(&RayPacket, usize) -> (u32, V, V, V),
+    test: impl Fn(&PacketRays, usize) -> (u32, V, V, V),
 ) where
     F: FnMut(usize, u32, PrimHit) -> Option<f32>,
 {
@@ -466,22 +210,6 @@ fn chunks_packet<V: F8, F>(
             };
             rays.report_id(LANES * k + l, id, hit);
         }
-    }
-}
-
-/// [`Triangle`]'s packet test: triangle by triangle, eight rays at a time, each lane exactly
-/// [`Triangle::intersect`]; a hit shortens (or ends) its ray before the next triangle.
-#[inline(always)]
-pub(crate) fn triangles_packet<F>(leaf: &[Triangle], rays: &mut PacketLeaf<'_, F>)
-where
-    F: FnMut(usize, u32, PrimHit) -> Option<f32>,
-{
-    for (j, tri) in leaf.iter().enumerate() {
-        if rays.live == 0 {
-            break;
-        }
-        let (id, setup) = (rays.ids[j], TriSetup::new(tri));
-        chunks_packet::<f32x8, F>(id, rays, |pk, k| setup.intersect8(pk, k));
     }
 }
 
@@ -552,7 +280,7 @@ fn dot3<V: F8>(a: [V; 3], b: [V; 3]) -> V {
 /// each ray gets the single-ray result. Returns the mask of rays hit within
 /// `[t_min, limit]` and their `t`, `u`, `v`.
 #[inline(always)]
-fn group_lane8<V: F8>(g: &Tri4, l: usize, pk: &RayPacket, k: usize) -> (u32, V, V, V) {
+fn group_lane8<V: F8>(g: &Tri4, l: usize, pk: &PacketRays, k: usize) -> (u32, V, V, V) {
     let row = |v: usize| V::splat3([g.rows[v][0][l], g.rows[v][1][l], g.rows[v][2][l]]);
     let (v0, e1, e2, n) = (row(0), row(1), row(2), row(3));
     let (dx, dy, dz) = (V::of(&pk.d[0][k]), V::of(&pk.d[1][k]), V::of(&pk.d[2][k]));

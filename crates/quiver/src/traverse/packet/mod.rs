@@ -30,24 +30,19 @@ mod node;
 mod walk;
 
 pub(crate) use lanes::RayPacket;
-pub(crate) use leaves::triangles_packet;
-pub use leaves::{PacketLanes, PacketLeaf};
 pub(crate) use node::PacketNode;
 
 use super::lane8::F8;
 use super::query::RayQuery;
 use super::tri4::Leaves;
 use super::{BoxTest, Stats};
-use crate::geometry::{Hit, Primitive, Ray};
+use crate::geometry::{Hit, Ray};
 use crate::isa::Isa;
+use crate::primitive::Primitive;
 use wide::f32x8;
 
-/// Rays per packet. Longer inputs are cut into packets of this size.
-pub const PACKET_RAYS: usize = 64;
-/// Rays per SIMD chunk.
-const LANES: usize = 8;
-/// SIMD chunks per packet.
-const CHUNKS: usize = PACKET_RAYS / LANES;
+pub use crate::primitive::PACKET_RAYS;
+use crate::primitive::{CHUNKS, LANES};
 
 /// How a packet query chooses between packet and single-ray traversal.
 ///

@@ -3,8 +3,9 @@
 //! cull test, and the single-ray walks a ray continues with once the packet comes apart.
 
 use super::bound::Bound;
-use crate::geometry::{Hit, Primitive, Ray};
+use crate::geometry::{Hit, Ray};
 use crate::layout::{Bvh4Node, Bvh8Node, Node4};
+use crate::primitive::Primitive;
 use crate::traverse::bvh4::{self, Ray4};
 use crate::traverse::bvh8::{self, Ray8};
 use crate::traverse::lane8::F8;
