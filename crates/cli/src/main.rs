@@ -64,6 +64,11 @@ fn main() -> ExitCode {
     if cli.drop_non_finite {
         commands::drop_non_finite();
     }
+    // A misspelt QUIVER_ISA would otherwise be ignored and the run measured on other kernels
+    // than the user asked for.
+    if let Err(e) = quiver::Isa::from_env() {
+        return fail(&e);
+    }
     let result = match cli.command {
         Command::Build(args) => build::run(args),
         Command::Builders(args) => builders::run(args),

@@ -521,3 +521,23 @@ fn a_camera_looking_along_its_up_vector_is_refused_before_rendering() {
         .stderr(predicate::str::contains("up.nff:4").and(predicate::str::contains("'up'")));
     assert!(!png.exists(), "no image for a refused camera");
 }
+
+#[test]
+fn an_unknown_quiver_isa_is_an_error_before_any_work() {
+    // A misspelt value used to be ignored and the run measured on the AVX2 kernels.
+    for value in ["Portable", "sse", "avx512"] {
+        run("build tetra1")
+            .env("QUIVER_ISA", value)
+            .assert()
+            .code(2)
+            .stdout(predicate::str::is_empty())
+            .stderr(predicate::str::contains(format!("'{value}'")))
+            .stderr(predicate::str::contains("portable, avx2"));
+    }
+    for value in ["portable", "avx2", ""] {
+        run("build tetra1")
+            .env("QUIVER_ISA", value)
+            .assert()
+            .success();
+    }
+}

@@ -8,7 +8,7 @@
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use quiver::builders::prim_bounds;
 use quiver::builders::{build, BuildConfig, Builder};
-use quiver::{Bvh, Layout};
+use quiver::{BuildOptions, Bvh, Layout};
 use quiver_lab::measure::{trace, Query};
 use quiver_lab::rays;
 use quiver_scenes::scene::Scene;
@@ -33,7 +33,8 @@ fn bench_layouts(c: &mut Criterion) {
         .measurement_time(Duration::from_secs(2))
         .warm_up_time(Duration::from_millis(500));
     for layout in Layout::ALL {
-        let bvh = Bvh::from_tree(&tree, &tris, layout);
+        let bvh = Bvh::from_tree(&tree, &tris, &BuildOptions::default().layout(layout))
+            .expect("a built tree fits its primitives");
         for threads in [1, 2] {
             let pool = rayon::ThreadPoolBuilder::new()
                 .num_threads(threads)

@@ -1,7 +1,7 @@
 //! Times the phases of a BVH2 build (primitive bounds, SAH build, layout) on tetra10 at 1 and
 //! 2 threads; prints the fastest of five runs of each. `cargo run --release --example phase`
 use quiver::builders::{build, prim_bounds, BuildConfig, Builder};
-use quiver::Bvh2;
+use quiver::{Bvh2, Bvh2Mapping};
 use quiver_scenes::Scene;
 use std::time::{Duration, Instant};
 
@@ -22,7 +22,8 @@ fn main() {
                 let t1 = Instant::now();
                 let tree = build(&bounds, &BuildConfig::default(), Builder::Binned);
                 let t2 = Instant::now();
-                let bvh = Bvh2::from_tree(&tree, &tris);
+                let bvh = Bvh2::from_tree(&tree, &tris, Bvh2Mapping::DepthFirst)
+                    .expect("a built tree fits its primitives");
                 let t3 = Instant::now();
                 std::hint::black_box(bvh);
                 for (b, d) in best.iter_mut().zip([t1 - t0, t2 - t1, t3 - t2]) {

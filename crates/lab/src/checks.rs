@@ -15,7 +15,7 @@ use crate::oracle::{Answer, Oracle};
 use glam::Vec3A;
 use quiver::builders::{BuildConfig, Builder};
 use quiver::intersect::Watertight;
-use quiver::traverse::{FastBoxes, NoStats, PacketMode};
+use quiver::traverse::{FastBoxes, NoStats, PacketMode, PacketQuery};
 use quiver::{BuildOptions, Bvh, Isa, Layout, Primitive, Ray, RayQuery, Triangle};
 
 /// Reads little-endian f32s from the bytes; NaN, infinities, huge and subnormal values all
@@ -199,17 +199,17 @@ fn packets_check<P: Primitive>(setup: Setup, tris: &[Triangle], rays: &[Ray], bv
     // (the same operations in the same order).
     let portable = bvh.clone().with_isa(Isa::Portable);
     portable.closest_hit_packet_with::<FastBoxes, _>(
-        rays,
-        Some(&active),
-        PacketMode::Always,
+        PacketQuery::new(rays)
+            .active(&active)
+            .mode(PacketMode::Always),
         &mut hits,
         &mut NoStats,
     );
     let on_portable = hits.clone();
     bvh.closest_hit_packet_with::<FastBoxes, _>(
-        rays,
-        Some(&active),
-        PacketMode::Always,
+        PacketQuery::new(rays)
+            .active(&active)
+            .mode(PacketMode::Always),
         &mut hits,
         &mut NoStats,
     );
@@ -222,16 +222,12 @@ fn packets_check<P: Primitive>(setup: Setup, tris: &[Triangle], rays: &[Ray], bv
     }
     for mode in [PacketMode::Always, PacketMode::Auto] {
         bvh.closest_hit_packet_with::<FastBoxes, _>(
-            rays,
-            Some(&active),
-            mode,
+            PacketQuery::new(rays).active(&active).mode(mode),
             &mut hits,
             &mut NoStats,
         );
         bvh.any_hit_packet_with::<FastBoxes, _>(
-            rays,
-            Some(&active),
-            mode,
+            PacketQuery::new(rays).active(&active).mode(mode),
             &mut occluded,
             &mut NoStats,
         );
@@ -414,8 +410,16 @@ fn same_in_packets<P: Primitive>(
     let mut hits = vec![None; rays.len()];
     let mut occluded = vec![false; rays.len()];
     let mode = PacketMode::Always;
-    bvh.closest_hit_packet_with::<FastBoxes, _>(rays, Some(&active), mode, &mut hits, &mut NoStats);
-    bvh.any_hit_packet_with::<FastBoxes, _>(rays, Some(&active), mode, &mut occluded, &mut NoStats);
+    bvh.closest_hit_packet_with::<FastBoxes, _>(
+        PacketQuery::new(rays).active(&active).mode(mode),
+        &mut hits,
+        &mut NoStats,
+    );
+    bvh.any_hit_packet_with::<FastBoxes, _>(
+        PacketQuery::new(rays).active(&active).mode(mode),
+        &mut occluded,
+        &mut NoStats,
+    );
     for (i, r) in rays.iter().enumerate() {
         let (want, want_any) = match active[i] {
             true => (bvh.closest_hit(r), bvh.any_hit(r)),

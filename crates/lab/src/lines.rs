@@ -19,7 +19,8 @@
 //! use quiver_scenes::Scene;
 //! let tris = Scene::load("tetra3").unwrap().triangles();
 //! let (_, tree) = BuildOptions::default().build_with_tree(&tris);
-//! let ghost = Bvh::from_tree(&tree, &Pierce::of(&tris), Layout::Bvh2Dfs);
+//! let options = BuildOptions::default().layout(Layout::Bvh2Dfs);
+//! let ghost = Bvh::from_tree(&tree, &Pierce::of(&tris), &options).unwrap();
 //! let lines = isotropic_lines(&tree.nodes[0].bounds, 20_000, 1);
 //! let m = pierced(&ghost, &lines);
 //! let p = predict(&tree);

@@ -12,7 +12,7 @@
 //! assert!(trace(&bvh, &rays, Query::Closest) > 0);
 //! ```
 
-use quiver::traverse::{ConservativeBoxes, Counters, NoStats, PacketMode, RayQuery};
+use quiver::traverse::{ConservativeBoxes, Counters, NoStats, PacketMode, PacketQuery, RayQuery};
 use quiver::Ray;
 use rayon::prelude::*;
 use std::time::{Duration, Instant};
@@ -90,9 +90,7 @@ pub fn trace_packets<Q: RayQuery + Sync>(
             Query::Closest => {
                 let mut hits = vec![None; chunk.len()];
                 bvh.closest_hit_packet_with::<ConservativeBoxes, _>(
-                    chunk,
-                    None,
-                    mode,
+                    PacketQuery::new(chunk).mode(mode),
                     &mut hits,
                     &mut NoStats,
                 );
@@ -101,9 +99,7 @@ pub fn trace_packets<Q: RayQuery + Sync>(
             Query::Any => {
                 let mut hit = vec![false; chunk.len()];
                 bvh.any_hit_packet_with::<ConservativeBoxes, _>(
-                    chunk,
-                    None,
-                    mode,
+                    PacketQuery::new(chunk).mode(mode),
                     &mut hit,
                     &mut NoStats,
                 );

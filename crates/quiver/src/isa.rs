@@ -28,16 +28,79 @@ pub enum Isa {
 /// The environment variable that forces an instruction set: `portable` or `avx2`.
 pub const ISA_ENV: &str = "QUIVER_ISA";
 
+/// Proof that this CPU runs AVX2 and FMA instructions. Its field is private to this module and
+/// [`Avx2Cpu::detect`], which asks the CPU, is its only constructor: a value exists only
+/// where the instructions do, which is what every AVX2 kernel's safety rests on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct Avx2Cpu(());
+
+impl Avx2Cpu {
+    /// The proof, where the CPU reports AVX2 and FMA.
+    pub(crate) fn detect() -> Option<Avx2Cpu> {
+        avx2_supported().then_some(Avx2Cpu(()))
+    }
+}
+
+/// The kernels a BVH's queries run on, checked when chosen: the AVX2 ones carry the proof
+/// that the CPU has them, so no value of this type can send a query to instructions the CPU
+/// lacks. Layouts keep one in a private field.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Kernels {
+    /// `wide`'s lanes as compiled for the target.
+    Portable,
+    /// AVX2 lanes, on a CPU that has them.
+    Avx2(Avx2Cpu),
+}
+
+impl Kernels {
+    /// The kernels for `isa` where this CPU runs them, else the portable ones.
+    pub(crate) fn new(isa: Isa) -> Kernels {
+        match isa {
+            Isa::Avx2 => Avx2Cpu::detect().map_or(Kernels::Portable, Kernels::Avx2),
+            Isa::Portable => Kernels::Portable,
+        }
+    }
+
+    /// The instruction set they run on.
+    pub(crate) fn isa(self) -> Isa {
+        match self {
+            Kernels::Portable => Isa::Portable,
+            Kernels::Avx2(_) => Isa::Avx2,
+        }
+    }
+}
+
 impl Isa {
     /// Every instruction set, portable first.
     pub const ALL: [Isa; 2] = [Isa::Portable, Isa::Avx2];
 
     /// The best instruction set this CPU runs, unless [`ISA_ENV`] says `portable` (or
-    /// `avx2`, which is honoured only where supported). Read when a BVH is built.
+    /// `avx2`, which is honoured only where supported). Read when a BVH is built. A value of
+    /// [`ISA_ENV`] that names no instruction set is ignored here; [`Isa::from_env`] reports it
+    /// (the `quiver` command refuses to start with one).
     pub fn detect() -> Isa {
-        match std::env::var(ISA_ENV).as_deref() {
-            Ok("portable") => Isa::Portable,
+        match Isa::from_env() {
+            Ok(Some(Isa::Portable)) => Isa::Portable,
             _ => Isa::best(),
+        }
+    }
+
+    /// What [`ISA_ENV`] asks for: `None` when it is unset or empty, an error naming the value
+    /// and the accepted ones when it names no instruction set.
+    ///
+    /// ```
+    /// use quiver::Isa;
+    /// assert_eq!("portable".parse::<Isa>(), Ok(Isa::Portable));
+    /// assert!("Portable".parse::<Isa>().unwrap_err().contains("portable, avx2"));
+    /// ```
+    pub fn from_env() -> Result<Option<Isa>, String> {
+        match std::env::var(ISA_ENV) {
+            Err(std::env::VarError::NotPresent) => Ok(None),
+            Err(std::env::VarError::NotUnicode(v)) => {
+                Err(format!("{ISA_ENV}={v:?}: expected one of portable, avx2"))
+            }
+            Ok(v) if v.is_empty() => Ok(None),
+            Ok(v) => v.parse().map(Some).map_err(|e| format!("{ISA_ENV}: {e}")),
         }
     }
 
@@ -73,6 +136,18 @@ impl Isa {
             Isa::Portable => "portable",
             Isa::Avx2 => "avx2",
         }
+    }
+}
+
+impl std::str::FromStr for Isa {
+    type Err = String;
+
+    /// An instruction set by its [`Isa::name`]; the error lists the names.
+    fn from_str(s: &str) -> Result<Self, String> {
+        Isa::ALL
+            .into_iter()
+            .find(|i| i.name() == s)
+            .ok_or_else(|| format!("unknown instruction set '{s}': expected one of portable, avx2"))
     }
 }
 

@@ -32,6 +32,14 @@
 
 #![warn(missing_docs)]
 
+// The crates whose types the public API names, so an embedder uses the very versions quiver
+// was built with: glam (`Vec3A` in rays and boxes), wide (`f32x8` in a primitive's eight-ray
+// test), rayon (the `ThreadPool` a build runs on) and bytemuck (`Pod` node types).
+pub use bytemuck;
+pub use glam;
+pub use rayon;
+pub use wide;
+
 pub mod builders;
 mod bvh;
 mod frame;
@@ -51,7 +59,10 @@ pub mod traverse;
 pub use bvh::{BuildOptions, Bvh};
 pub use geometry::{Aabb, Hit, PrimHit, Ray, Triangle};
 pub use isa::{Isa, ISA_ENV};
-pub use layout::{Bvh2, Layout};
+pub use layout::{
+    Bvh2, Bvh2Mapping, Bvh2Node, Bvh4, Bvh4Mapping, Bvh4Node, Bvh8, Bvh8Node, Footprint, Layout,
+    Node4, QBvh4, QBvh4Node, Tri4,
+};
 pub use mesh::MeshError;
 pub use primitive::{LeafFormat, Primitive};
 pub use traverse::{reference, RayQuery};

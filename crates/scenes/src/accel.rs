@@ -18,7 +18,7 @@ use quiver::builders::BuildTree;
 use quiver::layout::Footprint;
 use quiver::predict::{Piece, Pieces};
 use quiver::traverse::NoStats;
-use quiver::traverse::{BoxTest, PacketMode, RayQuery, Stats};
+use quiver::traverse::{BoxTest, PacketQuery, RayQuery, Stats};
 use quiver::{BuildOptions, Bvh, Hit, PrimHit, Primitive, Ray, Triangle};
 use std::sync::Mutex;
 
@@ -287,20 +287,16 @@ impl RayQuery for SceneBvh {
 
     fn closest_hit_packet_with<B: BoxTest, S: Stats>(
         &self,
-        rays: &[Ray],
-        active: Option<&[bool]>,
-        mode: PacketMode,
+        query: PacketQuery<'_>,
         hits: &mut [Option<Hit>],
         stats: &mut S,
     ) {
         match &self.kind {
-            Kind::Triangles(b, ..) => {
-                b.closest_hit_packet_with::<B, S>(rays, active, mode, hits, stats)
-            }
-            Kind::Mixed(b, _) => b.closest_hit_packet_with::<B, S>(rays, active, mode, hits, stats),
+            Kind::Triangles(b, ..) => b.closest_hit_packet_with::<B, S>(query, hits, stats),
+            Kind::Mixed(b, _) => b.closest_hit_packet_with::<B, S>(query, hits, stats),
             Kind::Record(..) => {
-                for (i, (r, h)) in rays.iter().zip(hits.iter_mut()).enumerate() {
-                    if active.is_none_or(|a| a[i]) {
+                for (i, (r, h)) in query.rays.iter().zip(hits.iter_mut()).enumerate() {
+                    if query.active.is_none_or(|a| a[i]) {
                         *h = self.closest_hit_with::<B, S>(r, stats);
                     }
                 }
@@ -310,20 +306,16 @@ impl RayQuery for SceneBvh {
 
     fn any_hit_packet_with<B: BoxTest, S: Stats>(
         &self,
-        rays: &[Ray],
-        active: Option<&[bool]>,
-        mode: PacketMode,
+        query: PacketQuery<'_>,
         occluded: &mut [bool],
         stats: &mut S,
     ) {
         match &self.kind {
-            Kind::Triangles(b, ..) => {
-                b.any_hit_packet_with::<B, S>(rays, active, mode, occluded, stats)
-            }
-            Kind::Mixed(b, _) => b.any_hit_packet_with::<B, S>(rays, active, mode, occluded, stats),
+            Kind::Triangles(b, ..) => b.any_hit_packet_with::<B, S>(query, occluded, stats),
+            Kind::Mixed(b, _) => b.any_hit_packet_with::<B, S>(query, occluded, stats),
             Kind::Record(..) => {
-                for (i, (r, o)) in rays.iter().zip(occluded.iter_mut()).enumerate() {
-                    if active.is_none_or(|a| a[i]) {
+                for (i, (r, o)) in query.rays.iter().zip(occluded.iter_mut()).enumerate() {
+                    if query.active.is_none_or(|a| a[i]) {
                         *o = self.any_hit_with::<B, S>(r, stats);
                     }
                 }

@@ -24,7 +24,7 @@ use crate::scene::{Material, Scene};
 use glam::Vec3A;
 use quiver::geometry::{offset_ray_origin, unit_or_zero, Hit, Ray};
 use quiver::traverse::{
-    ConservativeBoxes, Counters, NoStats, PacketMode, RayQuery, Stats, PACKET_RAYS,
+    ConservativeBoxes, Counters, NoStats, PacketMode, PacketQuery, RayQuery, Stats, PACKET_RAYS,
 };
 use rayon::prelude::*;
 use std::ops::{AddAssign, Range};
@@ -422,7 +422,11 @@ impl Query<'_> {
             Query::Closest(hits) => {
                 for (r, h) in rays.chunks(PACKET_RAYS).zip(hits.chunks_mut(PACKET_RAYS)) {
                     let m = mode(r, &mut packet_rays);
-                    bvh.closest_hit_packet_with::<ConservativeBoxes, S>(r, None, m, h, stats);
+                    bvh.closest_hit_packet_with::<ConservativeBoxes, S>(
+                        PacketQuery::new(r).mode(m),
+                        h,
+                        stats,
+                    );
                 }
             }
             Query::Any(blocked) => {
@@ -431,7 +435,11 @@ impl Query<'_> {
                     .zip(blocked.chunks_mut(PACKET_RAYS))
                 {
                     let m = mode(r, &mut packet_rays);
-                    bvh.any_hit_packet_with::<ConservativeBoxes, S>(r, None, m, o, stats);
+                    bvh.any_hit_packet_with::<ConservativeBoxes, S>(
+                        PacketQuery::new(r).mode(m),
+                        o,
+                        stats,
+                    );
                 }
             }
         }

@@ -168,10 +168,16 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
         bar.inc(1);
         bar.set_message(format!("{name}: tracing"));
         let tree = build(&prim_bounds(&tris), &config, Builder::Binned);
-        let bvhs: Vec<Bvh> = KERNELS
+        let bvhs = KERNELS
             .iter()
-            .map(|&l| Bvh::from_tree(&tree, &tris, l))
-            .collect();
+            .map(|&l| {
+                Bvh::from_tree(
+                    &tree,
+                    &tris,
+                    &BuildOptions::default().config(config.clone()).layout(l),
+                )
+            })
+            .collect::<std::result::Result<Vec<Bvh>, _>>()?;
         let obvh = build_bvh2_from_tris(
             &ot,
             BvhBuildParams::medium_build(),

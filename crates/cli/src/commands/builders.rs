@@ -10,7 +10,7 @@ use super::{
 use crate::output::{check_outputs, outln, scatter_svg, write_json, write_text, Axes, Point};
 use glam::Vec3A;
 use quiver::builders::{build, prim_bounds, BuildConfig, BuildTree, Builder};
-use quiver::{Aabb, Bvh, Layout, Ray, Triangle};
+use quiver::{Aabb, BuildOptions, Bvh, Layout, Ray, Triangle};
 use quiver_lab::measure::{self, median_times_interleaved, Query};
 use quiver_lab::rays;
 use quiver_scenes::scene::tessellate;
@@ -186,8 +186,13 @@ pub(crate) fn run(args: BuildersArgs) -> Result<()> {
                 steps_per_ray: 0.0,
                 tests_per_ray: 0.0,
             });
-            bvhs.push(Bvh::from_tree(&tree, &tris, Layout::default()));
-            counting.push(Bvh::from_tree(&tree, &tris, Layout::Bvh2Dfs));
+            let options = BuildOptions::default().config(config.clone());
+            bvhs.push(Bvh::from_tree(&tree, &tris, &options)?);
+            counting.push(Bvh::from_tree(
+                &tree,
+                &tris,
+                &options.layout(Layout::Bvh2Dfs),
+            )?);
             bar.inc(1);
         }
         bar.set_message(format!("{}: tracing", scene.name));

@@ -6,7 +6,7 @@ use super::{
 };
 use crate::output::{check_outputs, out, outln, write_json};
 use quiver::builders::{build, prim_bounds, BuildConfig, Builder};
-use quiver::{Bvh, Layout};
+use quiver::{BuildOptions, Bvh, Layout};
 use quiver_lab::measure::{self, Query};
 use quiver_lab::rays;
 use serde_json::{json, Value};
@@ -87,7 +87,13 @@ pub(crate) fn run(args: LayoutsArgs) -> Result<()> {
         let mut bvhs = Vec::new();
         for &layout in &layouts {
             bar.set_message(format!("{name}: laying out {layout}"));
-            let bvh = Bvh::from_tree(&tree, &tris, layout);
+            let bvh = Bvh::from_tree(
+                &tree,
+                &tris,
+                &BuildOptions::default()
+                    .config(config.clone())
+                    .layout(layout),
+            )?;
             // What each layout's boxes cost in work: counters over the random rays.
             let work = count_pool.install(|| measure::count(&bvh, &sets[0].1, Query::Closest));
             let per_ray = |x: u64| x as f64 / sets[0].1.len() as f64;

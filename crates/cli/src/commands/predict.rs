@@ -121,8 +121,9 @@ pub(crate) fn run(args: PredictArgs) -> Result<()> {
             let objects = object_area(&tris, &root);
             let lines = isotropic_lines(&root, args.lines, 11);
             for &layout in &layouts {
-                let bvh = Bvh::from_tree(&tree, &tris, layout);
-                let ghost = Bvh::from_tree(&tree, &ghosts, layout);
+                let laid = options.clone().layout(layout);
+                let bvh = Bvh::from_tree(&tree, &tris, &laid)?;
+                let ghost = Bvh::from_tree(&tree, &ghosts, &laid)?;
                 let predicted = bvh.predict_within(&root);
                 let (pierced, closest) = count_pool.install(|| {
                     (
@@ -141,7 +142,7 @@ pub(crate) fn run(args: PredictArgs) -> Result<()> {
                 });
             }
             if time {
-                let bvh = Bvh::from_tree(&tree, &tris, timed_layout);
+                let bvh = Bvh::from_tree(&tree, &tris, &options.clone().layout(timed_layout))?;
                 let sets = ray_sets(scene, &bvh, &args);
                 let aronov = bvh.predict_within(&root).aronov(objects);
                 let sah = tree.sah_cost(&quiver::builders::BuildConfig::default());

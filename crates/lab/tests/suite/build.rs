@@ -5,7 +5,7 @@ use glam::Vec3A;
 use quiver::builders::{
     build, optimize, prim_bounds, BuildConfig, BuildTree, Builder, NodeKind, MAX_DEPTH,
 };
-use quiver::{reference, Aabb, Bvh2, RayQuery, Triangle};
+use quiver::{reference, Aabb, Bvh2, Bvh2Mapping, RayQuery, Triangle};
 use quiver_lab::rays;
 use quiver_scenes::rng::Rng;
 use quiver_scenes::Scene;
@@ -70,7 +70,8 @@ fn check_degenerate(name: &str, tris: &[Triangle]) -> Vec<BuildTree> {
                 "{name}: depth {}",
                 tree.stats().depth
             );
-            let bvh = Bvh2::from_tree(&tree, tris);
+            let bvh = Bvh2::from_tree(&tree, tris, Bvh2Mapping::DepthFirst)
+                .expect("a built tree fits its primitives");
             let finite = tris
                 .iter()
                 .filter(|t| t.is_finite())

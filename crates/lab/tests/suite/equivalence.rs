@@ -174,12 +174,16 @@ fn check_layouts(tris: &[Triangle], sets: &[RaySet], what: &str) {
     for builder in Builder::ALL {
         let tree = build(&bounds, &BuildConfig::default(), builder);
         for layout in Layout::ALL {
-            each_isa(&Bvh::from_tree(&tree, tris, layout), |bvh, isa| {
-                for set in sets {
-                    let w = check(bvh, set, &format!("{what} {builder} {layout} {isa}"));
-                    worst = worst.max(w);
-                }
-            });
+            let options = BuildOptions::default().layout(layout);
+            each_isa(
+                &Bvh::from_tree(&tree, tris, &options).expect("a built tree fits its primitives"),
+                |bvh, isa| {
+                    for set in sets {
+                        let w = check(bvh, set, &format!("{what} {builder} {layout} {isa}"));
+                        worst = worst.max(w);
+                    }
+                },
+            );
         }
     }
     report(what, worst);

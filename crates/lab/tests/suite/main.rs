@@ -5,6 +5,7 @@
 mod common;
 
 mod build;
+mod contract;
 mod equivalence;
 mod fuzz_regressions;
 mod hard_cases;

@@ -7,7 +7,7 @@
 use crate::common::{build, WIDE};
 use glam::Vec3A;
 use quiver::intersect::Watertight;
-use quiver::traverse::{BoxTest, ConservativeBoxes, FastBoxes, NoStats, PacketMode};
+use quiver::traverse::{BoxTest, ConservativeBoxes, FastBoxes, NoStats, PacketMode, PacketQuery};
 use quiver::{reference, BuildOptions, Bvh, Hit, Isa, Layout, Primitive, Ray, RayQuery};
 use quiver_lab::rays;
 use quiver_scenes::rng::Rng;
@@ -25,8 +25,16 @@ fn check_against_single<P: Primitive, B: BoxTest>(
     for mode in [PacketMode::Always, PacketMode::Auto] {
         let mut hits = vec![Some(Hit::none(0.0)); rays.len()];
         let mut occluded = vec![true; rays.len()];
-        bvh.closest_hit_packet_with::<B, _>(rays, active, mode, &mut hits, &mut NoStats);
-        bvh.any_hit_packet_with::<B, _>(rays, active, mode, &mut occluded, &mut NoStats);
+        bvh.closest_hit_packet_with::<B, _>(
+            PacketQuery { rays, active, mode },
+            &mut hits,
+            &mut NoStats,
+        );
+        bvh.any_hit_packet_with::<B, _>(
+            PacketQuery { rays, active, mode },
+            &mut occluded,
+            &mut NoStats,
+        );
         for (i, ray) in rays.iter().enumerate() {
             let on = active.is_none_or(|a| a[i]);
             let want = on
@@ -55,9 +63,11 @@ fn check<P: Primitive>(
     check_against_single::<P, FastBoxes>(bvh, rays, active, &format!("{what} fast"));
     let mut hits = vec![None; rays.len()];
     bvh.closest_hit_packet_with::<ConservativeBoxes, _>(
-        rays,
-        active,
-        PacketMode::Always,
+        PacketQuery {
+            rays,
+            active,
+            mode: PacketMode::Always,
+        },
         &mut hits,
         &mut NoStats,
     );
@@ -274,9 +284,9 @@ fn inactive_lanes_and_partial_packets_match() {
     let mut hits = vec![Some(Hit::none(0.0)); 64];
     let none = vec![false; 64];
     bvh.closest_hit_packet_with::<ConservativeBoxes, _>(
-        &eye[..64],
-        Some(&none),
-        PacketMode::Always,
+        PacketQuery::new(&eye[..64])
+            .active(&none)
+            .mode(PacketMode::Always),
         &mut hits,
         &mut NoStats,
     );

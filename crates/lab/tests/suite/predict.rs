@@ -56,7 +56,12 @@ fn crofton_prediction_matches_pierced_lines() {
                 .build_with_tree(&tris);
             let root = tree.nodes[0].bounds;
             let lines = isotropic_lines(&root, 40_000, 17);
-            let ghost2 = Bvh::from_tree(&tree, &ghosts, Layout::Bvh2Dfs);
+            let ghost2 = Bvh::from_tree(
+                &tree,
+                &ghosts,
+                &BuildOptions::default().layout(Layout::Bvh2Dfs),
+            )
+            .expect("a built tree fits its primitives");
             check(
                 scene,
                 &format!("{builder} tree"),
@@ -69,7 +74,8 @@ fn crofton_prediction_matches_pierced_lines() {
                     .builder(builder)
                     .layout(layout)
                     .build(&tris);
-                let ghost = Bvh::from_tree(&tree, &ghosts, layout);
+                let ghost = Bvh::from_tree(&tree, &ghosts, &BuildOptions::default().layout(layout))
+                    .expect("a built tree fits its primitives");
                 let p = bvh.predict_within(&root);
                 check(scene, &format!("{builder} {layout}"), &p, &ghost, &lines);
             }

@@ -41,7 +41,7 @@ pub use cost::CostModel;
 pub(crate) use cost::{model_score, split_beats_leaf, Side};
 pub(crate) use split::{bounds_of, median_split, widest_axis};
 pub(crate) use tree::MEDIAN_DEPTH;
-pub use tree::{BuildNode, BuildTree, NodeKind, TreeStats, MAX_DEPTH};
+pub use tree::{BuildNode, BuildTree, NodeKind, TreeError, TreeStats, MAX_DEPTH};
 
 use crate::geometry::Aabb;
 use crate::primitive::Primitive;

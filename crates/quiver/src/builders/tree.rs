@@ -3,6 +3,7 @@
 
 use super::BuildConfig;
 use crate::geometry::Aabb;
+use std::fmt;
 
 /// What a node of the [`BuildTree`] is.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -64,6 +65,133 @@ pub(crate) const MEDIAN_DEPTH: usize = 48;
 
 /// The deepest tree any builder makes for up to 2^32 primitives; traversal stacks use it.
 pub const MAX_DEPTH: usize = MEDIAN_DEPTH + 33;
+
+/// Why a [`BuildTree`] cannot be laid out over a primitive slice (see [`BuildTree::check`]):
+/// each names the node, slot or primitive at fault.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum TreeError {
+    /// The tree has no nodes (an empty build has one empty leaf).
+    NoNodes,
+    /// The tree is for another number of primitives: its index array and dropped count
+    /// account for `tree`, the slice holds `prims`.
+    PrimCount {
+        /// `prim_indices.len() + dropped`.
+        tree: usize,
+        /// Primitives given.
+        prims: usize,
+    },
+    /// Node `node` is not where depth-first preorder puts it: reached as `expected`, or
+    /// (`expected == usize::MAX`) never reached from the root; or its child link `child`
+    /// is not the next node of the preorder.
+    Order {
+        /// The node.
+        node: usize,
+        /// The preorder position it was reached at.
+        expected: usize,
+        /// The offending child link, if any.
+        child: Option<u32>,
+    },
+    /// Node `node` lies `depth` edges below the root, deeper than the kernels' stacks hold.
+    TooDeep {
+        /// The node.
+        node: usize,
+        /// Its depth.
+        depth: usize,
+        /// The deepest allowed ([`MAX_DEPTH`]).
+        max: usize,
+    },
+    /// Leaf `node` does not cover the next `count` slots of the index array (leaves in
+    /// preorder must cover `prim_indices` in order, each slot once).
+    LeafRange {
+        /// The leaf.
+        node: usize,
+        /// Its first slot.
+        first: u32,
+        /// Its slot count.
+        count: u32,
+        /// The slot the next leaf had to start at.
+        expected: usize,
+    },
+    /// Slot `slot` of the index array names primitive `prim`, which is out of range, already
+    /// named, or not finite (builders drop those).
+    PrimIndex {
+        /// The slot in `prim_indices`.
+        slot: usize,
+        /// The primitive it names.
+        prim: u32,
+        /// What is wrong with it.
+        why: &'static str,
+    },
+    /// Primitive `prim` is finite but in no leaf: the tree would never hit it.
+    Unreferenced {
+        /// The primitive.
+        prim: usize,
+    },
+    /// Leaf `node` holds `count` primitives, more than the layout stores (`max`).
+    LeafSize {
+        /// The leaf.
+        node: usize,
+        /// Its primitives.
+        count: u32,
+        /// The layout's limit.
+        max: u32,
+    },
+}
+
+impl fmt::Display for TreeError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            TreeError::NoNodes => write!(f, "the tree has no nodes"),
+            TreeError::PrimCount { tree, prims } => write!(
+                f,
+                "the tree is for {tree} primitives (indexed and dropped), {prims} were given"
+            ),
+            TreeError::Order {
+                node,
+                expected,
+                child: Some(c),
+            } => write!(
+                f,
+                "node {node} (preorder position {expected}): child link {c} is not the next \
+                 node of a depth-first preorder"
+            ),
+            TreeError::Order { node, .. } => write!(
+                f,
+                "node {node} is not reached from the root in depth-first preorder"
+            ),
+            TreeError::TooDeep { node, depth, max } => write!(
+                f,
+                "node {node} lies {depth} levels deep; traversal allows at most {max}"
+            ),
+            TreeError::LeafRange {
+                node,
+                first,
+                count,
+                expected,
+            } => write!(
+                f,
+                "leaf {node} covers slots {first}..{} of the index array, expected them to \
+                 start at {expected}",
+                *first as u64 + *count as u64
+            ),
+            TreeError::PrimIndex { slot, prim, why } => {
+                write!(
+                    f,
+                    "slot {slot} of the index array names primitive {prim}: {why}"
+                )
+            }
+            TreeError::Unreferenced { prim } => {
+                write!(f, "primitive {prim} is finite but in no leaf")
+            }
+            TreeError::LeafSize { node, count, max } => write!(
+                f,
+                "leaf {node} holds {count} primitives; this layout stores at most {max}"
+            ),
+        }
+    }
+}
+
+impl std::error::Error for TreeError {}
 
 impl BuildTree {
     /// The same tree with its boxes recomputed bottom-up from `bounds` (one per input
@@ -136,12 +264,152 @@ impl BuildTree {
             .sum()
     }
 
+    /// Checks that this tree can be laid out over the primitives with boxes `bounds` (one per
+    /// input primitive) and traversed safely: nodes in depth-first preorder (root at 0, each
+    /// left child right after its parent), no deeper than [`MAX_DEPTH`], leaves covering the
+    /// index array in order, every finite primitive named exactly once and nothing else, and
+    /// `prim_indices.len() + dropped == bounds.len()`. Boxes are not checked: the layouts
+    /// recompute them from the primitives. What [`crate::Bvh::from_tree`] and every layout's
+    /// `from_tree` check before they lay a tree out.
+    ///
+    /// ```
+    /// use quiver::builders::{build, BuildConfig, Builder, TreeError};
+    /// use quiver::Aabb;
+    /// use glam::Vec3A;
+    /// let boxes: Vec<Aabb> = (0..10).map(|i| Aabb::new(Vec3A::splat(i as f32), Vec3A::splat(i as f32 + 0.5))).collect();
+    /// let tree = build(&boxes, &BuildConfig::default(), Builder::Binned);
+    /// assert_eq!(tree.check(&boxes), Ok(()));
+    /// assert!(matches!(tree.check(&boxes[..9]), Err(TreeError::PrimCount { tree: 10, prims: 9 })));
+    /// ```
+    pub fn check(&self, bounds: &[Aabb]) -> Result<(), TreeError> {
+        if self.nodes.is_empty() {
+            return Err(TreeError::NoNodes);
+        }
+        let named = self.prim_indices.len() as u64 + self.dropped as u64;
+        if named != bounds.len() as u64 {
+            return Err(TreeError::PrimCount {
+                tree: named.min(usize::MAX as u64) as usize,
+                prims: bounds.len(),
+            });
+        }
+        // Walk in preorder: the k-th node popped must be node k, the next leaf must start
+        // where the last one ended. This alone rules out cycles, shared subtrees and stray
+        // links, since every node is reached once and in order.
+        let mut stack = vec![(0u32, 0usize)];
+        let (mut next, mut slot) = (0usize, 0usize);
+        while let Some((i, depth)) = stack.pop() {
+            let i = i as usize;
+            if i != next {
+                return Err(TreeError::Order {
+                    node: i,
+                    expected: next,
+                    child: None,
+                });
+            }
+            next += 1;
+            if depth > MAX_DEPTH {
+                return Err(TreeError::TooDeep {
+                    node: i,
+                    depth,
+                    max: MAX_DEPTH,
+                });
+            }
+            match self.nodes[i].kind {
+                NodeKind::Inner { left, right } => {
+                    let n = self.nodes.len();
+                    for (c, ok) in [
+                        (left, left as usize == i + 1),
+                        (right, right as usize > i + 1),
+                    ] {
+                        if !ok || c as usize >= n {
+                            return Err(TreeError::Order {
+                                node: i,
+                                expected: i,
+                                child: Some(c),
+                            });
+                        }
+                    }
+                    stack.push((right, depth + 1));
+                    stack.push((left, depth + 1));
+                }
+                NodeKind::Leaf { first, count } => {
+                    let end = first as usize + count as usize;
+                    if first as usize != slot || end > self.prim_indices.len() {
+                        return Err(TreeError::LeafRange {
+                            node: i,
+                            first,
+                            count,
+                            expected: slot,
+                        });
+                    }
+                    slot = end;
+                }
+            }
+        }
+        if next != self.nodes.len() {
+            return Err(TreeError::Order {
+                node: next,
+                expected: usize::MAX,
+                child: None,
+            });
+        }
+        if slot != self.prim_indices.len() {
+            return Err(TreeError::LeafRange {
+                node: self.nodes.len(),
+                first: slot as u32,
+                count: 0,
+                expected: self.prim_indices.len(),
+            });
+        }
+        let mut seen = vec![false; bounds.len()];
+        for (k, &p) in self.prim_indices.iter().enumerate() {
+            let bad = |why| {
+                Err(TreeError::PrimIndex {
+                    slot: k,
+                    prim: p,
+                    why,
+                })
+            };
+            let Some(b) = bounds.get(p as usize) else {
+                return bad("out of range");
+            };
+            if std::mem::replace(&mut seen[p as usize], true) {
+                return bad("named twice");
+            }
+            if !b.is_finite() {
+                return bad("not finite");
+            }
+        }
+        if let Some(p) = (0..bounds.len()).find(|&p| !seen[p] && bounds[p].is_finite()) {
+            return Err(TreeError::Unreferenced { prim: p });
+        }
+        Ok(())
+    }
+
+    /// The largest leaf, for layouts that store leaf sizes in fewer bits.
+    pub(crate) fn check_leaf_size(&self, max: u32) -> Result<(), TreeError> {
+        for (i, n) in self.nodes.iter().enumerate() {
+            if let NodeKind::Leaf { count, .. } = n.kind {
+                if count > max {
+                    return Err(TreeError::LeafSize {
+                        node: i,
+                        count,
+                        max,
+                    });
+                }
+            }
+        }
+        Ok(())
+    }
+
     /// Checks the invariants every build must keep, given the boxes and configuration it was
-    /// built from: every node reachable exactly once from the root, every finite primitive
+    /// built from: everything [`BuildTree::check`] checks (preorder, depth, leaf ranges,
+    /// primitive references), and every node reachable exactly once from the root, every finite primitive
     /// referenced exactly once (and no other), no leaf above `config.max_leaf_size`, every
     /// parent box containing its children, every leaf box containing its primitives.
     /// Returns a description of the first violation.
     pub fn validate(&self, bounds: &[Aabb], config: &BuildConfig) -> Result<(), String> {
+        self.check(bounds).map_err(|e| e.to_string())?;
         let mut seen_node = vec![false; self.nodes.len()];
         let mut seen_prim = vec![false; bounds.len()];
         let mut refs = 0usize;

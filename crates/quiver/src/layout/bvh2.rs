@@ -1,6 +1,6 @@
 use super::order::{self, Shape, HOLE};
 use super::Footprint;
-use crate::builders::{BuildTree, NodeKind};
+use crate::builders::{BuildTree, NodeKind, TreeError};
 use crate::geometry::{Aabb, Triangle};
 use crate::primitive::Primitive;
 use bytemuck::{Pod, Zeroable};
@@ -131,30 +131,62 @@ impl Bvh2Mapping {
 /// into leaf order so a leaf is a contiguous run the intersector reads directly.
 ///
 /// ```
-/// use quiver::{BuildOptions, Bvh2, Ray, RayQuery, Triangle};
+/// use quiver::{BuildOptions, Bvh2, Bvh2Mapping, Ray, RayQuery, Triangle};
 /// use glam::Vec3A;
 /// let tris = vec![Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y)];
 /// let (_, tree) = BuildOptions::default().build_with_tree(&tris);
-/// let bvh = Bvh2::from_tree(&tree, &tris);
+/// let bvh = Bvh2::from_tree(&tree, &tris, Bvh2Mapping::DepthFirst).unwrap();
 /// let hit = bvh.closest_hit(&Ray::new(Vec3A::new(0.2, 0.2, 1.0), -Vec3A::Z)).unwrap();
 /// assert_eq!((hit.prim, hit.t), (0, 1.0));
+/// assert_eq!(bvh.prim_ids(), &[0]);
 /// ```
 #[derive(Clone, Debug)]
 pub struct Bvh2<P = Triangle> {
     /// Nodes in the order of `mapping`; the root is node 0. Padding slots hold empty leaves.
-    pub nodes: Vec<Bvh2Node>,
+    pub(crate) nodes: Vec<Bvh2Node>,
     /// Primitives in leaf order.
-    pub prims: Vec<P>,
+    pub(crate) prims: Vec<P>,
     /// For each entry of `prims`, its index in the input.
-    pub prim_ids: Vec<u32>,
+    pub(crate) prim_ids: Vec<u32>,
     /// How the nodes are ordered and linked.
-    pub mapping: Bvh2Mapping,
+    pub(crate) mapping: Bvh2Mapping,
 }
 
 impl<P: Primitive> Bvh2<P> {
-    /// Lays out a built tree over `prims` (the build's input) depth-first.
-    pub fn from_tree(tree: &BuildTree, prims: &[P]) -> Self {
-        Self::from_leaf_prims(tree, leaf_order(tree, prims), Bvh2Mapping::DepthFirst)
+    /// Lays out a built tree over `prims` (the build's input) in `mapping`, after checking
+    /// that the tree fits them ([`BuildTree::check`]); its boxes are recomputed from `prims`.
+    ///
+    /// ```
+    /// use quiver::builders::{build, prim_bounds, BuildConfig, Builder};
+    /// use quiver::{Bvh2, Bvh2Mapping, Ray, RayQuery, Triangle};
+    /// use glam::Vec3A;
+    /// let tris: Vec<Triangle> = (0..64)
+    ///     .map(|i| {
+    ///         let o = Vec3A::new((i % 8) as f32, (i / 8) as f32, 0.0);
+    ///         Triangle::new(o, o + Vec3A::X, o + Vec3A::Y)
+    ///     })
+    ///     .collect();
+    /// let tree = build(&prim_bounds(&tris), &BuildConfig::default(), Builder::Binned);
+    /// let dfs = Bvh2::from_tree(&tree, &tris, Bvh2Mapping::DepthFirst).unwrap();
+    /// let sub = Bvh2::from_tree(&tree, &tris, Bvh2Mapping::Subtree).unwrap();
+    /// let ray = Ray::new(Vec3A::new(3.2, 5.1, 1.0), -Vec3A::Z);
+    /// assert_eq!(dfs.closest_hit(&ray).map(|h| h.prim), Some(43));
+    /// assert_eq!(dfs.closest_hit(&ray), sub.closest_hit(&ray));
+    /// // A tree for other primitives is an error, not a wrong answer.
+    /// assert!(Bvh2::from_tree(&tree, &tris[..10], Bvh2Mapping::DepthFirst).is_err());
+    /// ```
+    ///
+    /// # Errors
+    /// [`TreeError`] when the tree does not fit `prims`, is not in depth-first preorder, is
+    /// deeper than traversal allows, or has a leaf of `2^31` primitives or more.
+    pub fn from_tree(
+        tree: &BuildTree,
+        prims: &[P],
+        mapping: Bvh2Mapping,
+    ) -> Result<Self, TreeError> {
+        let (tree, prims) = super::checked(tree, prims)?;
+        tree.check_leaf_size(Bvh2Node::LEAF - 1)?;
+        Ok(Self::from_leaf_prims(&tree, prims, mapping))
     }
 
     /// The build tree is already in preorder with each left child right after its parent, so
@@ -184,31 +216,7 @@ impl<P: Primitive> Bvh2<P> {
         }
     }
 
-    /// Lays out a built tree in any [`Bvh2Mapping`].
-    ///
-    /// ```
-    /// use quiver::layout::{Bvh2, Bvh2Mapping};
-    /// use quiver::builders::{build, prim_bounds, BuildConfig, Builder};
-    /// use quiver::{Ray, RayQuery, Triangle};
-    /// use glam::Vec3A;
-    /// let tris: Vec<Triangle> = (0..64)
-    ///     .map(|i| {
-    ///         let o = Vec3A::new((i % 8) as f32, (i / 8) as f32, 0.0);
-    ///         Triangle::new(o, o + Vec3A::X, o + Vec3A::Y)
-    ///     })
-    ///     .collect();
-    /// let tree = build(&prim_bounds(&tris), &BuildConfig::default(), Builder::Binned);
-    /// let dfs = Bvh2::from_tree(&tree, &tris);
-    /// let sub = Bvh2::from_tree_mapped(&tree, &tris, Bvh2Mapping::Subtree);
-    /// let ray = Ray::new(Vec3A::new(3.2, 5.1, 1.0), -Vec3A::Z);
-    /// assert_eq!(dfs.closest_hit(&ray).map(|h| h.prim), Some(43));
-    /// assert_eq!(dfs.closest_hit(&ray), sub.closest_hit(&ray));
-    /// ```
-    pub fn from_tree_mapped(tree: &BuildTree, prims: &[P], mapping: Bvh2Mapping) -> Self {
-        Self::from_leaf_prims(tree, leaf_order(tree, prims), mapping)
-    }
-
-    /// [`Bvh2::from_tree_mapped`] with the primitives already in the tree's leaf order.
+    /// Lays out a checked tree with the primitives already in its leaf order.
     pub(crate) fn from_leaf_prims(tree: &BuildTree, prims: Vec<P>, mapping: Bvh2Mapping) -> Self {
         if mapping == Bvh2Mapping::DepthFirst {
             return Bvh2::depth_first(tree, prims);
@@ -264,6 +272,36 @@ impl<P: Primitive> Bvh2<P> {
     /// What the nodes and leaves occupy (padding slots included).
     pub fn footprint(&self) -> Footprint {
         Footprint::of(&self.nodes, &self.prims, &self.prim_ids)
+    }
+
+    /// The nodes, root first, in the order of [`Bvh2::mapping`].
+    pub fn nodes(&self) -> &[Bvh2Node] {
+        &self.nodes
+    }
+
+    /// The node array as bytes, as the traversal reads it.
+    pub fn node_bytes(&self) -> &[u8] {
+        bytemuck::cast_slice(&self.nodes)
+    }
+
+    /// The primitives in leaf order.
+    pub fn prims(&self) -> &[P] {
+        &self.prims
+    }
+
+    /// For each entry of [`Bvh2::prims`], its index in the input (what hits report).
+    pub fn prim_ids(&self) -> &[u32] {
+        &self.prim_ids
+    }
+
+    /// How the nodes are ordered and linked.
+    pub fn mapping(&self) -> Bvh2Mapping {
+        self.mapping
+    }
+
+    /// The root's box: every primitive's box.
+    pub fn bounds(&self) -> Aabb {
+        self.nodes[0].bounds()
     }
 }
 

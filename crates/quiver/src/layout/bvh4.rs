@@ -2,14 +2,13 @@
 //! together with SIMD. Two node formats: [`Bvh4Node`] (exact f32 boxes, 128 bytes) and
 //! [`QBvh4Node`] (boxes quantized to 8 bits in a per-node frame, 64 bytes: one cache line).
 
-use super::bvh2::leaf_order;
 use super::collapse::{self, collapse, Child};
 use super::order::{self, Shape, HOLE};
 use super::tri4::{self, Tri4};
 use super::Footprint;
-use crate::builders::BuildTree;
+use crate::builders::{BuildTree, TreeError};
 use crate::geometry::{Aabb, Triangle};
-use crate::isa::Isa;
+use crate::isa::{Isa, Kernels};
 use crate::primitive::Primitive;
 use bytemuck::{Pod, Zeroable};
 use wide::f32x4;
@@ -94,12 +93,16 @@ pub trait Node4: Pod + Send + Sync {
     /// for an inner node). Unused slots are empty leaves: a ray whose every slab distance is
     /// NaN (all direction components subnormal) "enters" every box, so they must be harmless.
     fn child(&self, i: usize) -> (u32, u32);
+    /// The most primitives a leaf of this format holds.
+    const MAX_LEAF: u32;
     /// Encodes a collapsed node; `pos` maps collapsed node indices to array positions.
     #[doc(hidden)]
     fn encode(w: &collapse::types::Wide<4>, pos: &[u32]) -> Self;
 }
 
 impl Node4 for Bvh4Node {
+    const MAX_LEAF: u32 = Bvh4Node::LEAF - 1;
+
     #[inline(always)]
     fn planes(&self) -> [f32x4; 6] {
         *bytemuck::cast_ref::<[[f32; 4]; 6], [f32x4; 6]>(&self.planes)
@@ -126,8 +129,7 @@ impl Node4 for Bvh4Node {
 /// default type parameter does not pick the node format in an expression.)
 ///
 /// ```
-/// use quiver::layout::{Bvh4, Bvh4Mapping, QBvh4};
-/// use quiver::{reference, BuildOptions, Ray, RayQuery, Triangle};
+/// use quiver::{reference, BuildOptions, Bvh4, Bvh4Mapping, Isa, QBvh4, Ray, RayQuery, Triangle};
 /// use glam::Vec3A;
 /// let tris: Vec<Triangle> = (0..100)
 ///     .map(|i| {
@@ -136,51 +138,78 @@ impl Node4 for Bvh4Node {
 ///     })
 ///     .collect();
 /// let (_, tree) = BuildOptions::default().build_with_tree(&tris);
-/// let exact: Bvh4 = Bvh4::from_tree(&tree, &tris, Bvh4Mapping::DepthFirst);
-/// let quantized: QBvh4 = QBvh4::from_tree(&tree, &tris, Bvh4Mapping::Subtree);
+/// let exact: Bvh4 = Bvh4::from_tree(&tree, &tris, Bvh4Mapping::DepthFirst, Isa::detect()).unwrap();
+/// let quantized: QBvh4 = QBvh4::from_tree(&tree, &tris, Bvh4Mapping::Subtree, Isa::Portable).unwrap();
 /// let ray = Ray::new(Vec3A::new(41.2, 0.3, 1.0), -Vec3A::Z);
 /// assert_eq!(exact.closest_hit(&ray), reference::closest_hit(&tris, &ray));
 /// assert_eq!(quantized.closest_hit(&ray), exact.closest_hit(&ray));
 /// assert!(quantized.footprint().node_bytes < exact.footprint().node_bytes);
+/// assert_eq!(quantized.isa(), Isa::Portable);
+/// ```
+///
+/// The instruction set is chosen when the BVH is made and checked against the CPU; it cannot
+/// be set afterwards except through that check:
+///
+/// ```compile_fail
+/// use quiver::{Bvh4, Isa, Triangle};
+/// fn force(bvh: &mut Bvh4) {
+///     bvh.isa = Isa::Avx2; // private: only `with_isa`, which asks the CPU, changes it
+/// }
 /// ```
 #[derive(Clone, Debug)]
 pub struct Bvh4<P = Triangle, N = Bvh4Node> {
     /// Nodes; the root is node 0. Padding slots are nodes with four empty children.
-    pub nodes: Vec<N>,
+    pub(crate) nodes: Vec<N>,
     /// Primitives in leaf order.
-    pub prims: Vec<P>,
+    pub(crate) prims: Vec<P>,
     /// For each entry of `prims`, its index in the input.
-    pub prim_ids: Vec<u32>,
+    pub(crate) prim_ids: Vec<u32>,
     /// The leaves as SIMD groups of four triangles, for primitive types with a triangle
     /// [`crate::LeafFormat`] (empty otherwise); leaf children then index these groups.
-    pub tri4: Vec<Tri4>,
+    pub(crate) tri4: Vec<Tri4>,
     /// Node order.
-    pub mapping: Bvh4Mapping,
-    /// The instruction set packet queries run on (single rays run the same 4-lane kernel on
-    /// either).
-    pub isa: Isa,
+    pub(crate) mapping: Bvh4Mapping,
+    /// The kernels packet queries run on (single rays run the same 4-lane kernel on either).
+    pub(crate) kernels: Kernels,
+    /// Every primitive's box.
+    pub(crate) bounds: Aabb,
 }
 
 /// A 4-wide BVH with quantized 64-byte nodes ([`QBvh4Node`]).
 pub type QBvh4<P = Triangle> = Bvh4<P, QBvh4Node>;
 
 impl<P: Primitive, N: Node4> Bvh4<P, N> {
-    /// Collapses, encodes and lays out a built binary tree over `prims` (the build's input).
+    /// Collapses, encodes and lays out a built binary tree over `prims` (the build's input),
+    /// after checking that the tree fits them ([`BuildTree::check`]; its boxes are recomputed
+    /// from `prims`), with packet queries on `isa` where this CPU has it.
     ///
-    /// # Panics
-    /// For [`QBvh4`], if a leaf holds more than 65535 primitives (a
-    /// [`crate::builders::BuildConfig::max_leaf_size`] above that).
-    pub fn from_tree(tree: &BuildTree, prims: &[P], mapping: Bvh4Mapping) -> Self {
-        Self::from_leaf_prims(tree, leaf_order(tree, prims), mapping, Isa::detect())
+    /// # Errors
+    /// [`TreeError`] when the tree does not fit `prims`, is not in depth-first preorder, is
+    /// deeper than traversal allows, or has a leaf too large for the node format (65535
+    /// primitives for [`QBvh4`], `2^31 - 1` for [`Bvh4Node`]).
+    pub fn from_tree(
+        tree: &BuildTree,
+        prims: &[P],
+        mapping: Bvh4Mapping,
+        isa: Isa,
+    ) -> Result<Self, TreeError> {
+        let (tree, prims) = super::checked(tree, prims)?;
+        tree.check_leaf_size(N::MAX_LEAF)?;
+        Ok(Self::from_leaf_prims(&tree, prims, mapping, isa))
     }
 
     /// The same BVH with packet queries on `isa` (or [`Isa::Portable`] where unsupported).
     pub fn with_isa(mut self, isa: Isa) -> Self {
-        self.isa = isa.or_portable();
+        self.kernels = Kernels::new(isa);
         self
     }
 
-    /// [`Bvh4::from_tree`] with the primitives already in the tree's leaf order.
+    /// The instruction set packet queries run on.
+    pub fn isa(&self) -> Isa {
+        self.kernels.isa()
+    }
+
+    /// Lays out a checked tree with the primitives already in its leaf order.
     pub(crate) fn from_leaf_prims(
         tree: &BuildTree,
         prims: Vec<P>,
@@ -209,7 +238,8 @@ impl<P: Primitive, N: Node4> Bvh4<P, N> {
             prim_ids: tree.prim_indices.clone(),
             tri4: groups,
             mapping,
-            isa: isa.or_portable(),
+            kernels: Kernels::new(isa),
+            bounds: tree.nodes[0].bounds,
         }
     }
 
@@ -221,6 +251,41 @@ impl<P: Primitive, N: Node4> Bvh4<P, N> {
         } else {
             Footprint::of(&self.nodes, &self.tri4, &[])
         }
+    }
+
+    /// The nodes, root first, in the order of [`Bvh4::mapping`].
+    pub fn nodes(&self) -> &[N] {
+        &self.nodes
+    }
+
+    /// The node array as bytes, as the traversal reads it.
+    pub fn node_bytes(&self) -> &[u8] {
+        bytemuck::cast_slice(&self.nodes)
+    }
+
+    /// The primitives in leaf order.
+    pub fn prims(&self) -> &[P] {
+        &self.prims
+    }
+
+    /// For each entry of [`Bvh4::prims`], its index in the input (what hits report).
+    pub fn prim_ids(&self) -> &[u32] {
+        &self.prim_ids
+    }
+
+    /// The leaves as SIMD triangle groups (triangle leaf formats; empty otherwise).
+    pub fn groups(&self) -> &[Tri4] {
+        &self.tri4
+    }
+
+    /// Node order.
+    pub fn mapping(&self) -> Bvh4Mapping {
+        self.mapping
+    }
+
+    /// Every primitive's box.
+    pub fn bounds(&self) -> Aabb {
+        self.bounds
     }
 }
 
@@ -265,6 +330,8 @@ fn decode(origin: f32, step: f32, q: u8) -> f32 {
 }
 
 impl Node4 for QBvh4Node {
+    const MAX_LEAF: u32 = u16::MAX as u32;
+
     #[inline(always)]
     fn planes(&self) -> [f32x4; 6] {
         let mut out = [f32x4::ZERO; 6];
@@ -337,11 +404,9 @@ impl Node4 for QBvh4Node {
             (n.child[i], n.count[i]) = match *k {
                 Child::Empty => unreachable!(),
                 Child::Inner(j) => (pos[j as usize], 0),
-                Child::Leaf { first, count } => {
-                    let c = u16::try_from(count)
-                        .expect("quantized BVH4 leaves hold at most 65535 triangles");
-                    (first, c)
-                }
+                // Leaves above `MAX_LEAF` are refused before encoding (`from_tree`) or
+                // never built (`BuildOptions` caps the leaf size for this layout).
+                Child::Leaf { first, count } => (first, count.min(u16::MAX as u32) as u16),
             };
         }
         n

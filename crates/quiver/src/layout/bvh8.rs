@@ -1,13 +1,13 @@
 //! 8-wide BVHs: the binary tree collapsed so each node holds up to eight child boxes, tested
 //! in one 8-lane slab test (one AVX2 instruction per step on the AVX2 path).
 
-use super::bvh2::leaf_order;
 use super::collapse::{collapse_sah, Wide};
 use super::tri4::{self, Tri4};
 use super::Footprint;
-use crate::builders::{BuildConfig, BuildTree};
+use crate::builders::{BuildConfig, BuildTree, TreeError};
+use crate::geometry::Aabb;
 use crate::geometry::Triangle;
-use crate::isa::Isa;
+use crate::isa::{Isa, Kernels};
 use crate::primitive::{LeafFormat, Primitive};
 use bytemuck::{Pod, Zeroable};
 
@@ -51,7 +51,7 @@ impl Bvh8Node {
 /// instruction set chosen when it was built ([`Isa`]).
 ///
 /// ```
-/// use quiver::{reference, BuildOptions, Isa, Layout, Ray, RayQuery, Triangle};
+/// use quiver::{reference, BuildOptions, Bvh8, Isa, Layout, Ray, RayQuery, Triangle};
 /// use glam::Vec3A;
 /// let tris: Vec<Triangle> = (0..300)
 ///     .map(|i| {
@@ -64,31 +64,58 @@ impl Bvh8Node {
 ///     let bvh = BuildOptions::default().layout(Layout::Bvh8Dfs).isa(isa).build(&tris);
 ///     assert_eq!(bvh.closest_hit(&ray), reference::closest_hit(&tris, &ray));
 /// }
+/// let (_, tree) = BuildOptions::default().build_with_tree(&tris);
+/// let bvh: Bvh8 = Bvh8::from_tree(&tree, &tris, &Default::default(), Isa::detect()).unwrap();
+/// assert_eq!(bvh.prim_ids().len(), 300);
+/// ```
+///
+/// The instruction set is chosen when the BVH is made and checked against the CPU; it cannot
+/// be set afterwards except through that check:
+///
+/// ```compile_fail
+/// use quiver::{Bvh8, Isa};
+/// fn force(bvh: &mut Bvh8) {
+///     bvh.isa = Isa::Avx2; // private: only `with_isa`, which asks the CPU, changes it
+/// }
 /// ```
 #[derive(Clone, Debug)]
 pub struct Bvh8<P = Triangle> {
     /// Nodes in depth-first order; the root is node 0.
-    pub nodes: Vec<Bvh8Node>,
+    pub(crate) nodes: Vec<Bvh8Node>,
     /// Primitives in leaf order.
-    pub prims: Vec<P>,
+    pub(crate) prims: Vec<P>,
     /// For each entry of `prims`, its index in the input.
-    pub prim_ids: Vec<u32>,
+    pub(crate) prim_ids: Vec<u32>,
     /// The leaves as SIMD groups of four triangles, for primitive types with a triangle
     /// [`LeafFormat`] (empty otherwise); leaf children then index these groups.
-    pub tri4: Vec<Tri4>,
-    /// The kernels queries run on ([`Isa::Portable`] where the CPU lacks the one asked for).
-    pub isa: Isa,
+    pub(crate) tri4: Vec<Tri4>,
+    /// The kernels queries run on, checked against the CPU when chosen.
+    pub(crate) kernels: Kernels,
+    /// Every primitive's box.
+    pub(crate) bounds: Aabb,
 }
 
 impl<P: Primitive> Bvh8<P> {
-    /// Collapses and lays out a built binary tree over `prims` (the build's input), for the
-    /// instruction set [`Isa::detect`] picks. The collapse is SAH-optimal under `config`'s
-    /// costs and may merge small leaves up to its `max_leaf_size`.
-    pub fn from_tree(tree: &BuildTree, prims: &[P], config: &BuildConfig) -> Self {
-        Self::from_leaf_prims(tree, leaf_order(tree, prims), Isa::detect(), config)
+    /// Collapses and lays out a built binary tree over `prims` (the build's input), after
+    /// checking that the tree fits them ([`BuildTree::check`]; its boxes are recomputed from
+    /// `prims`), traversed on `isa` where this CPU has it. The collapse is SAH-optimal under
+    /// `config`'s costs and may merge small leaves up to its `max_leaf_size`.
+    ///
+    /// # Errors
+    /// [`TreeError`] when the tree does not fit `prims`, is not in depth-first preorder, or
+    /// is deeper than traversal allows.
+    pub fn from_tree(
+        tree: &BuildTree,
+        prims: &[P],
+        config: &BuildConfig,
+        isa: Isa,
+    ) -> Result<Self, TreeError> {
+        let (tree, prims) = super::checked(tree, prims)?;
+        tree.check_leaf_size(Bvh8Node::LEAF - 1)?;
+        Ok(Self::from_leaf_prims(&tree, prims, isa, config))
     }
 
-    /// [`Bvh8::from_tree`] with the primitives already in the tree's leaf order.
+    /// Lays out a checked tree with the primitives already in its leaf order.
     pub(crate) fn from_leaf_prims(
         tree: &BuildTree,
         prims: Vec<P>,
@@ -103,8 +130,9 @@ impl<P: Primitive> Bvh8<P> {
             LeafFormat::Plain => c_i * n as f32,
             _ => c_i * tri4::groups(n) as f32,
         };
-        let wide = collapse_sah::<8>(tree, config.max_leaf_size, config.traversal_cost, leaf_cost);
-        let mut wide = wide;
+        // Merged leaves stay below the flag bit whatever `max_leaf_size` says.
+        let max_leaf = config.max_leaf_size.min((Bvh8Node::LEAF - 1) as usize);
+        let mut wide = collapse_sah::<8>(tree, max_leaf, config.traversal_cost, leaf_cost);
         let groups = tri4::pack_leaves(&mut wide, &prims, &tree.prim_indices);
         let nodes = wide.iter().map(Bvh8Node::encode).collect();
         Bvh8 {
@@ -112,14 +140,20 @@ impl<P: Primitive> Bvh8<P> {
             prims,
             prim_ids: tree.prim_indices.clone(),
             tri4: groups,
-            isa: isa.or_portable(),
+            kernels: Kernels::new(isa),
+            bounds: tree.nodes[0].bounds,
         }
     }
 
     /// The same BVH traversed with `isa` (or [`Isa::Portable`] where unsupported).
     pub fn with_isa(mut self, isa: Isa) -> Self {
-        self.isa = isa.or_portable();
+        self.kernels = Kernels::new(isa);
         self
+    }
+
+    /// The instruction set queries run on.
+    pub fn isa(&self) -> Isa {
+        self.kernels.isa()
     }
 
     /// What the nodes and the leaf data the kernels read occupy (the SIMD groups, where
@@ -130,5 +164,35 @@ impl<P: Primitive> Bvh8<P> {
         } else {
             Footprint::of(&self.nodes, &self.tri4, &[])
         }
+    }
+
+    /// The nodes in depth-first order, root first.
+    pub fn nodes(&self) -> &[Bvh8Node] {
+        &self.nodes
+    }
+
+    /// The node array as bytes, as the traversal reads it.
+    pub fn node_bytes(&self) -> &[u8] {
+        bytemuck::cast_slice(&self.nodes)
+    }
+
+    /// The primitives in leaf order.
+    pub fn prims(&self) -> &[P] {
+        &self.prims
+    }
+
+    /// For each entry of [`Bvh8::prims`], its index in the input (what hits report).
+    pub fn prim_ids(&self) -> &[u32] {
+        &self.prim_ids
+    }
+
+    /// The leaves as SIMD triangle groups (triangle leaf formats; empty otherwise).
+    pub fn groups(&self) -> &[Tri4] {
+        &self.tri4
+    }
+
+    /// Every primitive's box.
+    pub fn bounds(&self) -> Aabb {
+        self.bounds
     }
 }

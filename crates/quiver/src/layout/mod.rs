@@ -4,6 +4,12 @@
 //!   breadth-first, shuffled, subtree blocks of a line or a page, and compact subtree blocks.
 //! - [`Bvh4`]: the tree collapsed to 4-wide 128-byte nodes (depth-first or page subtrees).
 //! - [`QBvh4`]: 4-wide nodes with 8-bit quantized boxes, 64 bytes (one line) each.
+//! - [`Bvh8`]: 8-wide 256-byte nodes, depth-first, SIMD triangle leaves; the default.
+//!
+//! Each is also at the crate root (`quiver::Bvh8`); their contents are read through
+//! accessors (`nodes`, `node_bytes`, `prims`, `prim_ids`, `footprint`), never written: a
+//! layout made by quiver is a checked tree, and no safe code can make it loop or read out of
+//! bounds.
 //!
 //! In every layout the primitives are copied into leaf order, so a leaf is a contiguous run
 //! the intersector reads directly. [`crate::Bvh`] holds any of them behind one interface,
@@ -21,9 +27,7 @@ pub use bvh4::{Bvh4, Bvh4Mapping, Bvh4Node, Node4, QBvh4, QBvh4Node};
 pub use bvh8::{Bvh8, Bvh8Node};
 pub use tri4::Tri4;
 
-use crate::builders::{BuildConfig, BuildTree};
-use crate::bvh::Nodes;
-use crate::isa::Isa;
+use crate::builders::{prim_bounds, BuildTree, TreeError};
 use crate::primitive::Primitive;
 use std::fmt;
 use std::str::FromStr;
@@ -31,7 +35,7 @@ use std::str::FromStr;
 /// Every layout quiver can build, by its command-line name.
 ///
 /// The default, `bvh8-dfs`, is the fastest single-ray layout in our measurements (README,
-/// "Against obvhs and Embree"); `bvh4-dfs` has the packet kernel; `bvh4-quant` needs the
+/// "Against obvhs and Embree"); the 4- and 8-wide layouts have packet kernels; `bvh4-quant` needs the
 /// least node memory.
 ///
 /// ```
@@ -54,7 +58,7 @@ pub enum Layout {
     Bvh2Compact,
     /// `bvh2-compact-page`: binary, compact page blocks.
     Bvh2CompactPage,
-    /// `bvh4-dfs`: 4-wide, depth-first; the packet kernel's layout.
+    /// `bvh4-dfs`: 4-wide, depth-first.
     Bvh4Dfs,
     /// `bvh4-subtree`: 4-wide, page subtree blocks.
     Bvh4Subtree,
@@ -125,51 +129,15 @@ impl FromStr for Layout {
     }
 }
 
-impl Layout {
-    /// Lays out `tree` with `prims` already in the tree's leaf order.
-    pub(crate) fn lay_out<P: Primitive>(
-        self,
-        tree: &BuildTree,
-        prims: Vec<P>,
-        isa: Isa,
-        config: &BuildConfig,
-    ) -> Nodes<P> {
-        let bvh2 = match self {
-            Layout::Bvh2Dfs => Bvh2Mapping::DepthFirst,
-            Layout::Bvh2Bfs => Bvh2Mapping::BreadthFirst,
-            Layout::Bvh2Shuffled => Bvh2Mapping::Shuffled,
-            Layout::Bvh2Subtree => Bvh2Mapping::Subtree,
-            Layout::Bvh2SubtreePage => Bvh2Mapping::SubtreePage,
-            Layout::Bvh2Compact => Bvh2Mapping::Compact,
-            Layout::Bvh2CompactPage => Bvh2Mapping::CompactPage,
-            Layout::Bvh4Dfs => {
-                return Nodes::Bvh4(Bvh4::from_leaf_prims(
-                    tree,
-                    prims,
-                    Bvh4Mapping::DepthFirst,
-                    isa,
-                ))
-            }
-            Layout::Bvh4Subtree => {
-                return Nodes::Bvh4(Bvh4::from_leaf_prims(
-                    tree,
-                    prims,
-                    Bvh4Mapping::Subtree,
-                    isa,
-                ))
-            }
-            Layout::Bvh4Quant => {
-                return Nodes::QBvh4(QBvh4::from_leaf_prims(
-                    tree,
-                    prims,
-                    Bvh4Mapping::DepthFirst,
-                    isa,
-                ))
-            }
-            Layout::Bvh8Dfs => return Nodes::Bvh8(Bvh8::from_leaf_prims(tree, prims, isa, config)),
-        };
-        Nodes::Bvh2(Bvh2::from_leaf_prims(tree, prims, bvh2))
-    }
+/// `tree` checked against `prims` ([`BuildTree::check`]) with its boxes recomputed from them,
+/// and the primitives in its leaf order: what every layout's `from_tree` lays out.
+pub(crate) fn checked<P: Primitive>(
+    tree: &BuildTree,
+    prims: &[P],
+) -> Result<(BuildTree, Vec<P>), TreeError> {
+    let bounds = prim_bounds(prims);
+    tree.check(&bounds)?;
+    Ok((tree.refit(&bounds), bvh2::leaf_order(tree, prims)))
 }
 
 /// What a laid-out BVH occupies in memory.

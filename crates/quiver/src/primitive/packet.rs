@@ -191,7 +191,7 @@ impl<F: FnMut(usize, u32, PrimHit) -> Option<f32>> PacketLeaf<'_, F> {
     /// A unit square at `z = 0` tested eight rays at a time:
     ///
     /// ```
-    /// use quiver::traverse::{FastBoxes, NoStats, PacketMode};
+    /// use quiver::traverse::{FastBoxes, NoStats, PacketMode, PacketQuery};
     /// use quiver::primitive::PacketLeaf;
     /// use quiver::{Aabb, Bvh, PrimHit, Primitive, Ray, RayQuery};
     /// use glam::Vec3A;
@@ -233,9 +233,8 @@ impl<F: FnMut(usize, u32, PrimHit) -> Option<f32>> PacketLeaf<'_, F> {
     ///     .map(|i| Ray::new(Vec3A::new(i as f32 / 10.0, 0.5, 1.0), -Vec3A::Z))
     ///     .collect();
     /// let mut hits = vec![None; rays.len()];
-    /// bvh.closest_hit_packet_with::<FastBoxes, NoStats>(
-    ///     &rays, None, PacketMode::Always, &mut hits, &mut NoStats,
-    /// );
+    /// let query = PacketQuery::new(&rays).mode(PacketMode::Always);
+    /// bvh.closest_hit_packet_with::<FastBoxes, NoStats>(query, &mut hits, &mut NoStats);
     /// for (r, h) in rays.iter().zip(&hits) {
     ///     assert_eq!(*h, bvh.closest_hit(r));
     /// }

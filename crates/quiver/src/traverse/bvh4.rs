@@ -1,14 +1,13 @@
 //! Single-ray traversal of 4-wide BVHs: the four child boxes of a node are tested at once
 //! with `wide::f32x4`, hit children are visited nearest first, any-hit exits at the first hit.
 
-use super::packet::{any_rays_on, closest_rays_on};
+use super::leaves::Leaves;
 use super::simd::{bits, insert_farthest_first, NanFirst};
 use super::stats::Stats;
-use super::tri4::Leaves;
-use super::{slab_reciprocal, BoxTest, PacketMode, RayQuery, Stack};
+use super::{slab_reciprocal, BoxTest, Stack};
 use crate::builders::MAX_DEPTH;
 use crate::geometry::{Hit, Ray};
-use crate::layout::{Bvh4, Bvh4Node, Node4};
+use crate::layout::Bvh4Node;
 use crate::primitive::Primitive;
 use wide::f32x4;
 
@@ -197,68 +196,4 @@ pub(crate) fn any_from<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
         hit
     });
     hit
-}
-
-impl<P: Primitive, N: Node4> Bvh4<P, N> {
-    /// The leaf data the kernels read.
-    #[inline(always)]
-    pub(crate) fn leaves(&self) -> Leaves<'_, P> {
-        Leaves {
-            prims: &self.prims,
-            ids: &self.prim_ids,
-            tri4: &self.tri4,
-        }
-    }
-}
-
-impl<P: Primitive, N: Node4> RayQuery for Bvh4<P, N> {
-    fn closest_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> Option<Hit> {
-        closest::<N, B, P, S>(&self.nodes, &self.leaves(), ray, stats)
-    }
-
-    fn any_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> bool {
-        any::<N, B, P, S>(&self.nodes, &self.leaves(), ray, stats)
-    }
-
-    fn closest_hit_packet_with<B: BoxTest, S: Stats>(
-        &self,
-        rays: &[Ray],
-        active: Option<&[bool]>,
-        mode: PacketMode,
-        hits: &mut [Option<Hit>],
-        stats: &mut S,
-    ) {
-        let leaves = self.leaves();
-        closest_rays_on::<N, B, P, S>(
-            self.isa,
-            &self.nodes,
-            &leaves,
-            rays,
-            active,
-            mode,
-            hits,
-            stats,
-        )
-    }
-
-    fn any_hit_packet_with<B: BoxTest, S: Stats>(
-        &self,
-        rays: &[Ray],
-        active: Option<&[bool]>,
-        mode: PacketMode,
-        occluded: &mut [bool],
-        stats: &mut S,
-    ) {
-        let leaves = self.leaves();
-        any_rays_on::<N, B, P, S>(
-            self.isa,
-            &self.nodes,
-            &leaves,
-            rays,
-            active,
-            mode,
-            occluded,
-            stats,
-        )
-    }
 }

@@ -6,20 +6,20 @@
 //! hit pushes them unordered and stops at the first hit.
 
 use super::lane8::F8;
-use super::packet::{self, PacketMode};
+use super::leaves::Leaves;
 use super::simd::{bits, insert_farthest_first};
 use super::stats::Stats;
-use super::tri4::Leaves;
-use super::{slab_reciprocal, BoxTest, RayQuery, Stack};
+use super::{slab_reciprocal, BoxTest, Stack};
 use crate::builders::MAX_DEPTH;
 use crate::geometry::{Hit, Ray};
-use crate::isa::Isa;
+use crate::isa::Kernels;
 use crate::layout::{Bvh8, Bvh8Node};
 use crate::primitive::Primitive;
 use wide::f32x8;
 
 /// A ray prepared for the slab test of a node's eight boxes in eight lanes of `V`.
-pub(crate) struct Ray8<V> {
+pub(crate) struct Ray8<V: F8> {
+    cpu: V::Cpu,
     origin: [V; 3],
     inv: [V; 3],
     /// Per axis, the plane row entered first (min row, or max row for a negative direction).
@@ -30,8 +30,9 @@ pub(crate) struct Ray8<V> {
 
 impl<V: F8> Ray8<V> {
     #[inline(always)]
-    pub(crate) fn new(ray: &Ray) -> Self {
+    pub(crate) fn new(cpu: V::Cpu, ray: &Ray) -> Self {
         Self::from_parts(
+            cpu,
             ray.origin.into(),
             slab_reciprocal(ray.dir).into(),
             ray.t_min,
@@ -40,14 +41,15 @@ impl<V: F8> Ray8<V> {
 
     /// From an origin, the slab reciprocals of the direction and `t_min`.
     #[inline(always)]
-    pub(crate) fn from_parts(origin: [f32; 3], inv: [f32; 3], t_min: f32) -> Self {
+    pub(crate) fn from_parts(cpu: V::Cpu, origin: [f32; 3], inv: [f32; 3], t_min: f32) -> Self {
         let neg = inv.map(|x| x.is_sign_negative() as usize);
         Ray8 {
-            origin: V::splat3(origin),
-            inv: V::splat3(inv),
+            cpu,
+            origin: V::splat3(cpu, origin),
+            inv: V::splat3(cpu, inv),
             near: [0, 1, 2].map(|a| a + 3 * neg[a]),
             far: [0, 1, 2].map(|a| a + 3 - 3 * neg[a]),
-            t_min: V::splat(t_min),
+            t_min: V::splat(cpu, t_min),
         }
     }
 
@@ -55,10 +57,10 @@ impl<V: F8> Ray8<V> {
     /// `[t_min, t_max]` (boundaries included; `t_max` already scaled by the box test's slack).
     #[inline(always)]
     pub(crate) fn enter<B: BoxTest>(&self, n: &Bvh8Node, t_max: f32) -> ([f32; 8], u32) {
-        let p = |row: usize| V::load(&n.planes[row]);
-        let slack = V::splat(B::SLACK);
+        let p = |row: usize| V::load(self.cpu, &n.planes[row]);
+        let slack = V::splat(self.cpu, B::SLACK);
         let mut near = self.t_min;
-        let mut far = V::splat(t_max);
+        let mut far = V::splat(self.cpu, t_max);
         for a in 0..3 {
             let tn = p(self.near[a]).sub(self.origin[a]).mul(self.inv[a]);
             let tf = p(self.far[a]).sub(self.origin[a]).mul(self.inv[a]);
@@ -148,6 +150,7 @@ fn walk<V, B, S, F, const ORDERED: bool>(
 /// the search limit.
 #[inline(always)]
 pub(crate) fn closest_from<V: F8, B: BoxTest, P: Primitive, S: Stats>(
+    cpu: V::Cpu,
     nodes: &[Bvh8Node],
     leaves: &Leaves<P>,
     ray: &Ray,
@@ -157,7 +160,7 @@ pub(crate) fn closest_from<V: F8, B: BoxTest, P: Primitive, S: Stats>(
 ) {
     // Prepared at the first leaf: many rays never reach one.
     let mut prep = None;
-    let r8 = Ray8::<V>::new(ray);
+    let r8 = Ray8::<V>::new(cpu, ray);
     walk::<V, B, S, _, true>(
         nodes,
         &r8,
@@ -176,6 +179,7 @@ pub(crate) fn closest_from<V: F8, B: BoxTest, P: Primitive, S: Stats>(
 /// Whether anything in the subtree of inner node `root` is hit.
 #[inline(always)]
 pub(crate) fn any_from<V: F8, B: BoxTest, P: Primitive, S: Stats>(
+    cpu: V::Cpu,
     nodes: &[Bvh8Node],
     leaves: &Leaves<P>,
     ray: &Ray,
@@ -184,7 +188,7 @@ pub(crate) fn any_from<V: F8, B: BoxTest, P: Primitive, S: Stats>(
 ) -> bool {
     let mut prep = None;
     let mut hit = false;
-    let r8 = Ray8::<V>::new(ray);
+    let r8 = Ray8::<V>::new(cpu, ray);
     walk::<V, B, S, _, false>(
         nodes,
         &r8,
@@ -203,91 +207,57 @@ pub(crate) fn any_from<V: F8, B: BoxTest, P: Primitive, S: Stats>(
 /// Closest hit over lanes of `V`.
 #[inline(always)]
 fn closest<V: F8, B: BoxTest, P: Primitive, S: Stats>(
+    cpu: V::Cpu,
     bvh: &Bvh8<P>,
     ray: &Ray,
     stats: &mut S,
 ) -> Option<Hit> {
     let mut best = Hit::none(ray.t_max);
-    closest_from::<V, B, P, S>(&bvh.nodes, &bvh.leaves(), ray, 0, &mut best, stats);
+    closest_from::<V, B, P, S>(cpu, bvh.nodes(), &bvh.leaves(), ray, 0, &mut best, stats);
     best.found()
 }
 
 /// Any hit over lanes of `V`.
 #[inline(always)]
-fn any<V: F8, B: BoxTest, P: Primitive, S: Stats>(bvh: &Bvh8<P>, ray: &Ray, stats: &mut S) -> bool {
-    any_from::<V, B, P, S>(&bvh.nodes, &bvh.leaves(), ray, 0, stats)
+fn any<V: F8, B: BoxTest, P: Primitive, S: Stats>(
+    cpu: V::Cpu,
+    bvh: &Bvh8<P>,
+    ray: &Ray,
+    stats: &mut S,
+) -> bool {
+    any_from::<V, B, P, S>(cpu, bvh.nodes(), &bvh.leaves(), ray, 0, stats)
 }
 
-impl<P: Primitive> Bvh8<P> {
-    #[inline(always)]
-    fn leaves(&self) -> Leaves<'_, P> {
-        Leaves {
-            prims: &self.prims,
-            ids: &self.prim_ids,
-            tri4: &self.tri4,
-        }
+/// The closest hit of one ray on `kernels`: the one place a single-ray 8-wide query picks
+/// its lanes.
+#[inline]
+pub(crate) fn closest_on<B: BoxTest, P: Primitive, S: Stats>(
+    kernels: Kernels,
+    bvh: &Bvh8<P>,
+    ray: &Ray,
+    stats: &mut S,
+) -> Option<Hit> {
+    match kernels {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: `cpu` proves the CPU has AVX2 and FMA (only detection makes one).
+        Kernels::Avx2(cpu) => unsafe { avx2::closest::<B, P, S>(cpu, bvh, ray, stats) },
+        _ => closest::<f32x8, B, P, S>((), bvh, ray, stats),
     }
 }
 
-// Each query branches once on the BVH's instruction set. SAFETY (every `unsafe` call below):
-// `isa` is Avx2 only where the CPU has AVX2 and FMA (`Isa::or_portable`).
-impl<P: Primitive> RayQuery for Bvh8<P> {
-    fn closest_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> Option<Hit> {
-        match self.isa {
-            #[cfg(target_arch = "x86_64")]
-            Isa::Avx2 => unsafe { avx2::closest::<B, P, S>(self, ray, stats) },
-            _ => closest::<f32x8, B, P, S>(self, ray, stats),
-        }
-    }
-
-    fn any_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> bool {
-        match self.isa {
-            #[cfg(target_arch = "x86_64")]
-            Isa::Avx2 => unsafe { avx2::any::<B, P, S>(self, ray, stats) },
-            _ => any::<f32x8, B, P, S>(self, ray, stats),
-        }
-    }
-
-    fn closest_hit_packet_with<B: BoxTest, S: Stats>(
-        &self,
-        rays: &[Ray],
-        active: Option<&[bool]>,
-        mode: PacketMode,
-        hits: &mut [Option<Hit>],
-        stats: &mut S,
-    ) {
-        let leaves = self.leaves();
-        packet::closest_rays_on::<Bvh8Node, B, P, S>(
-            self.isa,
-            &self.nodes,
-            &leaves,
-            rays,
-            active,
-            mode,
-            hits,
-            stats,
-        )
-    }
-
-    fn any_hit_packet_with<B: BoxTest, S: Stats>(
-        &self,
-        rays: &[Ray],
-        active: Option<&[bool]>,
-        mode: PacketMode,
-        occluded: &mut [bool],
-        stats: &mut S,
-    ) {
-        let leaves = self.leaves();
-        packet::any_rays_on::<Bvh8Node, B, P, S>(
-            self.isa,
-            &self.nodes,
-            &leaves,
-            rays,
-            active,
-            mode,
-            occluded,
-            stats,
-        )
+/// Whether one ray hits anything, on `kernels` (see [`closest_on`]).
+#[inline]
+pub(crate) fn any_on<B: BoxTest, P: Primitive, S: Stats>(
+    kernels: Kernels,
+    bvh: &Bvh8<P>,
+    ray: &Ray,
+    stats: &mut S,
+) -> bool {
+    match kernels {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: as in `closest_on`.
+        Kernels::Avx2(cpu) => unsafe { avx2::any::<B, P, S>(cpu, bvh, ray, stats) },
+        _ => any::<f32x8, B, P, S>((), bvh, ray, stats),
     }
 }
 
@@ -296,27 +266,30 @@ impl<P: Primitive> RayQuery for Bvh8<P> {
 #[cfg(target_arch = "x86_64")]
 mod avx2 {
     use super::*;
+    use crate::isa::Avx2Cpu;
     use crate::traverse::lane8::Avx;
 
     /// # Safety
-    /// The CPU must support AVX2 and FMA.
+    /// The CPU must support AVX2 and FMA (as `cpu` proves).
     #[target_feature(enable = "avx2,fma")]
     pub(super) unsafe fn closest<B: BoxTest, P: Primitive, S: Stats>(
+        cpu: Avx2Cpu,
         bvh: &Bvh8<P>,
         ray: &Ray,
         stats: &mut S,
     ) -> Option<Hit> {
-        super::closest::<Avx, B, P, S>(bvh, ray, stats)
+        super::closest::<Avx, B, P, S>(cpu, bvh, ray, stats)
     }
 
     /// # Safety
-    /// The CPU must support AVX2 and FMA.
+    /// The CPU must support AVX2 and FMA (as `cpu` proves).
     #[target_feature(enable = "avx2,fma")]
     pub(super) unsafe fn any<B: BoxTest, P: Primitive, S: Stats>(
+        cpu: Avx2Cpu,
         bvh: &Bvh8<P>,
         ray: &Ray,
         stats: &mut S,
     ) -> bool {
-        super::any::<Avx, B, P, S>(bvh, ray, stats)
+        super::any::<Avx, B, P, S>(cpu, bvh, ray, stats)
     }
 }

@@ -6,12 +6,20 @@
 //! bit-identical answers on both. Nothing here fuses a multiply into an add.
 
 use super::simd::NanFirst;
+#[cfg(doc)]
+use crate::isa::Avx2Cpu;
 use wide::f32x8;
 
 /// Eight `f32` lanes; comparisons return lane masks (all bits set where true).
+///
+/// Lanes are made only from a [`F8::Cpu`] value (`splat`, `load`): `()` for portable lanes,
+/// for AVX lanes the proof that the CPU has AVX2 ([`Avx2Cpu`]), which only detection makes. So
+/// an AVX value, and every operation on one, exists only where the instructions do.
 pub(crate) trait F8: Copy {
-    fn splat(x: f32) -> Self;
-    fn load(a: &[f32; 8]) -> Self;
+    /// What making lanes takes: nothing, or the proof that the CPU runs them.
+    type Cpu: Copy;
+    fn splat(cpu: Self::Cpu, x: f32) -> Self;
+    fn load(cpu: Self::Cpu, a: &[f32; 8]) -> Self;
     fn to_array(self) -> [f32; 8];
     fn add(self, b: Self) -> Self;
     fn sub(self, b: Self) -> Self;
@@ -33,31 +41,37 @@ pub(crate) trait F8: Copy {
     /// Runs `f` in a function of its own (a cold path kept out of a kernel's loop), compiled
     /// for the same instruction set as the kernel.
     #[inline(never)]
-    fn outlined<R>(f: impl FnOnce() -> R) -> R {
+    fn outlined<R>(cpu: Self::Cpu, f: impl FnOnce() -> R) -> R {
+        let _ = cpu;
         f()
     }
 
     /// Each of three values in all lanes. (Written out: `array::map` with a closure is not
     /// always inlined, and a kernel's lanes must stay inside the kernel's instruction set.)
     #[inline(always)]
-    fn splat3(a: [f32; 3]) -> [Self; 3] {
-        [Self::splat(a[0]), Self::splat(a[1]), Self::splat(a[2])]
+    fn splat3(cpu: Self::Cpu, a: [f32; 3]) -> [Self; 3] {
+        [
+            Self::splat(cpu, a[0]),
+            Self::splat(cpu, a[1]),
+            Self::splat(cpu, a[2]),
+        ]
     }
 
     /// Loads eight lanes stored as a `wide::f32x8`.
     #[inline(always)]
-    fn of(x: &f32x8) -> Self {
-        Self::load(bytemuck::cast_ref(x))
+    fn of(cpu: Self::Cpu, x: &f32x8) -> Self {
+        Self::load(cpu, bytemuck::cast_ref(x))
     }
 }
 
 impl F8 for f32x8 {
+    type Cpu = ();
     #[inline(always)]
-    fn splat(x: f32) -> Self {
+    fn splat(_: (), x: f32) -> Self {
         f32x8::splat(x)
     }
     #[inline(always)]
-    fn load(a: &[f32; 8]) -> Self {
+    fn load(_: (), a: &[f32; 8]) -> Self {
         f32x8::from(*a)
     }
     #[inline(always)]
@@ -120,24 +134,28 @@ pub(crate) use avx::Avx;
 #[cfg(target_arch = "x86_64")]
 mod avx {
     use super::F8;
+    use crate::isa::Avx2Cpu;
     use std::arch::x86_64::*;
 
-    /// Eight lanes in one AVX register. Only the AVX2 kernels make these, and they run only
-    /// where the CPU has AVX2 and FMA ([`crate::Isa::or_portable`]); every method is inlined
-    /// into those `#[target_feature]` functions.
+    /// Eight lanes in one AVX register. The field is private to this module, and the only
+    /// constructors (`splat`, `load`) take an [`Avx2Cpu`], the proof that the CPU has AVX2 and
+    /// FMA: a value exists only on such a CPU. Every method is inlined into the kernels'
+    /// `#[target_feature]` entry points.
     #[derive(Clone, Copy)]
     pub(crate) struct Avx(__m256);
 
     // SAFETY (every `unsafe` block below): the intrinsics need AVX, which the CPU has wherever
-    // an `Avx` value exists (see the type's documentation); loads and stores go through
-    // references to eight floats.
+    // an `Avx` value exists (it was made from an `Avx2Cpu`, which only `Avx2Cpu::detect`
+    // makes, after the CPU reported AVX2 and FMA); loads and stores go through references to
+    // eight floats.
     impl F8 for Avx {
+        type Cpu = Avx2Cpu;
         #[inline(always)]
-        fn splat(x: f32) -> Self {
+        fn splat(_: Avx2Cpu, x: f32) -> Self {
             Avx(unsafe { _mm256_set1_ps(x) })
         }
         #[inline(always)]
-        fn load(a: &[f32; 8]) -> Self {
+        fn load(_: Avx2Cpu, a: &[f32; 8]) -> Self {
             Avx(unsafe { _mm256_loadu_ps(a.as_ptr()) })
         }
         #[inline(always)]
@@ -196,7 +214,7 @@ mod avx {
             (unsafe { _mm256_movemask_ps(self.0) }) as u32
         }
         #[inline(always)]
-        fn outlined<R>(f: impl FnOnce() -> R) -> R {
+        fn outlined<R>(_: Avx2Cpu, f: impl FnOnce() -> R) -> R {
             /// # Safety
             /// The CPU must support AVX2 and FMA.
             #[target_feature(enable = "avx2,fma")]
@@ -204,6 +222,7 @@ mod avx {
             unsafe fn run<R>(f: impl FnOnce() -> R) -> R {
                 f()
             }
+            // SAFETY: the `Avx2Cpu` argument proves the CPU has AVX2 and FMA.
             unsafe { run(f) }
         }
     }
@@ -215,7 +234,7 @@ mod tests {
 
     /// Every operation on awkward lanes (NaN in either operand, signed zeros, infinities,
     /// subnormals) against the plain `f32` operation it stands for, on each implementation.
-    fn check<V: F8>() {
+    fn check<V: F8>(cpu: V::Cpu) {
         let a = [
             f32::NAN,
             1.0,
@@ -239,7 +258,7 @@ mod tests {
         // Opaque to the optimiser: a division folded at compile time gives a NaN of another
         // sign than the CPU's (0/0 is 0x7fc00000 folded, 0xffc00000 on x86).
         let (a, b) = std::hint::black_box((a, b));
-        let (va, vb) = (V::load(&a), V::load(&b));
+        let (va, vb) = (V::load(cpu, &a), V::load(cpu, &b));
         let same = |got: [f32; 8], want: [f32; 8], what: &str| {
             let bits = |x: [f32; 8]| x.map(f32::to_bits);
             assert_eq!(bits(got), bits(want), "{what}");
@@ -269,20 +288,20 @@ mod tests {
             std::array::from_fn(|i| if a[i] >= b[i] { a[i] } else { b[i] }),
             "select",
         );
-        same(V::splat(-0.0).to_array(), [-0.0; 8], "splat");
-        same(V::of(&f32x8::from(a)).to_array(), a, "of");
+        same(V::splat(cpu, -0.0).to_array(), [-0.0; 8], "splat");
+        same(V::of(cpu, &f32x8::from(a)).to_array(), a, "of");
     }
 
     #[test]
     fn portable_lanes_are_the_scalar_operations() {
-        check::<f32x8>();
+        check::<f32x8>(());
     }
 
     #[cfg(target_arch = "x86_64")]
     #[test]
     fn avx_lanes_are_the_scalar_operations() {
-        if crate::Isa::Avx2.or_portable() == crate::Isa::Avx2 {
-            check::<Avx>();
+        if let Some(cpu) = crate::isa::Avx2Cpu::detect() {
+            check::<Avx>(cpu);
         }
     }
 }

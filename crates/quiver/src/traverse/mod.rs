@@ -4,22 +4,27 @@
 //! - `bvh2`: single rays over binary nodes in any memory mapping;
 //! - `bvh4`: single rays over 4-wide nodes (exact or quantized), four boxes per SIMD test;
 //! - `bvh8`: single rays over 8-wide nodes, portable or AVX2 ([`crate::Isa`]);
-//! - [`packet`]: up to 64 coherent rays at once over 4-wide nodes;
-//! - `simd`: the helpers they share; [`Stats`] sinks that compile away when unused.
+//! - [`packet`]: up to 64 coherent rays at once over 4- and 8-wide nodes;
+//! - `wide`: the 4- and 8-wide layouts' [`RayQuery`], above the single-ray and packet kernels;
+//! - `leaves` (every leaf format's dispatcher), `tri4` (the SIMD triangle-group tests),
+//!   `lane8` (eight lanes, portable or AVX2), `simd`: the helpers they share; [`Stats`] sinks
+//!   that compile away when unused.
 
 mod bvh2;
 mod bvh4;
 mod bvh8;
 mod lane8;
+mod leaves;
 pub mod packet;
 mod query;
 pub mod reference;
 pub(crate) mod simd;
 mod stats;
 mod tri4;
+mod wide;
 
 pub use packet::{PacketMode, PACKET_RAYS};
-pub use query::RayQuery;
+pub use query::{PacketQuery, RayQuery};
 pub use stats::{Counters, NoStats, Stats};
 
 use crate::geometry::{Hit, PrimHit, Ray};

@@ -4,9 +4,56 @@ use super::packet::{any_ray_by_ray, closest_ray_by_ray};
 use super::{BoxTest, ConservativeBoxes, Counters, NoStats, PacketMode, Stats};
 use crate::geometry::{Hit, Ray};
 
+/// What a packet query traces: the rays, which of them, and how ([`PacketMode`]). One value,
+/// so the packet forms of [`RayQuery`] keep one signature as options join.
+///
+/// ```
+/// use quiver::traverse::{PacketMode, PacketQuery};
+/// use quiver::Ray;
+/// use glam::Vec3A;
+/// let rays = [Ray::new(Vec3A::ZERO, Vec3A::Z); 3];
+/// let on = [true, false, true];
+/// let q = PacketQuery::new(&rays).active(&on).mode(PacketMode::Always);
+/// assert_eq!((q.rays.len(), q.active, q.mode), (3, Some(&on[..]), PacketMode::Always));
+/// assert_eq!(PacketQuery::new(&rays).mode, PacketMode::Auto);
+/// ```
+#[derive(Clone, Copy, Debug)]
+pub struct PacketQuery<'a> {
+    /// The rays, cut into packets of [`super::PACKET_RAYS`].
+    pub rays: &'a [Ray],
+    /// Which rays to trace (one flag per ray); `None` for all. Untraced rays get no hit.
+    pub active: Option<&'a [bool]>,
+    /// Packets or single rays.
+    pub mode: PacketMode,
+}
+
+impl<'a> PacketQuery<'a> {
+    /// Every ray of `rays`, in packets where they are coherent ([`PacketMode::Auto`]).
+    pub fn new(rays: &'a [Ray]) -> Self {
+        PacketQuery {
+            rays,
+            active: None,
+            mode: PacketMode::Auto,
+        }
+    }
+
+    /// Traces only the rays whose flag is set (one flag per ray).
+    pub fn active(self, active: &'a [bool]) -> Self {
+        PacketQuery {
+            active: Some(active),
+            ..self
+        }
+    }
+
+    /// Chooses packets or single rays by `mode`.
+    pub fn mode(self, mode: PacketMode) -> Self {
+        PacketQuery { mode, ..self }
+    }
+}
+
 /// Ray queries: closest hit and any hit, one ray at a time or in packets.
 ///
-/// Every layout ([`crate::Bvh2`], [`crate::layout::Bvh4`], [`crate::layout::QBvh4`]), the
+/// Every layout ([`crate::Bvh2`], [`crate::Bvh4`], [`crate::QBvh4`], [`crate::Bvh8`]), the
 /// layout-erased [`crate::Bvh`], and quiver-scenes' `SceneBvh` implement it. An implementor
 /// writes the two single-ray `*_with` methods, generic over the box test ([`BoxTest`]) and a
 /// statistics sink ([`Stats`]), and the two packet `*_with` methods where it has a packet
@@ -38,44 +85,37 @@ pub trait RayQuery {
     /// box test `B`, reporting work to `stats`.
     fn any_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> bool;
 
-    /// Closest hits of `rays` into `hits` (same length), in packets of
-    /// [`super::PACKET_RAYS`] where `mode` and the layout allow: only rays whose `active` flag
-    /// is set are traced (the others get `None`). Each answer is exactly
-    /// [`RayQuery::closest_hit_with`]'s for that ray. `stats` counts packet node visits, not
-    /// per-ray ones.
+    /// Closest hits of the query's rays into `hits` (one slot per ray), in packets of
+    /// [`super::PACKET_RAYS`] where its mode and the layout allow: only active rays are traced
+    /// (the others get `None`). Each answer is exactly [`RayQuery::closest_hit_with`]'s for
+    /// that ray. `stats` counts packet node visits, not per-ray ones.
     ///
     /// Without a packet kernel (the default) every active ray goes through
-    /// [`RayQuery::closest_hit_with`] and `mode` is ignored.
+    /// [`RayQuery::closest_hit_with`] and the mode is ignored.
     ///
     /// # Panics
-    /// When `hits` or `active` differ in length from `rays`.
+    /// When `hits` or the active flags differ in length from the rays.
     fn closest_hit_packet_with<B: BoxTest, S: Stats>(
         &self,
-        rays: &[Ray],
-        active: Option<&[bool]>,
-        mode: PacketMode,
+        query: PacketQuery<'_>,
         hits: &mut [Option<Hit>],
         stats: &mut S,
     ) {
-        let _ = mode;
-        closest_ray_by_ray::<_, B, S>(self, rays, active, hits, stats)
+        closest_ray_by_ray::<_, B, S>(self, query, hits, stats)
     }
 
-    /// Any-hit answers of `rays` into `occluded` (inactive rays get `false`); see
+    /// Any-hit answers of the query's rays into `occluded` (inactive rays get `false`); see
     /// [`RayQuery::closest_hit_packet_with`].
     ///
     /// # Panics
-    /// When `occluded` or `active` differ in length from `rays`.
+    /// When `occluded` or the active flags differ in length from the rays.
     fn any_hit_packet_with<B: BoxTest, S: Stats>(
         &self,
-        rays: &[Ray],
-        active: Option<&[bool]>,
-        mode: PacketMode,
+        query: PacketQuery<'_>,
         occluded: &mut [bool],
         stats: &mut S,
     ) {
-        let _ = mode;
-        any_ray_by_ray::<_, B, S>(self, rays, active, occluded, stats)
+        any_ray_by_ray::<_, B, S>(self, query, occluded, stats)
     }
 
     /// The nearest hit along `ray` (lowest primitive index on ties).
@@ -132,9 +172,7 @@ pub trait RayQuery {
     #[inline]
     fn closest_hit_packet(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
         self.closest_hit_packet_with::<ConservativeBoxes, _>(
-            rays,
-            None,
-            PacketMode::Auto,
+            PacketQuery::new(rays),
             hits,
             &mut NoStats,
         )
@@ -148,9 +186,7 @@ pub trait RayQuery {
     #[inline]
     fn any_hit_packet(&self, rays: &[Ray], occluded: &mut [bool]) {
         self.any_hit_packet_with::<ConservativeBoxes, _>(
-            rays,
-            None,
-            PacketMode::Auto,
+            PacketQuery::new(rays),
             occluded,
             &mut NoStats,
         )

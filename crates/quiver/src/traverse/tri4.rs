@@ -1,7 +1,8 @@
 //! Leaf tests over [`Tri4`] groups: four triangles per SIMD test, each lane computing exactly
 //! what the scalar test ([`crate::Triangle::intersect`] or
 //! [`crate::intersect::Watertight`]) computes for that triangle, so the answers are the
-//! scalar leaf test's, ties by primitive index included.
+//! scalar leaf test's, ties by primitive index included. [`super::leaves::Leaves`] picks
+//! them for triangle leaf formats.
 
 use super::simd::bits;
 use super::Stats;
@@ -194,100 +195,4 @@ pub(crate) fn any<S: Stats>(
     stats.prims(count);
     stats.empty_leaf();
     false
-}
-
-/// A wide layout's leaf data, as its kernels read it: the primitives themselves (plain
-/// leaves: a leaf is `first..first + count` of `prims`) or [`Tri4`] groups (triangle formats:
-/// a leaf is the groups from `first` holding its `count` triangles).
-#[derive(Clone, Copy)]
-pub(crate) struct Leaves<'a, P> {
-    pub prims: &'a [P],
-    pub ids: &'a [u32],
-    pub tri4: &'a [Tri4],
-}
-
-impl<P: Primitive> Leaves<'_, P> {
-    /// Asks the CPU to start loading the leaf at `first` (its first group's first two cache
-    /// lines), so the memory latency overlaps the work before the leaf is tested.
-    #[inline(always)]
-    pub fn prefetch(&self, first: usize) {
-        #[cfg(target_arch = "x86_64")]
-        if P::LEAF_FORMAT != crate::primitive::LeafFormat::Plain {
-            if let Some(g) = self.tri4.get(first) {
-                let p = (g as *const Tri4).cast::<i8>();
-                // SAFETY: SSE is part of every x86-64 CPU; a prefetch reads nothing and
-                // faults on nothing, and `p` points into the group.
-                unsafe {
-                    use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-                    _mm_prefetch::<_MM_HINT_T0>(p);
-                    _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(64));
-                }
-            }
-        }
-    }
-
-    /// The leaf's groups (triangle formats).
-    #[inline(always)]
-    pub fn groups(&self, first: usize, count: u32) -> &[Tri4] {
-        &self.tri4[first..first + crate::layout::tri4::groups(count) as usize]
-    }
-
-    /// Closest hit in one leaf, improving `best`; `prep` holds the ray's group terms once the
-    /// first leaf made them. Returns true when `best` changed.
-    #[inline(always)]
-    pub fn closest<S: Stats>(
-        &self,
-        first: usize,
-        count: u32,
-        ray: &Ray,
-        prep: &mut Option<Ray4Tri>,
-        best: &mut Hit,
-        stats: &mut S,
-    ) -> bool {
-        match P::LEAF_FORMAT {
-            LeafFormat::Plain => {
-                let range = first..first + count as usize;
-                super::leaf_closest_hit(
-                    &self.prims[range.clone()],
-                    &self.ids[range],
-                    ray,
-                    best,
-                    stats,
-                )
-            }
-            format => {
-                let r = prep.get_or_insert_with(|| Ray4Tri::new(ray, format));
-                closest(
-                    self.groups(first, count),
-                    count,
-                    ray,
-                    r,
-                    format,
-                    best,
-                    stats,
-                )
-            }
-        }
-    }
-
-    /// Whether anything in one leaf is hit within the ray's interval.
-    #[inline(always)]
-    pub fn any<S: Stats>(
-        &self,
-        first: usize,
-        count: u32,
-        ray: &Ray,
-        prep: &mut Option<Ray4Tri>,
-        stats: &mut S,
-    ) -> bool {
-        match P::LEAF_FORMAT {
-            LeafFormat::Plain => {
-                super::leaf_any_hit(&self.prims[first..first + count as usize], ray, stats)
-            }
-            format => {
-                let r = prep.get_or_insert_with(|| Ray4Tri::new(ray, format));
-                any(self.groups(first, count), count, ray, r, format, stats)
-            }
-        }
-    }
 }

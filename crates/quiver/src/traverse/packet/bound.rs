@@ -54,15 +54,15 @@ impl Bound {
     /// [`Bound::may_enter`] for the eight boxes of an 8-wide node (`[[f32; 8]; 6]` rows), in
     /// lanes of `V`.
     #[inline(always)]
-    pub fn may_enter8<V: F8, B: BoxTest>(&self, p: &[[f32; 8]; 6]) -> u32 {
-        let slack = V::splat(B::SLACK);
-        let mut lo = V::splat(self.t_min_lo);
-        let mut hi = V::splat(self.t_max_hi * B::SLACK);
+    pub fn may_enter8<V: F8, B: BoxTest>(&self, cpu: V::Cpu, p: &[[f32; 8]; 6]) -> u32 {
+        let slack = V::splat(cpu, B::SLACK);
+        let mut lo = V::splat(cpu, self.t_min_lo);
+        let mut hi = V::splat(cpu, self.t_max_hi * B::SLACK);
         for ax in self.axes.iter().flatten() {
-            let (i_lo, i_hi) = (V::splat(ax.i_lo), V::splat(ax.i_hi));
-            let xn = V::load(&p[ax.near_row]).sub(V::splat(ax.o_near));
+            let (i_lo, i_hi) = (V::splat(cpu, ax.i_lo), V::splat(cpu, ax.i_hi));
+            let xn = V::load(cpu, &p[ax.near_row]).sub(V::splat(cpu, ax.o_near));
             lo = lo.max_nan_first(xn.mul(i_lo).min_nan_first(xn.mul(i_hi)));
-            let xf = V::load(&p[ax.far_row]).sub(V::splat(ax.o_far));
+            let xf = V::load(cpu, &p[ax.far_row]).sub(V::splat(cpu, ax.o_far));
             hi = hi.min_nan_first(xf.mul(i_lo).max_nan_first(xf.mul(i_hi)).mul(slack));
         }
         lo.le(hi).bitmask()
@@ -253,7 +253,7 @@ mod tests {
     }
 
     /// The 8-wide cull test against each ray's 8-wide slab test, in lanes of `V`.
-    fn check8<V: F8, B: BoxTest>(seed: u64) {
+    fn check8<V: F8, B: BoxTest>(cpu: V::Cpu, seed: u64) {
         let mut rng = Rng::new(seed);
         for round in 0..2000u64 {
             let rays = rays(&mut rng, round);
@@ -269,15 +269,15 @@ mod tests {
             for r in &rays {
                 bb.add(r.origin, slab_reciprocal(r.dir), r.t_min, r.t_max);
             }
-            let may = bb.finish().may_enter8::<V, B>(&node.planes);
+            let may = bb.finish().may_enter8::<V, B>(cpu, &node.planes);
             assert_eq!(
                 may & 0x0F,
                 bb.finish().may_enter::<B>(&a),
                 "round {round}: the 8-wide bound differs from the 4-wide one"
             );
             for r in &rays {
-                let (_, enters) =
-                    crate::traverse::bvh8::Ray8::<V>::new(r).enter::<B>(&node, r.t_max * B::SLACK);
+                let (_, enters) = crate::traverse::bvh8::Ray8::<V>::new(cpu, r)
+                    .enter::<B>(&node, r.t_max * B::SLACK);
                 assert_eq!(enters & !may, 0, "round {round}: culls a box {r:?} enters");
             }
         }
@@ -285,12 +285,12 @@ mod tests {
 
     #[test]
     fn the_8_wide_bound_never_culls_a_box_an_active_ray_enters() {
-        check8::<wide::f32x8, FastBoxes>(3);
-        check8::<wide::f32x8, ConservativeBoxes>(4);
+        check8::<wide::f32x8, FastBoxes>((), 3);
+        check8::<wide::f32x8, ConservativeBoxes>((), 4);
         #[cfg(target_arch = "x86_64")]
-        if crate::Isa::Avx2.or_portable() == crate::Isa::Avx2 {
-            check8::<crate::traverse::lane8::Avx, FastBoxes>(3);
-            check8::<crate::traverse::lane8::Avx, ConservativeBoxes>(4);
+        if let Some(cpu) = crate::isa::Avx2Cpu::detect() {
+            check8::<crate::traverse::lane8::Avx, FastBoxes>(cpu, 3);
+            check8::<crate::traverse::lane8::Avx, ConservativeBoxes>(cpu, 4);
         }
     }
 

@@ -273,9 +273,10 @@ impl RayPacket {
 
     /// Ray `i` prepared for a node format's test of all its children.
     #[inline(always)]
-    pub(super) fn first<N: PacketNode, V: F8>(&self, i: usize) -> N::First<V> {
+    pub(super) fn first<N: PacketNode, V: F8>(&self, cpu: V::Cpu, i: usize) -> N::First<V> {
         let (o, inv) = (&self.rays.o, &self.inv);
         N::first::<V>(
+            cpu,
             [lane(&o[0], i), lane(&o[1], i), lane(&o[2], i)],
             [lane(&inv[0], i), lane(&inv[1], i), lane(&inv[2], i)],
             lane(&self.rays.t_min, i),
@@ -286,15 +287,15 @@ impl RayPacket {
     /// lanes entering it within their limits, and their entry distances. Per lane this is the
     /// single-ray slab test's arithmetic exactly.
     #[inline(always)]
-    fn enter_chunk<V: F8, B: BoxTest>(&self, k: usize, b: &[f32; 6]) -> (u32, V) {
-        let slack = V::splat(B::SLACK);
-        let mut near = V::of(&self.rays.t_min[k]);
-        let mut far = V::of(&self.rays.limit[k]).mul(slack);
+    fn enter_chunk<V: F8, B: BoxTest>(&self, cpu: V::Cpu, k: usize, b: &[f32; 6]) -> (u32, V) {
+        let slack = V::splat(cpu, B::SLACK);
+        let mut near = V::of(cpu, &self.rays.t_min[k]);
+        let mut far = V::of(cpu, &self.rays.limit[k]).mul(slack);
         for a in 0..3 {
-            let (lo, hi) = (V::splat(b[a]), V::splat(b[3 + a]));
-            let neg = V::of(&self.neg[a][k]);
+            let (lo, hi) = (V::splat(cpu, b[a]), V::splat(cpu, b[3 + a]));
+            let neg = V::of(cpu, &self.neg[a][k]);
             let (pn, pf) = (neg.select(hi, lo), neg.select(lo, hi));
-            let (o, inv) = (V::of(&self.rays.o[a][k]), V::of(&self.inv[a][k]));
+            let (o, inv) = (V::of(cpu, &self.rays.o[a][k]), V::of(cpu, &self.inv[a][k]));
             let tn = pn.sub(o).mul(inv);
             let tf = pf.sub(o).mul(inv);
             near = tn.max_nan_first(near);
@@ -307,11 +308,12 @@ impl RayPacket {
     #[inline(always)]
     pub(super) fn find_first<V: F8, B: BoxTest>(
         &self,
+        cpu: V::Cpu,
         b: &[f32; 6],
         mask: u64,
     ) -> Option<(usize, f32)> {
         for (k, bits) in chunks(self.active & mask) {
-            let (m, near) = self.enter_chunk::<V, B>(k, b);
+            let (m, near) = self.enter_chunk::<V, B>(cpu, k, b);
             let m = m & bits;
             if m != 0 {
                 let j = m.trailing_zeros() as usize;
@@ -323,10 +325,15 @@ impl RayPacket {
 
     /// The active rays of `mask` that enter `b`, and the entry distance of the first.
     #[inline(always)]
-    pub(super) fn enter_all<V: F8, B: BoxTest>(&self, b: &[f32; 6], mask: u64) -> (u64, f32) {
+    pub(super) fn enter_all<V: F8, B: BoxTest>(
+        &self,
+        cpu: V::Cpu,
+        b: &[f32; 6],
+        mask: u64,
+    ) -> (u64, f32) {
         let (mut out, mut t) = (0u64, 0.0);
         for (k, bits) in chunks(self.active & mask) {
-            let (m, near) = self.enter_chunk::<V, B>(k, b);
+            let (m, near) = self.enter_chunk::<V, B>(cpu, k, b);
             let m = m & bits;
             if out == 0 && m != 0 {
                 t = near.to_array()[m.trailing_zeros() as usize];
@@ -339,10 +346,15 @@ impl RayPacket {
     /// The active rays of `mask` that enter leaf box `b`, counted toward the packet's
     /// coherence record ([`RayPacket::came_apart`]).
     #[inline(always)]
-    pub(super) fn entering<V: F8, B: BoxTest>(&mut self, b: &[f32; 6], mask: u64) -> u64 {
+    pub(super) fn entering<V: F8, B: BoxTest>(
+        &mut self,
+        cpu: V::Cpu,
+        b: &[f32; 6],
+        mask: u64,
+    ) -> u64 {
         let mut out = 0u64;
         for (k, bits) in chunks(self.active & mask) {
-            out |= ((bits & self.enter_chunk::<V, B>(k, b).0) as u64) << (LANES * k);
+            out |= ((bits & self.enter_chunk::<V, B>(cpu, k, b).0) as u64) << (LANES * k);
         }
         self.leaf_rays += out.count_ones();
         self.leaf_visits += 1;
@@ -398,7 +410,7 @@ mod tests {
             let mut p = RayPacket::new(&rays, active);
             assert_eq!(p.active, active);
             assert_eq!(
-                p.entering::<f32x8, crate::traverse::FastBoxes>(&b, u64::MAX),
+                p.entering::<f32x8, crate::traverse::FastBoxes>((), &b, u64::MAX),
                 active
             );
             for i in bits(active) {
@@ -407,7 +419,7 @@ mod tests {
             if active != 0 {
                 let first = active.trailing_zeros() as usize;
                 assert_eq!(
-                    p.find_first::<f32x8, crate::traverse::FastBoxes>(&b, u64::MAX),
+                    p.find_first::<f32x8, crate::traverse::FastBoxes>((), &b, u64::MAX),
                     Some((first, 1.0))
                 );
             }
@@ -477,11 +489,11 @@ mod tests {
         let p = RayPacket::new(&rays, u64::MAX);
         let b = [62.5, -1.0, 0.0, 63.5, 1.0, 1.0];
         assert_eq!(
-            p.enter_all::<f32x8, crate::traverse::FastBoxes>(&b, u64::MAX),
+            p.enter_all::<f32x8, crate::traverse::FastBoxes>((), &b, u64::MAX),
             (1 << 63, 1.0)
         );
         assert_eq!(
-            p.find_first::<f32x8, crate::traverse::FastBoxes>(&b, !(1 << 63)),
+            p.find_first::<f32x8, crate::traverse::FastBoxes>((), &b, !(1 << 63)),
             None
         );
     }
@@ -495,7 +507,7 @@ mod tests {
         assert_eq!(p.active, !(1 << 5 | 1 << 6));
         p.retire(7);
         let b = [-0.5, -1.0, 0.0, 63.5, 1.0, 1.0];
-        let entered = p.entering::<f32x8, crate::traverse::FastBoxes>(&b, u64::MAX);
+        let entered = p.entering::<f32x8, crate::traverse::FastBoxes>((), &b, u64::MAX);
         assert_eq!(entered & (1 << 5 | 1 << 6 | 1 << 7), 0);
         assert_eq!(entered.count_ones(), 61);
     }
@@ -507,18 +519,19 @@ mod tests {
         let b = |x: f32| [x - 0.5, -1.0, 0.0, x + 0.5, 1.0, 1.0];
         // Eleven leaves of one ray each: still on probation.
         for k in 0..11 {
-            p.entering::<f32x8, crate::traverse::FastBoxes>(&b(k as f32), u64::MAX);
+            p.entering::<f32x8, crate::traverse::FastBoxes>((), &b(k as f32), u64::MAX);
         }
         assert!(!p.came_apart());
         // The twelfth leaf shared by all 64 lifts the average to (11 + 64) / 12 > 2.
         p.entering::<f32x8, crate::traverse::FastBoxes>(
+            (),
             &[-0.5, -1.0, 0.0, 63.5, 1.0, 1.0],
             u64::MAX,
         );
         assert!(!p.came_apart());
         let mut q = RayPacket::new(&rays, u64::MAX);
         for k in 0..12 {
-            q.entering::<f32x8, crate::traverse::FastBoxes>(&b(k as f32), u64::MAX);
+            q.entering::<f32x8, crate::traverse::FastBoxes>((), &b(k as f32), u64::MAX);
         }
         assert!(
             q.came_apart(),

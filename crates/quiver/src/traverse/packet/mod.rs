@@ -1,14 +1,14 @@
-//! Packet traversal of 4-wide BVHs: up to [`PACKET_RAYS`] coherent rays walk the tree
+//! Packet traversal of 4- and 8-wide BVHs: up to [`PACKET_RAYS`] coherent rays walk the tree
 //! together, so a node is fetched once per packet instead of once per ray.
 //!
 //! The walk follows the *first active ray* (Wald, Boulos and Shirley, "Ray Tracing Deformable
 //! Scenes Using Dynamic Bounding Volume Hierarchies", 2007): every stack entry carries the
 //! index of the first ray that enters its box, and a mask of the rays that may. A node's
-//! children are tested against the first ray alone (one 4-wide test); a child it misses is
+//! children are tested against the first ray alone (one 4- or 8-wide test); a child it misses is
 //! tested against the node's other candidate rays, which yields the child's exact candidate
 //! mask, so searches shrink as the packet spreads out; a child no candidate enters is skipped.
 //! Before those searches an interval-arithmetic bound over all the packet's origins and
-//! directions (the cull test) rejects, in one 4-wide test, the children no ray of the packet
+//! directions (the cull test) rejects, in one 4- or 8-wide test, the children no ray of the packet
 //! can enter. At a leaf each primitive runs its own packet test over the rays that enter it
 //! (triangles: 8 rays at a time in `f32x8` lanes). A packet whose rays turn out to share
 //! almost no leaves (fewer than two rays per leaf visit on average) hands its remaining rays
@@ -20,27 +20,24 @@
 //! packets down the single-ray kernel instead.
 //!
 //! The pieces, one idea a file: `bound` (the cull test), `lanes` (rays in SIMD lanes and
-//! their slab tests), `walk` (the first-active-ray walk and the hand-over to single rays),
-//! `leaves` (leaf tests, the triangle's 8-lane test); `mod.rs` is the entry point.
+//! their slab tests), `node` (what the walk needs of a 4- or 8-wide node format), `walk`
+//! (the first-active-ray walk and the hand-over to single rays), `leaves` (a leaf's tests over
+//! the rays that enter it), `query` (a query's packets through the walk, on the lanes of the
+//! BVH's instruction set); `mod.rs` holds the modes, the coherence check and the ray-by-ray
+//! fallback.
 
 mod bound;
 mod lanes;
 mod leaves;
 mod node;
+mod query;
 mod walk;
 
-pub(crate) use lanes::RayPacket;
-pub(crate) use node::PacketNode;
+pub(crate) use query::{any_rays_on, closest_rays_on};
 
-use super::lane8::F8;
-use super::query::RayQuery;
-use super::tri4::Leaves;
+use super::query::{PacketQuery, RayQuery};
 use super::{BoxTest, Stats};
 use crate::geometry::{Hit, Ray};
-use crate::isa::Isa;
-use crate::primitive::Primitive;
-use wide::f32x8;
-
 pub use crate::primitive::PACKET_RAYS;
 use crate::primitive::{CHUNKS, LANES};
 
@@ -89,7 +86,12 @@ impl PacketMode {
     pub fn packet_rays(self, rays: &[Ray], active: Option<&[bool]>) -> u64 {
         let mut n = 0u64;
         let mut out = vec![(); rays.len()];
-        each_packet(rays, active, self, &mut out, |_, on, packet, _| {
+        let query = PacketQuery {
+            rays,
+            active,
+            mode: self,
+        };
+        each_packet(query, &mut out, |_, on, packet, _| {
             if packet {
                 n += u64::from(on.count_ones());
             }
@@ -161,16 +163,16 @@ fn coherent(rays: &[Ray], active: u64) -> bool {
     })
 }
 
-/// Cuts `rays` into packets and hands each to `run(rays, active bits, use packets, out)`,
-/// after checking lengths and deciding by `mode` whether the packet path pays.
+/// Cuts the query's rays into packets and hands each to `run(rays, active bits, use packets,
+/// out)`, after checking lengths and deciding by the query's mode whether the packet path
+/// pays.
 #[inline(always)]
 fn each_packet<T>(
-    rays: &[Ray],
-    active: Option<&[bool]>,
-    mode: PacketMode,
+    query: PacketQuery<'_>,
     out: &mut [T],
     mut run: impl FnMut(&[Ray], u64, bool, &mut [T]),
 ) {
+    let PacketQuery { rays, active, mode } = query;
     assert_eq!(rays.len(), out.len(), "one answer slot per ray");
     if let Some(a) = active {
         assert_eq!(rays.len(), a.len(), "one active flag per ray");
@@ -191,199 +193,25 @@ fn each_packet<T>(
     }
 }
 
-/// Closest hits of any number of rays, packet by packet, over one node format, in lanes of
-/// `V`.
-#[allow(clippy::too_many_arguments)]
-#[inline(always)]
-fn closest_rays<N: PacketNode, V: F8, B: BoxTest, P: Primitive, S: Stats>(
-    nodes: &[N],
-    leaves: &Leaves<P>,
-    rays: &[Ray],
-    active: Option<&[bool]>,
-    mode: PacketMode,
-    hits: &mut [Option<Hit>],
-    stats: &mut S,
-) {
-    each_packet(
-        rays,
-        active,
-        mode,
-        hits,
-        #[inline(always)]
-        |rays, on, packet, hits| {
-            if packet {
-                let mut pk = RayPacket::new(rays, on);
-                let mut best = [Hit::none(0.0); PACKET_RAYS];
-                for (b, r) in best.iter_mut().zip(rays) {
-                    *b = Hit::none(r.t_max);
-                }
-                leaves::closest_packet::<N, V, B, P, S>(
-                    nodes, leaves, rays, &mut pk, &mut best, stats,
-                );
-                for (i, (h, b)) in hits.iter_mut().zip(best).enumerate() {
-                    *h = if on >> i & 1 == 1 { b.found() } else { None };
-                }
-            } else {
-                for (i, (h, r)) in hits.iter_mut().zip(rays).enumerate() {
-                    *h = if on >> i & 1 == 1 {
-                        let mut best = Hit::none(r.t_max);
-                        N::closest_from::<V, B, P, S>(nodes, leaves, r, 0, &mut best, stats);
-                        best.found()
-                    } else {
-                        None
-                    };
-                }
-            }
-        },
-    );
-}
-
-/// Any-hit answers of any number of rays, packet by packet, over one node format, in lanes
-/// of `V`.
-#[inline(always)]
-fn any_rays<N: PacketNode, V: F8, B: BoxTest, P: Primitive, S: Stats>(
-    nodes: &[N],
-    leaves: &Leaves<P>,
-    rays: &[Ray],
-    active: Option<&[bool]>,
-    mode: PacketMode,
-    occluded: &mut [bool],
-    stats: &mut S,
-) {
-    each_packet(
-        rays,
-        active,
-        mode,
-        occluded,
-        #[inline(always)]
-        |rays, on, packet, out| {
-            out.fill(false);
-            if packet {
-                let mut pk = RayPacket::new(rays, on);
-                leaves::any_packet::<N, V, B, P, S>(nodes, leaves, rays, &mut pk, out, stats);
-            } else {
-                for (i, (o, r)) in out.iter_mut().zip(rays).enumerate() {
-                    *o = on >> i & 1 == 1 && N::any_from::<V, B, P, S>(nodes, leaves, r, 0, stats);
-                }
-            }
-        },
-    );
-}
-
-/// [`closest_rays`] on the lanes of `isa`: the one place a packet query picks its
-/// instruction set, for every node format.
-#[allow(clippy::too_many_arguments)]
-#[inline]
-pub(crate) fn closest_rays_on<N: PacketNode, B: BoxTest, P: Primitive, S: Stats>(
-    isa: Isa,
-    nodes: &[N],
-    leaves: &Leaves<P>,
-    rays: &[Ray],
-    active: Option<&[bool]>,
-    mode: PacketMode,
-    hits: &mut [Option<Hit>],
-    stats: &mut S,
-) {
-    match isa {
-        #[cfg(target_arch = "x86_64")]
-        // SAFETY: a BVH's `isa` is Avx2 only where the CPU has AVX2 and FMA
-        // (`Isa::or_portable`).
-        Isa::Avx2 => unsafe {
-            avx2::closest_rays::<N, B, P, S>(nodes, leaves, rays, active, mode, hits, stats)
-        },
-        _ => closest_rays::<N, f32x8, B, P, S>(nodes, leaves, rays, active, mode, hits, stats),
-    }
-}
-
-/// [`any_rays`] on the lanes of `isa` (see [`closest_rays_on`]).
-#[allow(clippy::too_many_arguments)]
-#[inline]
-pub(crate) fn any_rays_on<N: PacketNode, B: BoxTest, P: Primitive, S: Stats>(
-    isa: Isa,
-    nodes: &[N],
-    leaves: &Leaves<P>,
-    rays: &[Ray],
-    active: Option<&[bool]>,
-    mode: PacketMode,
-    occluded: &mut [bool],
-    stats: &mut S,
-) {
-    match isa {
-        #[cfg(target_arch = "x86_64")]
-        // SAFETY: as in `closest_rays_on`.
-        Isa::Avx2 => unsafe {
-            avx2::any_rays::<N, B, P, S>(nodes, leaves, rays, active, mode, occluded, stats)
-        },
-        _ => any_rays::<N, f32x8, B, P, S>(nodes, leaves, rays, active, mode, occluded, stats),
-    }
-}
-
-/// The packet kernels with their lanes on AVX2, compiled with AVX2 enabled (everything they
-/// call is inlined into these).
-#[cfg(target_arch = "x86_64")]
-mod avx2 {
-    use super::*;
-    use crate::traverse::lane8::Avx;
-
-    /// # Safety
-    /// The CPU must support AVX2 and FMA.
-    #[allow(clippy::too_many_arguments)]
-    #[target_feature(enable = "avx2,fma")]
-    pub(super) unsafe fn closest_rays<N: PacketNode, B: BoxTest, P: Primitive, S: Stats>(
-        nodes: &[N],
-        leaves: &Leaves<P>,
-        rays: &[Ray],
-        active: Option<&[bool]>,
-        mode: PacketMode,
-        hits: &mut [Option<Hit>],
-        stats: &mut S,
-    ) {
-        super::closest_rays::<N, Avx, B, P, S>(nodes, leaves, rays, active, mode, hits, stats)
-    }
-
-    /// # Safety
-    /// The CPU must support AVX2 and FMA.
-    #[allow(clippy::too_many_arguments)]
-    #[target_feature(enable = "avx2,fma")]
-    pub(super) unsafe fn any_rays<N: PacketNode, B: BoxTest, P: Primitive, S: Stats>(
-        nodes: &[N],
-        leaves: &Leaves<P>,
-        rays: &[Ray],
-        active: Option<&[bool]>,
-        mode: PacketMode,
-        occluded: &mut [bool],
-        stats: &mut S,
-    ) {
-        super::any_rays::<N, Avx, B, P, S>(nodes, leaves, rays, active, mode, occluded, stats)
-    }
-}
-
 /// The packet closest-hit query of a structure without a packet kernel: each active ray
-/// through `q`'s single-ray query, inactive ones `None`. `mode` is ignored.
+/// through `q`'s single-ray query, inactive ones `None`. The query's mode is ignored.
 ///
 /// # Panics
 /// When `hits` or `active` differ in length from `rays`.
 #[inline]
 pub fn closest_ray_by_ray<Q: RayQuery + ?Sized, B: BoxTest, S: Stats>(
     q: &Q,
-    rays: &[Ray],
-    active: Option<&[bool]>,
+    query: PacketQuery<'_>,
     hits: &mut [Option<Hit>],
     stats: &mut S,
 ) {
-    each_packet(
-        rays,
-        active,
-        PacketMode::Never,
-        hits,
-        |rays, on, _, hits| {
-            for (i, (h, r)) in hits.iter_mut().zip(rays).enumerate() {
-                *h = (on >> i & 1 == 1)
-                    .then(|| q.closest_hit_with::<B, S>(r, stats))
-                    .flatten();
-            }
-        },
-    );
+    each_packet(query.mode(PacketMode::Never), hits, |rays, on, _, hits| {
+        for (i, (h, r)) in hits.iter_mut().zip(rays).enumerate() {
+            *h = (on >> i & 1 == 1)
+                .then(|| q.closest_hit_with::<B, S>(r, stats))
+                .flatten();
+        }
+    });
 }
 
 /// The packet any-hit query of a structure without a packet kernel (see
@@ -394,15 +222,12 @@ pub fn closest_ray_by_ray<Q: RayQuery + ?Sized, B: BoxTest, S: Stats>(
 #[inline]
 pub fn any_ray_by_ray<Q: RayQuery + ?Sized, B: BoxTest, S: Stats>(
     q: &Q,
-    rays: &[Ray],
-    active: Option<&[bool]>,
+    query: PacketQuery<'_>,
     occluded: &mut [bool],
     stats: &mut S,
 ) {
     each_packet(
-        rays,
-        active,
-        PacketMode::Never,
+        query.mode(PacketMode::Never),
         occluded,
         |rays, on, _, out| {
             for (i, (o, r)) in out.iter_mut().zip(rays).enumerate() {

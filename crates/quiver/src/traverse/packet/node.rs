@@ -9,7 +9,7 @@ use crate::primitive::Primitive;
 use crate::traverse::bvh4::{self, Ray4};
 use crate::traverse::bvh8::{self, Ray8};
 use crate::traverse::lane8::F8;
-use crate::traverse::tri4::Leaves;
+use crate::traverse::leaves::Leaves;
 use crate::traverse::{BoxTest, Stats};
 
 /// A node format the packet walk runs over. `V` is the lane type of the kernel (portable or
@@ -20,7 +20,7 @@ pub(crate) trait PacketNode: Sized {
     /// The first ray of a packet prepared for the node test.
     type First<V: F8>;
     /// Prepares the node test for a ray with this origin, slab reciprocals and `t_min`.
-    fn first<V: F8>(origin: [f32; 3], inv: [f32; 3], t_min: f32) -> Self::First<V>;
+    fn first<V: F8>(cpu: V::Cpu, origin: [f32; 3], inv: [f32; 3], t_min: f32) -> Self::First<V>;
     /// Entry distances of the children (lanes from `WIDTH` on unused) and the mask of those
     /// the prepared ray enters within `t_max` (already scaled by the box test's slack).
     fn enter_first<V: F8, B: BoxTest>(&self, r: &Self::First<V>, t_max: f32) -> ([f32; 8], u32);
@@ -30,9 +30,10 @@ pub(crate) trait PacketNode: Sized {
     /// Child `i`'s box as `[min xyz, max xyz]`.
     fn slot_box(&self, i: usize) -> [f32; 6];
     /// Mask of the children some active ray of the bound may enter.
-    fn may_enter<V: F8, B: BoxTest>(&self, bound: &Bound) -> u32;
+    fn may_enter<V: F8, B: BoxTest>(&self, cpu: V::Cpu, bound: &Bound) -> u32;
     /// Closest hit of one ray in the subtree of inner node `root`, improving `best`.
     fn closest_from<V: F8, B: BoxTest, P: Primitive, S: Stats>(
+        cpu: V::Cpu,
         nodes: &[Self],
         leaves: &Leaves<P>,
         ray: &Ray,
@@ -42,6 +43,7 @@ pub(crate) trait PacketNode: Sized {
     );
     /// Whether one ray hits anything in the subtree of inner node `root`.
     fn any_from<V: F8, B: BoxTest, P: Primitive, S: Stats>(
+        cpu: V::Cpu,
         nodes: &[Self],
         leaves: &Leaves<P>,
         ray: &Ray,
@@ -59,7 +61,7 @@ impl<N: Node4> PacketNode for N {
     type First<V: F8> = Ray4;
 
     #[inline(always)]
-    fn first<V: F8>(origin: [f32; 3], inv: [f32; 3], t_min: f32) -> Ray4 {
+    fn first<V: F8>(_: V::Cpu, origin: [f32; 3], inv: [f32; 3], t_min: f32) -> Ray4 {
         Ray4::from_parts(origin, inv, t_min)
     }
 
@@ -84,12 +86,13 @@ impl<N: Node4> PacketNode for N {
     }
 
     #[inline(always)]
-    fn may_enter<V: F8, B: BoxTest>(&self, bound: &Bound) -> u32 {
+    fn may_enter<V: F8, B: BoxTest>(&self, _: V::Cpu, bound: &Bound) -> u32 {
         bound.may_enter::<B>(&self.planes())
     }
 
     #[inline(always)]
     fn closest_from<V: F8, B: BoxTest, P: Primitive, S: Stats>(
+        cpu: V::Cpu,
         nodes: &[Self],
         leaves: &Leaves<P>,
         ray: &Ray,
@@ -97,17 +100,20 @@ impl<N: Node4> PacketNode for N {
         best: &mut Hit,
         stats: &mut S,
     ) {
+        let _ = cpu;
         bvh4::closest_from::<N, B, P, S>(nodes, leaves, ray, root, best, stats)
     }
 
     #[inline(always)]
     fn any_from<V: F8, B: BoxTest, P: Primitive, S: Stats>(
+        cpu: V::Cpu,
         nodes: &[Self],
         leaves: &Leaves<P>,
         ray: &Ray,
         root: usize,
         stats: &mut S,
     ) -> bool {
+        let _ = cpu;
         bvh4::any_from::<N, B, P, S>(nodes, leaves, ray, root, stats)
     }
 }
@@ -117,8 +123,8 @@ impl PacketNode for Bvh8Node {
     type First<V: F8> = Ray8<V>;
 
     #[inline(always)]
-    fn first<V: F8>(origin: [f32; 3], inv: [f32; 3], t_min: f32) -> Ray8<V> {
-        Ray8::from_parts(origin, inv, t_min)
+    fn first<V: F8>(cpu: V::Cpu, origin: [f32; 3], inv: [f32; 3], t_min: f32) -> Ray8<V> {
+        Ray8::from_parts(cpu, origin, inv, t_min)
     }
 
     #[inline(always)]
@@ -138,12 +144,13 @@ impl PacketNode for Bvh8Node {
     }
 
     #[inline(always)]
-    fn may_enter<V: F8, B: BoxTest>(&self, bound: &Bound) -> u32 {
-        bound.may_enter8::<V, B>(&self.planes)
+    fn may_enter<V: F8, B: BoxTest>(&self, cpu: V::Cpu, bound: &Bound) -> u32 {
+        bound.may_enter8::<V, B>(cpu, &self.planes)
     }
 
     #[inline(always)]
     fn closest_from<V: F8, B: BoxTest, P: Primitive, S: Stats>(
+        cpu: V::Cpu,
         nodes: &[Self],
         leaves: &Leaves<P>,
         ray: &Ray,
@@ -151,17 +158,18 @@ impl PacketNode for Bvh8Node {
         best: &mut Hit,
         stats: &mut S,
     ) {
-        bvh8::closest_from::<V, B, P, S>(nodes, leaves, ray, root, best, stats)
+        bvh8::closest_from::<V, B, P, S>(cpu, nodes, leaves, ray, root, best, stats)
     }
 
     #[inline(always)]
     fn any_from<V: F8, B: BoxTest, P: Primitive, S: Stats>(
+        cpu: V::Cpu,
         nodes: &[Self],
         leaves: &Leaves<P>,
         ray: &Ray,
         root: usize,
         stats: &mut S,
     ) -> bool {
-        bvh8::any_from::<V, B, P, S>(nodes, leaves, ray, root, stats)
+        bvh8::any_from::<V, B, P, S>(cpu, nodes, leaves, ray, root, stats)
     }
 }

@@ -66,6 +66,7 @@ pub(super) enum AloneIn {
 /// stacked subtrees alone with the single-ray walk.
 #[inline(always)]
 pub(super) fn walk<N, V, B, S, F>(
+    cpu: V::Cpu,
     nodes: &[N],
     pk: &mut RayPacket,
     stats: &mut S,
@@ -87,7 +88,7 @@ pub(super) fn walk<N, V, B, S, F>(
     let mut mask = pk.active;
     let mut first = mask.trailing_zeros() as usize;
     // The first ray prepared for node tests; it often stays first for many nodes.
-    let (mut r1, mut r1_of) = (pk.first::<N, V>(first), first);
+    let (mut r1, mut r1_of) = (pk.first::<N, V>(cpu, first), first);
     loop {
         let n = &nodes[node];
         stats.node();
@@ -97,7 +98,7 @@ pub(super) fn walk<N, V, B, S, F>(
             used |= ((n.child(i).1 != LEAF) as u32) << i;
         }
         if r1_of != first {
-            (r1, r1_of) = (pk.first::<N, V>(first), first);
+            (r1, r1_of) = (pk.first::<N, V>(cpu, first), first);
         }
         let (t, hit) = n.enter_first::<V, B>(&r1, pk.limit(first) * B::SLACK);
         let hit = hit & used;
@@ -108,13 +109,13 @@ pub(super) fn walk<N, V, B, S, F>(
         let rest = mask & above(first);
         let mut missed = !hit & used;
         if missed != 0 && rest & pk.active != 0 {
-            missed &= n.may_enter::<V, B>(&pk.bound);
+            missed &= n.may_enter::<V, B>(cpu, &pk.bound);
         } else {
             missed = 0;
         }
         for i in bits(missed) {
             stats.boxes(1);
-            let (m, tf) = pk.enter_all::<V, B>(&n.slot_box(i), rest);
+            let (m, tf) = pk.enter_all::<V, B>(cpu, &n.slot_box(i), rest);
             if m != 0 {
                 insert_farthest_first(&mut kids, k, tf, (i, m.trailing_zeros() as usize, m));
                 k += 1;
@@ -154,7 +155,7 @@ pub(super) fn walk<N, V, B, S, F>(
             let b = nodes[e.parent as usize].slot_box(e.slot as usize);
             if !valid {
                 // The first ray was shortened (or retired) since the push: look for another.
-                match pk.find_first::<V, B>(&b, e.mask & above(f)) {
+                match pk.find_first::<V, B>(cpu, &b, e.mask & above(f)) {
                     Some((nf, _)) => f = nf,
                     None => continue,
                 }
@@ -178,8 +179,9 @@ pub(super) fn walk<N, V, B, S, F>(
                 // compiler zero the whole stack on every walk (callgrind, +12%).
                 while let Some(e) = stack.pop() {
                     V::outlined(
+                        cpu,
                         #[inline(always)]
-                        || finish_alone::<N, V, B, S, F>(nodes, pk, &e, stats, &mut visit),
+                        || finish_alone::<N, V, B, S, F>(cpu, nodes, pk, &e, stats, &mut visit),
                     );
                     if pk.active == 0 {
                         return;
@@ -198,6 +200,7 @@ pub(super) fn walk<N, V, B, S, F>(
 /// ([`F8::outlined`]): the hand-over is rare and long.
 #[inline(always)]
 fn finish_alone<N, V, B, S, F>(
+    cpu: V::Cpu,
     nodes: &[N],
     pk: &mut RayPacket,
     e: &Entry,
@@ -212,7 +215,7 @@ fn finish_alone<N, V, B, S, F>(
 {
     let parent = &nodes[e.parent as usize];
     for i in bits(pk.active & e.mask) {
-        let r1 = pk.first::<N, V>(i);
+        let r1 = pk.first::<N, V>(cpu, i);
         if parent.enter_first::<V, B>(&r1, pk.limit(i) * B::SLACK).1 >> e.slot & 1 == 0 {
             continue;
         }

@@ -1,0 +1,272 @@
+//! [`BuildOptions`]: how a [`Bvh`] is built (builder, layout, leaf size, bins, costs, thread
+//! pool, instruction set), with presets, from a primitive slice or an indexed mesh.
+
+use super::nodes::{lay_out, Nodes};
+use super::Bvh;
+use crate::builders::{build_with_areas, prim_bounds, BuildConfig, BuildTree, Builder, CostModel};
+use crate::frame::Frame;
+use crate::isa::Isa;
+use crate::layout::bvh2::leaf_order;
+use crate::layout::Layout;
+use crate::mesh::{Mesh, MeshError};
+use crate::primitive::Primitive;
+use rayon::ThreadPool;
+
+/// How to build a [`Bvh`]: which builder, which layout, the build settings and the thread
+/// pool. Plain data with chainable setters; [`BuildOptions::default`] is what [`Bvh::new`]
+/// uses, [`BuildOptions::quality`] and [`BuildOptions::compact`] are presets.
+///
+/// ```
+/// use quiver::{builders::Builder, BuildOptions, Layout, Triangle};
+/// use glam::Vec3A;
+/// let tris = vec![Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y); 100];
+/// let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
+/// let (bvh, tree) = BuildOptions::default()
+///     .builder(Builder::Sweep)
+///     .layout(Layout::Bvh2Subtree)
+///     .max_leaf_size(4)
+///     .thread_pool(&pool)
+///     .build_with_tree(&tris);
+/// assert!(tree.stats().max_leaf <= 4);
+/// assert!(bvh.footprint().nodes >= tree.stats().nodes);
+/// ```
+#[derive(Clone, Debug, Default)]
+pub struct BuildOptions<'p> {
+    /// The tree builder.
+    pub builder: Builder,
+    /// The memory layout of the nodes.
+    pub layout: Layout,
+    /// Bins, leaf size, SAH costs, the horizontal/vertical threshold.
+    pub config: BuildConfig,
+    /// The rayon pool to build on; `None` for the current one (the global pool, or the pool
+    /// this is called from inside).
+    pub pool: Option<&'p ThreadPool>,
+    /// The instruction set the BVH's kernels run on; `None` for [`Isa::detect`] (the best
+    /// the CPU has, unless `QUIVER_ISA=portable`). One not supported here falls back to
+    /// [`Isa::Portable`]. The 8-wide layout runs every query on it, the 4-wide layouts their
+    /// packet queries; the binary layouts have portable kernels only.
+    pub isa: Option<Isa>,
+}
+
+impl BuildOptions<'static> {
+    /// The full-sweep SAH builder (every primitive boundary a candidate plane): the best tree
+    /// quiver builds, several times slower to build than the binned default.
+    pub fn quality() -> Self {
+        BuildOptions {
+            builder: Builder::Sweep,
+            ..Default::default()
+        }
+    }
+
+    /// The quantized 4-wide layout: 64-byte nodes, half the node memory of the default
+    /// layout, for large scenes.
+    pub fn compact() -> Self {
+        BuildOptions {
+            layout: Layout::Bvh4Quant,
+            ..Default::default()
+        }
+    }
+}
+
+impl<'p> BuildOptions<'p> {
+    /// Uses `builder`.
+    pub fn builder(self, builder: Builder) -> Self {
+        BuildOptions { builder, ..self }
+    }
+
+    /// Lays the nodes out as `layout`.
+    pub fn layout(self, layout: Layout) -> Self {
+        BuildOptions { layout, ..self }
+    }
+
+    /// Makes leaves of at most `n` primitives (`n >= 1`; `bvh4-quant` stores leaf sizes in 16
+    /// bits and caps them at 65535).
+    pub fn max_leaf_size(mut self, n: usize) -> Self {
+        self.config.max_leaf_size = n;
+        self
+    }
+
+    /// Bins per axis for the binned builder (2 to 1024).
+    pub fn bins(mut self, n: usize) -> Self {
+        self.config.bins = n;
+        self
+    }
+
+    /// How splits are scored: the SAH (default) or a ray-termination variant
+    /// ([`CostModel`]); the variants weigh each primitive's [`Primitive::surface_area`].
+    pub fn cost_model(mut self, model: CostModel) -> Self {
+        self.config.cost_model = model;
+        self
+    }
+
+    /// All build settings at once.
+    pub fn config(self, config: BuildConfig) -> Self {
+        BuildOptions { config, ..self }
+    }
+
+    /// Builds on `pool` instead of the current rayon pool.
+    pub fn thread_pool<'q>(self, pool: &'q ThreadPool) -> BuildOptions<'q> {
+        BuildOptions {
+            builder: self.builder,
+            layout: self.layout,
+            config: self.config,
+            pool: Some(pool),
+            isa: self.isa,
+        }
+    }
+
+    /// Runs the BVH's queries on `isa` (where supported; see [`BuildOptions::isa`]).
+    pub fn isa(self, isa: Isa) -> Self {
+        BuildOptions {
+            isa: Some(isa),
+            ..self
+        }
+    }
+
+    /// Builds a BVH over `prims`; hits report each primitive's index in `prims`.
+    ///
+    /// # Panics
+    /// When [`BuildConfig::check`] finds a setting out of range: `bins` outside 2..=1024,
+    /// `max_leaf_size` 0, or a negative or non-finite SAH cost.
+    pub fn build<P: Primitive>(&self, prims: &[P]) -> Bvh<P> {
+        self.build_with_tree(prims).0
+    }
+
+    /// [`BuildOptions::build`], also returning the binary build tree (for SAH cost, tree
+    /// statistics, or laying the same tree out again with [`Bvh::from_tree`]).
+    ///
+    /// # Panics
+    /// As [`BuildOptions::build`].
+    pub fn build_with_tree<P: Primitive>(&self, prims: &[P]) -> (Bvh<P>, BuildTree) {
+        self.run(|| {
+            let bounds = prim_bounds(prims);
+            let frame = Frame::for_prims(&bounds);
+            let local = frame_prims(frame, prims);
+            // A type that cannot be scaled stays in its own units.
+            let frame = if local.is_some() {
+                frame
+            } else {
+                Frame::default()
+            };
+            let in_frame = local.as_deref().unwrap_or(prims);
+            let tree = build_with_areas(
+                &frame.boxes(&bounds),
+                self.areas(in_frame).as_deref(),
+                &self.effective_config(),
+                self.builder,
+            );
+            let nodes = self.lay_out(&tree, leaf_order(&tree, in_frame));
+            let tree = frame.world_tree(tree, &bounds);
+            (Bvh::of(nodes.framed(frame), &tree), tree)
+        })
+    }
+
+    /// Builds a BVH over an indexed triangle mesh (see [`Bvh::from_mesh`]).
+    ///
+    /// # Errors
+    /// [`MeshError`] when an index names no vertex, or there are more than `u32::MAX`
+    /// triangles.
+    ///
+    /// # Panics
+    /// As [`BuildOptions::build`].
+    pub fn build_mesh(
+        &self,
+        positions: &[[f32; 3]],
+        indices: &[[u32; 3]],
+    ) -> Result<Bvh, MeshError> {
+        Ok(self.build_mesh_with_tree(positions, indices)?.0)
+    }
+
+    /// [`BuildOptions::build_mesh`], also returning the build tree.
+    ///
+    /// # Errors
+    /// As [`BuildOptions::build_mesh`].
+    ///
+    /// # Panics
+    /// As [`BuildOptions::build`].
+    pub fn build_mesh_with_tree(
+        &self,
+        positions: &[[f32; 3]],
+        indices: &[[u32; 3]],
+    ) -> Result<(Bvh, BuildTree), MeshError> {
+        let mesh = Mesh::new(positions, indices)?;
+        Ok(self.run(|| {
+            use rayon::prelude::*;
+            let bounds = mesh.bounds();
+            let frame = Frame::for_prims(&bounds);
+            let framed = |i: u32| match frame.is_identity() {
+                true => mesh.triangle(i),
+                false => frame.prim(&mesh.triangle(i)).expect("triangles scale"),
+            };
+            // Surface areas only for a cost model that weighs them.
+            let areas: Option<Vec<f32>> = (self.config.cost_model != CostModel::Sah).then(|| {
+                (0..bounds.len() as u32)
+                    .into_par_iter()
+                    .map(|i| framed(i).surface_area())
+                    .collect()
+            });
+            let tree = build_with_areas(
+                &frame.boxes(&bounds),
+                areas.as_deref(),
+                &self.effective_config(),
+                self.builder,
+            );
+            let leaf_tris = tree.prim_indices.par_iter().map(|&i| framed(i)).collect();
+            let nodes = self.lay_out(&tree, leaf_tris);
+            let tree = frame.world_tree(tree, &bounds);
+            (Bvh::of(nodes.framed(frame), &tree), tree)
+        }))
+    }
+
+    /// Each primitive's surface area (in the build's frame), for a cost model that weighs
+    /// them; `None` for the SAH, which does not.
+    fn areas<P: Primitive>(&self, prims: &[P]) -> Option<Vec<f32>> {
+        use rayon::prelude::*;
+        (self.config.cost_model != CostModel::Sah)
+            .then(|| prims.par_iter().map(|p| p.surface_area()).collect())
+    }
+
+    /// The settings the build runs with: the quantized layout stores leaf sizes in 16 bits,
+    /// so its leaves are capped at 65535 primitives.
+    pub(crate) fn effective_config(&self) -> BuildConfig {
+        let mut config = self.config.clone();
+        if self.layout == Layout::Bvh4Quant {
+            config.max_leaf_size = config.max_leaf_size.min(u16::MAX as usize);
+        }
+        config
+    }
+
+    /// Lays out a checked tree over `prims` in its leaf order.
+    pub(crate) fn lay_out<P: Primitive>(&self, tree: &BuildTree, prims: Vec<P>) -> Nodes<P> {
+        lay_out(
+            self.layout,
+            tree,
+            prims,
+            self.chosen_isa(),
+            &self.effective_config(),
+        )
+    }
+
+    /// The instruction set asked for, or the detected one.
+    pub(crate) fn chosen_isa(&self) -> Isa {
+        self.isa.unwrap_or_else(Isa::detect)
+    }
+
+    /// Runs `f` on the chosen pool.
+    pub(crate) fn run<R: Send>(&self, f: impl FnOnce() -> R + Send) -> R {
+        match self.pool {
+            Some(pool) => pool.install(f),
+            None => f(),
+        }
+    }
+}
+
+/// The primitives in `frame`: `None` for the identity frame (use them as they are) and for
+/// types that cannot be scaled.
+pub(crate) fn frame_prims<P: Primitive>(frame: Frame, prims: &[P]) -> Option<Vec<P>> {
+    if frame.is_identity() {
+        None
+    } else {
+        frame.prims(prims)
+    }
+}

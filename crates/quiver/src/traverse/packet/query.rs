@@ -1,0 +1,309 @@
+//! A packet query: its rays cut into packets ([`super::each_packet`]), each packet walked
+//! ([`super::walk`]) with its leaves tested ([`super::leaves`]), or, where the packet does not
+//! pay, each ray through the single-ray walk; on the lanes of the BVH's instruction set,
+//! chosen in one place for every node format.
+
+use super::lanes::RayPacket;
+use super::leaves::test_leaf;
+use super::node::PacketNode;
+use super::walk::{walk, AloneIn, Visit};
+use super::{each_packet, PACKET_RAYS};
+use crate::geometry::{Hit, PrimHit, Ray};
+use crate::isa::Kernels;
+use crate::primitive::Primitive;
+use crate::traverse::lane8::F8;
+use crate::traverse::leaves::Leaves;
+use crate::traverse::query::PacketQuery;
+use crate::traverse::simd::bits;
+use crate::traverse::{BoxTest, Stats};
+use wide::f32x8;
+
+/// Closest hits of any number of rays, packet by packet, over one node format, in lanes of
+/// `V`.
+#[inline(always)]
+fn closest_rays<N: PacketNode, V: F8, B: BoxTest, P: Primitive, S: Stats>(
+    cpu: V::Cpu,
+    nodes: &[N],
+    leaves: &Leaves<P>,
+    query: PacketQuery<'_>,
+    hits: &mut [Option<Hit>],
+    stats: &mut S,
+) {
+    each_packet(
+        query,
+        hits,
+        #[inline(always)]
+        |rays, on, packet, hits| {
+            if packet {
+                let mut pk = RayPacket::new(rays, on);
+                let mut best = [Hit::none(0.0); PACKET_RAYS];
+                for (b, r) in best.iter_mut().zip(rays) {
+                    *b = Hit::none(r.t_max);
+                }
+                closest_packet::<N, V, B, P, S>(
+                    cpu, nodes, leaves, rays, &mut pk, &mut best, stats,
+                );
+                for (i, (h, b)) in hits.iter_mut().zip(best).enumerate() {
+                    *h = if on >> i & 1 == 1 { b.found() } else { None };
+                }
+            } else {
+                for (i, (h, r)) in hits.iter_mut().zip(rays).enumerate() {
+                    *h = if on >> i & 1 == 1 {
+                        let mut best = Hit::none(r.t_max);
+                        N::closest_from::<V, B, P, S>(cpu, nodes, leaves, r, 0, &mut best, stats);
+                        best.found()
+                    } else {
+                        None
+                    };
+                }
+            }
+        },
+    );
+}
+
+/// Any-hit answers of any number of rays, packet by packet, over one node format, in lanes
+/// of `V`.
+#[inline(always)]
+fn any_rays<N: PacketNode, V: F8, B: BoxTest, P: Primitive, S: Stats>(
+    cpu: V::Cpu,
+    nodes: &[N],
+    leaves: &Leaves<P>,
+    query: PacketQuery<'_>,
+    occluded: &mut [bool],
+    stats: &mut S,
+) {
+    each_packet(
+        query,
+        occluded,
+        #[inline(always)]
+        |rays, on, packet, out| {
+            out.fill(false);
+            if packet {
+                let mut pk = RayPacket::new(rays, on);
+                any_packet::<N, V, B, P, S>(cpu, nodes, leaves, rays, &mut pk, out, stats);
+            } else {
+                for (i, (o, r)) in out.iter_mut().zip(rays).enumerate() {
+                    *o = on >> i & 1 == 1
+                        && N::any_from::<V, B, P, S>(cpu, nodes, leaves, r, 0, stats);
+                }
+            }
+        },
+    );
+}
+
+/// Closest hits of one packet into `best` (one record per ray, [`Hit::none`] to start).
+#[inline(always)]
+fn closest_packet<N: PacketNode, V: F8, B: BoxTest, P: Primitive, S: Stats>(
+    cpu: V::Cpu,
+    nodes: &[N],
+    leaves: &Leaves<P>,
+    rays: &[Ray],
+    pk: &mut RayPacket,
+    best: &mut [Hit],
+    stats: &mut S,
+) {
+    walk::<N, V, B, S, _>(
+        cpu,
+        nodes,
+        pk,
+        stats,
+        #[inline(always)]
+        |first| leaves.prefetch(first),
+        #[inline(always)]
+        |pk, visit, stats| {
+            let (range, b, cand) = match visit {
+                Visit::Leaf(range, b, cand) => (range, b, cand),
+                Visit::Alone(i, at) => {
+                    match at {
+                        AloneIn::Leaf(r) => {
+                            let count = r.len() as u32;
+                            leaves.closest(
+                                r.start,
+                                count,
+                                &rays[i],
+                                &mut None,
+                                &mut best[i],
+                                stats,
+                            );
+                        }
+                        AloneIn::Inner(node) => N::closest_from::<V, B, P, S>(
+                            cpu,
+                            nodes,
+                            leaves,
+                            &rays[i],
+                            node,
+                            &mut best[i],
+                            stats,
+                        ),
+                    }
+                    pk.set_limit(i, best[i].t);
+                    return false;
+                }
+            };
+            let live = pk.entering::<V, B>(cpu, b, cand);
+            stats.prims(range.len() as u32);
+            let mut changed = false;
+            test_leaf::<V, P, _>(
+                cpu,
+                leaves,
+                range,
+                pk,
+                live,
+                #[inline(always)]
+                |i: usize, id: u32, h: PrimHit| {
+                    changed |= best[i].offer(id, h);
+                    Some(best[i].t)
+                },
+            );
+            if changed {
+                pk.refresh_limit_bound();
+            } else {
+                stats.empty_leaf();
+            }
+            false
+        },
+    );
+}
+
+/// Any-hit answers of one packet: sets `hit[i]` for every ray that hits something.
+#[inline(always)]
+fn any_packet<N: PacketNode, V: F8, B: BoxTest, P: Primitive, S: Stats>(
+    cpu: V::Cpu,
+    nodes: &[N],
+    leaves: &Leaves<P>,
+    rays: &[Ray],
+    pk: &mut RayPacket,
+    hit: &mut [bool],
+    stats: &mut S,
+) {
+    walk::<N, V, B, S, _>(
+        cpu,
+        nodes,
+        pk,
+        stats,
+        #[inline(always)]
+        |first| leaves.prefetch(first),
+        #[inline(always)]
+        |pk, visit, stats| {
+            let (range, b, cand) = match visit {
+                Visit::Leaf(range, b, cand) => (range, b, cand),
+                Visit::Alone(i, at) => {
+                    let found = match at {
+                        AloneIn::Leaf(r) => {
+                            leaves.any(r.start, r.len() as u32, &rays[i], &mut None, stats)
+                        }
+                        AloneIn::Inner(node) => {
+                            N::any_from::<V, B, P, S>(cpu, nodes, leaves, &rays[i], node, stats)
+                        }
+                    };
+                    if found {
+                        hit[i] = true;
+                        pk.retire(i);
+                    }
+                    return pk.active == 0;
+                }
+            };
+            let live = pk.entering::<V, B>(cpu, b, cand);
+            stats.prims(range.len() as u32);
+            let mut found = 0u64;
+            test_leaf::<V, P, _>(
+                cpu,
+                leaves,
+                range,
+                pk,
+                live,
+                #[inline(always)]
+                |i: usize, _, _| {
+                    hit[i] = true;
+                    found |= 1 << i;
+                    None
+                },
+            );
+            for i in bits(found) {
+                pk.retire(i);
+            }
+            if found == 0 {
+                stats.empty_leaf();
+            }
+            pk.active == 0
+        },
+    );
+}
+
+/// [`closest_rays`] on `kernels`' lanes: the one place a packet query picks its instruction
+/// set, for every node format.
+#[inline]
+pub(crate) fn closest_rays_on<N: PacketNode, B: BoxTest, P: Primitive, S: Stats>(
+    kernels: Kernels,
+    nodes: &[N],
+    leaves: &Leaves<P>,
+    query: PacketQuery<'_>,
+    hits: &mut [Option<Hit>],
+    stats: &mut S,
+) {
+    match kernels {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: `cpu` proves the CPU has AVX2 and FMA (only detection makes one).
+        Kernels::Avx2(cpu) => unsafe {
+            avx2::closest_rays::<N, B, P, S>(cpu, nodes, leaves, query, hits, stats)
+        },
+        _ => closest_rays::<N, f32x8, B, P, S>((), nodes, leaves, query, hits, stats),
+    }
+}
+
+/// [`any_rays`] on `kernels`' lanes (see [`closest_rays_on`]).
+#[inline]
+pub(crate) fn any_rays_on<N: PacketNode, B: BoxTest, P: Primitive, S: Stats>(
+    kernels: Kernels,
+    nodes: &[N],
+    leaves: &Leaves<P>,
+    query: PacketQuery<'_>,
+    occluded: &mut [bool],
+    stats: &mut S,
+) {
+    match kernels {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: as in `closest_rays_on`.
+        Kernels::Avx2(cpu) => unsafe {
+            avx2::any_rays::<N, B, P, S>(cpu, nodes, leaves, query, occluded, stats)
+        },
+        _ => any_rays::<N, f32x8, B, P, S>((), nodes, leaves, query, occluded, stats),
+    }
+}
+
+/// The packet kernels with their lanes on AVX2, compiled with AVX2 enabled (everything they
+/// call is inlined into these).
+#[cfg(target_arch = "x86_64")]
+mod avx2 {
+    use super::*;
+    use crate::isa::Avx2Cpu;
+    use crate::traverse::lane8::Avx;
+
+    /// # Safety
+    /// The CPU must support AVX2 and FMA (as `cpu` proves).
+    #[target_feature(enable = "avx2,fma")]
+    pub(super) unsafe fn closest_rays<N: PacketNode, B: BoxTest, P: Primitive, S: Stats>(
+        cpu: Avx2Cpu,
+        nodes: &[N],
+        leaves: &Leaves<P>,
+        query: PacketQuery<'_>,
+        hits: &mut [Option<Hit>],
+        stats: &mut S,
+    ) {
+        super::closest_rays::<N, Avx, B, P, S>(cpu, nodes, leaves, query, hits, stats)
+    }
+
+    /// # Safety
+    /// The CPU must support AVX2 and FMA (as `cpu` proves).
+    #[target_feature(enable = "avx2,fma")]
+    pub(super) unsafe fn any_rays<N: PacketNode, B: BoxTest, P: Primitive, S: Stats>(
+        cpu: Avx2Cpu,
+        nodes: &[N],
+        leaves: &Leaves<P>,
+        query: PacketQuery<'_>,
+        occluded: &mut [bool],
+        stats: &mut S,
+    ) {
+        super::any_rays::<N, Avx, B, P, S>(cpu, nodes, leaves, query, occluded, stats)
+    }
+}

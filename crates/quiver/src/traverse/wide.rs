@@ -1,0 +1,70 @@
+//! [`RayQuery`] for the wide layouts: each query picks its kernel here, the single-ray walks
+//! (`bvh4`, `bvh8`) or the packet kernel (`packet`), on the BVH's instruction set. Above both,
+//! so neither kernel imports the other's entry points.
+
+use super::packet::{any_rays_on, closest_rays_on};
+use super::query::{PacketQuery, RayQuery};
+use super::{bvh4, bvh8, BoxTest, Stats};
+use crate::geometry::{Hit, Ray};
+use crate::layout::{Bvh4, Bvh8, Bvh8Node, Node4};
+use crate::primitive::Primitive;
+
+impl<P: Primitive, N: Node4> RayQuery for Bvh4<P, N> {
+    fn closest_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> Option<Hit> {
+        bvh4::closest::<N, B, P, S>(&self.nodes, &self.leaves(), ray, stats)
+    }
+
+    fn any_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> bool {
+        bvh4::any::<N, B, P, S>(&self.nodes, &self.leaves(), ray, stats)
+    }
+
+    fn closest_hit_packet_with<B: BoxTest, S: Stats>(
+        &self,
+        query: PacketQuery<'_>,
+        hits: &mut [Option<Hit>],
+        stats: &mut S,
+    ) {
+        let leaves = self.leaves();
+        closest_rays_on::<N, B, P, S>(self.kernels, &self.nodes, &leaves, query, hits, stats)
+    }
+
+    fn any_hit_packet_with<B: BoxTest, S: Stats>(
+        &self,
+        query: PacketQuery<'_>,
+        occluded: &mut [bool],
+        stats: &mut S,
+    ) {
+        let leaves = self.leaves();
+        any_rays_on::<N, B, P, S>(self.kernels, &self.nodes, &leaves, query, occluded, stats)
+    }
+}
+
+impl<P: Primitive> RayQuery for Bvh8<P> {
+    fn closest_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> Option<Hit> {
+        bvh8::closest_on::<B, P, S>(self.kernels, self, ray, stats)
+    }
+
+    fn any_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> bool {
+        bvh8::any_on::<B, P, S>(self.kernels, self, ray, stats)
+    }
+
+    fn closest_hit_packet_with<B: BoxTest, S: Stats>(
+        &self,
+        query: PacketQuery<'_>,
+        hits: &mut [Option<Hit>],
+        stats: &mut S,
+    ) {
+        let leaves = self.leaves();
+        closest_rays_on::<Bvh8Node, B, P, S>(self.kernels, &self.nodes, &leaves, query, hits, stats)
+    }
+
+    fn any_hit_packet_with<B: BoxTest, S: Stats>(
+        &self,
+        query: PacketQuery<'_>,
+        occluded: &mut [bool],
+        stats: &mut S,
+    ) {
+        let leaves = self.leaves();
+        any_rays_on::<Bvh8Node, B, P, S>(self.kernels, &self.nodes, &leaves, query, occluded, stats)
+    }
+}
