@@ -22,5 +22,7 @@ fn main() -> Result<(), quiver::MeshError> {
         ),
         None => println!("miss"),
     }
+    // AVX2 where the CPU has it, else the portable kernels: the same answers either way.
+    println!("kernels: {}", bvh.isa());
     Ok(())
 }

@@ -7,7 +7,7 @@ use std::fmt;
 ///
 /// The bottom-up builders (PLOC, AAC, insertion) build down to one primitive per leaf and
 /// then collapse every subtree into a leaf where the SAH prefers it and it fits in
-/// [`BuildConfig::max_leaf_size`] (Bittner et al.'s compaction), so their trees obey the same
+/// [`super::BuildConfig::max_leaf_size`] (Bittner et al.'s compaction), so their trees obey the same
 /// leaf limit as the top-down ones. Parameters are those of Frantál's Table 8.
 ///
 /// ```
@@ -24,7 +24,7 @@ pub enum Builder {
     /// Full-sweep SAH: every primitive boundary is a candidate plane. The quality reference.
     Sweep,
     /// The binned tree built to single-primitive leaves, improved by the insertion-based
-    /// optimisation ([`optimize`]), then compacted into SAH leaves.
+    /// optimisation ([`super::optimize`]), then compacted into SAH leaves.
     BinnedOpt,
     /// The full-sweep tree, optimised the same way (the thesis's FSWO).
     SweepOpt,

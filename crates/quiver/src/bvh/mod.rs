@@ -18,7 +18,7 @@ use crate::primitive::Primitive;
 use crate::traverse::{BoxTest, PacketQuery, RayQuery, Stats};
 use options::frame_prims;
 
-/// A laid-out BVH in any [`Layout`], answering every query of [`RayQuery`].
+/// A laid-out BVH in any [`crate::Layout`], answering every query of [`RayQuery`].
 ///
 /// ```
 /// use quiver::{reference, BuildOptions, Bvh, Layout, Ray, RayQuery, Triangle};
@@ -119,8 +119,8 @@ impl<P: Primitive> Bvh<P> {
         // What the layout's leaf counts can hold (the 8-wide collapse merges leaves only up to
         // the options' leaf size, which it caps the same way).
         tree.check_leaf_size(match options.layout {
-            crate::Layout::Bvh4Quant => u16::MAX as u32,
-            _ => crate::Bvh2Node::LEAF - 1,
+            crate::layout::Layout::Bvh4Quant => u16::MAX as u32,
+            _ => crate::layout::Bvh2Node::LEAF - 1,
         })?;
         let world = tree.refit(&bounds);
         let frame = Frame::for_prims(&bounds);
@@ -203,8 +203,8 @@ impl<P: Primitive> RayQuery for Bvh<P> {
 mod tests {
     use super::*;
     use crate::builders::BuildConfig;
+    use crate::layout::Layout;
     use crate::testing::soup;
-    use crate::Layout;
     use glam::Vec3A;
 
     #[test]

@@ -84,8 +84,9 @@ impl Bvh4Node {
 
 /// A 4-wide node format: [`Bvh4Node`] (exact boxes) or [`QBvh4Node`] (quantized boxes).
 /// [`Bvh4`] and the 4-wide traversal kernels are generic over it, so a new format is one
-/// implementation of this trait.
-pub trait Node4: Pod + Send + Sync {
+/// implementation of this trait, inside quiver: the trait is sealed, because the kernels
+/// trust a format's child links to form the checked tree it was encoded from.
+pub trait Node4: Pod + Send + Sync + sealed::Sealed {
     /// The child boxes as `[min_x, min_y, min_z, max_x, max_y, max_z]` rows, one lane per
     /// child, as the traversal's slab test reads them.
     fn planes(&self) -> [f32x4; 6];
@@ -98,6 +99,13 @@ pub trait Node4: Pod + Send + Sync {
     /// Encodes a collapsed node; `pos` maps collapsed node indices to array positions.
     #[doc(hidden)]
     fn encode(w: &collapse::types::Wide<4>, pos: &[u32]) -> Self;
+}
+
+/// Only quiver's own node formats implement [`Node4`].
+mod sealed {
+    pub trait Sealed {}
+    impl Sealed for super::Bvh4Node {}
+    impl Sealed for super::QBvh4Node {}
 }
 
 impl Node4 for Bvh4Node {

@@ -23,8 +23,8 @@ mod stats;
 mod tri4;
 mod wide;
 
-pub use packet::{PacketMode, PACKET_RAYS};
-pub use query::{PacketQuery, RayQuery};
+pub use packet::{PacketMode, PacketQuery, PACKET_RAYS};
+pub use query::RayQuery;
 pub use stats::{Counters, NoStats, Stats};
 
 use crate::geometry::{Hit, PrimHit, Ray};

@@ -1,55 +1,8 @@
 //! [`RayQuery`]: the one interface every traversable structure answers.
 
-use super::packet::{any_ray_by_ray, closest_ray_by_ray};
-use super::{BoxTest, ConservativeBoxes, Counters, NoStats, PacketMode, Stats};
+use super::packet::{each_packet, PacketMode, PacketQuery};
+use super::{BoxTest, ConservativeBoxes, Counters, NoStats, Stats};
 use crate::geometry::{Hit, Ray};
-
-/// What a packet query traces: the rays, which of them, and how ([`PacketMode`]). One value,
-/// so the packet forms of [`RayQuery`] keep one signature as options join.
-///
-/// ```
-/// use quiver::traverse::{PacketMode, PacketQuery};
-/// use quiver::Ray;
-/// use glam::Vec3A;
-/// let rays = [Ray::new(Vec3A::ZERO, Vec3A::Z); 3];
-/// let on = [true, false, true];
-/// let q = PacketQuery::new(&rays).active(&on).mode(PacketMode::Always);
-/// assert_eq!((q.rays.len(), q.active, q.mode), (3, Some(&on[..]), PacketMode::Always));
-/// assert_eq!(PacketQuery::new(&rays).mode, PacketMode::Auto);
-/// ```
-#[derive(Clone, Copy, Debug)]
-pub struct PacketQuery<'a> {
-    /// The rays, cut into packets of [`super::PACKET_RAYS`].
-    pub rays: &'a [Ray],
-    /// Which rays to trace (one flag per ray); `None` for all. Untraced rays get no hit.
-    pub active: Option<&'a [bool]>,
-    /// Packets or single rays.
-    pub mode: PacketMode,
-}
-
-impl<'a> PacketQuery<'a> {
-    /// Every ray of `rays`, in packets where they are coherent ([`PacketMode::Auto`]).
-    pub fn new(rays: &'a [Ray]) -> Self {
-        PacketQuery {
-            rays,
-            active: None,
-            mode: PacketMode::Auto,
-        }
-    }
-
-    /// Traces only the rays whose flag is set (one flag per ray).
-    pub fn active(self, active: &'a [bool]) -> Self {
-        PacketQuery {
-            active: Some(active),
-            ..self
-        }
-    }
-
-    /// Chooses packets or single rays by `mode`.
-    pub fn mode(self, mode: PacketMode) -> Self {
-        PacketQuery { mode, ..self }
-    }
-}
 
 /// Ray queries: closest hit and any hit, one ray at a time or in packets.
 ///
@@ -191,4 +144,48 @@ pub trait RayQuery {
             &mut NoStats,
         )
     }
+}
+
+/// The packet closest-hit query of a structure without a packet kernel: each active ray
+/// through `q`'s single-ray query, inactive ones `None`. The query's mode is ignored.
+///
+/// # Panics
+/// When `hits` or `active` differ in length from `rays`.
+#[inline]
+pub(crate) fn closest_ray_by_ray<Q: RayQuery + ?Sized, B: BoxTest, S: Stats>(
+    q: &Q,
+    query: PacketQuery<'_>,
+    hits: &mut [Option<Hit>],
+    stats: &mut S,
+) {
+    each_packet(query.mode(PacketMode::Never), hits, |rays, on, _, hits| {
+        for (i, (h, r)) in hits.iter_mut().zip(rays).enumerate() {
+            *h = (on >> i & 1 == 1)
+                .then(|| q.closest_hit_with::<B, S>(r, stats))
+                .flatten();
+        }
+    });
+}
+
+/// The packet any-hit query of a structure without a packet kernel (see
+/// [`closest_ray_by_ray`]).
+///
+/// # Panics
+/// When `occluded` or `active` differ in length from `rays`.
+#[inline]
+pub(crate) fn any_ray_by_ray<Q: RayQuery + ?Sized, B: BoxTest, S: Stats>(
+    q: &Q,
+    query: PacketQuery<'_>,
+    occluded: &mut [bool],
+    stats: &mut S,
+) {
+    super::packet::each_packet(
+        query.mode(PacketMode::Never),
+        occluded,
+        |rays, on, _, out| {
+            for (i, (o, r)) in out.iter_mut().zip(rays).enumerate() {
+                *o = on >> i & 1 == 1 && q.any_hit_with::<B, S>(r, stats);
+            }
+        },
+    );
 }

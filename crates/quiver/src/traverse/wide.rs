@@ -2,8 +2,9 @@
 //! (`bvh4`, `bvh8`) or the packet kernel (`packet`), on the BVH's instruction set. Above both,
 //! so neither kernel imports the other's entry points.
 
+use super::packet::PacketQuery;
 use super::packet::{any_rays_on, closest_rays_on};
-use super::query::{PacketQuery, RayQuery};
+use super::query::RayQuery;
 use super::{bvh4, bvh8, BoxTest, Stats};
 use crate::geometry::{Hit, Ray};
 use crate::layout::{Bvh4, Bvh8, Bvh8Node, Node4};

@@ -35,9 +35,7 @@ mod walk;
 
 pub(crate) use query::{any_rays_on, closest_rays_on};
 
-use super::query::{PacketQuery, RayQuery};
-use super::{BoxTest, Stats};
-use crate::geometry::{Hit, Ray};
+use crate::geometry::Ray;
 pub use crate::primitive::PACKET_RAYS;
 use crate::primitive::{CHUNKS, LANES};
 
@@ -97,6 +95,53 @@ impl PacketMode {
             }
         });
         n
+    }
+}
+
+/// What a packet query traces: the rays, which of them, and how ([`PacketMode`]). One value,
+/// so the packet forms of [`RayQuery`] keep one signature as options join.
+///
+/// ```
+/// use quiver::traverse::{PacketMode, PacketQuery};
+/// use quiver::Ray;
+/// use glam::Vec3A;
+/// let rays = [Ray::new(Vec3A::ZERO, Vec3A::Z); 3];
+/// let on = [true, false, true];
+/// let q = PacketQuery::new(&rays).active(&on).mode(PacketMode::Always);
+/// assert_eq!((q.rays.len(), q.active, q.mode), (3, Some(&on[..]), PacketMode::Always));
+/// assert_eq!(PacketQuery::new(&rays).mode, PacketMode::Auto);
+/// ```
+#[derive(Clone, Copy, Debug)]
+pub struct PacketQuery<'a> {
+    /// The rays, cut into packets of [`PACKET_RAYS`].
+    pub rays: &'a [Ray],
+    /// Which rays to trace (one flag per ray); `None` for all. Untraced rays get no hit.
+    pub active: Option<&'a [bool]>,
+    /// Packets or single rays.
+    pub mode: PacketMode,
+}
+
+impl<'a> PacketQuery<'a> {
+    /// Every ray of `rays`, in packets where they are coherent ([`PacketMode::Auto`]).
+    pub fn new(rays: &'a [Ray]) -> Self {
+        PacketQuery {
+            rays,
+            active: None,
+            mode: PacketMode::Auto,
+        }
+    }
+
+    /// Traces only the rays whose flag is set (one flag per ray).
+    pub fn active(self, active: &'a [bool]) -> Self {
+        PacketQuery {
+            active: Some(active),
+            ..self
+        }
+    }
+
+    /// Chooses packets or single rays by `mode`.
+    pub fn mode(self, mode: PacketMode) -> Self {
+        PacketQuery { mode, ..self }
     }
 }
 
@@ -167,7 +212,7 @@ fn coherent(rays: &[Ray], active: u64) -> bool {
 /// out)`, after checking lengths and deciding by the query's mode whether the packet path
 /// pays.
 #[inline(always)]
-fn each_packet<T>(
+pub(crate) fn each_packet<T>(
     query: PacketQuery<'_>,
     out: &mut [T],
     mut run: impl FnMut(&[Ray], u64, bool, &mut [T]),
@@ -191,50 +236,6 @@ fn each_packet<T>(
         };
         run(rays, on, packet, out);
     }
-}
-
-/// The packet closest-hit query of a structure without a packet kernel: each active ray
-/// through `q`'s single-ray query, inactive ones `None`. The query's mode is ignored.
-///
-/// # Panics
-/// When `hits` or `active` differ in length from `rays`.
-#[inline]
-pub fn closest_ray_by_ray<Q: RayQuery + ?Sized, B: BoxTest, S: Stats>(
-    q: &Q,
-    query: PacketQuery<'_>,
-    hits: &mut [Option<Hit>],
-    stats: &mut S,
-) {
-    each_packet(query.mode(PacketMode::Never), hits, |rays, on, _, hits| {
-        for (i, (h, r)) in hits.iter_mut().zip(rays).enumerate() {
-            *h = (on >> i & 1 == 1)
-                .then(|| q.closest_hit_with::<B, S>(r, stats))
-                .flatten();
-        }
-    });
-}
-
-/// The packet any-hit query of a structure without a packet kernel (see
-/// [`closest_ray_by_ray`]).
-///
-/// # Panics
-/// When `occluded` or `active` differ in length from `rays`.
-#[inline]
-pub fn any_ray_by_ray<Q: RayQuery + ?Sized, B: BoxTest, S: Stats>(
-    q: &Q,
-    query: PacketQuery<'_>,
-    occluded: &mut [bool],
-    stats: &mut S,
-) {
-    each_packet(
-        query.mode(PacketMode::Never),
-        occluded,
-        |rays, on, _, out| {
-            for (i, (o, r)) in out.iter_mut().zip(rays).enumerate() {
-                *o = on >> i & 1 == 1 && q.any_hit_with::<B, S>(r, stats);
-            }
-        },
-    );
 }
 
 #[cfg(test)]
