@@ -6,7 +6,7 @@
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use quiver::intersect::{Exact, Watertight};
-use quiver::traverse::{BoxTest, ConservativeBoxes, FastBoxes, NoStats};
+use quiver::traverse::{BoxTest, ConservativeBoxes, FastBoxes, NoFilter, NoStats};
 use quiver::{Bvh, Primitive, Ray, RayQuery, Triangle};
 use quiver_lab::rays;
 use quiver_scenes::Scene;
@@ -22,7 +22,10 @@ fn one<P: Primitive, B: BoxTest>(
     c.bench_function(name, |b| {
         b.iter(|| {
             rays.iter()
-                .filter(|r| bvh.closest_hit_with::<B, _>(r, &mut NoStats).is_some())
+                .filter(|r| {
+                    bvh.closest_hit_with::<B, _, _>(r, &mut NoStats, &mut NoFilter)
+                        .is_some()
+                })
                 .count()
         })
     });

@@ -3,7 +3,7 @@
 //! packet kernel in packets of SIZE rays (8, 16, 32 or 64; 0 = single rays), REPS rounds,
 //! and prints the fastest round's Mrays/s. For quick A/B runs and profiling; the tables come
 //! from `quiver packets`.
-use quiver::traverse::{FastBoxes, NoStats, PacketMode, PacketQuery};
+use quiver::traverse::{FastBoxes, NoFilter, NoStats, PacketMode, PacketQuery};
 use quiver::{BuildOptions, Layout, RayQuery};
 use quiver_scenes::scene::tessellate::DEFAULT_RESOLUTION;
 use quiver_scenes::Scene;
@@ -37,10 +37,11 @@ fn main() {
         } else {
             for (o, r) in out.chunks_mut(size).zip(eye.chunks(size)) {
                 let mode = PacketMode::Always;
-                bvh.closest_hit_packet_with::<FastBoxes, NoStats>(
+                bvh.closest_hit_packet_with::<FastBoxes, NoStats, _>(
                     PacketQuery::new(r).mode(mode),
                     o,
                     &mut NoStats,
+                    &mut NoFilter,
                 );
             }
         }

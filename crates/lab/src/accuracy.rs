@@ -23,7 +23,7 @@
 use crate::measure;
 use glam::Vec3A;
 use quiver::intersect::{Exact, Watertight};
-use quiver::traverse::{BoxTest, ConservativeBoxes, FastBoxes, NoStats};
+use quiver::traverse::{BoxTest, ConservativeBoxes, FastBoxes, NoFilter, NoStats};
 use quiver::{Bvh, Primitive, Ray, RayQuery, Triangle};
 use quiver_scenes::render::Offset;
 use quiver_scenes::Scene;
@@ -109,7 +109,7 @@ pub fn evaluate(
     let want: Vec<Option<u32>> = rays
         .par_iter()
         .map(|r| {
-            f64_.closest_hit_with::<ConservativeBoxes, _>(r, &mut NoStats)
+            f64_.closest_hit_with::<ConservativeBoxes, _, _>(r, &mut NoStats, &mut NoFilter)
                 .map(|h| h.prim)
         })
         .collect();
@@ -192,9 +192,10 @@ type Kernel<'a> = &'a (dyn Fn(&Ray, bool) -> bool + Sync);
 /// Closest hit found (or, with `any`, anything hit) by `bvh` with box test `B`.
 fn query<P: Primitive, B: BoxTest>(bvh: &Bvh<P>, r: &Ray, any: bool) -> bool {
     if any {
-        bvh.any_hit_with::<B, _>(r, &mut NoStats)
+        bvh.any_hit_with::<B, _, _>(r, &mut NoStats, &mut NoFilter)
     } else {
-        bvh.closest_hit_with::<B, _>(r, &mut NoStats).is_some()
+        bvh.closest_hit_with::<B, _, _>(r, &mut NoStats, &mut NoFilter)
+            .is_some()
     }
 }
 
@@ -220,11 +221,11 @@ fn combo<P: Primitive, B: BoxTest>(
     (mrays, any_mrays): (f64, f64),
     ctx: &Ctx,
 ) -> Vec<Row> {
-    let closest = |r: &Ray| bvh.closest_hit_with::<B, _>(r, &mut NoStats);
+    let closest = |r: &Ray| bvh.closest_hit_with::<B, _, _>(r, &mut NoStats, &mut NoFilter);
     let leaks = ctx
         .closed
         .par_iter()
-        .filter(|r| !sphere_bvh.any_hit_with::<B, _>(r, &mut NoStats))
+        .filter(|r| !sphere_bvh.any_hit_with::<B, _, _>(r, &mut NoStats, &mut NoFilter))
         .count();
     let hits: Vec<Option<quiver::Hit>> = ctx.rays.par_iter().map(closest).collect();
     let mismatches = hits

@@ -15,7 +15,7 @@ use crate::oracle::{Answer, Oracle};
 use glam::Vec3A;
 use quiver::builders::{BuildConfig, Builder};
 use quiver::intersect::Watertight;
-use quiver::traverse::{FastBoxes, NoStats, PacketMode, PacketQuery};
+use quiver::traverse::{FastBoxes, NoFilter, NoStats, PacketMode, PacketQuery};
 use quiver::{BuildOptions, Bvh, Isa, Layout, Primitive, Ray, RayQuery, Triangle};
 
 /// Reads little-endian f32s from the bytes; NaN, infinities, huge and subnormal values all
@@ -198,20 +198,22 @@ fn packets_check<P: Primitive>(setup: Setup, tris: &[Triangle], rays: &[Ray], bv
     // Every input, tame or raw: the portable lanes give the AVX2 lanes' answers bit for bit
     // (the same operations in the same order).
     let portable = bvh.clone().with_isa(Isa::Portable);
-    portable.closest_hit_packet_with::<FastBoxes, _>(
+    portable.closest_hit_packet_with::<FastBoxes, _, _>(
         PacketQuery::new(rays)
             .active(&active)
             .mode(PacketMode::Always),
         &mut hits,
         &mut NoStats,
+        &mut NoFilter,
     );
     let on_portable = hits.clone();
-    bvh.closest_hit_packet_with::<FastBoxes, _>(
+    bvh.closest_hit_packet_with::<FastBoxes, _, _>(
         PacketQuery::new(rays)
             .active(&active)
             .mode(PacketMode::Always),
         &mut hits,
         &mut NoStats,
+        &mut NoFilter,
     );
     for (i, (a, b)) in hits.iter().zip(&on_portable).enumerate() {
         assert_eq!(
@@ -221,15 +223,17 @@ fn packets_check<P: Primitive>(setup: Setup, tris: &[Triangle], rays: &[Ray], bv
         );
     }
     for mode in [PacketMode::Always, PacketMode::Auto] {
-        bvh.closest_hit_packet_with::<FastBoxes, _>(
+        bvh.closest_hit_packet_with::<FastBoxes, _, _>(
             PacketQuery::new(rays).active(&active).mode(mode),
             &mut hits,
             &mut NoStats,
+            &mut NoFilter,
         );
-        bvh.any_hit_packet_with::<FastBoxes, _>(
+        bvh.any_hit_packet_with::<FastBoxes, _, _>(
             PacketQuery::new(rays).active(&active).mode(mode),
             &mut occluded,
             &mut NoStats,
+            &mut NoFilter,
         );
         for (i, r) in rays.iter().enumerate() {
             if !active[i] {
@@ -255,7 +259,8 @@ fn packets_check<P: Primitive>(setup: Setup, tris: &[Triangle], rays: &[Ray], bv
                     // box is found or not depending on the order leaves are visited, which a
                     // packet's first ray sets: fuzz/artifacts/packets/crash-942a…, a 1.5e6
                     // triangle hit 0.03 before its box.)
-                    let single = bvh.closest_hit_with::<FastBoxes, _>(r, &mut NoStats);
+                    let single =
+                        bvh.closest_hit_with::<FastBoxes, _, _>(r, &mut NoStats, &mut NoFilter);
                     assert_eq!(
                         hit_bits(hits[i]),
                         hit_bits(single),
@@ -410,15 +415,17 @@ fn same_in_packets<P: Primitive>(
     let mut hits = vec![None; rays.len()];
     let mut occluded = vec![false; rays.len()];
     let mode = PacketMode::Always;
-    bvh.closest_hit_packet_with::<FastBoxes, _>(
+    bvh.closest_hit_packet_with::<FastBoxes, _, _>(
         PacketQuery::new(rays).active(&active).mode(mode),
         &mut hits,
         &mut NoStats,
+        &mut NoFilter,
     );
-    bvh.any_hit_packet_with::<FastBoxes, _>(
+    bvh.any_hit_packet_with::<FastBoxes, _, _>(
         PacketQuery::new(rays).active(&active).mode(mode),
         &mut occluded,
         &mut NoStats,
+        &mut NoFilter,
     );
     for (i, r) in rays.iter().enumerate() {
         let (want, want_any) = match active[i] {

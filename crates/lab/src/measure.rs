@@ -12,7 +12,9 @@
 //! assert!(trace(&bvh, &rays, Query::Closest) > 0);
 //! ```
 
-use quiver::traverse::{ConservativeBoxes, Counters, NoStats, PacketMode, PacketQuery, RayQuery};
+use quiver::traverse::{
+    ConservativeBoxes, Counters, NoFilter, NoStats, PacketMode, PacketQuery, RayQuery,
+};
 use quiver::Ray;
 use rayon::prelude::*;
 use std::time::{Duration, Instant};
@@ -89,19 +91,21 @@ pub fn trace_packets<Q: RayQuery + Sync>(
         .map(|chunk| match query {
             Query::Closest => {
                 let mut hits = vec![None; chunk.len()];
-                bvh.closest_hit_packet_with::<ConservativeBoxes, _>(
+                bvh.closest_hit_packet_with::<ConservativeBoxes, _, _>(
                     PacketQuery::new(chunk).mode(mode),
                     &mut hits,
                     &mut NoStats,
+                    &mut NoFilter,
                 );
                 hits.iter().filter(|h| h.is_some()).count()
             }
             Query::Any => {
                 let mut hit = vec![false; chunk.len()];
-                bvh.any_hit_packet_with::<ConservativeBoxes, _>(
+                bvh.any_hit_packet_with::<ConservativeBoxes, _, _>(
                     PacketQuery::new(chunk).mode(mode),
                     &mut hit,
                     &mut NoStats,
+                    &mut NoFilter,
                 );
                 hit.iter().filter(|&&h| h).count()
             }

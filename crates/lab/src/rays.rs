@@ -10,7 +10,7 @@
 //! ```
 
 use glam::Vec3A;
-use quiver::{Aabb, Ray, RayQuery};
+use quiver::{Aabb, Hit, Ray, RayQuery};
 use quiver_scenes::rng::Rng;
 use quiver_scenes::scene::Camera;
 use rayon::prelude::*;
@@ -85,7 +85,11 @@ pub fn camera_tiles(camera: &Camera, res: usize, tile: usize) -> Vec<Ray> {
 /// let hits = eye.iter().filter(|r| bvh.closest_hit(r).is_some()).count();
 /// assert_eq!(rays::shadow_rays(&bvh, &eye, &[Vec3A::Z, Vec3A::X]).len(), 2 * hits);
 /// ```
-pub fn shadow_rays<Q: RayQuery + Sync>(bvh: &Q, eye: &[Ray], lights: &[Vec3A]) -> Vec<Ray> {
+pub fn shadow_rays<Q: RayQuery<Hit = Hit> + Sync>(
+    bvh: &Q,
+    eye: &[Ray],
+    lights: &[Vec3A],
+) -> Vec<Ray> {
     let points: Vec<Vec3A> = eye
         .par_iter()
         .filter_map(|r| bvh.closest_hit(r).map(|h| r.at(h.t)))
@@ -116,7 +120,7 @@ pub fn shadow_rays<Q: RayQuery + Sync>(bvh: &Q, eye: &[Ray], lights: &[Vec3A]) -
 /// let hits = eye.iter().filter(|r| bvh.closest_hit(r).is_some()).count();
 /// assert_eq!(rays::reflection_rays(&bvh, &tris, &eye).len(), hits);
 /// ```
-pub fn reflection_rays<Q: RayQuery + Sync>(
+pub fn reflection_rays<Q: RayQuery<Hit = Hit> + Sync>(
     bvh: &Q,
     tris: &[quiver::Triangle],
     eye: &[Ray],

@@ -31,6 +31,10 @@ pub struct Ray {
     pub t_min: f32,
     /// Largest accepted hit distance.
     pub t_max: f32,
+    /// Which instances of a [`crate::World`] the ray sees: an instance whose mask shares no
+    /// bit with it is never entered. Every bit set by default (the ray sees everything); a
+    /// single BVH has no instances and ignores it.
+    pub mask: u32,
 }
 
 impl Ray {
@@ -48,7 +52,21 @@ impl Ray {
             dir,
             t_min,
             t_max,
+            mask: u32::MAX,
         }
+    }
+
+    /// The same ray seeing only the instances whose mask shares a bit with `mask`.
+    ///
+    /// ```
+    /// use quiver::Ray;
+    /// use glam::Vec3A;
+    /// let shadow = Ray::new(Vec3A::ZERO, Vec3A::Z).with_mask(0b10);
+    /// assert_eq!((shadow.mask, Ray::new(Vec3A::ZERO, Vec3A::Z).mask), (0b10, u32::MAX));
+    /// ```
+    #[inline]
+    pub fn with_mask(self, mask: u32) -> Self {
+        Ray { mask, ..self }
     }
 
     /// The point at distance `t`.

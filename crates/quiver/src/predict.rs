@@ -34,7 +34,7 @@
 //! ```
 
 use crate::builders::{BuildTree, NodeKind};
-use crate::bvh::{Bvh, Nodes};
+use crate::bvh::{Bvh, Laid};
 use crate::geometry::Aabb;
 use crate::layout::bvh2::{compact_children, Addressing};
 use crate::layout::{Bvh2, Bvh4, Bvh8, Bvh8Node, Node4};
@@ -336,15 +336,13 @@ impl<P: Primitive> Pieces for Bvh8<P> {
     }
 }
 
-impl<P: Primitive> Pieces for Nodes<P> {
+impl<P: Primitive> Pieces for Laid<P> {
     fn pieces(&self, f: &mut dyn FnMut(Piece)) {
         match self {
-            Nodes::Bvh2(b) => b.pieces(f),
-            Nodes::Bvh4(b) => b.pieces(f),
-            Nodes::QBvh4(b) => b.pieces(f),
-            Nodes::Bvh8(b) => b.pieces(f),
-            // A frame scales every box by one power of two, which leaves area ratios alone.
-            Nodes::Scaled(_) => self.unframed(&Aabb::EMPTY).0.pieces(f),
+            Laid::Bvh2(b) => b.pieces(f),
+            Laid::Bvh4(b) => b.pieces(f),
+            Laid::QBvh4(b) => b.pieces(f),
+            Laid::Bvh8(b) => b.pieces(f),
         }
     }
 }
@@ -353,7 +351,8 @@ impl<P: Primitive> Pieces for Bvh<P> {
     /// The layout's own nodes, in the frame the BVH was built in (see [`Bvh::predict_within`]
     /// for lines given in world units).
     fn pieces(&self, f: &mut dyn FnMut(Piece)) {
-        self.layout_nodes().pieces(f)
+        // A frame scales every box by one power of two, which leaves area ratios alone.
+        self.layout_nodes().unframed(&Aabb::EMPTY).0.pieces(f)
     }
 }
 

@@ -18,7 +18,7 @@ use quiver::builders::BuildTree;
 use quiver::layout::Footprint;
 use quiver::predict::{Piece, Pieces};
 use quiver::traverse::NoStats;
-use quiver::traverse::{BoxTest, PacketQuery, RayQuery, Stats};
+use quiver::traverse::{BoxTest, Filter, PacketQuery, RayQuery, Stats};
 use quiver::{BuildOptions, Bvh, Hit, PrimHit, Primitive, Ray, Triangle};
 use std::sync::Mutex;
 
@@ -243,13 +243,20 @@ impl Pieces for SceneBvh {
 }
 
 impl RayQuery for SceneBvh {
+    type Hit = Hit;
+
     #[inline]
-    fn closest_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> Option<Hit> {
+    fn closest_hit_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
+        &self,
+        ray: &Ray,
+        stats: &mut S,
+        filter: &mut F,
+    ) -> Option<Hit> {
         match &self.kind {
-            Kind::Triangles(b, ..) => b.closest_hit_with::<B, S>(ray, stats),
-            Kind::Mixed(b, _) => b.closest_hit_with::<B, S>(ray, stats),
+            Kind::Triangles(b, ..) => b.closest_hit_with::<B, S, F>(ray, stats, filter),
+            Kind::Mixed(b, _) => b.closest_hit_with::<B, S, F>(ray, stats, filter),
             Kind::Record(inner, _) => {
-                let hit = inner.closest_hit_with::<B, S>(ray, stats);
+                let hit = inner.closest_hit_with::<B, S, F>(ray, stats, filter);
                 self.record(Traced {
                     ray: *ray,
                     any: false,
@@ -262,15 +269,20 @@ impl RayQuery for SceneBvh {
     }
 
     #[inline]
-    fn any_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> bool {
+    fn any_hit_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
+        &self,
+        ray: &Ray,
+        stats: &mut S,
+        filter: &mut F,
+    ) -> bool {
         match &self.kind {
-            Kind::Triangles(b, ..) => b.any_hit_with::<B, S>(ray, stats),
-            Kind::Mixed(b, _) => b.any_hit_with::<B, S>(ray, stats),
+            Kind::Triangles(b, ..) => b.any_hit_with::<B, S, F>(ray, stats, filter),
+            Kind::Mixed(b, _) => b.any_hit_with::<B, S, F>(ray, stats, filter),
             Kind::Record(inner, _) => {
-                let blocked = inner.any_hit_with::<B, S>(ray, stats);
+                let blocked = inner.any_hit_with::<B, S, F>(ray, stats, filter);
                 // The ideal algorithm tests one blocker: the nearest, found without counting.
                 let hit = if blocked {
-                    inner.closest_hit_with::<B, _>(ray, &mut NoStats)
+                    inner.closest_hit_with::<B, _, F>(ray, &mut NoStats, filter)
                 } else {
                     None
                 };
@@ -285,38 +297,44 @@ impl RayQuery for SceneBvh {
         }
     }
 
-    fn closest_hit_packet_with<B: BoxTest, S: Stats>(
+    fn closest_hit_packet_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
         &self,
         query: PacketQuery<'_>,
         hits: &mut [Option<Hit>],
         stats: &mut S,
+        filter: &mut F,
     ) {
         match &self.kind {
-            Kind::Triangles(b, ..) => b.closest_hit_packet_with::<B, S>(query, hits, stats),
-            Kind::Mixed(b, _) => b.closest_hit_packet_with::<B, S>(query, hits, stats),
+            Kind::Triangles(b, ..) => {
+                b.closest_hit_packet_with::<B, S, F>(query, hits, stats, filter)
+            }
+            Kind::Mixed(b, _) => b.closest_hit_packet_with::<B, S, F>(query, hits, stats, filter),
             Kind::Record(..) => {
                 for (i, (r, h)) in query.rays.iter().zip(hits.iter_mut()).enumerate() {
                     if query.active.is_none_or(|a| a[i]) {
-                        *h = self.closest_hit_with::<B, S>(r, stats);
+                        *h = self.closest_hit_with::<B, S, F>(r, stats, filter);
                     }
                 }
             }
         }
     }
 
-    fn any_hit_packet_with<B: BoxTest, S: Stats>(
+    fn any_hit_packet_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
         &self,
         query: PacketQuery<'_>,
         occluded: &mut [bool],
         stats: &mut S,
+        filter: &mut F,
     ) {
         match &self.kind {
-            Kind::Triangles(b, ..) => b.any_hit_packet_with::<B, S>(query, occluded, stats),
-            Kind::Mixed(b, _) => b.any_hit_packet_with::<B, S>(query, occluded, stats),
+            Kind::Triangles(b, ..) => {
+                b.any_hit_packet_with::<B, S, F>(query, occluded, stats, filter)
+            }
+            Kind::Mixed(b, _) => b.any_hit_packet_with::<B, S, F>(query, occluded, stats, filter),
             Kind::Record(..) => {
                 for (i, (r, o)) in query.rays.iter().zip(occluded.iter_mut()).enumerate() {
                     if query.active.is_none_or(|a| a[i]) {
-                        *o = self.any_hit_with::<B, S>(r, stats);
+                        *o = self.any_hit_with::<B, S, F>(r, stats, filter);
                     }
                 }
             }

@@ -24,7 +24,8 @@ use crate::scene::{Material, Scene};
 use glam::Vec3A;
 use quiver::geometry::{offset_ray_origin, unit_or_zero, Hit, Ray};
 use quiver::traverse::{
-    ConservativeBoxes, Counters, NoStats, PacketMode, PacketQuery, RayQuery, Stats, PACKET_RAYS,
+    ConservativeBoxes, Counters, NoFilter, NoStats, PacketMode, PacketQuery, RayQuery, Stats,
+    PACKET_RAYS,
 };
 use rayon::prelude::*;
 use std::ops::{AddAssign, Range};
@@ -422,10 +423,11 @@ impl Query<'_> {
             Query::Closest(hits) => {
                 for (r, h) in rays.chunks(PACKET_RAYS).zip(hits.chunks_mut(PACKET_RAYS)) {
                     let m = mode(r, &mut packet_rays);
-                    bvh.closest_hit_packet_with::<ConservativeBoxes, S>(
+                    bvh.closest_hit_packet_with::<ConservativeBoxes, S, _>(
                         PacketQuery::new(r).mode(m),
                         h,
                         stats,
+                        &mut NoFilter,
                     );
                 }
             }
@@ -435,10 +437,11 @@ impl Query<'_> {
                     .zip(blocked.chunks_mut(PACKET_RAYS))
                 {
                     let m = mode(r, &mut packet_rays);
-                    bvh.any_hit_packet_with::<ConservativeBoxes, S>(
+                    bvh.any_hit_packet_with::<ConservativeBoxes, S, _>(
                         PacketQuery::new(r).mode(m),
                         o,
                         stats,
+                        &mut NoFilter,
                     );
                 }
             }
@@ -604,13 +607,13 @@ impl<W: Work> Tracer<'_, W> {
     /// Closest hit, recording into `work`.
     fn closest(&mut self, ray: &Ray) -> Option<Hit> {
         self.bvh
-            .closest_hit_with::<ConservativeBoxes, W>(ray, &mut self.work)
+            .closest_hit_with::<ConservativeBoxes, W, _>(ray, &mut self.work, &mut NoFilter)
     }
 
     /// Whether anything blocks `ray`, recording into `work`.
     fn occluded(&mut self, ray: &Ray) -> bool {
         self.bvh
-            .any_hit_with::<ConservativeBoxes, W>(ray, &mut self.work)
+            .any_hit_with::<ConservativeBoxes, W, _>(ray, &mut self.work, &mut NoFilter)
     }
 
     /// Colour seen along `ray`, a secondary ray of generation `depth`.

@@ -4,6 +4,7 @@
 use super::{layout_help, load_and_build, parse_layout, pool, scene_help, thread_count, Result};
 use crate::output::{check_outputs, heatmap, outln, print_table, write_json, write_png};
 use clap::ValueEnum;
+use quiver::traverse::NoFilter;
 use quiver::{BuildOptions, Layout};
 use quiver_scenes::accel::SceneBvh;
 use quiver_scenes::render::{render, Offset, RenderConfig, Rendered};
@@ -271,11 +272,16 @@ fn ideal_runs(
                         c.iter()
                             .filter(|t| {
                                 if t.any {
-                                    bvh.any_hit_with::<ConservativeBoxes, _>(&t.ray, &mut NoStats)
-                                } else {
-                                    bvh.closest_hit_with::<ConservativeBoxes, _>(
+                                    bvh.any_hit_with::<ConservativeBoxes, _, _>(
                                         &t.ray,
                                         &mut NoStats,
+                                        &mut NoFilter,
+                                    )
+                                } else {
+                                    bvh.closest_hit_with::<ConservativeBoxes, _, _>(
+                                        &t.ray,
+                                        &mut NoStats,
+                                        &mut NoFilter,
                                     )
                                     .is_some()
                                 }

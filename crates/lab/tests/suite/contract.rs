@@ -7,7 +7,7 @@ use quiver::builders::{
     build, prim_bounds, BuildConfig, BuildNode, BuildTree, Builder, NodeKind, TreeError,
 };
 use quiver::intersect::Watertight;
-use quiver::traverse::{ConservativeBoxes, NoStats, PacketMode, PacketQuery};
+use quiver::traverse::{ConservativeBoxes, NoFilter, NoStats, PacketMode, PacketQuery};
 use quiver::{
     reference, Aabb, BuildOptions, Bvh, Bvh2, Bvh2Mapping, Bvh4, Bvh4Mapping, Bvh8, Hit, Isa,
     Layout, LeafFormat, PrimHit, Primitive, QBvh4, Ray, RayQuery, Triangle,
@@ -125,8 +125,18 @@ fn check_everywhere<P: Primitive>(prims: &[P], rays: &[Ray], want: &[Option<Hit>
             let mut occluded = vec![false; rays.len()];
             for mode in [PacketMode::Always, PacketMode::Never] {
                 let q = PacketQuery::new(rays).mode(mode);
-                bvh.closest_hit_packet_with::<ConservativeBoxes, _>(q, &mut hits, &mut NoStats);
-                bvh.any_hit_packet_with::<ConservativeBoxes, _>(q, &mut occluded, &mut NoStats);
+                bvh.closest_hit_packet_with::<ConservativeBoxes, _, _>(
+                    q,
+                    &mut hits,
+                    &mut NoStats,
+                    &mut NoFilter,
+                );
+                bvh.any_hit_packet_with::<ConservativeBoxes, _, _>(
+                    q,
+                    &mut occluded,
+                    &mut NoStats,
+                    &mut NoFilter,
+                );
                 for (i, r) in rays.iter().enumerate() {
                     let at = || format!("{what} {layout} {isa} {mode:?} ray {i}");
                     assert_eq!(hits[i], want[i], "{} packet", at());
@@ -371,4 +381,56 @@ fn from_tree_keeps_the_callers_options() {
         .unwrap();
     let on_pool = Bvh::from_tree(&tree, &tris, &four.clone().thread_pool(&pool)).unwrap();
     assert_eq!(on_pool.footprint(), built.footprint());
+}
+
+#[test]
+fn a_filter_answers_as_if_the_rejected_candidates_were_not_there() {
+    // Filtering plain triangles by `u >= 0.3` must answer what the holed primitive answers
+    // by its own test: the same candidates kept, the same tie rule.
+    let tris = soup_with_twins(600);
+    let holed: Vec<Holed> = tris.iter().map(|&t| Holed(t)).collect();
+    let rays = rays_through(&tris, 1500);
+    let want: Vec<_> = rays
+        .iter()
+        .map(|r| brute(&holed, r, Holed::intersect))
+        .collect();
+    let keep = |h: &Hit| h.u >= 0.3;
+    let mut asked = 0usize;
+    for layout in Layout::ALL {
+        for isa in Isa::ALL {
+            let bvh = BuildOptions::default().layout(layout).isa(isa).build(&tris);
+            if bvh.isa() != isa && layout == Layout::Bvh8Dfs {
+                continue;
+            }
+            for mode in [PacketMode::Always, PacketMode::Never] {
+                let q = PacketQuery::new(&rays).mode(mode);
+                let mut hits = vec![None; rays.len()];
+                let mut occluded = vec![false; rays.len()];
+                let mut counted = |h: &Hit| {
+                    asked += 1;
+                    keep(h)
+                };
+                bvh.closest_hit_packet_with::<ConservativeBoxes, _, _>(
+                    q,
+                    &mut hits,
+                    &mut NoStats,
+                    &mut counted,
+                );
+                bvh.any_hit_packet_with::<ConservativeBoxes, _, _>(
+                    q,
+                    &mut occluded,
+                    &mut NoStats,
+                    &mut keep.clone(),
+                );
+                for (i, r) in rays.iter().enumerate() {
+                    let at = format!("{layout} {isa} {mode:?} ray {i}");
+                    assert_eq!(hits[i], want[i], "{at} packet");
+                    assert_eq!(bvh.closest_hit_filtered(r, keep), want[i], "{at}");
+                    assert_eq!(occluded[i], want[i].is_some(), "{at} packet any");
+                    assert_eq!(bvh.any_hit_filtered(r, keep), want[i].is_some(), "{at} any");
+                }
+            }
+        }
+    }
+    assert!(asked > 0, "the filter was consulted");
 }

@@ -5,7 +5,7 @@
 use crate::common::{build, unit_tri};
 use glam::Vec3A;
 use quiver::intersect::{Exact, Watertight};
-use quiver::traverse::{ConservativeBoxes, FastBoxes, NoStats};
+use quiver::traverse::{ConservativeBoxes, FastBoxes, NoFilter, NoStats};
 use quiver::{reference, Layout, Primitive, Ray, RayQuery, Triangle};
 use quiver_lab::accuracy::edge_points;
 use quiver_scenes::Scene;
@@ -135,7 +135,7 @@ fn all_layout_hits(tris: &[Triangle], ray: &Ray) -> Vec<Option<f32>> {
         out.push(a.closest_hit(ray).map(|h| h.t));
         out.push(b.closest_hit(ray).map(|h| h.t));
         out.push(
-            a.closest_hit_with::<FastBoxes, _>(ray, &mut NoStats)
+            a.closest_hit_with::<FastBoxes, _, _>(ray, &mut NoStats, &mut NoFilter)
                 .map(|h| h.t),
         );
     }
@@ -356,8 +356,12 @@ fn far_from_origin_and_tiny_scenes() {
         let plain = rays
             .iter()
             .filter(|r| {
-                fast.closest_hit_with::<FastBoxes, _>(r, &mut NoStats)
-                    != fast.closest_hit_with::<ConservativeBoxes, _>(r, &mut NoStats)
+                fast.closest_hit_with::<FastBoxes, _, _>(r, &mut NoStats, &mut NoFilter)
+                    != fast.closest_hit_with::<ConservativeBoxes, _, _>(
+                        r,
+                        &mut NoStats,
+                        &mut NoFilter,
+                    )
             })
             .count();
         println!("offset {offset} scale {scale}: {plain} rays where plain boxes lose a hit");

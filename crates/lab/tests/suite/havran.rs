@@ -8,7 +8,7 @@
 
 use crate::common::in_pool;
 use quiver::predict::census;
-use quiver::traverse::{ConservativeBoxes, NoStats};
+use quiver::traverse::{ConservativeBoxes, NoFilter, NoStats};
 use quiver::{BuildOptions, Layout, RayQuery};
 use quiver_scenes::accel::SceneBvh;
 use quiver_scenes::render::{render, RenderConfig};
@@ -48,11 +48,15 @@ fn recorded_queries_match_the_render_and_havrans_inequalities() {
         );
         for t in &traced {
             let closest = bvh
-                .closest_hit_with::<ConservativeBoxes, _>(&t.ray, &mut NoStats)
+                .closest_hit_with::<ConservativeBoxes, _, _>(&t.ray, &mut NoStats, &mut NoFilter)
                 .map(|h| h.prim);
             assert_eq!(closest, t.hit, "{name}: replayed hit differs");
             if t.any {
-                let blocked = bvh.any_hit_with::<ConservativeBoxes, _>(&t.ray, &mut NoStats);
+                let blocked = bvh.any_hit_with::<ConservativeBoxes, _, _>(
+                    &t.ray,
+                    &mut NoStats,
+                    &mut NoFilter,
+                );
                 assert_eq!(blocked, t.found, "{name}: replayed occlusion differs");
             } else {
                 assert_eq!(t.found, t.hit.is_some());

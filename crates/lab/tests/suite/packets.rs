@@ -7,7 +7,9 @@
 use crate::common::{build, WIDE};
 use glam::Vec3A;
 use quiver::intersect::Watertight;
-use quiver::traverse::{BoxTest, ConservativeBoxes, FastBoxes, NoStats, PacketMode, PacketQuery};
+use quiver::traverse::{
+    BoxTest, ConservativeBoxes, FastBoxes, NoFilter, NoStats, PacketMode, PacketQuery,
+};
 use quiver::{reference, BuildOptions, Bvh, Hit, Isa, Layout, Primitive, Ray, RayQuery};
 use quiver_lab::rays;
 use quiver_scenes::rng::Rng;
@@ -25,22 +27,24 @@ fn check_against_single<P: Primitive, B: BoxTest>(
     for mode in [PacketMode::Always, PacketMode::Auto] {
         let mut hits = vec![Some(Hit::none(0.0)); rays.len()];
         let mut occluded = vec![true; rays.len()];
-        bvh.closest_hit_packet_with::<B, _>(
+        bvh.closest_hit_packet_with::<B, _, _>(
             PacketQuery { rays, active, mode },
             &mut hits,
             &mut NoStats,
+            &mut NoFilter,
         );
-        bvh.any_hit_packet_with::<B, _>(
+        bvh.any_hit_packet_with::<B, _, _>(
             PacketQuery { rays, active, mode },
             &mut occluded,
             &mut NoStats,
+            &mut NoFilter,
         );
         for (i, ray) in rays.iter().enumerate() {
             let on = active.is_none_or(|a| a[i]);
             let want = on
-                .then(|| bvh.closest_hit_with::<B, _>(ray, &mut NoStats))
+                .then(|| bvh.closest_hit_with::<B, _, _>(ray, &mut NoStats, &mut NoFilter))
                 .flatten();
-            let want_any = on && bvh.any_hit_with::<B, _>(ray, &mut NoStats);
+            let want_any = on && bvh.any_hit_with::<B, _, _>(ray, &mut NoStats, &mut NoFilter);
             assert_eq!(hits[i], want, "{what} {mode:?}: closest, ray {i} {ray:?}");
             assert_eq!(
                 occluded[i], want_any,
@@ -62,7 +66,7 @@ fn check<P: Primitive>(
     check_against_single::<P, ConservativeBoxes>(bvh, rays, active, what);
     check_against_single::<P, FastBoxes>(bvh, rays, active, &format!("{what} fast"));
     let mut hits = vec![None; rays.len()];
-    bvh.closest_hit_packet_with::<ConservativeBoxes, _>(
+    bvh.closest_hit_packet_with::<ConservativeBoxes, _, _>(
         PacketQuery {
             rays,
             active,
@@ -70,6 +74,7 @@ fn check<P: Primitive>(
         },
         &mut hits,
         &mut NoStats,
+        &mut NoFilter,
     );
     let want: Vec<Option<Hit>> = rays
         .par_iter()
@@ -283,12 +288,13 @@ fn inactive_lanes_and_partial_packets_match() {
     let bvh = build(&tris, Layout::Bvh4Dfs);
     let mut hits = vec![Some(Hit::none(0.0)); 64];
     let none = vec![false; 64];
-    bvh.closest_hit_packet_with::<ConservativeBoxes, _>(
+    bvh.closest_hit_packet_with::<ConservativeBoxes, _, _>(
         PacketQuery::new(&eye[..64])
             .active(&none)
             .mode(PacketMode::Always),
         &mut hits,
         &mut NoStats,
+        &mut NoFilter,
     );
     assert!(hits.iter().all(Option::is_none));
 }

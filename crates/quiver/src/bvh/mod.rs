@@ -5,7 +5,7 @@
 mod nodes;
 mod options;
 
-pub(crate) use nodes::Nodes;
+pub(crate) use nodes::{Laid, Nodes};
 pub use options::BuildOptions;
 
 use crate::builders::{prim_bounds, BuildTree, TreeError};
@@ -15,7 +15,7 @@ use crate::isa::Isa;
 use crate::layout::{bvh2::leaf_order, Footprint};
 use crate::mesh::MeshError;
 use crate::primitive::Primitive;
-use crate::traverse::{BoxTest, PacketQuery, RayQuery, Stats};
+use crate::traverse::{BoxTest, Filter, PacketQuery, RayQuery, Stats};
 use options::frame_prims;
 
 /// A laid-out BVH in any [`crate::Layout`], answering every query of [`RayQuery`].
@@ -128,7 +128,9 @@ impl<P: Primitive> Bvh<P> {
             Some(local) => options
                 .lay_out(&tree.refit(&prim_bounds(&local)), leaf_order(tree, &local))
                 .framed(frame),
-            None => options.lay_out(&world, leaf_order(tree, prims)),
+            None => options
+                .lay_out(&world, leaf_order(tree, prims))
+                .framed(Frame::default()),
         });
         Ok(Bvh::of(nodes, &world))
     }
@@ -168,34 +170,48 @@ impl Bvh {
 }
 
 impl<P: Primitive> RayQuery for Bvh<P> {
+    type Hit = Hit;
+
     #[inline(always)]
-    fn closest_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> Option<Hit> {
-        self.nodes.closest_hit_with::<B, S>(ray, stats)
+    fn closest_hit_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
+        &self,
+        ray: &Ray,
+        stats: &mut S,
+        filter: &mut F,
+    ) -> Option<Hit> {
+        self.nodes.closest_hit_with::<B, S, F>(ray, stats, filter)
     }
 
     #[inline(always)]
-    fn any_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> bool {
-        self.nodes.any_hit_with::<B, S>(ray, stats)
+    fn any_hit_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
+        &self,
+        ray: &Ray,
+        stats: &mut S,
+        filter: &mut F,
+    ) -> bool {
+        self.nodes.any_hit_with::<B, S, F>(ray, stats, filter)
     }
 
-    fn closest_hit_packet_with<B: BoxTest, S: Stats>(
+    fn closest_hit_packet_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
         &self,
         query: PacketQuery<'_>,
         hits: &mut [Option<Hit>],
         stats: &mut S,
+        filter: &mut F,
     ) {
         self.nodes
-            .closest_hit_packet_with::<B, S>(query, hits, stats)
+            .closest_hit_packet_with::<B, S, F>(query, hits, stats, filter)
     }
 
-    fn any_hit_packet_with<B: BoxTest, S: Stats>(
+    fn any_hit_packet_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
         &self,
         query: PacketQuery<'_>,
         occluded: &mut [bool],
         stats: &mut S,
+        filter: &mut F,
     ) {
         self.nodes
-            .any_hit_packet_with::<B, S>(query, occluded, stats)
+            .any_hit_packet_with::<B, S, F>(query, occluded, stats, filter)
     }
 }
 

@@ -1,6 +1,7 @@
-//! The layout a [`super::Bvh`] holds, chosen at run time: [`Nodes`], one variant per layout
-//! family plus [`Scaled`] for a BVH built in a scaled frame; built from a [`Layout`] name by
-//! [`lay_out`], queried through one `match` per method. The one place the choice lives.
+//! The layout a [`super::Bvh`] holds, chosen at run time: [`Laid`], one variant per layout
+//! family, inside [`Nodes`], which adds [`Scaled`] for a BVH built in a scaled frame; built
+//! from a [`Layout`] name by [`lay_out`], queried through one `match` per method. The one place
+//! the choice lives.
 
 use crate::builders::{BuildConfig, BuildTree};
 use crate::frame::{Back, Frame};
@@ -8,11 +9,11 @@ use crate::geometry::{Aabb, Hit, Ray};
 use crate::isa::Isa;
 use crate::layout::{Bvh2, Bvh2Mapping, Bvh4, Bvh4Mapping, Bvh8, Footprint, Layout, QBvh4};
 use crate::primitive::Primitive;
-use crate::traverse::{BoxTest, PacketQuery, RayQuery, Stats};
+use crate::traverse::{BoxTest, Filter, PacketQuery, RayQuery, Stats};
 
 /// The nodes and leaves of one [`Layout`].
 #[derive(Clone, Debug)]
-pub(crate) enum Nodes<P> {
+pub(crate) enum Laid<P> {
     /// Binary nodes.
     Bvh2(Bvh2<P>),
     /// 4-wide exact nodes.
@@ -21,8 +22,16 @@ pub(crate) enum Nodes<P> {
     QBvh4(QBvh4<P>),
     /// 8-wide exact nodes.
     Bvh8(Bvh8<P>),
-    /// Nodes built in a scaled frame, for a scene far from unit size (see
-    /// [`Primitive::scaled`]). A variant of its own, so that unscaled BVHs pay nothing for it.
+}
+
+/// A BVH's layout as built: in the caller's units, or in a frame scaled by a power of two for
+/// a scene far from unit size (see [`Primitive::scaled`]). Scaled is a variant of its own, so
+/// that unscaled BVHs pay nothing for it, and holds a [`Laid`], never another frame.
+#[derive(Clone, Debug)]
+pub(crate) enum Nodes<P> {
+    /// In the caller's units.
+    Plain(Laid<P>),
+    /// In a scaled frame.
     Scaled(Box<Scaled<P>>),
 }
 
@@ -30,61 +39,77 @@ pub(crate) enum Nodes<P> {
 #[derive(Clone, Debug)]
 pub(crate) struct Scaled<P> {
     pub(crate) frame: Frame,
-    pub(crate) nodes: Nodes<P>,
+    pub(crate) nodes: Laid<P>,
 }
 
 impl<P> Nodes<P> {
     /// The nodes of the layout itself, out of any scaled frame, and `b` (world units) in
     /// their frame.
-    pub(crate) fn unframed(&self, b: &Aabb) -> (&Nodes<P>, Aabb) {
+    pub(crate) fn unframed(&self, b: &Aabb) -> (&Laid<P>, Aabb) {
         match self {
             Nodes::Scaled(s) => (&s.nodes, s.frame.aabb(b)),
-            other => (other, *b),
+            Nodes::Plain(l) => (l, *b),
         }
     }
+}
 
+impl<P> Laid<P> {
     /// These nodes, built in `frame`.
     pub(crate) fn framed(self, frame: Frame) -> Nodes<P> {
         if frame.is_identity() {
-            self
+            Nodes::Plain(self)
         } else {
             Nodes::Scaled(Box::new(Scaled { frame, nodes: self }))
         }
     }
 }
 
-impl<P: Primitive> Nodes<P> {
-    pub(crate) fn isa(&self) -> Isa {
+impl<P: Primitive> Laid<P> {
+    fn isa(&self) -> Isa {
         match self {
-            Nodes::Bvh8(b) => b.isa(),
-            Nodes::Bvh4(b) => b.isa(),
-            Nodes::QBvh4(b) => b.isa(),
-            Nodes::Scaled(s) => s.nodes.isa(),
-            _ => Isa::Portable,
+            Laid::Bvh8(b) => b.isa(),
+            Laid::Bvh4(b) => b.isa(),
+            Laid::QBvh4(b) => b.isa(),
+            Laid::Bvh2(_) => Isa::Portable,
         }
     }
 
-    pub(crate) fn with_isa(self, isa: Isa) -> Self {
+    fn with_isa(self, isa: Isa) -> Self {
         match self {
-            Nodes::Bvh8(b) => Nodes::Bvh8(b.with_isa(isa)),
-            Nodes::Bvh4(b) => Nodes::Bvh4(b.with_isa(isa)),
-            Nodes::QBvh4(b) => Nodes::QBvh4(b.with_isa(isa)),
-            Nodes::Scaled(s) => {
-                let Scaled { frame, nodes } = *s;
-                nodes.with_isa(isa).framed(frame)
-            }
+            Laid::Bvh8(b) => Laid::Bvh8(b.with_isa(isa)),
+            Laid::Bvh4(b) => Laid::Bvh4(b.with_isa(isa)),
+            Laid::QBvh4(b) => Laid::QBvh4(b.with_isa(isa)),
             other => other,
         }
     }
 
-    pub(crate) fn footprint(&self) -> Footprint {
+    fn footprint(&self) -> Footprint {
         match self {
-            Nodes::Bvh2(b) => b.footprint(),
-            Nodes::Bvh4(b) => b.footprint(),
-            Nodes::QBvh4(b) => b.footprint(),
-            Nodes::Bvh8(b) => b.footprint(),
-            Nodes::Scaled(s) => s.nodes.footprint(),
+            Laid::Bvh2(b) => b.footprint(),
+            Laid::Bvh4(b) => b.footprint(),
+            Laid::QBvh4(b) => b.footprint(),
+            Laid::Bvh8(b) => b.footprint(),
         }
+    }
+}
+
+impl<P: Primitive> Nodes<P> {
+    pub(crate) fn isa(&self) -> Isa {
+        self.unframed(&Aabb::EMPTY).0.isa()
+    }
+
+    pub(crate) fn with_isa(self, isa: Isa) -> Self {
+        match self {
+            Nodes::Plain(l) => Nodes::Plain(l.with_isa(isa)),
+            Nodes::Scaled(s) => {
+                let Scaled { frame, nodes } = *s;
+                nodes.with_isa(isa).framed(frame)
+            }
+        }
+    }
+
+    pub(crate) fn footprint(&self) -> Footprint {
+        self.unframed(&Aabb::EMPTY).0.footprint()
     }
 }
 
@@ -96,7 +121,7 @@ pub(crate) fn lay_out<P: Primitive>(
     prims: Vec<P>,
     isa: Isa,
     config: &BuildConfig,
-) -> Nodes<P> {
+) -> Laid<P> {
     let bvh2 = match layout {
         Layout::Bvh2Dfs => Bvh2Mapping::DepthFirst,
         Layout::Bvh2Bfs => Bvh2Mapping::BreadthFirst,
@@ -106,7 +131,7 @@ pub(crate) fn lay_out<P: Primitive>(
         Layout::Bvh2Compact => Bvh2Mapping::Compact,
         Layout::Bvh2CompactPage => Bvh2Mapping::CompactPage,
         Layout::Bvh4Dfs => {
-            return Nodes::Bvh4(Bvh4::from_leaf_prims(
+            return Laid::Bvh4(Bvh4::from_leaf_prims(
                 tree,
                 prims,
                 Bvh4Mapping::DepthFirst,
@@ -114,7 +139,7 @@ pub(crate) fn lay_out<P: Primitive>(
             ))
         }
         Layout::Bvh4Subtree => {
-            return Nodes::Bvh4(Bvh4::from_leaf_prims(
+            return Laid::Bvh4(Bvh4::from_leaf_prims(
                 tree,
                 prims,
                 Bvh4Mapping::Subtree,
@@ -122,68 +147,134 @@ pub(crate) fn lay_out<P: Primitive>(
             ))
         }
         Layout::Bvh4Quant => {
-            return Nodes::QBvh4(QBvh4::from_leaf_prims(
+            return Laid::QBvh4(QBvh4::from_leaf_prims(
                 tree,
                 prims,
                 Bvh4Mapping::DepthFirst,
                 isa,
             ))
         }
-        Layout::Bvh8Dfs => return Nodes::Bvh8(Bvh8::from_leaf_prims(tree, prims, isa, config)),
+        Layout::Bvh8Dfs => return Laid::Bvh8(Bvh8::from_leaf_prims(tree, prims, isa, config)),
     };
-    Nodes::Bvh2(Bvh2::from_leaf_prims(tree, prims, bvh2))
+    Laid::Bvh2(Bvh2::from_leaf_prims(tree, prims, bvh2))
 }
 
-impl<P: Primitive> RayQuery for Nodes<P> {
+impl<P: Primitive> RayQuery for Laid<P> {
+    type Hit = Hit;
+
     #[inline(always)]
-    fn closest_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> Option<Hit> {
+    fn closest_hit_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
+        &self,
+        ray: &Ray,
+        stats: &mut S,
+        filter: &mut F,
+    ) -> Option<Hit> {
         match self {
-            Nodes::Bvh2(b) => b.closest_hit_with::<B, S>(ray, stats),
-            Nodes::Bvh4(b) => b.closest_hit_with::<B, S>(ray, stats),
-            Nodes::QBvh4(b) => b.closest_hit_with::<B, S>(ray, stats),
-            Nodes::Bvh8(b) => b.closest_hit_with::<B, S>(ray, stats),
-            Nodes::Scaled(s) => s.closest_hit_with::<B, S>(ray, stats),
+            Laid::Bvh2(b) => b.closest_hit_with::<B, S, F>(ray, stats, filter),
+            Laid::Bvh4(b) => b.closest_hit_with::<B, S, F>(ray, stats, filter),
+            Laid::QBvh4(b) => b.closest_hit_with::<B, S, F>(ray, stats, filter),
+            Laid::Bvh8(b) => b.closest_hit_with::<B, S, F>(ray, stats, filter),
         }
     }
 
     #[inline(always)]
-    fn any_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> bool {
+    fn any_hit_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
+        &self,
+        ray: &Ray,
+        stats: &mut S,
+        filter: &mut F,
+    ) -> bool {
         match self {
-            Nodes::Bvh2(b) => b.any_hit_with::<B, S>(ray, stats),
-            Nodes::Bvh4(b) => b.any_hit_with::<B, S>(ray, stats),
-            Nodes::QBvh4(b) => b.any_hit_with::<B, S>(ray, stats),
-            Nodes::Bvh8(b) => b.any_hit_with::<B, S>(ray, stats),
-            Nodes::Scaled(s) => s.any_hit_with::<B, S>(ray, stats),
+            Laid::Bvh2(b) => b.any_hit_with::<B, S, F>(ray, stats, filter),
+            Laid::Bvh4(b) => b.any_hit_with::<B, S, F>(ray, stats, filter),
+            Laid::QBvh4(b) => b.any_hit_with::<B, S, F>(ray, stats, filter),
+            Laid::Bvh8(b) => b.any_hit_with::<B, S, F>(ray, stats, filter),
         }
     }
 
-    fn closest_hit_packet_with<B: BoxTest, S: Stats>(
+    fn closest_hit_packet_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
         &self,
         query: PacketQuery<'_>,
         hits: &mut [Option<Hit>],
         stats: &mut S,
+        filter: &mut F,
     ) {
         match self {
-            Nodes::Bvh2(b) => b.closest_hit_packet_with::<B, S>(query, hits, stats),
-            Nodes::Bvh4(b) => b.closest_hit_packet_with::<B, S>(query, hits, stats),
-            Nodes::QBvh4(b) => b.closest_hit_packet_with::<B, S>(query, hits, stats),
-            Nodes::Bvh8(b) => b.closest_hit_packet_with::<B, S>(query, hits, stats),
-            Nodes::Scaled(s) => s.closest_hit_packet_with::<B, S>(query, hits, stats),
+            Laid::Bvh2(b) => b.closest_hit_packet_with::<B, S, F>(query, hits, stats, filter),
+            Laid::Bvh4(b) => b.closest_hit_packet_with::<B, S, F>(query, hits, stats, filter),
+            Laid::QBvh4(b) => b.closest_hit_packet_with::<B, S, F>(query, hits, stats, filter),
+            Laid::Bvh8(b) => b.closest_hit_packet_with::<B, S, F>(query, hits, stats, filter),
         }
     }
 
-    fn any_hit_packet_with<B: BoxTest, S: Stats>(
+    fn any_hit_packet_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
         &self,
         query: PacketQuery<'_>,
         occluded: &mut [bool],
         stats: &mut S,
+        filter: &mut F,
     ) {
         match self {
-            Nodes::Bvh2(b) => b.any_hit_packet_with::<B, S>(query, occluded, stats),
-            Nodes::Bvh4(b) => b.any_hit_packet_with::<B, S>(query, occluded, stats),
-            Nodes::QBvh4(b) => b.any_hit_packet_with::<B, S>(query, occluded, stats),
-            Nodes::Bvh8(b) => b.any_hit_packet_with::<B, S>(query, occluded, stats),
-            Nodes::Scaled(s) => s.any_hit_packet_with::<B, S>(query, occluded, stats),
+            Laid::Bvh2(b) => b.any_hit_packet_with::<B, S, F>(query, occluded, stats, filter),
+            Laid::Bvh4(b) => b.any_hit_packet_with::<B, S, F>(query, occluded, stats, filter),
+            Laid::QBvh4(b) => b.any_hit_packet_with::<B, S, F>(query, occluded, stats, filter),
+            Laid::Bvh8(b) => b.any_hit_packet_with::<B, S, F>(query, occluded, stats, filter),
+        }
+    }
+}
+
+impl<P: Primitive> RayQuery for Nodes<P> {
+    type Hit = Hit;
+
+    #[inline(always)]
+    fn closest_hit_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
+        &self,
+        ray: &Ray,
+        stats: &mut S,
+        filter: &mut F,
+    ) -> Option<Hit> {
+        match self {
+            Nodes::Plain(l) => l.closest_hit_with::<B, S, F>(ray, stats, filter),
+            Nodes::Scaled(s) => s.closest_hit_with::<B, S, F>(ray, stats, filter),
+        }
+    }
+
+    #[inline(always)]
+    fn any_hit_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
+        &self,
+        ray: &Ray,
+        stats: &mut S,
+        filter: &mut F,
+    ) -> bool {
+        match self {
+            Nodes::Plain(l) => l.any_hit_with::<B, S, F>(ray, stats, filter),
+            Nodes::Scaled(s) => s.any_hit_with::<B, S, F>(ray, stats, filter),
+        }
+    }
+
+    fn closest_hit_packet_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
+        &self,
+        query: PacketQuery<'_>,
+        hits: &mut [Option<Hit>],
+        stats: &mut S,
+        filter: &mut F,
+    ) {
+        match self {
+            Nodes::Plain(l) => l.closest_hit_packet_with::<B, S, F>(query, hits, stats, filter),
+            Nodes::Scaled(s) => s.closest_hit_packet_with::<B, S, F>(query, hits, stats, filter),
+        }
+    }
+
+    fn any_hit_packet_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
+        &self,
+        query: PacketQuery<'_>,
+        occluded: &mut [bool],
+        stats: &mut S,
+        filter: &mut F,
+    ) {
+        match self {
+            Nodes::Plain(l) => l.any_hit_packet_with::<B, S, F>(query, occluded, stats, filter),
+            Nodes::Scaled(s) => s.any_hit_packet_with::<B, S, F>(query, occluded, stats, filter),
         }
     }
 }
@@ -192,46 +283,90 @@ impl<P: Primitive> RayQuery for Nodes<P> {
 /// packets, so the packets are the ones an unscaled BVH would form.
 const FRAME_BATCH: usize = 4 * crate::traverse::PACKET_RAYS;
 
+/// A filter that sees a scaled BVH's candidates in world units.
+struct InWorld<'f, F> {
+    filter: &'f mut F,
+    back: Back,
+}
+
+impl<F: Filter<Hit>> Filter<Hit> for InWorld<'_, F> {
+    const ACTIVE: bool = F::ACTIVE;
+    #[inline(always)]
+    fn accept(&mut self, candidate: &Hit) -> bool {
+        self.filter.accept(&self.back.hit(*candidate))
+    }
+}
+
 impl<P: Primitive> RayQuery for Scaled<P> {
-    fn closest_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> Option<Hit> {
+    type Hit = Hit;
+
+    fn closest_hit_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
+        &self,
+        ray: &Ray,
+        stats: &mut S,
+        filter: &mut F,
+    ) -> Option<Hit> {
         let (local, back) = self.frame.ray(ray);
-        let hit = self.nodes.closest_hit_with::<B, S>(&local, stats);
+        let mut filter = InWorld { filter, back };
+        let hit = self
+            .nodes
+            .closest_hit_with::<B, S, _>(&local, stats, &mut filter);
         hit.map(|h| back.hit(h))
     }
 
-    fn any_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> bool {
+    fn any_hit_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
+        &self,
+        ray: &Ray,
+        stats: &mut S,
+        filter: &mut F,
+    ) -> bool {
+        let (local, back) = self.frame.ray(ray);
         self.nodes
-            .any_hit_with::<B, S>(&self.frame.ray(ray).0, stats)
+            .any_hit_with::<B, S, _>(&local, stats, &mut InWorld { filter, back })
     }
 
-    fn closest_hit_packet_with<B: BoxTest, S: Stats>(
+    fn closest_hit_packet_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
         &self,
         query: PacketQuery<'_>,
         hits: &mut [Option<Hit>],
         stats: &mut S,
+        filter: &mut F,
     ) {
+        // Each ray comes back to world units by its own factor, which a filter shared by a
+        // packet cannot know: filtered queries go ray by ray here.
+        if F::ACTIVE {
+            return crate::traverse::query::closest_ray_by_ray::<_, B, S, F>(
+                self, query, hits, stats, filter,
+            );
+        }
         assert_eq!(hits.len(), query.rays.len(), "one hit slot per ray");
         self.in_frame(query, |local, backs, at| {
             let hits = &mut hits[at..at + local.rays.len()];
             self.nodes
-                .closest_hit_packet_with::<B, S>(local, hits, stats);
+                .closest_hit_packet_with::<B, S, F>(local, hits, stats, filter);
             for (h, back) in hits.iter_mut().zip(backs) {
                 *h = h.map(|h| back.hit(h));
             }
         });
     }
 
-    fn any_hit_packet_with<B: BoxTest, S: Stats>(
+    fn any_hit_packet_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
         &self,
         query: PacketQuery<'_>,
         occluded: &mut [bool],
         stats: &mut S,
+        filter: &mut F,
     ) {
+        if F::ACTIVE {
+            return crate::traverse::query::any_ray_by_ray::<_, B, S, F>(
+                self, query, occluded, stats, filter,
+            );
+        }
         assert_eq!(occluded.len(), query.rays.len(), "one flag per ray");
         self.in_frame(query, |local, _, at| {
             let occluded = &mut occluded[at..at + local.rays.len()];
             self.nodes
-                .any_hit_packet_with::<B, S>(local, occluded, stats);
+                .any_hit_packet_with::<B, S, F>(local, occluded, stats, filter);
         });
     }
 }

@@ -1,7 +1,7 @@
 //! [`BuildOptions`]: how a [`Bvh`] is built (builder, layout, leaf size, bins, costs, thread
 //! pool, instruction set), with presets, from a primitive slice or an indexed mesh.
 
-use super::nodes::{lay_out, Nodes};
+use super::nodes::{lay_out, Laid};
 use super::Bvh;
 use crate::builders::{build_with_areas, prim_bounds, BuildConfig, BuildTree, Builder, CostModel};
 use crate::frame::Frame;
@@ -237,7 +237,7 @@ impl<'p> BuildOptions<'p> {
     }
 
     /// Lays out a checked tree over `prims` in its leaf order.
-    pub(crate) fn lay_out<P: Primitive>(&self, tree: &BuildTree, prims: Vec<P>) -> Nodes<P> {
+    pub(crate) fn lay_out<P: Primitive>(&self, tree: &BuildTree, prims: Vec<P>) -> Laid<P> {
         lay_out(
             self.layout,
             tree,

@@ -191,7 +191,7 @@ impl<F: FnMut(usize, u32, PrimHit) -> Option<f32>> PacketLeaf<'_, F> {
     /// A unit square at `z = 0` tested eight rays at a time:
     ///
     /// ```
-    /// use quiver::traverse::{FastBoxes, NoStats, PacketMode, PacketQuery};
+    /// use quiver::traverse::{FastBoxes, NoFilter, NoStats, PacketMode, PacketQuery};
     /// use quiver::primitive::PacketLeaf;
     /// use quiver::{Aabb, Bvh, PrimHit, Primitive, Ray, RayQuery};
     /// use glam::Vec3A;
@@ -234,7 +234,7 @@ impl<F: FnMut(usize, u32, PrimHit) -> Option<f32>> PacketLeaf<'_, F> {
     ///     .collect();
     /// let mut hits = vec![None; rays.len()];
     /// let query = PacketQuery::new(&rays).mode(PacketMode::Always);
-    /// bvh.closest_hit_packet_with::<FastBoxes, NoStats>(query, &mut hits, &mut NoStats);
+    /// bvh.closest_hit_packet_with::<FastBoxes, NoStats, _>(query, &mut hits, &mut NoStats, &mut NoFilter);
     /// for (r, h) in rays.iter().zip(&hits) {
     ///     assert_eq!(*h, bvh.closest_hit(r));
     /// }

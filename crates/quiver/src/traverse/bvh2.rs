@@ -1,7 +1,7 @@
 //! Single-ray traversal of a [`Bvh2`] in any of its memory mappings.
 
 use super::stats::Stats;
-use super::{leaf_any_hit, leaf_closest_hit, BoxTest, RayQuery, SlabRay, Stack};
+use super::{leaf_any_hit, leaf_closest_hit, BoxTest, Filter, RayQuery, SlabRay, Stack};
 use crate::builders::MAX_DEPTH;
 use crate::geometry::{Hit, Ray};
 use crate::layout::bvh2::{compact_children, Addressing};
@@ -50,7 +50,14 @@ impl Children for Compact {
 
 /// Binary nodes have no packet kernel: packet queries go ray by ray.
 impl<P: Primitive> RayQuery for Bvh2<P> {
-    fn closest_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> Option<Hit> {
+    type Hit = Hit;
+
+    fn closest_hit_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
+        &self,
+        ray: &Ray,
+        stats: &mut S,
+        filter: &mut F,
+    ) -> Option<Hit> {
         let mut best = Hit::none(ray.t_max);
         traverse::<P, B, S, _>(self, ray, stats, |range, limit, stats| {
             leaf_closest_hit(
@@ -59,6 +66,7 @@ impl<P: Primitive> RayQuery for Bvh2<P> {
                 ray,
                 &mut best,
                 stats,
+                filter,
             );
             *limit = best.t;
             false
@@ -66,10 +74,21 @@ impl<P: Primitive> RayQuery for Bvh2<P> {
         best.found()
     }
 
-    fn any_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> bool {
+    fn any_hit_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
+        &self,
+        ray: &Ray,
+        stats: &mut S,
+        filter: &mut F,
+    ) -> bool {
         let mut hit = false;
         traverse::<P, B, S, _>(self, ray, stats, |range, _, stats| {
-            hit = leaf_any_hit(&self.prims[range], ray, stats);
+            hit = leaf_any_hit(
+                &self.prims[range.clone()],
+                &self.prim_ids[range],
+                ray,
+                stats,
+                filter,
+            );
             hit
         });
         hit

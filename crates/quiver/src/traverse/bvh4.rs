@@ -4,7 +4,7 @@
 use super::leaves::Leaves;
 use super::simd::{bits, insert_farthest_first, NanFirst};
 use super::stats::Stats;
-use super::{slab_reciprocal, BoxTest, Stack};
+use super::{slab_reciprocal, BoxTest, Filter, Stack};
 use crate::builders::MAX_DEPTH;
 use crate::geometry::{Hit, Ray};
 use crate::layout::Bvh4Node;
@@ -139,60 +139,71 @@ fn walk<N, B, S, F, const ORDERED: bool>(
 
 /// Closest-hit and any-hit over one 4-wide node format.
 #[inline(always)]
-pub(crate) fn closest<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
+pub(crate) fn closest<N: WideNode, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
     nodes: &[N],
     leaves: &Leaves<P>,
     ray: &Ray,
     stats: &mut S,
+    filter: &mut F,
 ) -> Option<Hit> {
     let mut best = Hit::none(ray.t_max);
-    closest_from::<N, B, P, S>(nodes, leaves, ray, 0, &mut best, stats);
+    closest_from::<N, B, P, S, F>(nodes, leaves, ray, 0, &mut best, stats, filter);
     best.found()
 }
 
 /// Closest hit in the subtree of inner node `root`, improving on `best`, whose distance is
 /// the search limit.
 #[inline(always)]
-pub(crate) fn closest_from<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
+pub(crate) fn closest_from<N: WideNode, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
     nodes: &[N],
     leaves: &Leaves<P>,
     ray: &Ray,
     root: usize,
     best: &mut Hit,
     stats: &mut S,
+    filter: &mut F,
 ) {
     let mut prep = None;
     walk::<N, B, S, _, true>(nodes, ray, root, best.t, stats, |range, limit, stats| {
         let count = range.len() as u32;
-        leaves.closest(range.start, count, ray, &mut prep, best, stats);
+        leaves.closest(range.start, count, ray, &mut prep, best, stats, filter);
         *limit = best.t;
         false
     });
 }
 
 #[inline(always)]
-pub(crate) fn any<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
+pub(crate) fn any<N: WideNode, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
     nodes: &[N],
     leaves: &Leaves<P>,
     ray: &Ray,
     stats: &mut S,
+    filter: &mut F,
 ) -> bool {
-    any_from::<N, B, P, S>(nodes, leaves, ray, 0, stats)
+    any_from::<N, B, P, S, F>(nodes, leaves, ray, 0, stats, filter)
 }
 
 /// Any hit in the subtree of inner node `root`.
 #[inline(always)]
-pub(crate) fn any_from<N: WideNode, B: BoxTest, P: Primitive, S: Stats>(
+pub(crate) fn any_from<N: WideNode, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
     nodes: &[N],
     leaves: &Leaves<P>,
     ray: &Ray,
     root: usize,
     stats: &mut S,
+    filter: &mut F,
 ) -> bool {
     let mut prep = None;
     let mut hit = false;
     walk::<N, B, S, _, false>(nodes, ray, root, ray.t_max, stats, |range, _, stats| {
-        hit = leaves.any(range.start, range.len() as u32, ray, &mut prep, stats);
+        hit = leaves.any(
+            range.start,
+            range.len() as u32,
+            ray,
+            &mut prep,
+            stats,
+            filter,
+        );
         hit
     });
     hit

@@ -9,7 +9,7 @@ use super::lane8::F8;
 use super::leaves::Leaves;
 use super::simd::{bits, insert_farthest_first};
 use super::stats::Stats;
-use super::{slab_reciprocal, BoxTest, Stack};
+use super::{slab_reciprocal, BoxTest, Filter, Stack};
 use crate::builders::MAX_DEPTH;
 use crate::geometry::{Hit, Ray};
 use crate::isa::Kernels;
@@ -149,7 +149,8 @@ fn walk<V, B, S, F, const ORDERED: bool>(
 /// Closest hit in the subtree of inner node `root`, improving on `best`, whose distance is
 /// the search limit.
 #[inline(always)]
-pub(crate) fn closest_from<V: F8, B: BoxTest, P: Primitive, S: Stats>(
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn closest_from<V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
     cpu: V::Cpu,
     nodes: &[Bvh8Node],
     leaves: &Leaves<P>,
@@ -157,6 +158,7 @@ pub(crate) fn closest_from<V: F8, B: BoxTest, P: Primitive, S: Stats>(
     root: usize,
     best: &mut Hit,
     stats: &mut S,
+    filter: &mut F,
 ) {
     // Prepared at the first leaf: many rays never reach one.
     let mut prep = None;
@@ -169,7 +171,7 @@ pub(crate) fn closest_from<V: F8, B: BoxTest, P: Primitive, S: Stats>(
         stats,
         #[inline(always)]
         |first, count, limit, stats| {
-            leaves.closest(first, count, ray, &mut prep, best, stats);
+            leaves.closest(first, count, ray, &mut prep, best, stats, filter);
             *limit = best.t;
             false
         },
@@ -178,13 +180,14 @@ pub(crate) fn closest_from<V: F8, B: BoxTest, P: Primitive, S: Stats>(
 
 /// Whether anything in the subtree of inner node `root` is hit.
 #[inline(always)]
-pub(crate) fn any_from<V: F8, B: BoxTest, P: Primitive, S: Stats>(
+pub(crate) fn any_from<V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
     cpu: V::Cpu,
     nodes: &[Bvh8Node],
     leaves: &Leaves<P>,
     ray: &Ray,
     root: usize,
     stats: &mut S,
+    filter: &mut F,
 ) -> bool {
     let mut prep = None;
     let mut hit = false;
@@ -197,7 +200,7 @@ pub(crate) fn any_from<V: F8, B: BoxTest, P: Primitive, S: Stats>(
         stats,
         #[inline(always)]
         |first, count, _, stats| {
-            hit = leaves.any(first, count, ray, &mut prep, stats);
+            hit = leaves.any(first, count, ray, &mut prep, stats, filter);
             hit
         },
     );
@@ -206,58 +209,63 @@ pub(crate) fn any_from<V: F8, B: BoxTest, P: Primitive, S: Stats>(
 
 /// Closest hit over lanes of `V`.
 #[inline(always)]
-fn closest<V: F8, B: BoxTest, P: Primitive, S: Stats>(
+fn closest<V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
     cpu: V::Cpu,
     bvh: &Bvh8<P>,
     ray: &Ray,
     stats: &mut S,
+    filter: &mut F,
 ) -> Option<Hit> {
     let mut best = Hit::none(ray.t_max);
-    closest_from::<V, B, P, S>(cpu, bvh.nodes(), &bvh.leaves(), ray, 0, &mut best, stats);
+    let leaves = bvh.leaves();
+    closest_from::<V, B, P, S, F>(cpu, &bvh.nodes, &leaves, ray, 0, &mut best, stats, filter);
     best.found()
 }
 
 /// Any hit over lanes of `V`.
 #[inline(always)]
-fn any<V: F8, B: BoxTest, P: Primitive, S: Stats>(
+fn any<V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
     cpu: V::Cpu,
     bvh: &Bvh8<P>,
     ray: &Ray,
     stats: &mut S,
+    filter: &mut F,
 ) -> bool {
-    any_from::<V, B, P, S>(cpu, bvh.nodes(), &bvh.leaves(), ray, 0, stats)
+    any_from::<V, B, P, S, F>(cpu, &bvh.nodes, &bvh.leaves(), ray, 0, stats, filter)
 }
 
 /// The closest hit of one ray on `kernels`: the one place a single-ray 8-wide query picks
 /// its lanes.
 #[inline]
-pub(crate) fn closest_on<B: BoxTest, P: Primitive, S: Stats>(
+pub(crate) fn closest_on<B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
     kernels: Kernels,
     bvh: &Bvh8<P>,
     ray: &Ray,
     stats: &mut S,
+    filter: &mut F,
 ) -> Option<Hit> {
     match kernels {
         #[cfg(target_arch = "x86_64")]
         // SAFETY: `cpu` proves the CPU has AVX2 and FMA (only detection makes one).
-        Kernels::Avx2(cpu) => unsafe { avx2::closest::<B, P, S>(cpu, bvh, ray, stats) },
-        _ => closest::<f32x8, B, P, S>((), bvh, ray, stats),
+        Kernels::Avx2(cpu) => unsafe { avx2::closest::<B, P, S, F>(cpu, bvh, ray, stats, filter) },
+        _ => closest::<f32x8, B, P, S, F>((), bvh, ray, stats, filter),
     }
 }
 
 /// Whether one ray hits anything, on `kernels` (see [`closest_on`]).
 #[inline]
-pub(crate) fn any_on<B: BoxTest, P: Primitive, S: Stats>(
+pub(crate) fn any_on<B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
     kernels: Kernels,
     bvh: &Bvh8<P>,
     ray: &Ray,
     stats: &mut S,
+    filter: &mut F,
 ) -> bool {
     match kernels {
         #[cfg(target_arch = "x86_64")]
         // SAFETY: as in `closest_on`.
-        Kernels::Avx2(cpu) => unsafe { avx2::any::<B, P, S>(cpu, bvh, ray, stats) },
-        _ => any::<f32x8, B, P, S>((), bvh, ray, stats),
+        Kernels::Avx2(cpu) => unsafe { avx2::any::<B, P, S, F>(cpu, bvh, ray, stats, filter) },
+        _ => any::<f32x8, B, P, S, F>((), bvh, ray, stats, filter),
     }
 }
 
@@ -272,24 +280,26 @@ mod avx2 {
     /// # Safety
     /// The CPU must support AVX2 and FMA (as `cpu` proves).
     #[target_feature(enable = "avx2,fma")]
-    pub(super) unsafe fn closest<B: BoxTest, P: Primitive, S: Stats>(
+    pub(super) unsafe fn closest<B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
         cpu: Avx2Cpu,
         bvh: &Bvh8<P>,
         ray: &Ray,
         stats: &mut S,
+        filter: &mut F,
     ) -> Option<Hit> {
-        super::closest::<Avx, B, P, S>(cpu, bvh, ray, stats)
+        super::closest::<Avx, B, P, S, F>(cpu, bvh, ray, stats, filter)
     }
 
     /// # Safety
     /// The CPU must support AVX2 and FMA (as `cpu` proves).
     #[target_feature(enable = "avx2,fma")]
-    pub(super) unsafe fn any<B: BoxTest, P: Primitive, S: Stats>(
+    pub(super) unsafe fn any<B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
         cpu: Avx2Cpu,
         bvh: &Bvh8<P>,
         ray: &Ray,
         stats: &mut S,
+        filter: &mut F,
     ) -> bool {
-        super::any::<Avx, B, P, S>(cpu, bvh, ray, stats)
+        super::any::<Avx, B, P, S, F>(cpu, bvh, ray, stats, filter)
     }
 }

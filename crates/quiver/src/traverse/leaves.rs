@@ -3,7 +3,7 @@
 //! types) or a range of [`Tri4`] groups (triangle formats), never a run-time check.
 
 use super::tri4::{any, closest, Ray4Tri};
-use super::Stats;
+use super::{Filter, Stats};
 use crate::geometry::{Hit, Ray};
 use crate::layout::{Bvh4, Bvh8, Node4, Tri4};
 use crate::primitive::{LeafFormat, Primitive};
@@ -47,7 +47,8 @@ impl<P: Primitive> Leaves<'_, P> {
     /// Closest hit in one leaf, improving `best`; `prep` holds the ray's group terms once the
     /// first leaf made them. Returns true when `best` changed.
     #[inline(always)]
-    pub fn closest<S: Stats>(
+    #[allow(clippy::too_many_arguments)]
+    pub fn closest<S: Stats, F: Filter<Hit>>(
         &self,
         first: usize,
         count: u32,
@@ -55,6 +56,7 @@ impl<P: Primitive> Leaves<'_, P> {
         prep: &mut Option<Ray4Tri>,
         best: &mut Hit,
         stats: &mut S,
+        filter: &mut F,
     ) -> bool {
         match P::LEAF_FORMAT {
             LeafFormat::Plain => {
@@ -65,6 +67,7 @@ impl<P: Primitive> Leaves<'_, P> {
                     ray,
                     best,
                     stats,
+                    filter,
                 )
             }
             format => {
@@ -77,6 +80,7 @@ impl<P: Primitive> Leaves<'_, P> {
                     format,
                     best,
                     stats,
+                    filter,
                 )
             }
         }
@@ -84,21 +88,37 @@ impl<P: Primitive> Leaves<'_, P> {
 
     /// Whether anything in one leaf is hit within the ray's interval.
     #[inline(always)]
-    pub fn any<S: Stats>(
+    pub fn any<S: Stats, F: Filter<Hit>>(
         &self,
         first: usize,
         count: u32,
         ray: &Ray,
         prep: &mut Option<Ray4Tri>,
         stats: &mut S,
+        filter: &mut F,
     ) -> bool {
         match P::LEAF_FORMAT {
             LeafFormat::Plain => {
-                super::leaf_any_hit(&self.prims[first..first + count as usize], ray, stats)
+                let range = first..first + count as usize;
+                super::leaf_any_hit(
+                    &self.prims[range.clone()],
+                    &self.ids[range],
+                    ray,
+                    stats,
+                    filter,
+                )
             }
             format => {
                 let r = prep.get_or_insert_with(|| Ray4Tri::new(ray, format));
-                any(self.groups(first, count), count, ray, r, format, stats)
+                any(
+                    self.groups(first, count),
+                    count,
+                    ray,
+                    r,
+                    format,
+                    stats,
+                    filter,
+                )
             }
         }
     }

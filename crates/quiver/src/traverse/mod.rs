@@ -16,7 +16,7 @@ mod bvh8;
 mod lane8;
 mod leaves;
 pub mod packet;
-mod query;
+pub(crate) mod query;
 pub mod reference;
 pub(crate) mod simd;
 mod stats;
@@ -24,7 +24,7 @@ mod tri4;
 mod wide;
 
 pub use packet::{PacketMode, PacketQuery, PACKET_RAYS};
-pub use query::RayQuery;
+pub use query::{Filter, NoFilter, RayQuery};
 pub use stats::{Counters, NoStats, Stats};
 
 use crate::geometry::{Hit, PrimHit, Ray};
@@ -45,15 +45,49 @@ pub(crate) fn prim_hit<P: Primitive>(p: &P, ray: &Ray) -> Option<PrimHit> {
     }
 }
 
+/// Offers primitive `prim`'s hit `h` to the closest-hit search at `best`: kept when it beats
+/// `best` (nearer, or as near with a lower index) and `filter` accepts it, so a filter is only
+/// asked about candidates that would change the answer. Returns true when kept.
+#[inline(always)]
+pub(crate) fn offer<F: Filter<Hit>>(best: &mut Hit, prim: u32, h: PrimHit, filter: &mut F) -> bool {
+    if !best.is_beaten_by(h.t, prim) {
+        return false;
+    }
+    let candidate = Hit {
+        t: h.t,
+        prim,
+        u: h.u,
+        v: h.v,
+    };
+    if F::ACTIVE && !filter.accept(&candidate) {
+        return false;
+    }
+    *best = candidate;
+    true
+}
+
+/// Whether an any-hit search takes primitive `prim`'s hit `h`: always without a filter.
+#[inline(always)]
+pub(crate) fn accepts<F: Filter<Hit>>(prim: u32, h: PrimHit, filter: &mut F) -> bool {
+    !F::ACTIVE
+        || filter.accept(&Hit {
+            t: h.t,
+            prim,
+            u: h.u,
+            v: h.v,
+        })
+}
+
 /// Tests a leaf's primitives for the closest hit, updating `best`; `prim_ids` gives each
 /// primitive's input index. Returns true when `best` changed.
 #[inline(always)]
-pub(crate) fn leaf_closest_hit<P: Primitive, S: Stats>(
+pub(crate) fn leaf_closest_hit<P: Primitive, S: Stats, F: Filter<Hit>>(
     tris: &[P],
     prim_ids: &[u32],
     ray: &Ray,
     best: &mut Hit,
     stats: &mut S,
+    filter: &mut F,
 ) -> bool {
     stats.prims(tris.len() as u32);
     let r = Ray {
@@ -63,7 +97,7 @@ pub(crate) fn leaf_closest_hit<P: Primitive, S: Stats>(
     let mut found = false;
     for (tri, &prim) in tris.iter().zip(prim_ids) {
         if let Some(h) = prim_hit(tri, &r) {
-            found |= best.offer(prim, h);
+            found |= offer(best, prim, h, filter);
         }
     }
     if !found {
@@ -72,13 +106,21 @@ pub(crate) fn leaf_closest_hit<P: Primitive, S: Stats>(
     found
 }
 
-/// Tests a leaf's primitives until one is hit.
+/// Tests a leaf's primitives until one is hit (and accepted by `filter`).
 #[inline(always)]
-pub(crate) fn leaf_any_hit<P: Primitive, S: Stats>(tris: &[P], ray: &Ray, stats: &mut S) -> bool {
-    for (i, tri) in tris.iter().enumerate() {
-        if prim_hit(tri, ray).is_some() {
-            stats.prims(i as u32 + 1);
-            return true;
+pub(crate) fn leaf_any_hit<P: Primitive, S: Stats, F: Filter<Hit>>(
+    tris: &[P],
+    prim_ids: &[u32],
+    ray: &Ray,
+    stats: &mut S,
+    filter: &mut F,
+) -> bool {
+    for (i, (tri, &prim)) in tris.iter().zip(prim_ids).enumerate() {
+        if let Some(h) = prim_hit(tri, ray) {
+            if accepts(prim, h, filter) {
+                stats.prims(i as u32 + 1);
+                return true;
+            }
         }
     }
     stats.prims(tris.len() as u32);

@@ -1,17 +1,69 @@
-//! [`RayQuery`]: the one interface every traversable structure answers.
+//! [`RayQuery`]: the one interface every traversable structure answers, and [`Filter`], the
+//! candidate test a query may carry.
 
 use super::packet::{each_packet, PacketMode, PacketQuery};
 use super::{BoxTest, ConservativeBoxes, Counters, NoStats, Stats};
-use crate::geometry::{Hit, Ray};
+use crate::geometry::Ray;
+
+/// Which candidate hits a query keeps: an alpha test that looks up the texel at `(u, v)`, a
+/// rule that skips the surface a ray leaves from. A rejected candidate is as if the primitive
+/// were not there at that point; the ray goes on.
+///
+/// Queries take the filter as a type parameter, as they take [`Stats`]: [`NoFilter`] says at
+/// compile time that it accepts everything, so a query without a filter pays nothing. Any
+/// closure `FnMut(&H) -> bool` is a filter. It may be called for candidates in any order and
+/// more than once for the same one (packets and single rays visit leaves in other orders), so
+/// it should answer from the candidate alone.
+///
+/// ```
+/// use quiver::{Bvh, Hit, Ray, RayQuery, Triangle};
+/// use glam::Vec3A;
+/// // Two squares' halves stacked along z: the nearer one alpha-tested away where u > 0.5.
+/// let near = Triangle::new(Vec3A::new(0.0, 0.0, 1.0), Vec3A::new(1.0, 0.0, 1.0), Vec3A::new(0.0, 1.0, 1.0));
+/// let far = Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y);
+/// let bvh = Bvh::new(&[near, far]);
+/// let ray = Ray::new(Vec3A::new(0.6, 0.2, 2.0), -Vec3A::Z);
+/// assert_eq!(bvh.closest_hit(&ray).map(|h| h.prim), Some(0));
+/// let transparent = |h: &Hit| !(h.prim == 0 && h.u > 0.5);
+/// assert_eq!(bvh.closest_hit_filtered(&ray, transparent).map(|h| h.prim), Some(1));
+/// ```
+pub trait Filter<H> {
+    /// Whether the filter can reject anything: `false` lets the kernels skip it entirely.
+    const ACTIVE: bool = true;
+    /// Whether to keep `candidate`.
+    fn accept(&mut self, candidate: &H) -> bool;
+}
+
+/// The filter that keeps every hit, known at compile time: what the unfiltered queries use.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct NoFilter;
+
+impl<H> Filter<H> for NoFilter {
+    const ACTIVE: bool = false;
+    #[inline(always)]
+    fn accept(&mut self, _: &H) -> bool {
+        true
+    }
+}
+
+impl<H, F: FnMut(&H) -> bool> Filter<H> for F {
+    #[inline(always)]
+    fn accept(&mut self, candidate: &H) -> bool {
+        self(candidate)
+    }
+}
 
 /// Ray queries: closest hit and any hit, one ray at a time or in packets.
 ///
 /// Every layout ([`crate::Bvh2`], [`crate::Bvh4`], [`crate::QBvh4`], [`crate::Bvh8`]), the
-/// layout-erased [`crate::Bvh`], and quiver-scenes' `SceneBvh` implement it. An implementor
-/// writes the two single-ray `*_with` methods, generic over the box test ([`BoxTest`]) and a
-/// statistics sink ([`Stats`]), and the two packet `*_with` methods where it has a packet
-/// kernel (without one they trace ray by ray); the short forms (`closest_hit`, `any_hit`, the
-/// counted and packet forms) come with the trait and use the conservative box test.
+/// layout-erased [`crate::Bvh`], a [`crate::World`] of instances and quiver-scenes' `SceneBvh`
+/// implement it. What a hit names is the implementor's [`RayQuery::Hit`]: [`Hit`] for one BVH,
+/// [`crate::WorldHit`] (instance, geometry, primitive) for a world. An implementor writes the
+/// two single-ray `*_with` methods, generic over the box test ([`BoxTest`]), a statistics sink
+/// ([`Stats`]) and a candidate [`Filter`], and the two packet `*_with` methods where it has a
+/// packet kernel (without one they trace ray by ray); the short forms (`closest_hit`,
+/// `any_hit`, the counted, filtered and packet forms) come with the trait and use the
+/// conservative box test.
 ///
 /// Answers follow the rules in [`crate::geometry`]: the interval `[t_min, t_max]` is closed,
 /// and among hits at equal distance the lowest primitive index wins, so every implementor
@@ -31,12 +83,26 @@ use crate::geometry::{Hit, Ray};
 /// assert_eq!(work.prim_tests, 1);
 /// ```
 pub trait RayQuery {
-    /// The nearest hit along `ray`, with the box test `B`, reporting work to `stats`.
-    fn closest_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> Option<Hit>;
+    /// What a hit names.
+    type Hit: Copy;
 
-    /// Whether anything is hit within the ray's interval (stops at the first hit), with the
-    /// box test `B`, reporting work to `stats`.
-    fn any_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> bool;
+    /// The nearest hit along `ray` that `filter` accepts, with the box test `B`, reporting
+    /// work to `stats`.
+    fn closest_hit_with<B: BoxTest, S: Stats, F: Filter<Self::Hit>>(
+        &self,
+        ray: &Ray,
+        stats: &mut S,
+        filter: &mut F,
+    ) -> Option<Self::Hit>;
+
+    /// Whether anything `filter` accepts is hit within the ray's interval (stops at the first
+    /// accepted hit), with the box test `B`, reporting work to `stats`.
+    fn any_hit_with<B: BoxTest, S: Stats, F: Filter<Self::Hit>>(
+        &self,
+        ray: &Ray,
+        stats: &mut S,
+        filter: &mut F,
+    ) -> bool;
 
     /// Closest hits of the query's rays into `hits` (one slot per ray), in packets of
     /// [`super::PACKET_RAYS`] where its mode and the layout allow: only active rays are traced
@@ -48,13 +114,14 @@ pub trait RayQuery {
     ///
     /// # Panics
     /// When `hits` or the active flags differ in length from the rays.
-    fn closest_hit_packet_with<B: BoxTest, S: Stats>(
+    fn closest_hit_packet_with<B: BoxTest, S: Stats, F: Filter<Self::Hit>>(
         &self,
         query: PacketQuery<'_>,
-        hits: &mut [Option<Hit>],
+        hits: &mut [Option<Self::Hit>],
         stats: &mut S,
+        filter: &mut F,
     ) {
-        closest_ray_by_ray::<_, B, S>(self, query, hits, stats)
+        closest_ray_by_ray::<_, B, S, F>(self, query, hits, stats, filter)
     }
 
     /// Any-hit answers of the query's rays into `occluded` (inactive rays get `false`); see
@@ -62,37 +129,54 @@ pub trait RayQuery {
     ///
     /// # Panics
     /// When `occluded` or the active flags differ in length from the rays.
-    fn any_hit_packet_with<B: BoxTest, S: Stats>(
+    fn any_hit_packet_with<B: BoxTest, S: Stats, F: Filter<Self::Hit>>(
         &self,
         query: PacketQuery<'_>,
         occluded: &mut [bool],
         stats: &mut S,
+        filter: &mut F,
     ) {
-        any_ray_by_ray::<_, B, S>(self, query, occluded, stats)
+        any_ray_by_ray::<_, B, S, F>(self, query, occluded, stats, filter)
     }
 
     /// The nearest hit along `ray` (lowest primitive index on ties).
     #[inline]
-    fn closest_hit(&self, ray: &Ray) -> Option<Hit> {
-        self.closest_hit_with::<ConservativeBoxes, _>(ray, &mut NoStats)
+    fn closest_hit(&self, ray: &Ray) -> Option<Self::Hit> {
+        self.closest_hit_with::<ConservativeBoxes, _, _>(ray, &mut NoStats, &mut NoFilter)
     }
 
     /// True when anything is hit within the ray's interval; stops at the first hit.
     #[inline]
     fn any_hit(&self, ray: &Ray) -> bool {
-        self.any_hit_with::<ConservativeBoxes, _>(ray, &mut NoStats)
+        self.any_hit_with::<ConservativeBoxes, _, _>(ray, &mut NoStats, &mut NoFilter)
+    }
+
+    /// The nearest hit along `ray` that `filter` accepts (see [`Filter`]).
+    #[inline]
+    fn closest_hit_filtered(
+        &self,
+        ray: &Ray,
+        mut filter: impl FnMut(&Self::Hit) -> bool,
+    ) -> Option<Self::Hit> {
+        self.closest_hit_with::<ConservativeBoxes, _, _>(ray, &mut NoStats, &mut filter)
+    }
+
+    /// Whether anything `filter` accepts is hit within the ray's interval.
+    #[inline]
+    fn any_hit_filtered(&self, ray: &Ray, mut filter: impl FnMut(&Self::Hit) -> bool) -> bool {
+        self.any_hit_with::<ConservativeBoxes, _, _>(ray, &mut NoStats, &mut filter)
     }
 
     /// [`RayQuery::closest_hit`], adding what the traversal did to `counters`.
     #[inline]
-    fn closest_hit_counted(&self, ray: &Ray, counters: &mut Counters) -> Option<Hit> {
-        self.closest_hit_with::<ConservativeBoxes, _>(ray, counters)
+    fn closest_hit_counted(&self, ray: &Ray, counters: &mut Counters) -> Option<Self::Hit> {
+        self.closest_hit_with::<ConservativeBoxes, _, _>(ray, counters, &mut NoFilter)
     }
 
     /// [`RayQuery::any_hit`], adding what the traversal did to `counters`.
     #[inline]
     fn any_hit_counted(&self, ray: &Ray, counters: &mut Counters) -> bool {
-        self.any_hit_with::<ConservativeBoxes, _>(ray, counters)
+        self.any_hit_with::<ConservativeBoxes, _, _>(ray, counters, &mut NoFilter)
     }
 
     /// Closest hits of `rays` into `hits` (same length), traced in packets where they are
@@ -123,11 +207,12 @@ pub trait RayQuery {
     /// # Panics
     /// When `hits` and `rays` differ in length.
     #[inline]
-    fn closest_hit_packet(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
-        self.closest_hit_packet_with::<ConservativeBoxes, _>(
+    fn closest_hit_packet(&self, rays: &[Ray], hits: &mut [Option<Self::Hit>]) {
+        self.closest_hit_packet_with::<ConservativeBoxes, _, _>(
             PacketQuery::new(rays),
             hits,
             &mut NoStats,
+            &mut NoFilter,
         )
     }
 
@@ -138,10 +223,11 @@ pub trait RayQuery {
     /// When `occluded` and `rays` differ in length.
     #[inline]
     fn any_hit_packet(&self, rays: &[Ray], occluded: &mut [bool]) {
-        self.any_hit_packet_with::<ConservativeBoxes, _>(
+        self.any_hit_packet_with::<ConservativeBoxes, _, _>(
             PacketQuery::new(rays),
             occluded,
             &mut NoStats,
+            &mut NoFilter,
         )
     }
 }
@@ -152,16 +238,22 @@ pub trait RayQuery {
 /// # Panics
 /// When `hits` or `active` differ in length from `rays`.
 #[inline]
-pub(crate) fn closest_ray_by_ray<Q: RayQuery + ?Sized, B: BoxTest, S: Stats>(
+pub(crate) fn closest_ray_by_ray<Q, B, S, F>(
     q: &Q,
     query: PacketQuery<'_>,
-    hits: &mut [Option<Hit>],
+    hits: &mut [Option<Q::Hit>],
     stats: &mut S,
-) {
+    filter: &mut F,
+) where
+    Q: RayQuery + ?Sized,
+    B: BoxTest,
+    S: Stats,
+    F: Filter<Q::Hit>,
+{
     each_packet(query.mode(PacketMode::Never), hits, |rays, on, _, hits| {
         for (i, (h, r)) in hits.iter_mut().zip(rays).enumerate() {
             *h = (on >> i & 1 == 1)
-                .then(|| q.closest_hit_with::<B, S>(r, stats))
+                .then(|| q.closest_hit_with::<B, S, F>(r, stats, filter))
                 .flatten();
         }
     });
@@ -173,18 +265,24 @@ pub(crate) fn closest_ray_by_ray<Q: RayQuery + ?Sized, B: BoxTest, S: Stats>(
 /// # Panics
 /// When `occluded` or `active` differ in length from `rays`.
 #[inline]
-pub(crate) fn any_ray_by_ray<Q: RayQuery + ?Sized, B: BoxTest, S: Stats>(
+pub(crate) fn any_ray_by_ray<Q, B, S, F>(
     q: &Q,
     query: PacketQuery<'_>,
     occluded: &mut [bool],
     stats: &mut S,
-) {
-    super::packet::each_packet(
+    filter: &mut F,
+) where
+    Q: RayQuery + ?Sized,
+    B: BoxTest,
+    S: Stats,
+    F: Filter<Q::Hit>,
+{
+    each_packet(
         query.mode(PacketMode::Never),
         occluded,
         |rays, on, _, out| {
             for (i, (o, r)) in out.iter_mut().zip(rays).enumerate() {
-                *o = on >> i & 1 == 1 && q.any_hit_with::<B, S>(r, stats);
+                *o = on >> i & 1 == 1 && q.any_hit_with::<B, S, F>(r, stats, filter);
             }
         },
     );

@@ -5,7 +5,7 @@
 //! them for triangle leaf formats.
 
 use super::simd::bits;
-use super::Stats;
+use super::{accepts, offer, Filter, Stats};
 use crate::geometry::{Hit, PrimHit, Ray};
 use crate::intersect::Watertight;
 use crate::layout::Tri4;
@@ -152,7 +152,8 @@ pub(crate) fn group_hits(
 /// Closest hit among a leaf's groups, improving `best`; `count` triangles in the leaf.
 /// Returns true when `best` changed.
 #[inline(always)]
-pub(crate) fn closest<S: Stats>(
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn closest<S: Stats, F: Filter<Hit>>(
     groups: &[Tri4],
     count: u32,
     ray: &Ray,
@@ -160,12 +161,13 @@ pub(crate) fn closest<S: Stats>(
     format: LeafFormat,
     best: &mut Hit,
     stats: &mut S,
+    filter: &mut F,
 ) -> bool {
     stats.prims(count);
     let mut found = false;
     for g in groups {
         group_hits(g, r, ray, best.t, format, |l, h| {
-            found |= best.offer(g.id[l], h)
+            found |= offer(best, g.id[l], h, filter)
         });
     }
     if !found {
@@ -174,19 +176,23 @@ pub(crate) fn closest<S: Stats>(
     found
 }
 
-/// Whether anything in a leaf's groups is hit within the ray's interval.
+/// Whether anything in a leaf's groups is hit (and accepted by `filter`) within the ray's
+/// interval.
 #[inline(always)]
-pub(crate) fn any<S: Stats>(
+pub(crate) fn any<S: Stats, F: Filter<Hit>>(
     groups: &[Tri4],
     count: u32,
     ray: &Ray,
     r: &Ray4Tri,
     format: LeafFormat,
     stats: &mut S,
+    filter: &mut F,
 ) -> bool {
     for (i, g) in groups.iter().enumerate() {
         let mut hit = false;
-        group_hits(g, r, ray, ray.t_max, format, |_, _| hit = true);
+        group_hits(g, r, ray, ray.t_max, format, |l, h| {
+            hit = hit || accepts(g.id[l], h, filter)
+        });
         if hit {
             stats.prims((4 * (i as u32 + 1)).min(count));
             return true;

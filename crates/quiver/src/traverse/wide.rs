@@ -5,67 +5,127 @@
 use super::packet::PacketQuery;
 use super::packet::{any_rays_on, closest_rays_on};
 use super::query::RayQuery;
-use super::{bvh4, bvh8, BoxTest, Stats};
+use super::{bvh4, bvh8, BoxTest, Filter, Stats};
 use crate::geometry::{Hit, Ray};
 use crate::layout::{Bvh4, Bvh8, Bvh8Node, Node4};
 use crate::primitive::Primitive;
 
 impl<P: Primitive, N: Node4> RayQuery for Bvh4<P, N> {
-    fn closest_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> Option<Hit> {
-        bvh4::closest::<N, B, P, S>(&self.nodes, &self.leaves(), ray, stats)
+    type Hit = Hit;
+
+    fn closest_hit_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
+        &self,
+        ray: &Ray,
+        stats: &mut S,
+        filter: &mut F,
+    ) -> Option<Hit> {
+        bvh4::closest::<N, B, P, S, F>(&self.nodes, &self.leaves(), ray, stats, filter)
     }
 
-    fn any_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> bool {
-        bvh4::any::<N, B, P, S>(&self.nodes, &self.leaves(), ray, stats)
+    fn any_hit_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
+        &self,
+        ray: &Ray,
+        stats: &mut S,
+        filter: &mut F,
+    ) -> bool {
+        bvh4::any::<N, B, P, S, F>(&self.nodes, &self.leaves(), ray, stats, filter)
     }
 
-    fn closest_hit_packet_with<B: BoxTest, S: Stats>(
+    fn closest_hit_packet_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
         &self,
         query: PacketQuery<'_>,
         hits: &mut [Option<Hit>],
         stats: &mut S,
+        filter: &mut F,
     ) {
         let leaves = self.leaves();
-        closest_rays_on::<N, B, P, S>(self.kernels, &self.nodes, &leaves, query, hits, stats)
+        closest_rays_on::<N, B, P, S, F>(
+            self.kernels,
+            &self.nodes,
+            &leaves,
+            query,
+            hits,
+            stats,
+            filter,
+        )
     }
 
-    fn any_hit_packet_with<B: BoxTest, S: Stats>(
+    fn any_hit_packet_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
         &self,
         query: PacketQuery<'_>,
         occluded: &mut [bool],
         stats: &mut S,
+        filter: &mut F,
     ) {
         let leaves = self.leaves();
-        any_rays_on::<N, B, P, S>(self.kernels, &self.nodes, &leaves, query, occluded, stats)
+        any_rays_on::<N, B, P, S, F>(
+            self.kernels,
+            &self.nodes,
+            &leaves,
+            query,
+            occluded,
+            stats,
+            filter,
+        )
     }
 }
 
 impl<P: Primitive> RayQuery for Bvh8<P> {
-    fn closest_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> Option<Hit> {
-        bvh8::closest_on::<B, P, S>(self.kernels, self, ray, stats)
+    type Hit = Hit;
+
+    fn closest_hit_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
+        &self,
+        ray: &Ray,
+        stats: &mut S,
+        filter: &mut F,
+    ) -> Option<Hit> {
+        bvh8::closest_on::<B, P, S, F>(self.kernels, self, ray, stats, filter)
     }
 
-    fn any_hit_with<B: BoxTest, S: Stats>(&self, ray: &Ray, stats: &mut S) -> bool {
-        bvh8::any_on::<B, P, S>(self.kernels, self, ray, stats)
+    fn any_hit_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
+        &self,
+        ray: &Ray,
+        stats: &mut S,
+        filter: &mut F,
+    ) -> bool {
+        bvh8::any_on::<B, P, S, F>(self.kernels, self, ray, stats, filter)
     }
 
-    fn closest_hit_packet_with<B: BoxTest, S: Stats>(
+    fn closest_hit_packet_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
         &self,
         query: PacketQuery<'_>,
         hits: &mut [Option<Hit>],
         stats: &mut S,
+        filter: &mut F,
     ) {
         let leaves = self.leaves();
-        closest_rays_on::<Bvh8Node, B, P, S>(self.kernels, &self.nodes, &leaves, query, hits, stats)
+        closest_rays_on::<Bvh8Node, B, P, S, F>(
+            self.kernels,
+            &self.nodes,
+            &leaves,
+            query,
+            hits,
+            stats,
+            filter,
+        )
     }
 
-    fn any_hit_packet_with<B: BoxTest, S: Stats>(
+    fn any_hit_packet_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
         &self,
         query: PacketQuery<'_>,
         occluded: &mut [bool],
         stats: &mut S,
+        filter: &mut F,
     ) {
         let leaves = self.leaves();
-        any_rays_on::<Bvh8Node, B, P, S>(self.kernels, &self.nodes, &leaves, query, occluded, stats)
+        any_rays_on::<Bvh8Node, B, P, S, F>(
+            self.kernels,
+            &self.nodes,
+            &leaves,
+            query,
+            occluded,
+            stats,
+            filter,
+        )
     }
 }

@@ -10,7 +10,7 @@ use crate::traverse::bvh4::{self, Ray4};
 use crate::traverse::bvh8::{self, Ray8};
 use crate::traverse::lane8::F8;
 use crate::traverse::leaves::Leaves;
-use crate::traverse::{BoxTest, Stats};
+use crate::traverse::{BoxTest, Filter, Stats};
 
 /// A node format the packet walk runs over. `V` is the lane type of the kernel (portable or
 /// AVX2), which the 8-wide format also tests its boxes with.
@@ -32,7 +32,8 @@ pub(crate) trait PacketNode: Sized {
     /// Mask of the children some active ray of the bound may enter.
     fn may_enter<V: F8, B: BoxTest>(&self, cpu: V::Cpu, bound: &Bound) -> u32;
     /// Closest hit of one ray in the subtree of inner node `root`, improving `best`.
-    fn closest_from<V: F8, B: BoxTest, P: Primitive, S: Stats>(
+    #[allow(clippy::too_many_arguments)]
+    fn closest_from<V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
         cpu: V::Cpu,
         nodes: &[Self],
         leaves: &Leaves<P>,
@@ -40,15 +41,17 @@ pub(crate) trait PacketNode: Sized {
         root: usize,
         best: &mut Hit,
         stats: &mut S,
+        filter: &mut F,
     );
     /// Whether one ray hits anything in the subtree of inner node `root`.
-    fn any_from<V: F8, B: BoxTest, P: Primitive, S: Stats>(
+    fn any_from<V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
         cpu: V::Cpu,
         nodes: &[Self],
         leaves: &Leaves<P>,
         ray: &Ray,
         root: usize,
         stats: &mut S,
+        filter: &mut F,
     ) -> bool;
 }
 
@@ -91,7 +94,8 @@ impl<N: Node4> PacketNode for N {
     }
 
     #[inline(always)]
-    fn closest_from<V: F8, B: BoxTest, P: Primitive, S: Stats>(
+    #[allow(clippy::too_many_arguments)]
+    fn closest_from<V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
         cpu: V::Cpu,
         nodes: &[Self],
         leaves: &Leaves<P>,
@@ -99,22 +103,24 @@ impl<N: Node4> PacketNode for N {
         root: usize,
         best: &mut Hit,
         stats: &mut S,
+        filter: &mut F,
     ) {
         let _ = cpu;
-        bvh4::closest_from::<N, B, P, S>(nodes, leaves, ray, root, best, stats)
+        bvh4::closest_from::<N, B, P, S, F>(nodes, leaves, ray, root, best, stats, filter)
     }
 
     #[inline(always)]
-    fn any_from<V: F8, B: BoxTest, P: Primitive, S: Stats>(
+    fn any_from<V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
         cpu: V::Cpu,
         nodes: &[Self],
         leaves: &Leaves<P>,
         ray: &Ray,
         root: usize,
         stats: &mut S,
+        filter: &mut F,
     ) -> bool {
         let _ = cpu;
-        bvh4::any_from::<N, B, P, S>(nodes, leaves, ray, root, stats)
+        bvh4::any_from::<N, B, P, S, F>(nodes, leaves, ray, root, stats, filter)
     }
 }
 
@@ -149,7 +155,8 @@ impl PacketNode for Bvh8Node {
     }
 
     #[inline(always)]
-    fn closest_from<V: F8, B: BoxTest, P: Primitive, S: Stats>(
+    #[allow(clippy::too_many_arguments)]
+    fn closest_from<V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
         cpu: V::Cpu,
         nodes: &[Self],
         leaves: &Leaves<P>,
@@ -157,19 +164,21 @@ impl PacketNode for Bvh8Node {
         root: usize,
         best: &mut Hit,
         stats: &mut S,
+        filter: &mut F,
     ) {
-        bvh8::closest_from::<V, B, P, S>(cpu, nodes, leaves, ray, root, best, stats)
+        bvh8::closest_from::<V, B, P, S, F>(cpu, nodes, leaves, ray, root, best, stats, filter)
     }
 
     #[inline(always)]
-    fn any_from<V: F8, B: BoxTest, P: Primitive, S: Stats>(
+    fn any_from<V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
         cpu: V::Cpu,
         nodes: &[Self],
         leaves: &Leaves<P>,
         ray: &Ray,
         root: usize,
         stats: &mut S,
+        filter: &mut F,
     ) -> bool {
-        bvh8::any_from::<V, B, P, S>(cpu, nodes, leaves, ray, root, stats)
+        bvh8::any_from::<V, B, P, S, F>(cpu, nodes, leaves, ray, root, stats, filter)
     }
 }

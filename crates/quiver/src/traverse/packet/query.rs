@@ -15,19 +15,20 @@ use crate::primitive::Primitive;
 use crate::traverse::lane8::F8;
 use crate::traverse::leaves::Leaves;
 use crate::traverse::simd::bits;
-use crate::traverse::{BoxTest, Stats};
+use crate::traverse::{accepts, offer, BoxTest, Filter, Stats};
 use wide::f32x8;
 
 /// Closest hits of any number of rays, packet by packet, over one node format, in lanes of
 /// `V`.
 #[inline(always)]
-fn closest_rays<N: PacketNode, V: F8, B: BoxTest, P: Primitive, S: Stats>(
+fn closest_rays<N: PacketNode, V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
     cpu: V::Cpu,
     nodes: &[N],
     leaves: &Leaves<P>,
     query: PacketQuery<'_>,
     hits: &mut [Option<Hit>],
     stats: &mut S,
+    filter: &mut F,
 ) {
     each_packet(
         query,
@@ -40,8 +41,8 @@ fn closest_rays<N: PacketNode, V: F8, B: BoxTest, P: Primitive, S: Stats>(
                 for (b, r) in best.iter_mut().zip(rays) {
                     *b = Hit::none(r.t_max);
                 }
-                closest_packet::<N, V, B, P, S>(
-                    cpu, nodes, leaves, rays, &mut pk, &mut best, stats,
+                closest_packet::<N, V, B, P, S, F>(
+                    cpu, nodes, leaves, rays, &mut pk, &mut best, stats, filter,
                 );
                 for (i, (h, b)) in hits.iter_mut().zip(best).enumerate() {
                     *h = if on >> i & 1 == 1 { b.found() } else { None };
@@ -50,7 +51,9 @@ fn closest_rays<N: PacketNode, V: F8, B: BoxTest, P: Primitive, S: Stats>(
                 for (i, (h, r)) in hits.iter_mut().zip(rays).enumerate() {
                     *h = if on >> i & 1 == 1 {
                         let mut best = Hit::none(r.t_max);
-                        N::closest_from::<V, B, P, S>(cpu, nodes, leaves, r, 0, &mut best, stats);
+                        N::closest_from::<V, B, P, S, F>(
+                            cpu, nodes, leaves, r, 0, &mut best, stats, filter,
+                        );
                         best.found()
                     } else {
                         None
@@ -64,13 +67,14 @@ fn closest_rays<N: PacketNode, V: F8, B: BoxTest, P: Primitive, S: Stats>(
 /// Any-hit answers of any number of rays, packet by packet, over one node format, in lanes
 /// of `V`.
 #[inline(always)]
-fn any_rays<N: PacketNode, V: F8, B: BoxTest, P: Primitive, S: Stats>(
+fn any_rays<N: PacketNode, V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
     cpu: V::Cpu,
     nodes: &[N],
     leaves: &Leaves<P>,
     query: PacketQuery<'_>,
     occluded: &mut [bool],
     stats: &mut S,
+    filter: &mut F,
 ) {
     each_packet(
         query,
@@ -80,11 +84,13 @@ fn any_rays<N: PacketNode, V: F8, B: BoxTest, P: Primitive, S: Stats>(
             out.fill(false);
             if packet {
                 let mut pk = RayPacket::new(rays, on);
-                any_packet::<N, V, B, P, S>(cpu, nodes, leaves, rays, &mut pk, out, stats);
+                any_packet::<N, V, B, P, S, F>(
+                    cpu, nodes, leaves, rays, &mut pk, out, stats, filter,
+                );
             } else {
                 for (i, (o, r)) in out.iter_mut().zip(rays).enumerate() {
                     *o = on >> i & 1 == 1
-                        && N::any_from::<V, B, P, S>(cpu, nodes, leaves, r, 0, stats);
+                        && N::any_from::<V, B, P, S, F>(cpu, nodes, leaves, r, 0, stats, filter);
                 }
             }
         },
@@ -93,7 +99,8 @@ fn any_rays<N: PacketNode, V: F8, B: BoxTest, P: Primitive, S: Stats>(
 
 /// Closest hits of one packet into `best` (one record per ray, [`Hit::none`] to start).
 #[inline(always)]
-fn closest_packet<N: PacketNode, V: F8, B: BoxTest, P: Primitive, S: Stats>(
+#[allow(clippy::too_many_arguments)]
+fn closest_packet<N: PacketNode, V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
     cpu: V::Cpu,
     nodes: &[N],
     leaves: &Leaves<P>,
@@ -101,6 +108,7 @@ fn closest_packet<N: PacketNode, V: F8, B: BoxTest, P: Primitive, S: Stats>(
     pk: &mut RayPacket,
     best: &mut [Hit],
     stats: &mut S,
+    filter: &mut F,
 ) {
     walk::<N, V, B, S, _>(
         cpu,
@@ -124,9 +132,10 @@ fn closest_packet<N: PacketNode, V: F8, B: BoxTest, P: Primitive, S: Stats>(
                                 &mut None,
                                 &mut best[i],
                                 stats,
+                                filter,
                             );
                         }
-                        AloneIn::Inner(node) => N::closest_from::<V, B, P, S>(
+                        AloneIn::Inner(node) => N::closest_from::<V, B, P, S, F>(
                             cpu,
                             nodes,
                             leaves,
@@ -134,6 +143,7 @@ fn closest_packet<N: PacketNode, V: F8, B: BoxTest, P: Primitive, S: Stats>(
                             node,
                             &mut best[i],
                             stats,
+                            filter,
                         ),
                     }
                     pk.set_limit(i, best[i].t);
@@ -151,7 +161,7 @@ fn closest_packet<N: PacketNode, V: F8, B: BoxTest, P: Primitive, S: Stats>(
                 live,
                 #[inline(always)]
                 |i: usize, id: u32, h: PrimHit| {
-                    changed |= best[i].offer(id, h);
+                    changed |= offer(&mut best[i], id, h, filter);
                     Some(best[i].t)
                 },
             );
@@ -167,7 +177,8 @@ fn closest_packet<N: PacketNode, V: F8, B: BoxTest, P: Primitive, S: Stats>(
 
 /// Any-hit answers of one packet: sets `hit[i]` for every ray that hits something.
 #[inline(always)]
-fn any_packet<N: PacketNode, V: F8, B: BoxTest, P: Primitive, S: Stats>(
+#[allow(clippy::too_many_arguments)]
+fn any_packet<N: PacketNode, V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
     cpu: V::Cpu,
     nodes: &[N],
     leaves: &Leaves<P>,
@@ -175,6 +186,7 @@ fn any_packet<N: PacketNode, V: F8, B: BoxTest, P: Primitive, S: Stats>(
     pk: &mut RayPacket,
     hit: &mut [bool],
     stats: &mut S,
+    filter: &mut F,
 ) {
     walk::<N, V, B, S, _>(
         cpu,
@@ -190,11 +202,12 @@ fn any_packet<N: PacketNode, V: F8, B: BoxTest, P: Primitive, S: Stats>(
                 Visit::Alone(i, at) => {
                     let found = match at {
                         AloneIn::Leaf(r) => {
-                            leaves.any(r.start, r.len() as u32, &rays[i], &mut None, stats)
+                            let (first, n) = (r.start, r.len() as u32);
+                            leaves.any(first, n, &rays[i], &mut None, stats, filter)
                         }
-                        AloneIn::Inner(node) => {
-                            N::any_from::<V, B, P, S>(cpu, nodes, leaves, &rays[i], node, stats)
-                        }
+                        AloneIn::Inner(node) => N::any_from::<V, B, P, S, F>(
+                            cpu, nodes, leaves, &rays[i], node, stats, filter,
+                        ),
                     };
                     if found {
                         hit[i] = true;
@@ -213,7 +226,11 @@ fn any_packet<N: PacketNode, V: F8, B: BoxTest, P: Primitive, S: Stats>(
                 pk,
                 live,
                 #[inline(always)]
-                |i: usize, _, _| {
+                |i: usize, id: u32, h: PrimHit| {
+                    if !accepts(id, h, filter) {
+                        // Rejected: the ray searches on over its whole interval.
+                        return Some(rays[i].t_max);
+                    }
                     hit[i] = true;
                     found |= 1 << i;
                     None
@@ -233,41 +250,43 @@ fn any_packet<N: PacketNode, V: F8, B: BoxTest, P: Primitive, S: Stats>(
 /// [`closest_rays`] on `kernels`' lanes: the one place a packet query picks its instruction
 /// set, for every node format.
 #[inline]
-pub(crate) fn closest_rays_on<N: PacketNode, B: BoxTest, P: Primitive, S: Stats>(
+pub(crate) fn closest_rays_on<N: PacketNode, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
     kernels: Kernels,
     nodes: &[N],
     leaves: &Leaves<P>,
     query: PacketQuery<'_>,
     hits: &mut [Option<Hit>],
     stats: &mut S,
+    filter: &mut F,
 ) {
     match kernels {
         #[cfg(target_arch = "x86_64")]
         // SAFETY: `cpu` proves the CPU has AVX2 and FMA (only detection makes one).
         Kernels::Avx2(cpu) => unsafe {
-            avx2::closest_rays::<N, B, P, S>(cpu, nodes, leaves, query, hits, stats)
+            avx2::closest_rays::<N, B, P, S, F>(cpu, nodes, leaves, query, hits, stats, filter)
         },
-        _ => closest_rays::<N, f32x8, B, P, S>((), nodes, leaves, query, hits, stats),
+        _ => closest_rays::<N, f32x8, B, P, S, F>((), nodes, leaves, query, hits, stats, filter),
     }
 }
 
 /// [`any_rays`] on `kernels`' lanes (see [`closest_rays_on`]).
 #[inline]
-pub(crate) fn any_rays_on<N: PacketNode, B: BoxTest, P: Primitive, S: Stats>(
+pub(crate) fn any_rays_on<N: PacketNode, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
     kernels: Kernels,
     nodes: &[N],
     leaves: &Leaves<P>,
     query: PacketQuery<'_>,
     occluded: &mut [bool],
     stats: &mut S,
+    filter: &mut F,
 ) {
     match kernels {
         #[cfg(target_arch = "x86_64")]
         // SAFETY: as in `closest_rays_on`.
         Kernels::Avx2(cpu) => unsafe {
-            avx2::any_rays::<N, B, P, S>(cpu, nodes, leaves, query, occluded, stats)
+            avx2::any_rays::<N, B, P, S, F>(cpu, nodes, leaves, query, occluded, stats, filter)
         },
-        _ => any_rays::<N, f32x8, B, P, S>((), nodes, leaves, query, occluded, stats),
+        _ => any_rays::<N, f32x8, B, P, S, F>((), nodes, leaves, query, occluded, stats, filter),
     }
 }
 
@@ -282,28 +301,42 @@ mod avx2 {
     /// # Safety
     /// The CPU must support AVX2 and FMA (as `cpu` proves).
     #[target_feature(enable = "avx2,fma")]
-    pub(super) unsafe fn closest_rays<N: PacketNode, B: BoxTest, P: Primitive, S: Stats>(
+    pub(super) unsafe fn closest_rays<
+        N: PacketNode,
+        B: BoxTest,
+        P: Primitive,
+        S: Stats,
+        F: Filter<Hit>,
+    >(
         cpu: Avx2Cpu,
         nodes: &[N],
         leaves: &Leaves<P>,
         query: PacketQuery<'_>,
         hits: &mut [Option<Hit>],
         stats: &mut S,
+        filter: &mut F,
     ) {
-        super::closest_rays::<N, Avx, B, P, S>(cpu, nodes, leaves, query, hits, stats)
+        super::closest_rays::<N, Avx, B, P, S, F>(cpu, nodes, leaves, query, hits, stats, filter)
     }
 
     /// # Safety
     /// The CPU must support AVX2 and FMA (as `cpu` proves).
     #[target_feature(enable = "avx2,fma")]
-    pub(super) unsafe fn any_rays<N: PacketNode, B: BoxTest, P: Primitive, S: Stats>(
+    pub(super) unsafe fn any_rays<
+        N: PacketNode,
+        B: BoxTest,
+        P: Primitive,
+        S: Stats,
+        F: Filter<Hit>,
+    >(
         cpu: Avx2Cpu,
         nodes: &[N],
         leaves: &Leaves<P>,
         query: PacketQuery<'_>,
         occluded: &mut [bool],
         stats: &mut S,
+        filter: &mut F,
     ) {
-        super::any_rays::<N, Avx, B, P, S>(cpu, nodes, leaves, query, occluded, stats)
+        super::any_rays::<N, Avx, B, P, S, F>(cpu, nodes, leaves, query, occluded, stats, filter)
     }
 }
