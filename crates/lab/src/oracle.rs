@@ -234,7 +234,7 @@ impl Crossing {
 
 /// The signed-volume test (see the module doc). `None` when the line is parallel to the plane
 /// or the triangle has no area.
-fn crossing(tri: &Tri, line: &Line) -> Option<Crossing> {
+fn crossing(tri: &Tri, line: &Line, slack: f64) -> Option<Crossing> {
     let [a, b, c] = tri.v.map(|p| p - line.o);
     let bc = b.cross(c);
     let w0 = line.d.dot(bc);
@@ -250,7 +250,7 @@ fn crossing(tri: &Tri, line: &Line) -> Option<Crossing> {
     let dist = a.length().max(b.length()).max(c.length());
     let kappa = dist * tri.longest / (tri.n_len * cos);
     let q = tri.longest * tri.longest / tri.n_len;
-    let t_tol = T_K * UNIT_ROUNDOFF * (t.abs() + tri.longest / line.d_len) * q / cos;
+    let t_tol = slack * T_K * UNIT_ROUNDOFF * (t.abs() + tri.longest / line.d_len) * q / cos;
     // An f32 test forms products of up to three of these lengths (the fast test's normal
     // `L²`, `n·d`, `d×c`, `n·c`; the watertight test's edge functions and scaled distance);
     // beyond f32's range they overflow or flush to zero and no rounding model holds: any
@@ -267,7 +267,7 @@ fn crossing(tri: &Tri, line: &Line) -> Option<Crossing> {
     .iter()
     .all(|m| (F32_PRODUCTS.recip()..=F32_PRODUCTS).contains(m));
     let uv_tol = if in_f32 {
-        BARY_K * UNIT_ROUNDOFF * kappa
+        slack * BARY_K * UNIT_ROUNDOFF * kappa
     } else {
         f64::INFINITY
     };
@@ -451,12 +451,34 @@ impl Answer {
 pub struct Oracle {
     tris: Vec<Tri>,
     groups: Vec<Group>,
+    /// The factor the f32 bands are widened by (1 for a kernel that tests these very
+    /// triangles).
+    slack: f64,
 }
 
 impl Oracle {
     /// Prepares `tris`: f64 copies in Morton order of their centroids, in groups of 32 with
     /// bounding spheres.
     pub fn new(tris: &[Triangle]) -> Oracle {
+        Oracle::with_slack(tris, 1.0)
+    }
+
+    /// [`Oracle::new`] for a kernel whose arithmetic rounds `slack` times as much as an f32
+    /// test of these triangles: every band (`t_tol`, `uv_tol`) widened by that factor. For an
+    /// instanced scene judged against its flattened triangles: the kernel tests each
+    /// instance's object-space triangles with the ray brought there by the inverse transform,
+    /// and both that ray and the flattened triangles carry the transforms' rounding.
+    ///
+    /// ```
+    /// use glam::Vec3A;
+    /// use quiver::{Ray, Triangle};
+    /// use quiver_lab::oracle::Oracle;
+    /// let tri = [Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y)];
+    /// let ray = Ray::new(Vec3A::new(0.25, 0.25, 1.0), -Vec3A::Z);
+    /// let (one, four) = (Oracle::new(&tri).closest_hit(&ray), Oracle::with_slack(&tri, 4.0).closest_hit(&ray));
+    /// assert_eq!(four.hit.unwrap().t_tol, 4.0 * one.hit.unwrap().t_tol);
+    /// ```
+    pub fn with_slack(tris: &[Triangle], slack: f64) -> Oracle {
         let mut tris: Vec<Tri> = tris
             .iter()
             .enumerate()
@@ -493,7 +515,11 @@ impl Oracle {
                 }
             })
             .collect();
-        Oracle { tris, groups }
+        Oracle {
+            tris,
+            groups,
+            slack,
+        }
     }
 
     /// The verdict on one ray (see the module doc).
@@ -518,7 +544,7 @@ impl Oracle {
                 continue;
             }
             for tri in &self.tris[g.start..g.end] {
-                Self::visit(tri, &line, &mut found);
+                Self::visit(tri, &line, self.slack, &mut found);
             }
         }
         judge(&line, found)
@@ -531,8 +557,8 @@ impl Oracle {
 
     /// Adds the triangle's crossing to `found` when an f32 test might report it: inside or
     /// within its band, within its tolerance of the interval, or grazed near the ray.
-    fn visit(tri: &Tri, line: &Line, found: &mut Vec<Crossing>) {
-        let x = crossing(tri, line);
+    fn visit(tri: &Tri, line: &Line, slack: f64, found: &mut Vec<Crossing>) {
+        let x = crossing(tri, line, slack);
         // Where the barycentrics are known to within the triangle's size, they decide. The
         // line must also pass near the triangle's grown sphere, which lies inside its group's:
         // then the group cull drops nothing this accepts. (Within BAND_CAP the crossing lies

@@ -55,6 +55,7 @@ mod rng;
 #[cfg(test)]
 mod testing;
 pub mod traverse;
+pub mod world;
 
 pub use bvh::{BuildOptions, Bvh};
 pub use geometry::{Aabb, Hit, PrimHit, Ray, Triangle};
@@ -66,3 +67,4 @@ pub use layout::{
 pub use mesh::MeshError;
 pub use primitive::{LeafFormat, Primitive};
 pub use traverse::{reference, RayQuery};
+pub use world::{Geometry, GeometryId, Instance, World, WorldBuilder, WorldError, WorldHit};

@@ -18,3 +18,4 @@ mod predict;
 mod render;
 mod scale;
 mod scenes;
+mod world;

@@ -162,6 +162,23 @@ pub trait Primitive: Clone + Send + Sync {
     fn surface_area(&self) -> f32 {
         self.bounds().half_area()
     }
+    /// The geometric normal at `at` (the hit point, in the primitive's own space), where the
+    /// ray's `hit` was found: any length, on the side the primitive faces. The default is the
+    /// face normal of [`Primitive::triangle`] (`(v1 - v0) × (v2 - v0)`), and `None` for a type
+    /// without one.
+    ///
+    /// ```
+    /// use quiver::{PrimHit, Primitive, Triangle};
+    /// use glam::Vec3A;
+    /// let t = Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y);
+    /// let h = PrimHit { t: 1.0, u: 0.2, v: 0.2 };
+    /// assert_eq!(t.geometric_normal(Vec3A::new(0.2, 0.2, 0.0), &h), Some(Vec3A::Z));
+    /// ```
+    fn geometric_normal(&self, at: Vec3A, hit: &PrimHit) -> Option<Vec3A> {
+        let _ = (at, hit);
+        let t = self.triangle()?;
+        Some((t.v[1] - t.v[0]).cross(t.v[2] - t.v[0]))
+    }
     /// True when every coordinate is finite; others are invisible (builds drop them).
     fn is_finite(&self) -> bool {
         self.bounds().is_finite()

@@ -77,7 +77,7 @@ impl<V: F8> Ray8<V> {
 /// visit hit children nearest first (closest hit) or in slot order (any hit, which stops at
 /// the first hit and gains nothing from sorting).
 #[inline(always)]
-fn walk<V, B, S, F, const ORDERED: bool>(
+pub(crate) fn walk<V, B, S, F, const ORDERED: bool>(
     nodes: &[Bvh8Node],
     ray: &Ray8<V>,
     root: usize,

@@ -12,8 +12,8 @@
 
 mod bvh2;
 mod bvh4;
-mod bvh8;
-mod lane8;
+pub(crate) mod bvh8;
+pub(crate) mod lane8;
 mod leaves;
 pub mod packet;
 pub(crate) mod query;

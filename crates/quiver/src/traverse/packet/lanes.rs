@@ -174,8 +174,8 @@ pub(crate) struct RayPacket {
     /// All bits set where the reciprocal direction is negative (a select mask).
     neg: [Lanes; 3],
     /// Bit `i`: ray `i` is still searching.
-    pub(super) active: u64,
-    pub(super) bound: Bound,
+    pub(crate) active: u64,
+    pub(crate) bound: Bound,
     /// Leaves visited, and rays tested in them: how well the packet holds together.
     leaf_visits: u32,
     leaf_rays: u32,
@@ -190,7 +190,7 @@ impl RayPacket {
     /// coherent packet's time). Each lane holds exactly what the single-ray kernels compute
     /// for its ray ([`slab_reciprocal`]'s values, bit for bit).
     #[inline(always)]
-    pub(super) fn new(rays: &[Ray], active: u64) -> RayPacket {
+    pub(crate) fn new(rays: &[Ray], active: u64) -> RayPacket {
         debug_assert!(rays.len() <= PACKET_RAYS);
         let zero = [f32x8::ZERO; CHUNKS];
         let mut p = RayPacket {
@@ -247,7 +247,7 @@ impl RayPacket {
 
     /// Ray `i`'s search limit.
     #[inline(always)]
-    pub(super) fn limit(&self, i: usize) -> f32 {
+    pub(crate) fn limit(&self, i: usize) -> f32 {
         self.rays.limit(i)
     }
 
@@ -259,7 +259,7 @@ impl RayPacket {
 
     /// Lowers the bound's `t_max` after hits shortened some rays.
     #[inline(always)]
-    pub(super) fn refresh_limit_bound(&mut self) {
+    pub(crate) fn refresh_limit_bound(&mut self) {
         let mut m = f32x8::NEG_INFINITY;
         for &l in &self.rays.limit {
             m = m.fast_max(l);
@@ -273,7 +273,7 @@ impl RayPacket {
 
     /// Ray `i` prepared for a node format's test of all its children.
     #[inline(always)]
-    pub(super) fn first<N: PacketNode, V: F8>(&self, cpu: V::Cpu, i: usize) -> N::First<V> {
+    pub(crate) fn first<N: PacketNode, V: F8>(&self, cpu: V::Cpu, i: usize) -> N::First<V> {
         let (o, inv) = (&self.rays.o, &self.inv);
         N::first::<V>(
             cpu,
@@ -306,7 +306,7 @@ impl RayPacket {
 
     /// The first active ray of `mask` that enters `b`, with its entry distance.
     #[inline(always)]
-    pub(super) fn find_first<V: F8, B: BoxTest>(
+    pub(crate) fn find_first<V: F8, B: BoxTest>(
         &self,
         cpu: V::Cpu,
         b: &[f32; 6],
@@ -325,7 +325,7 @@ impl RayPacket {
 
     /// The active rays of `mask` that enter `b`, and the entry distance of the first.
     #[inline(always)]
-    pub(super) fn enter_all<V: F8, B: BoxTest>(
+    pub(crate) fn enter_all<V: F8, B: BoxTest>(
         &self,
         cpu: V::Cpu,
         b: &[f32; 6],
@@ -346,7 +346,7 @@ impl RayPacket {
     /// The active rays of `mask` that enter leaf box `b`, counted toward the packet's
     /// coherence record ([`RayPacket::came_apart`]).
     #[inline(always)]
-    pub(super) fn entering<V: F8, B: BoxTest>(
+    pub(crate) fn entering<V: F8, B: BoxTest>(
         &mut self,
         cpu: V::Cpu,
         b: &[f32; 6],
@@ -364,14 +364,14 @@ impl RayPacket {
     /// True once the packet has shown, over enough leaves, that its rays go separate ways:
     /// so few rays share each leaf that the packet's searches cost more than they share.
     #[inline(always)]
-    pub(super) fn came_apart(&self) -> bool {
+    pub(crate) fn came_apart(&self) -> bool {
         self.leaf_visits >= PROBATION_LEAVES
             && self.leaf_rays < MIN_RAYS_PER_LEAF * self.leaf_visits
     }
 
     /// Retires ray `i`: it takes part in no further test.
     #[inline(always)]
-    pub(super) fn retire(&mut self, i: usize) {
+    pub(crate) fn retire(&mut self, i: usize) {
         self.active &= !(1 << i);
         self.rays.set_limit(i, f32::NEG_INFINITY);
     }

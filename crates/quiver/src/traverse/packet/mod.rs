@@ -33,7 +33,9 @@ mod node;
 mod query;
 mod walk;
 
+pub(crate) use lanes::RayPacket;
 pub(crate) use query::{any_rays_on, closest_rays_on};
+pub(crate) use walk::{walk, AloneIn, Visit};
 
 use crate::geometry::Ray;
 pub use crate::primitive::PACKET_RAYS;

@@ -42,7 +42,7 @@ fn above(i: usize) -> u64 {
 }
 
 /// What the packet walk hands its caller.
-pub(super) enum Visit<'b> {
+pub(crate) enum Visit<'b> {
     /// A leaf's primitives, for the active rays of the mask that enter the box.
     Leaf(Range<usize>, &'b [f32; 6], u64),
     /// One ray alone, from its current limit, after the packet came apart.
@@ -50,7 +50,7 @@ pub(super) enum Visit<'b> {
 }
 
 /// Where a ray continues alone.
-pub(super) enum AloneIn {
+pub(crate) enum AloneIn {
     Leaf(Range<usize>),
     Inner(usize),
 }
@@ -65,7 +65,7 @@ pub(super) enum AloneIn {
 /// When the packet comes apart ([`RayPacket::came_apart`]), each remaining ray finishes the
 /// stacked subtrees alone with the single-ray walk.
 #[inline(always)]
-pub(super) fn walk<N, V, B, S, F>(
+pub(crate) fn walk<N, V, B, S, F>(
     cpu: V::Cpu,
     nodes: &[N],
     pk: &mut RayPacket,

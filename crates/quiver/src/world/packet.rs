@@ -1,0 +1,410 @@
+//! A world's packet queries: a coherent packet walks the top level as one (the packet walk of
+//! `traverse::packet` over the top level's 8-wide nodes), and at each instance leaf the rays
+//! that enter it and see it go into object space together, transformed in SIMD lanes, and on
+//! into the instance's geometry as one packet. Packets that come apart, and incoherent ones,
+//! go on ray by ray through the single-ray walk.
+
+use super::query::InInstance;
+use super::{Placed, World, WorldHit};
+use crate::geometry::{Hit, Ray};
+use crate::isa::Kernels;
+use crate::layout::Bvh8Node;
+use crate::primitive::{Primitive, CHUNKS, LANES, PACKET_RAYS};
+use crate::traverse::lane8::F8;
+use crate::traverse::packet::{each_packet, walk, AloneIn, PacketMode, RayPacket, Visit};
+use crate::traverse::simd::bits;
+use crate::traverse::{BoxTest, Filter, PacketQuery, RayQuery, Stats};
+use glam::Vec3A;
+use wide::f32x8;
+
+/// The rays of one packet that see instance `p`: those of `live` whose mask shares a bit with
+/// the instance's. `uniform` is the packet's mask when every ray has the same one.
+#[inline(always)]
+fn seeing(rays: &[Ray], live: u64, uniform: Option<u32>, p: &Placed) -> u64 {
+    match uniform {
+        Some(m) if m & p.mask != 0 => live,
+        Some(_) => 0,
+        None => bits(live)
+            .filter(|&i| rays[i].mask & p.mask != 0)
+            .fold(0, |m, i| m | 1 << i),
+    }
+}
+
+/// The mask every ray of `rays` shares, if they all share one.
+fn uniform_mask(rays: &[Ray]) -> Option<u32> {
+    let m = rays.first()?.mask;
+    rays.iter().all(|r| r.mask == m).then_some(m)
+}
+
+/// The rays `m` of packet `pk` in instance `p`'s object space, each searching up to its
+/// `limit`: the packet's origin and direction lanes transformed eight at a time, then laid
+/// out as rays for the geometry's packet query. Rays outside `m` are left as they are.
+#[inline(always)]
+fn to_object(
+    p: &Placed,
+    pk: &RayPacket,
+    rays: &[Ray],
+    m: u64,
+    limit: impl Fn(usize) -> f32,
+    out: &mut [Ray],
+) {
+    let lin = p.world_to_object.matrix3;
+    let tr = p.world_to_object.translation;
+    let col = |c: Vec3A| [f32x8::splat(c.x), f32x8::splat(c.y), f32x8::splat(c.z)];
+    let (cx, cy, cz, t) = (col(lin.x_axis), col(lin.y_axis), col(lin.z_axis), col(tr));
+    for k in 0..CHUNKS {
+        let lanes = (m >> (LANES * k)) as u32 & 0xFF;
+        if lanes == 0 {
+            continue;
+        }
+        let (o, d) = (&pk.rays.o, &pk.rays.d);
+        let (ox, oy, oz) = (o[0][k], o[1][k], o[2][k]);
+        let (dx, dy, dz) = (d[0][k], d[1][k], d[2][k]);
+        // The arithmetic of glam's `transform_point3a` / `transform_vector3a`, lane-wise:
+        // x·col0 + y·col1 + z·col2 (+ translation), so every ray is transformed as the
+        // single-ray walk transforms it.
+        let mut lo = [f32x8::ZERO; 3];
+        let mut ld = [f32x8::ZERO; 3];
+        for a in 0..3 {
+            lo[a] = cx[a] * ox + cy[a] * oy + cz[a] * oz + t[a];
+            ld[a] = cx[a] * dx + cy[a] * dy + cz[a] * dz;
+        }
+        let (lo, ld) = (lo.map(|v| v.to_array()), ld.map(|v| v.to_array()));
+        for l in bits(lanes) {
+            let i = LANES * k + l;
+            out[i] = Ray {
+                origin: Vec3A::new(lo[0][l], lo[1][l], lo[2][l]),
+                dir: Vec3A::new(ld[0][l], ld[1][l], ld[2][l]),
+                t_max: limit(i),
+                ..rays[i]
+            };
+        }
+    }
+}
+
+/// The rays of `m` as the geometry's packet query takes them, with their flags.
+#[inline(always)]
+fn local_rays(
+    p: &Placed,
+    pk: &RayPacket,
+    rays: &[Ray],
+    m: u64,
+    limit: impl Fn(usize) -> f32,
+    out: &mut [Ray],
+) {
+    if p.identity {
+        for i in bits(m) {
+            out[i] = Ray {
+                t_max: limit(i),
+                ..rays[i]
+            };
+        }
+    } else {
+        to_object(p, pk, rays, m, limit, out);
+    }
+}
+
+/// Flags for the rays of `m` among the first `n`.
+#[inline(always)]
+fn flags(m: u64, n: usize, out: &mut [bool; PACKET_RAYS]) {
+    for (i, f) in out.iter_mut().enumerate().take(n) {
+        *f = m >> i & 1 == 1;
+    }
+}
+
+impl<P: Primitive> World<P> {
+    /// Closest hits of one packet into `best`, on lanes of `V`.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn closest_packet<V: F8, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
+        &self,
+        cpu: V::Cpu,
+        rays: &[Ray],
+        pk: &mut RayPacket,
+        best: &mut [WorldHit; PACKET_RAYS],
+        stats: &mut S,
+        filter: &mut F,
+    ) {
+        let top = &self.top;
+        let uniform = uniform_mask(rays);
+        let n = rays.len();
+        let mut local = [Ray::new(Vec3A::ZERO, Vec3A::ZERO); PACKET_RAYS];
+        let mut active = [false; PACKET_RAYS];
+        let mut found: [Option<Hit>; PACKET_RAYS] = [None; PACKET_RAYS];
+        walk::<Bvh8Node, V, B, S, _>(
+            cpu,
+            &top.nodes,
+            pk,
+            stats,
+            |_| {},
+            |pk, visit, stats| {
+                match visit {
+                    Visit::Leaf(range, b, cand) => {
+                        let live = pk.entering::<V, B>(cpu, b, cand);
+                        stats.prims(range.len() as u32);
+                        for p in &top.prims[range] {
+                            let m = seeing(rays, live & pk.active, uniform, p);
+                            if m == 0 {
+                                continue;
+                            }
+                            local_rays(p, pk, rays, m, |i| best[i].t, &mut local);
+                            flags(m, n, &mut active);
+                            let mut f = InInstance {
+                                filter: &mut *filter,
+                                instance: p.instance,
+                                geometry: p.geometry,
+                            };
+                            let query = PacketQuery::new(&local[..n])
+                                .active(&active[..n])
+                                .mode(PacketMode::Always);
+                            self.geometries[p.geometry as usize]
+                                .closest_hit_packet_with::<B, S, _>(
+                                    query,
+                                    &mut found[..n],
+                                    stats,
+                                    &mut f,
+                                );
+                            for i in bits(m) {
+                                if let Some(h) = found[i] {
+                                    if best[i].is_beaten_by(h.t, p.instance) {
+                                        best[i] = f.hit(&h);
+                                        pk.set_limit(i, best[i].t);
+                                    }
+                                }
+                            }
+                        }
+                        pk.refresh_limit_bound();
+                    }
+                    Visit::Alone(i, at) => {
+                        let ray = &rays[i];
+                        match at {
+                            AloneIn::Leaf(r) => {
+                                for p in &top.prims[r] {
+                                    self.closest_in::<B, S, F>(p, ray, &mut best[i], stats, filter);
+                                }
+                            }
+                            AloneIn::Inner(node) => self.closest_from::<V, B, S, F>(
+                                cpu,
+                                ray,
+                                node,
+                                &mut best[i],
+                                stats,
+                                filter,
+                            ),
+                        }
+                        pk.set_limit(i, best[i].t);
+                    }
+                }
+                false
+            },
+        );
+    }
+
+    /// Any-hit answers of one packet into `hit`, on lanes of `V`.
+    #[inline(always)]
+    fn any_packet<V: F8, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
+        &self,
+        cpu: V::Cpu,
+        rays: &[Ray],
+        pk: &mut RayPacket,
+        hit: &mut [bool],
+        stats: &mut S,
+        filter: &mut F,
+    ) {
+        let top = &self.top;
+        let uniform = uniform_mask(rays);
+        let n = rays.len();
+        let mut local = [Ray::new(Vec3A::ZERO, Vec3A::ZERO); PACKET_RAYS];
+        let mut active = [false; PACKET_RAYS];
+        let mut blocked = [false; PACKET_RAYS];
+        walk::<Bvh8Node, V, B, S, _>(
+            cpu,
+            &top.nodes,
+            pk,
+            stats,
+            |_| {},
+            |pk, visit, stats| {
+                match visit {
+                    Visit::Leaf(range, b, cand) => {
+                        let live = pk.entering::<V, B>(cpu, b, cand);
+                        stats.prims(range.len() as u32);
+                        for p in &top.prims[range] {
+                            let m = seeing(rays, live & pk.active, uniform, p);
+                            if m == 0 {
+                                continue;
+                            }
+                            local_rays(p, pk, rays, m, |i| rays[i].t_max, &mut local);
+                            flags(m, n, &mut active);
+                            let mut f = InInstance {
+                                filter: &mut *filter,
+                                instance: p.instance,
+                                geometry: p.geometry,
+                            };
+                            let query = PacketQuery::new(&local[..n])
+                                .active(&active[..n])
+                                .mode(PacketMode::Always);
+                            self.geometries[p.geometry as usize].any_hit_packet_with::<B, S, _>(
+                                query,
+                                &mut blocked[..n],
+                                stats,
+                                &mut f,
+                            );
+                            for i in bits(m) {
+                                if blocked[i] {
+                                    hit[i] = true;
+                                    pk.retire(i);
+                                }
+                            }
+                        }
+                    }
+                    Visit::Alone(i, at) => {
+                        let ray = &rays[i];
+                        let found = match at {
+                            AloneIn::Leaf(r) => top.prims[r]
+                                .iter()
+                                .any(|p| self.any_in::<B, S, F>(p, ray, stats, filter)),
+                            AloneIn::Inner(node) => {
+                                self.any_from::<V, B, S, F>(cpu, ray, node, stats, filter)
+                            }
+                        };
+                        if found {
+                            hit[i] = true;
+                            pk.retire(i);
+                        }
+                    }
+                }
+                pk.active == 0
+            },
+        );
+    }
+
+    fn closest_rays_on<V: F8, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
+        &self,
+        cpu: V::Cpu,
+        query: PacketQuery<'_>,
+        hits: &mut [Option<WorldHit>],
+        stats: &mut S,
+        filter: &mut F,
+    ) {
+        let walkable = !self.top.prims.is_empty();
+        each_packet(query, hits, |rays, on, packet, hits| {
+            hits.fill(None);
+            if !walkable {
+                return;
+            }
+            if packet {
+                let mut pk = RayPacket::new(rays, on);
+                let mut best = [WorldHit::none(0.0); PACKET_RAYS];
+                for (b, r) in best.iter_mut().zip(rays) {
+                    *b = WorldHit::none(r.t_max);
+                }
+                self.closest_packet::<V, B, S, F>(cpu, rays, &mut pk, &mut best, stats, filter);
+                for i in bits(on) {
+                    hits[i] = best[i].found();
+                }
+            } else {
+                for i in bits(on) {
+                    let mut best = WorldHit::none(rays[i].t_max);
+                    self.closest_from::<V, B, S, F>(cpu, &rays[i], 0, &mut best, stats, filter);
+                    hits[i] = best.found();
+                }
+            }
+        });
+    }
+
+    fn any_rays_on<V: F8, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
+        &self,
+        cpu: V::Cpu,
+        query: PacketQuery<'_>,
+        occluded: &mut [bool],
+        stats: &mut S,
+        filter: &mut F,
+    ) {
+        let walkable = !self.top.prims.is_empty();
+        each_packet(query, occluded, |rays, on, packet, out| {
+            out.fill(false);
+            if !walkable {
+                return;
+            }
+            if packet {
+                let mut pk = RayPacket::new(rays, on);
+                self.any_packet::<V, B, S, F>(cpu, rays, &mut pk, out, stats, filter);
+            } else {
+                for i in bits(on) {
+                    out[i] = self.any_from::<V, B, S, F>(cpu, &rays[i], 0, stats, filter);
+                }
+            }
+        });
+    }
+}
+
+/// A world's closest-hit packet query on its top level's lanes.
+pub(super) fn closest_rays<P: Primitive, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
+    world: &World<P>,
+    query: PacketQuery<'_>,
+    hits: &mut [Option<WorldHit>],
+    stats: &mut S,
+    filter: &mut F,
+) {
+    match world.top.kernels {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: `cpu` proves the CPU has AVX2 and FMA (only detection makes one).
+        Kernels::Avx2(cpu) => unsafe {
+            avx2::closest_rays::<P, B, S, F>(world, cpu, query, hits, stats, filter)
+        },
+        _ => world.closest_rays_on::<f32x8, B, S, F>((), query, hits, stats, filter),
+    }
+}
+
+/// A world's any-hit packet query on its top level's lanes.
+pub(super) fn any_rays<P: Primitive, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
+    world: &World<P>,
+    query: PacketQuery<'_>,
+    occluded: &mut [bool],
+    stats: &mut S,
+    filter: &mut F,
+) {
+    match world.top.kernels {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: as above.
+        Kernels::Avx2(cpu) => unsafe {
+            avx2::any_rays::<P, B, S, F>(world, cpu, query, occluded, stats, filter)
+        },
+        _ => world.any_rays_on::<f32x8, B, S, F>((), query, occluded, stats, filter),
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+mod avx2 {
+    use super::*;
+    use crate::isa::Avx2Cpu;
+    use crate::traverse::lane8::Avx;
+
+    /// # Safety
+    /// The CPU must support AVX2 and FMA (as `cpu` proves).
+    #[target_feature(enable = "avx2,fma")]
+    pub(super) unsafe fn closest_rays<P: Primitive, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
+        world: &World<P>,
+        cpu: Avx2Cpu,
+        query: PacketQuery<'_>,
+        hits: &mut [Option<WorldHit>],
+        stats: &mut S,
+        filter: &mut F,
+    ) {
+        world.closest_rays_on::<Avx, B, S, F>(cpu, query, hits, stats, filter)
+    }
+
+    /// # Safety
+    /// The CPU must support AVX2 and FMA (as `cpu` proves).
+    #[target_feature(enable = "avx2,fma")]
+    pub(super) unsafe fn any_rays<P: Primitive, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
+        world: &World<P>,
+        cpu: Avx2Cpu,
+        query: PacketQuery<'_>,
+        occluded: &mut [bool],
+        stats: &mut S,
+        filter: &mut F,
+    ) {
+        world.any_rays_on::<Avx, B, S, F>(cpu, query, occluded, stats, filter)
+    }
+}
