@@ -611,7 +611,7 @@ impl Oracle {
         let line = Line::new(ray);
         let mut found = Vec::new();
         for tri in &self.tris {
-            Self::visit(tri, &line, &mut found);
+            Self::visit(tri, &line, self.slack, &mut found);
         }
         judge(&line, found)
     }
