@@ -103,6 +103,11 @@ pub fn parse_with(
             None => {}
             Some(k @ ("o" | "g")) => {
                 let named = words.collect::<Vec<_>>().join(" ");
+                let named = if named.is_empty() {
+                    "default".to_string()
+                } else {
+                    named
+                };
                 let name = if k == "o" {
                     object_name = Some(named.clone());
                     named
