@@ -12,6 +12,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <new>
+#include <vector>
 
 namespace {
 
@@ -46,6 +47,23 @@ void* build(const float* vertices, uint32_t tris) {
     if (bvh == nullptr) return nullptr;
     bvh->Build(reinterpret_cast<const tinybvh::bvhvec4*>(vertices), tris);
     return bvh;
+}
+
+// Levels of inner nodes on the deepest root-to-leaf path of a wide BVH (a root leaf: 0).
+template <int M>
+uint32_t depth(const tinybvh::MBVH<M>& bvh) {
+    if (bvh.usedNodes == 0) return 0;
+    std::vector<std::pair<uint32_t, uint32_t>> todo{{0, 0}};
+    uint32_t deepest = 0;
+    while (!todo.empty()) {
+        auto [node, d] = todo.back();
+        todo.pop_back();
+        const auto& n = bvh.mbvhNode[node];
+        if (n.isLeaf()) continue;
+        if (d + 1 > deepest) deepest = d + 1;
+        for (uint32_t i = 0; i < n.childCount && i < uint32_t(M); i++) todo.push_back({n.child[i], d + 1});
+    }
+    return deepest;
 }
 
 template <class B>
@@ -84,6 +102,10 @@ void quiver_tinybvh8_bytes(const void* bvh, uint64_t* used, uint64_t* allocated)
     *allocated = uint64_t(b->allocatedBlocks) * 64;
 }
 
+uint32_t quiver_tinybvh8_depth(const void* bvh) {
+    return depth(static_cast<const tinybvh::BVH8_CPU*>(bvh)->bvh8);
+}
+
 void* quiver_tinybvh4_build(const float* vertices, uint32_t tris) {
     return build<tinybvh::BVH4_CPU>(vertices, tris);
 }
@@ -98,6 +120,10 @@ void quiver_tinybvh4_bytes(const void* bvh, uint64_t* used, uint64_t* allocated)
     const tinybvh::BVH4_CPU* b = static_cast<const tinybvh::BVH4_CPU*>(bvh);
     *used = uint64_t(b->usedBlocks) * 64;
     *allocated = uint64_t(b->allocatedBlocks) * 64;
+}
+
+uint32_t quiver_tinybvh4_depth(const void* bvh) {
+    return depth(static_cast<const tinybvh::BVH4_CPU*>(bvh)->bvh4);
 }
 
 }  // extern "C"

@@ -14,7 +14,7 @@
 //! use quiver::{Ray, Triangle};
 //! use quiver_lab::tinybvh::{TinyBvh, TinyLayout};
 //! let tris = [Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y)];
-//! let bvh = TinyBvh::new(&tris, TinyLayout::Bvh8Cpu);
+//! let bvh = TinyBvh::new(&tris, TinyLayout::Bvh8Cpu).unwrap();
 //! let ray = Ray::new(Vec3A::new(0.25, 0.25, 1.0), -Vec3A::Z);
 //! assert_eq!(bvh.closest_hit(&ray), Some((0, 1.0))); // (triangle index, t)
 //! assert!(bvh.any_hit(&ray));
@@ -62,6 +62,8 @@ extern "C" {
     ) -> i32;
     fn quiver_tinybvh8_occluded(bvh: *const c_void, ray: *const ShimRay) -> i32;
     fn quiver_tinybvh8_bytes(bvh: *const c_void, used: *mut u64, allocated: *mut u64);
+    fn quiver_tinybvh8_depth(bvh: *const c_void) -> u32;
+    fn quiver_tinybvh4_depth(bvh: *const c_void) -> u32;
     fn quiver_tinybvh4_build(vertices: *const f32, tris: u32) -> *mut c_void;
     fn quiver_tinybvh4_free(bvh: *mut c_void);
     fn quiver_tinybvh4_intersect(
@@ -84,6 +86,14 @@ pub enum TinyLayout {
 }
 
 impl TinyLayout {
+    /// Children per node.
+    pub fn width(self) -> u32 {
+        match self {
+            TinyLayout::Bvh8Cpu => 8,
+            TinyLayout::Bvh4Cpu => 4,
+        }
+    }
+
     /// tinybvh's class name.
     pub fn name(self) -> &'static str {
         match self {
@@ -95,6 +105,10 @@ impl TinyLayout {
 
 /// tinybvh's far value: its "no hit yet" distance, and the longest ray it is handed.
 const FAR: f32 = 1e30;
+
+/// Entries of the fixed node stack in tinybvh's `BVH8_CPU` and `BVH4_CPU` walks, which do
+/// not check it: a ray that needs more overwrites the walk's own stack frame.
+const STACK: u32 = 256;
 
 /// A tinybvh BVH over triangles; primitive IDs are indices into the slice it was built from.
 pub struct TinyBvh {
@@ -129,11 +143,14 @@ impl Drop for TinyBvh {
 impl TinyBvh {
     /// Builds `layout` over the finite ones of `tris` with tinybvh's default builder (binned
     /// SAH on its own threads, all hardware threads above 50,000 triangles; not the rayon
-    /// pool).
+    /// pool). An error when the tree is so deep that a ray could overflow the walk's fixed
+    /// 256-entry stack (each inner level may push `width − 1` entries and the last a full
+    /// node's `width`), which tinybvh does not check and which would corrupt memory: SPD's
+    /// tetra10 is such a tree.
     ///
     /// # Panics
     /// If there are more than `u32::MAX / 3` triangles, or tinybvh cannot allocate.
-    pub fn new(tris: &[Triangle], layout: TinyLayout) -> TinyBvh {
+    pub fn new(tris: &[Triangle], layout: TinyLayout) -> Result<TinyBvh, String> {
         let ids: Vec<u32> = (0..tris.len() as u32)
             .filter(|&i| tris[i as usize].v.iter().all(|p| p.is_finite()))
             .collect();
@@ -162,11 +179,37 @@ impl TinyBvh {
             assert!(!raw.is_null(), "tinybvh: out of memory");
             raw
         };
-        TinyBvh {
+        let bvh = TinyBvh {
             raw,
             layout,
             ids,
             _vertices: vertices,
+        };
+        let depth = bvh.depth();
+        let w = layout.width();
+        let need = (w - 1) * depth.saturating_sub(1) + w;
+        if need > STACK {
+            return Err(format!(
+                "tinybvh {}: the tree is {depth} levels deep, so a ray may need {need} stack \
+                 entries, and tinybvh's walk has {STACK} and does not check them",
+                layout.name()
+            ));
+        }
+        Ok(bvh)
+    }
+
+    /// Levels of inner nodes on the deepest path of the wide tree (0 for none or a root
+    /// leaf).
+    pub fn depth(&self) -> u32 {
+        if self.raw.is_null() {
+            return 0;
+        }
+        // SAFETY: `raw` is a live BVH of this layout.
+        unsafe {
+            match self.layout {
+                TinyLayout::Bvh8Cpu => quiver_tinybvh8_depth(self.raw),
+                TinyLayout::Bvh4Cpu => quiver_tinybvh4_depth(self.raw),
+            }
         }
     }
 
@@ -296,7 +339,8 @@ mod tests {
     fn check_scene(name: &str, layout: TinyLayout) {
         let s = Scene::load(name).unwrap();
         let tris = s.triangles();
-        let bvh = TinyBvh::new(&tris, layout);
+        let bvh = TinyBvh::new(&tris, layout).unwrap();
+        println!("{name} {}: depth {}", layout.name(), bvh.depth());
         let camera = rays::camera_rays(&s.camera, 128);
         let mut lights: Vec<_> = s.lights.iter().map(|l| l.pos).collect();
         lights.push(s.camera.from);
@@ -340,11 +384,26 @@ mod tests {
     }
 
     #[test]
+    fn tinybvh_refuses_trees_deeper_than_its_stack() {
+        // tetra10's tinybvh tree overflowed the walk's stack (a segfault in `quiver bench`):
+        // the build now says so instead.
+        let tris = Scene::load("tetra10").unwrap().triangles();
+        let e = TinyBvh::new(&tris, TinyLayout::Bvh8Cpu)
+            .err()
+            .expect("refused");
+        println!("{e}");
+        assert!(
+            e.contains("stack entries, and tinybvh's walk has 256"),
+            "{e}"
+        );
+    }
+
+    #[test]
     fn tinybvh_segments_empty_input_and_non_finite_triangles() {
         let t = Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y);
         let bad = Triangle::new(Vec3A::splat(f32::NAN), Vec3A::X, Vec3A::Y);
         for layout in [TinyLayout::Bvh8Cpu, TinyLayout::Bvh4Cpu] {
-            let bvh = TinyBvh::new(&[bad, t], layout);
+            let bvh = TinyBvh::new(&[bad, t], layout).unwrap();
             let down =
                 |t_min, t_max| Ray::segment(Vec3A::new(0.25, 0.25, 2.0), -Vec3A::Z, t_min, t_max);
             // The plane is at t = 2: inside [1, 3], not inside [0, 1.5] or [2.5, 9].
@@ -355,7 +414,7 @@ mod tests {
             let nan = Ray::new(Vec3A::splat(f32::NAN), -Vec3A::Z);
             assert_eq!(bvh.closest_hit(&nan), None);
             assert!(!bvh.any_hit(&nan));
-            let empty = TinyBvh::new(&[bad], layout);
+            let empty = TinyBvh::new(&[bad], layout).unwrap();
             assert_eq!(empty.closest_hit(&down(0.0, 9.0)), None);
             assert_eq!(empty.bytes(), (0, 0));
         }

@@ -28,6 +28,8 @@ use quiver_lab::tinybvh::{TinyBvh, TinyLayout};
 use quiver_lab::{obvhs_bridge, rays};
 use quiver_scenes::scene::tessellate;
 use serde_json::{json, Value};
+#[cfg(feature = "tinybvh")]
+use std::io::Write as _;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
@@ -68,8 +70,6 @@ const KERNELS: [Layout; 5] = [
 /// tinybvh's layouts, timed after quiver's kernels, obvhs and Embree.
 #[cfg(feature = "tinybvh")]
 const TINY: [TinyLayout; 2] = [TinyLayout::Bvh8Cpu, TinyLayout::Bvh4Cpu];
-#[cfg(not(feature = "tinybvh"))]
-const TINY: [(); 0] = [];
 
 fn time<T>(f: impl FnOnce() -> T) -> (T, f64) {
     let t = Instant::now();
@@ -182,7 +182,11 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
         // which it cannot be told to limit: one build row, at that count.
         #[cfg(feature = "tinybvh")]
         for layout in TINY {
-            drop(TinyBvh::new(&tris, layout));
+            if let Err(e) = TinyBvh::new(&tris, layout) {
+                // A tree tinybvh's walk cannot trace safely: no rows for it on this scene.
+                let _ = writeln!(std::io::stderr(), "warning: {}: {e}", scene.name);
+                continue;
+            }
             let (built, ms) = time(|| TinyBvh::new(&tris, layout));
             drop(built);
             let own = std::thread::available_parallelism().map_or(1, |n| n.get());
@@ -204,7 +208,12 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
             .map(|&l| Bvh::from_tree(&tree, &tris, l))
             .collect();
         #[cfg(feature = "tinybvh")]
-        let tiny: Vec<TinyBvh> = TINY.iter().map(|&l| TinyBvh::new(&tris, l)).collect();
+        let tiny: Vec<TinyBvh> = TINY
+            .iter()
+            .filter_map(|&l| TinyBvh::new(&tris, l).ok())
+            .collect();
+        #[cfg(not(feature = "tinybvh"))]
+        let tiny: Vec<()> = Vec::new();
         // Memory per triangle: quiver's node array and everything its walk reads.
         let per_tri = |b: usize| b as f64 / tris.len().max(1) as f64;
         let memory = |engine: &str, kernel: &str, nodes: Option<usize>, bytes: usize| {
@@ -296,7 +305,7 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
             ] {
                 let embree_at = KERNELS.len() + 1;
                 let tiny_at = embree_at + usize::from(cfg!(feature = "embree"));
-                let n = tiny_at + TINY.len();
+                let n = tiny_at + tiny.len();
                 let times = p.install(|| {
                     median_times_interleaved(args.reps, n, |i| {
                         #[cfg(feature = "embree")]
@@ -347,7 +356,7 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
                     } else if i == KERNELS.len() {
                         ("obvhs", "bvh2-medium")
                     } else if i >= tiny_at {
-                        ("tinybvh", tiny_name(i - tiny_at))
+                        ("tinybvh", tiny_name(&tiny, i - tiny_at))
                     } else if any {
                         ("embree", "rtcOccluded1")
                     } else {
@@ -375,12 +384,15 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
     )
 }
 
-/// The name of tinybvh's `k`-th layout in [`TINY`].
-fn tiny_name(k: usize) -> &'static str {
-    #[cfg(feature = "tinybvh")]
-    return TINY[k].name();
-    #[cfg(not(feature = "tinybvh"))]
-    unreachable!("no tinybvh layout {k} without the feature")
+/// The name of the `k`-th tinybvh BVH built for a scene.
+#[cfg(feature = "tinybvh")]
+fn tiny_name(tiny: &[TinyBvh], k: usize) -> &'static str {
+    tiny[k].layout().name()
+}
+
+#[cfg(not(feature = "tinybvh"))]
+fn tiny_name(_: &[()], k: usize) -> &'static str {
+    unreachable!("no tinybvh BVH {k} without the feature")
 }
 
 fn print_rows(rows: &[Value]) {

@@ -170,14 +170,24 @@ fn measure<P: Primitive>(
         None => None,
     };
     #[cfg(feature = "tinybvh")]
-    let tiny: Vec<TinyBvh> = match tris {
-        Some(t) => {
-            extra.extend(TINY_KERNELS.map(|k| k.0));
-            extra_tris = t.len();
-            TINY_KERNELS.iter().map(|k| TinyBvh::new(t, k.1)).collect()
+    let mut tiny: Vec<TinyBvh> = Vec::new();
+    #[cfg(feature = "tinybvh")]
+    if let Some(t) = tris {
+        extra_tris = t.len();
+        for (name, layout) in TINY_KERNELS {
+            match TinyBvh::new(t, layout) {
+                Ok(b) => {
+                    extra.push(name);
+                    tiny.push(b);
+                }
+                // A tree tinybvh's walk cannot trace safely: no column for it on this scene.
+                Err(e) => {
+                    use std::io::Write as _;
+                    let _ = writeln!(std::io::stderr(), "warning: {}: {e}", scene.name);
+                }
+            }
         }
-        None => Vec::new(),
-    };
+    }
     #[cfg(feature = "embree")]
     let embree_count = if embree.is_some() {
         EMBREE_KERNELS.len()
