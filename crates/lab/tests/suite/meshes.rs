@@ -494,7 +494,7 @@ struct Gltf {
 impl Gltf {
     /// Appends `bytes` as a view of buffer 0 (4-byte aligned) and an accessor over it.
     fn accessor(&mut self, bytes: &[u8], component: u32, ty: &str, count: usize) -> usize {
-        while self.bin.len() % 4 != 0 {
+        while !self.bin.len().is_multiple_of(4) {
             self.bin.push(0);
         }
         self.views.push(serde_json::json!({
@@ -540,11 +540,11 @@ impl Gltf {
     /// The GLB container of `doc` with the buffer as its BIN chunk.
     fn glb(&self, doc: &serde_json::Value) -> Vec<u8> {
         let mut json = serde_json::to_vec(doc).unwrap();
-        while json.len() % 4 != 0 {
+        while !json.len().is_multiple_of(4) {
             json.push(b' ');
         }
         let mut bin = self.bin.clone();
-        while bin.len() % 4 != 0 {
+        while !bin.len().is_multiple_of(4) {
             bin.push(0);
         }
         let total = 12 + 8 + json.len() + 8 + bin.len();
@@ -610,7 +610,7 @@ fn gltf_node_transforms_compose_down_the_tree() {
                 // Parent: a matrix translating by (10, 0, 0), column-major.
                 {"name": "base", "matrix": [1,0,0,0, 0,1,0,0, 0,0,1,0, 10,0,0,1], "children": [1, 2]},
                 // 90° about z (quaternion z = w = sin 45°), scale 2, 3, 1, translation 0 0 5.
-                {"name": "arm", "mesh": 0, "rotation": [0, 0, 0.70710678118654752, 0.70710678118654752],
+                {"name": "arm", "mesh": 0, "rotation": [0, 0, std::f64::consts::FRAC_1_SQRT_2, std::f64::consts::FRAC_1_SQRT_2],
                  "scale": [2, 3, 1], "translation": [0, 0, 5]},
                 {"mesh": 0}
             ],
