@@ -104,6 +104,8 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
         "{bar:40} {pos}/{len} {msg} [{elapsed}]",
     )?);
     let mut rows: Vec<Value> = Vec::new();
+    // BVH memory per engine and scene: no thread count, so apart from the timed rows.
+    let mut memory_rows: Vec<Value> = Vec::new();
     let config = BuildConfig::default();
     for (name, scene) in &loaded {
         bar.set_message(format!("{name}: building"));
@@ -218,12 +220,12 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
         let per_tri = |b: usize| b as f64 / tris.len().max(1) as f64;
         let memory = |engine: &str, kernel: &str, nodes: Option<usize>, bytes: usize| {
             json!({"scene": scene.name, "primitives": tris.len(), "engine": engine, "kernel": kernel,
-                   "rays": "memory", "bytes": bytes, "bytes_per_tri": per_tri(bytes),
+                   "bytes": bytes, "bytes_per_tri": per_tri(bytes),
                    "node_bytes": nodes, "node_bytes_per_tri": nodes.map(per_tri)})
         };
         for (l, b) in KERNELS.iter().zip(&bvhs) {
             let f = b.footprint();
-            rows.push(memory("quiver", l.name(), Some(f.node_bytes), f.bytes));
+            memory_rows.push(memory("quiver", l.name(), Some(f.node_bytes), f.bytes));
         }
         let obvh = build_bvh2_from_tris(
             &ot,
@@ -233,10 +235,10 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
         #[cfg(feature = "embree")]
         let embree = EmbreeScene::new(&tris)?;
         #[cfg(feature = "embree")]
-        rows.push(memory("embree", "bvh-medium", None, embree.bvh_bytes()));
+        memory_rows.push(memory("embree", "bvh-medium", None, embree.bvh_bytes()));
         #[cfg(feature = "tinybvh")]
         for t in &tiny {
-            rows.push(memory("tinybvh", t.layout().name(), None, t.bytes().0));
+            memory_rows.push(memory("tinybvh", t.layout().name(), None, t.bytes().0));
         }
         let eye = rays::camera_rays(&scene.camera, 256);
         let light = scene
@@ -369,7 +371,8 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
         bar.inc(1);
     }
     bar.finish_and_clear();
-    print_rows(&rows);
+    print_throughput(&rows);
+    print_memory(&memory_rows);
     let machine = json!({
         "threads": rayon::current_num_threads(),
         "measured_threads": thread_counts,
@@ -380,7 +383,7 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
     });
     write_json(
         args.json.as_ref(),
-        &json!({"machine": machine, "rows": rows}),
+        &json!({"machine": machine, "rows": rows, "memory": memory_rows}),
     )
 }
 
@@ -395,16 +398,8 @@ fn tiny_name(_: &[()], k: usize) -> &'static str {
     unreachable!("no tinybvh BVH {k} without the feature")
 }
 
-fn print_rows(rows: &[Value]) {
-    let (memory, rows): (Vec<&Value>, Vec<&Value>) =
-        rows.iter().partition(|r| r["rays"] == "memory");
-    let rows: Vec<Value> = rows.into_iter().cloned().collect();
-    print_throughput(&rows);
-    print_memory(&memory);
-}
-
 /// Bytes per triangle of every engine's BVH, scene by scene.
-fn print_memory(rows: &[&Value]) {
+fn print_memory(rows: &[Value]) {
     outln!();
     outln!(
         "{:<14} {:>9} {:<7} {:<17} {:>12} {:>12} {:>13}",
