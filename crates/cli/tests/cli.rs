@@ -172,6 +172,15 @@ fn bench_and_packets_measure_the_thread_counts_asked_for() {
         let rows = report["rows"].as_array().unwrap();
         assert!(!rows.is_empty());
         assert!(rows.iter().all(|r| r["threads"] == 1), "{line}: {rows:?}");
+        if line.starts_with("bench") {
+            // tetra1's 4 triangles: one 256-byte 8-wide node, and at least the triangles'
+            // own 36 bytes each beside it.
+            let memory = report["memory"].as_array().unwrap();
+            let bvh8 = memory.iter().find(|m| m["kernel"] == "bvh8-dfs").unwrap();
+            assert_eq!(bvh8["node_bytes"], 256, "{bvh8}");
+            assert_eq!(bvh8["node_bytes_per_tri"], 64.0, "{bvh8}");
+            assert!(bvh8["bytes"].as_u64().unwrap() >= 256 + 4 * 36, "{bvh8}");
+        }
         if line.starts_with("packets") {
             // Patch mode adds the first-bounce mirror rays of every eye hit.
             let mirror = rows.iter().find(|r| r["rays"] == "mirror");

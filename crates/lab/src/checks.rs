@@ -8,6 +8,7 @@
 //! quiver_lab::checks::packets_against_oracle(&[9u8; 300]);
 //! quiver_lab::checks::nff_round_trip(b"f 1 1 1 1 0 0 0 1\ns 0 0 0 1\n");
 //! quiver_lab::checks::analytic_lanes(&[7u8; 400]);
+//! quiver_lab::checks::obj_load(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
 //! quiver_lab::checks::render_nff(b"v\nfrom 0 0 5\nat 0 0 0\nup 0 1 0\nangle 45\nhither 1\nresolution 8 8\nl 1 1 5\nf 1 1 1 1 0 0 0 1\ns 0 0 0 1\n");
 //! ```
 
@@ -469,22 +470,95 @@ pub fn nff_round_trip(data: &[u8]) {
     }
 }
 
-/// An OBJ file with the bytes as content: loading must not panic, and a loaded mesh must
-/// build and trace.
+/// An OBJ file with the bytes as content: see [`mesh_load`].
 pub fn obj_load(data: &[u8]) {
+    mesh_load(data, "obj");
+}
+
+/// A PLY file with the bytes as content (`.ply.gz` when they start with gzip's magic, so the
+/// inflating path is fuzzed too): see [`mesh_load`].
+///
+/// ```
+/// quiver_lab::checks::ply_load(b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n\
+///     property float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\n\
+///     end_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+/// ```
+pub fn ply_load(data: &[u8]) {
+    mesh_load(
+        data,
+        if data.starts_with(&[0x1f, 0x8b]) {
+            "ply.gz"
+        } else {
+            "ply"
+        },
+    );
+}
+
+/// A glTF file with the bytes as content (`.glb` when they start with `glTF`, else `.gltf`):
+/// see [`mesh_load`].
+///
+/// ```
+/// quiver_lab::checks::gltf_load(br#"{"asset": {"version": "2.0"}}"#);
+/// ```
+pub fn gltf_load(data: &[u8]) {
+    mesh_load(
+        data,
+        if data.starts_with(b"glTF") {
+            "glb"
+        } else {
+            "gltf"
+        },
+    );
+}
+
+/// A mesh file with the bytes as content and the extension `ext`, loaded strictly and with
+/// non-finite primitives dropped: neither may panic; what loads must have groups in object
+/// order, non-empty, disjoint and within the objects, a dropping load must keep every
+/// triangle of a strict one, and a loaded mesh must build and trace, judged by the oracle.
+pub fn mesh_load(data: &[u8], ext: &str) {
+    use quiver_scenes::scene::{LoadOptions, NonFinite, Scene};
     use std::sync::atomic::{AtomicUsize, Ordering};
     static N: AtomicUsize = AtomicUsize::new(0);
-    let dir = std::env::temp_dir();
-    let path = dir.join(format!(
-        "quiver-fuzz-{}-{}.obj",
+    // A directory of its own, so a relative glTF buffer URI finds nothing by accident.
+    let dir = std::env::temp_dir().join(format!(
+        "quiver-fuzz-{}-{}",
         std::process::id(),
         N.fetch_add(1, Ordering::Relaxed)
     ));
-    if std::fs::write(&path, data).is_err() {
+    let path = dir.join(format!("input.{ext}"));
+    if std::fs::create_dir_all(&dir).is_err() || std::fs::write(&path, data).is_err() {
         return;
     }
-    let loaded = quiver_scenes::scene::Scene::load(path.to_str().unwrap_or_default());
-    let _ = std::fs::remove_file(&path);
+    let spec = path.to_str().unwrap_or_default();
+    let loaded = Scene::load(spec);
+    let lax = LoadOptions::default().non_finite(NonFinite::Drop);
+    let dropping = Scene::load_with(spec, &lax);
+    let _ = std::fs::remove_dir_all(&dir);
+    for scene in loaded.iter().chain(dropping.iter().map(|(s, _)| s)) {
+        let mut end = 0;
+        for g in &scene.groups {
+            assert!(
+                g.objects.start >= end && g.objects.start < g.objects.end,
+                "{g:?} after {end}"
+            );
+            end = g.objects.end;
+        }
+        assert!(
+            end as usize <= scene.objects.len(),
+            "groups past the objects"
+        );
+    }
+    match (&loaded, &dropping) {
+        (Ok(strict), Ok((lax, report))) => {
+            assert!(
+                report.is_empty(),
+                "a strict load succeeded, yet the lax one dropped"
+            );
+            assert_eq!(strict.objects, lax.objects);
+        }
+        (Ok(_), Err(e)) => panic!("a strict load succeeded, yet the lax one failed: {e}"),
+        _ => {}
+    }
     if let Ok(scene) = loaded {
         let tris = scene.triangles();
         let bvh = Bvh::new(&tris);

@@ -23,6 +23,7 @@
 use quiver::{Ray, Triangle};
 use std::ffi::{c_char, c_void, CStr, CString};
 use std::mem::MaybeUninit;
+use std::sync::atomic::{AtomicI64, Ordering};
 use std::sync::{Arc, Mutex};
 
 /// The subset of `embree3/rtcore*.h` (3.13) used here. Names follow the C headers.
@@ -90,6 +91,8 @@ mod ffi {
 
     pub type RTCErrorFunction =
         unsafe extern "C" fn(user_ptr: *mut c_void, code: RTCError, str: *const c_char);
+    pub type RTCMemoryMonitorFunction =
+        unsafe extern "C" fn(ptr: *mut c_void, bytes: isize, post: bool) -> bool;
     pub type RTCFilterFunctionN = unsafe extern "C" fn(args: *const c_void);
 
     /// `struct RTCIntersectContext` with `RTC_MAX_INSTANCE_LEVEL_COUNT == 1` and
@@ -157,6 +160,11 @@ mod ffi {
         pub fn rtcSetDeviceErrorFunction(
             device: RTCDevice,
             error: Option<RTCErrorFunction>,
+            user_ptr: *mut c_void,
+        );
+        pub fn rtcSetDeviceMemoryMonitorFunction(
+            device: RTCDevice,
+            monitor: Option<RTCMemoryMonitorFunction>,
             user_ptr: *mut c_void,
         );
 
@@ -246,11 +254,23 @@ unsafe extern "C" fn record_error(user_ptr: *mut c_void, code: RTCError, message
     }
 }
 
-/// The device and the error slot its callback writes to: the slot must outlive the device,
-/// and scenes keep the device alive, so both live behind one `Arc`.
+/// Embree's memory monitor: adds every allocation (positive) and release (negative) of the
+/// device to the counter, and never refuses one. Called on Embree's build threads too, hence
+/// the atomic; must not unwind into C.
+unsafe extern "C" fn count_memory(user_ptr: *mut c_void, bytes: isize, _post: bool) -> bool {
+    if let Some(counter) = (user_ptr as *const AtomicI64).as_ref() {
+        counter.fetch_add(bytes as i64, Ordering::Relaxed);
+    }
+    true
+}
+
+/// The device, the error slot its callback writes to and the byte count its memory monitor
+/// keeps: both must outlive the device, and scenes keep the device alive, so all live behind
+/// one `Arc`.
 struct Device {
     raw: RTCDevice,
     last_error: Box<Mutex<Option<String>>>,
+    memory: Box<AtomicI64>,
 }
 
 // SAFETY: Embree's API is thread-safe for creating and committing different scenes on one
@@ -318,9 +338,14 @@ impl EmbreeDevice {
         let device = Device {
             raw,
             last_error: Box::new(Mutex::new(None)),
+            memory: Box::new(AtomicI64::new(0)),
         };
         let slot: *const Mutex<Option<String>> = &*device.last_error;
         unsafe { rtcSetDeviceErrorFunction(raw, Some(record_error), slot as *mut c_void) };
+        let counter: *const AtomicI64 = &*device.memory;
+        unsafe {
+            rtcSetDeviceMemoryMonitorFunction(raw, Some(count_memory), counter as *mut c_void)
+        };
         device.check("rtcNewDevice")?;
         // Culling back faces would answer a different question than quiver's two-sided test.
         let culling = RTC_DEVICE_PROPERTY_BACKFACE_CULLING_ENABLED;
@@ -351,6 +376,8 @@ impl EmbreeDevice {
 pub struct EmbreeScene {
     raw: RTCScene,
     streams: bool,
+    /// What the device's memory monitor counted across `rtcCommitScene`.
+    bvh_bytes: i64,
     /// Keeps the device (and its error slot) alive as long as the scene.
     _device: Arc<Device>,
 }
@@ -395,9 +422,10 @@ impl EmbreeScene {
             return Err("Embree: rtcNewScene returned no scene".into());
         }
         // From here on, an early return releases the scene.
-        let scene = EmbreeScene {
+        let mut scene = EmbreeScene {
             raw,
             streams: device.ray_streams(),
+            bvh_bytes: 0,
             _device: dev.clone(),
         };
         // An empty scene is one without geometry, rather than one with zero-sized buffers.
@@ -419,9 +447,20 @@ impl EmbreeScene {
             filled?;
             dev.check("rtcCommitGeometry / rtcAttachGeometry")?;
         }
+        let before = dev.memory.load(Ordering::Relaxed);
         unsafe { rtcCommitScene(raw) };
+        scene.bvh_bytes = dev.memory.load(Ordering::Relaxed) - before;
         dev.check("rtcCommitScene")?;
         Ok(scene)
+    }
+
+    /// Bytes Embree allocated while committing the scene and still holds, by its device
+    /// memory monitor (`rtcSetDeviceMemoryMonitorFunction`): its BVH, nodes and triangle
+    /// leaves (Triangle4: vertices copied in), without the vertex and index buffers set
+    /// before the commit, which the traversal does not read. Exact only while no other scene
+    /// of the same device is built at the same time.
+    pub fn bvh_bytes(&self) -> usize {
+        self.bvh_bytes.max(0) as usize
     }
 
     /// The nearest hit within `[ray.t_min, ray.t_max]` (`rtcIntersect1`) as (triangle index,
@@ -765,6 +804,33 @@ mod tests {
         let ray = Ray::new(glam::Vec3A::ZERO, glam::Vec3A::X);
         assert_eq!(empty.closest_hit(&ray), None);
         assert!(!empty.any_hit(&ray));
+    }
+
+    #[test]
+    fn embree_memory_monitor_counts_the_bvh() {
+        let s = Scene::load("tetra6").unwrap();
+        let tris = s.triangles();
+        let device = EmbreeDevice::with_threads(1).unwrap();
+        let scene = EmbreeScene::on_device(&device, &tris).unwrap();
+        let bytes = scene.bvh_bytes();
+        println!("Embree BVH over {} triangles: {bytes} bytes", tris.len());
+        // At least the triangles' own data (three vertices of 12 bytes each) and at most a
+        // generous bound: a broken monitor reads 0 or garbage.
+        assert!(
+            bytes >= 36 * tris.len() && bytes < 1000 * tris.len(),
+            "{bytes}"
+        );
+        let bigger =
+            EmbreeScene::on_device(&device, &Scene::load("tetra7").unwrap().triangles()).unwrap();
+        assert!(
+            bigger.bvh_bytes() > 2 * bytes,
+            "{} vs {bytes}",
+            bigger.bvh_bytes()
+        );
+        drop(scene);
+        drop(bigger);
+        let empty = EmbreeScene::on_device(&device, &[]).unwrap();
+        assert!(empty.bvh_bytes() < 36 * tris.len());
     }
 
     #[test]

@@ -3,7 +3,8 @@
 //! ([`lines`]), parallel tracing and interleaved median timing ([`measure`]), the
 //! accuracy study ([`accuracy`]), the checks the fuzz targets run ([`checks`]) and quiver's
 //! data in obvhs's terms ([`obvhs_bridge`]); with the `embree` feature, Intel Embree 3 as a
-//! second comparison engine (`embree`, which links `libembree3`). The integration tests
+//! second comparison engine (`embree`, which links `libembree3`), and with `tinybvh`,
+//! tinybvh's `BVH8_CPU` and `BVH4_CPU` as a third (`tinybvh`, over the tinybvh-rs crate). The integration tests
 //! (`tests/suite`) and the criterion benches (`benches/`) live in this crate.
 
 #![warn(missing_docs)]
@@ -17,3 +18,5 @@ pub mod measure;
 pub mod obvhs_bridge;
 pub mod oracle;
 pub mod rays;
+#[cfg(feature = "tinybvh")]
+pub mod tinybvh;

@@ -1,5 +1,5 @@
 //! quiver-scenes: what quiver traces. Eric Haines' Standard Procedural Databases (all ten
-//! generators, curve and patch mode), NFF and OBJ files, a seeded triangle soup; the SPD's
+//! generators, curve and patch mode), NFF, OBJ, PLY and glTF files, a seeded triangle soup; the SPD's
 //! analytic shapes as quiver primitives; a scene's BVH ([`accel::SceneBvh`]); and the
 //! Whitted renderer that follows the SPD testing procedure ([`render`]).
 //!
@@ -15,7 +15,8 @@
 //! # let _ = object;
 //! ```
 //!
-//! OBJ files are read by quiver's own line-by-line reader ([`scene::obj`]), errors naming file and line.
+//! Mesh files are read by quiver's own readers ([`scene::obj`], [`scene::ply`],
+//! [`scene::gltf`]), errors naming file and line, or file and element or JSON item.
 
 #![warn(missing_docs)]
 

@@ -3,7 +3,11 @@
 //! Built with the `embree` feature, Intel Embree 3 joins them (`rtcIntersect1` / `rtcOccluded1`
 //! in the same interleaved rounds, and its build time). Coherent rays (the eye rays in 8 x 8
 //! tiles and their shadow rays) also go through quiver's packet kernel and, with the
-//! feature, Embree's coherent streams (`rtcIntersect1M` / `rtcOccluded1M`).
+//! feature, Embree's coherent streams (`rtcIntersect1M` / `rtcOccluded1M`). Built with the
+//! `tinybvh` feature, tinybvh's `BVH8_CPU` and `BVH4_CPU` join the single-ray rounds too
+//! (`Intersect` / `IsOccluded`), with their build time. Every engine's BVH memory is reported
+//! in bytes per triangle: quiver's `Bvh::footprint`, Embree's device memory monitor across the
+//! commit, tinybvh's node and leaf array.
 
 use super::{count, measured_threads, pool, thread_count, Result, MAX_RAYS, MAX_REPS};
 use crate::output::{check_outputs, out, outln, write_json};
@@ -19,19 +23,24 @@ use quiver_lab::embree::{EmbreeDevice, EmbreeScene};
 use quiver_lab::measure::{
     count_hits, median_times_interleaved, mrays_per_s, trace_packets, Query,
 };
+#[cfg(feature = "tinybvh")]
+use quiver_lab::tinybvh::{TinyBvh, TinyLayout};
 use quiver_lab::{obvhs_bridge, rays};
 use quiver_scenes::scene::tessellate;
 use serde_json::{json, Value};
+#[cfg(feature = "tinybvh")]
+use std::io::Write as _;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 #[derive(clap::Args)]
 pub(crate) struct BenchArgs {
-    /// Scenes (generator names or .obj/.nff files), measured as triangles (SPD scenes in
-    /// patch mode). Default: the generated teapot12 (9.4k triangles), balls3 (158k) and
-    /// tetra10 (1M), so the default needs no file and runs from anywhere. Name a mesh to add
-    /// it, e.g. the Stanford bunny of the source tree:
-    /// `quiver bench crates/lab/tests/data/bunny.obj teapot12 balls3 tetra10`.
+    /// Scenes (generator names or .obj/.nff/.ply/.ply.gz/.gltf/.glb files), measured as
+    /// triangles (SPD scenes in patch mode). Default: the generated teapot12 (9.4k
+    /// triangles), balls3 (158k) and tetra10 (1M), so the default needs no file and runs from
+    /// anywhere. Name a mesh to add it, e.g. the Stanford bunny of the source tree or the
+    /// dragon that scripts/fetch-meshes.sh fetches:
+    /// `quiver bench crates/lab/tests/data/bunny.obj meshes/dragon_vrip.ply.gz teapot12`.
     scenes: Vec<String>,
     /// Incoherent rays per scene (eye rays: a 256 x 256 image; shadow rays: one per eye hit).
     #[arg(allow_negative_numbers = true, long, default_value_t = 200_000, value_parser = count(MAX_RAYS))]
@@ -57,6 +66,10 @@ const KERNELS: [Layout; 5] = [
     Layout::Bvh4Quant,
     Layout::Bvh8Dfs,
 ];
+
+/// tinybvh's layouts, timed after quiver's kernels, obvhs and Embree.
+#[cfg(feature = "tinybvh")]
+const TINY: [TinyLayout; 2] = [TinyLayout::Bvh8Cpu, TinyLayout::Bvh4Cpu];
 
 fn time<T>(f: impl FnOnce() -> T) -> (T, f64) {
     let t = Instant::now();
@@ -91,6 +104,8 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
         "{bar:40} {pos}/{len} {msg} [{elapsed}]",
     )?);
     let mut rows: Vec<Value> = Vec::new();
+    // BVH memory per engine and scene: no thread count, so apart from the timed rows.
+    let mut memory_rows: Vec<Value> = Vec::new();
     let config = BuildConfig::default();
     for (name, scene) in &loaded {
         bar.set_message(format!("{name}: building"));
@@ -165,6 +180,28 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
                 ));
             }
         }
+        // tinybvh builds on threads of its own (all hardware threads above 50,000 triangles),
+        // which it cannot be told to limit: one build row, at that count.
+        #[cfg(feature = "tinybvh")]
+        for layout in TINY {
+            if let Err(e) = TinyBvh::new(&tris, layout) {
+                // A tree tinybvh's walk cannot trace safely: no rows for it on this scene.
+                let _ = writeln!(std::io::stderr(), "warning: {}: {e}", scene.name);
+                continue;
+            }
+            let (built, ms) = time(|| TinyBvh::new(&tris, layout));
+            drop(built);
+            let own = std::thread::available_parallelism().map_or(1, |n| n.get());
+            rows.push(row(
+                "tinybvh",
+                layout.name(),
+                "build",
+                own,
+                None,
+                Some(ms),
+                None,
+            ));
+        }
         bar.inc(1);
         bar.set_message(format!("{name}: tracing"));
         let tree = build(&prim_bounds(&tris), &config, Builder::Binned);
@@ -178,6 +215,24 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
                 )
             })
             .collect::<std::result::Result<Vec<Bvh>, _>>()?;
+        #[cfg(feature = "tinybvh")]
+        let tiny: Vec<TinyBvh> = TINY
+            .iter()
+            .filter_map(|&l| TinyBvh::new(&tris, l).ok())
+            .collect();
+        #[cfg(not(feature = "tinybvh"))]
+        let tiny: Vec<()> = Vec::new();
+        // Memory per triangle: quiver's node array and everything its walk reads.
+        let per_tri = |b: usize| b as f64 / tris.len().max(1) as f64;
+        let memory = |engine: &str, kernel: &str, nodes: Option<usize>, bytes: usize| {
+            json!({"scene": scene.name, "primitives": tris.len(), "engine": engine, "kernel": kernel,
+                   "bytes": bytes, "bytes_per_tri": per_tri(bytes),
+                   "node_bytes": nodes, "node_bytes_per_tri": nodes.map(per_tri)})
+        };
+        for (l, b) in KERNELS.iter().zip(&bvhs) {
+            let f = b.footprint();
+            memory_rows.push(memory("quiver", l.name(), Some(f.node_bytes), f.bytes));
+        }
         let obvh = build_bvh2_from_tris(
             &ot,
             BvhBuildParams::medium_build(),
@@ -185,6 +240,12 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
         );
         #[cfg(feature = "embree")]
         let embree = EmbreeScene::new(&tris)?;
+        #[cfg(feature = "embree")]
+        memory_rows.push(memory("embree", "bvh-medium", None, embree.bvh_bytes()));
+        #[cfg(feature = "tinybvh")]
+        for t in &tiny {
+            memory_rows.push(memory("tinybvh", t.layout().name(), None, t.bytes().0));
+        }
         let eye = rays::camera_rays(&scene.camera, 256);
         let light = scene
             .lights
@@ -250,11 +311,13 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
                 ("shadow", &shadow, true),
                 ("incoherent", &incoherent, false),
             ] {
-                let n = KERNELS.len() + 1 + usize::from(cfg!(feature = "embree"));
+                let embree_at = KERNELS.len() + 1;
+                let tiny_at = embree_at + usize::from(cfg!(feature = "embree"));
+                let n = tiny_at + tiny.len();
                 let times = p.install(|| {
                     median_times_interleaved(args.reps, n, |i| {
                         #[cfg(feature = "embree")]
-                        if i == KERNELS.len() + 1 {
+                        if i == embree_at {
                             std::hint::black_box(count_hits(set, |r| {
                                 if any {
                                     embree.any_hit(r)
@@ -262,6 +325,11 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
                                     embree.closest_hit(r).is_some()
                                 }
                             }));
+                            return;
+                        }
+                        #[cfg(feature = "tinybvh")]
+                        if let Some(t) = i.checked_sub(tiny_at).and_then(|k| tiny.get(k)) {
+                            std::hint::black_box(t.count_hits(set, any));
                             return;
                         }
                         let hits = if i < KERNELS.len() {
@@ -295,6 +363,8 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
                         ("quiver", KERNELS[i].name())
                     } else if i == KERNELS.len() {
                         ("obvhs", "bvh2-medium")
+                    } else if i >= tiny_at {
+                        ("tinybvh", tiny_name(&tiny, i - tiny_at))
                     } else if any {
                         ("embree", "rtcOccluded1")
                     } else {
@@ -307,7 +377,8 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
         bar.inc(1);
     }
     bar.finish_and_clear();
-    print_rows(&rows);
+    print_throughput(&rows);
+    print_memory(&memory_rows);
     let machine = json!({
         "threads": rayon::current_num_threads(),
         "measured_threads": thread_counts,
@@ -318,11 +389,55 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
     });
     write_json(
         args.json.as_ref(),
-        &json!({"machine": machine, "rows": rows}),
+        &json!({"machine": machine, "rows": rows, "memory": memory_rows}),
     )
 }
 
-fn print_rows(rows: &[Value]) {
+/// The name of the `k`-th tinybvh BVH built for a scene.
+#[cfg(feature = "tinybvh")]
+fn tiny_name(tiny: &[TinyBvh], k: usize) -> &'static str {
+    tiny[k].layout().name()
+}
+
+#[cfg(not(feature = "tinybvh"))]
+fn tiny_name(_: &[()], k: usize) -> &'static str {
+    unreachable!("no tinybvh BVH {k} without the feature")
+}
+
+/// Bytes per triangle of every engine's BVH, scene by scene.
+fn print_memory(rows: &[Value]) {
+    outln!();
+    outln!(
+        "{:<14} {:>9} {:<7} {:<17} {:>12} {:>12} {:>13}",
+        "scene",
+        "prims",
+        "engine",
+        "kernel",
+        "nodes B/tri",
+        "all B/tri",
+        "all MB"
+    );
+    let num = |v: &Value, p: usize| v.as_f64().map_or("-".to_string(), |x| format!("{x:.p$}"));
+    for r in rows {
+        let name = r["scene"].as_str().unwrap_or("");
+        let short = name.rsplit('/').next().unwrap_or(name);
+        outln!(
+            "{:<14} {:>9} {:<7} {:<17} {:>12} {:>12} {:>13}",
+            short,
+            r["primitives"],
+            r["engine"].as_str().unwrap_or(""),
+            r["kernel"].as_str().unwrap_or(""),
+            num(&r["node_bytes_per_tri"], 1),
+            num(&r["bytes_per_tri"], 1),
+            r["bytes"]
+                .as_f64()
+                .map_or("-".into(), |b| format!("{:.1}", b / 1e6))
+        );
+    }
+    outln!("(nodes: quiver's node array; all: what the walk reads, nodes and leaf triangles: quiver's Bvh::footprint, Embree's allocations across rtcCommitScene by its memory monitor, tinybvh's interleaved node and leaf blocks)");
+}
+
+fn print_throughput(rows: &[Value]) {
     let s = |v: &Value| v.as_str().unwrap_or("").to_string();
     let f = |v: &Value| v.as_f64();
     out!(
@@ -340,6 +455,9 @@ fn print_rows(rows: &[Value]) {
     );
     if cfg!(feature = "embree") {
         out!(" {:>8}", "q/embree");
+    }
+    if cfg!(feature = "tinybvh") {
+        out!(" {:>8}", "q/tiny8");
     }
     outln!();
     for r in rows {
@@ -394,10 +512,16 @@ fn print_rows(rows: &[Value]) {
         if cfg!(feature = "embree") {
             out!(" {:>8}", num(versus("embree", None), 2));
         }
+        if cfg!(feature = "tinybvh") {
+            out!(" {:>8}", num(versus("tinybvh", Some("BVH8_CPU")), 2));
+        }
         outln!();
     }
     outln!("(q/obvhs: quiver throughput over obvhs's, or obvhs build time over quiver's: above 1 means quiver is faster)");
     if cfg!(feature = "embree") {
         outln!("(q/embree: the same against Embree's rtcIntersect1 / rtcOccluded1 and its default-quality build)");
+    }
+    if cfg!(feature = "tinybvh") {
+        outln!("(q/tiny8: the same against tinybvh's BVH8_CPU Intersect / IsOccluded and its default build, which runs on its own threads: one build row, at all hardware threads)");
     }
 }

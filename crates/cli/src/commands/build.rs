@@ -12,7 +12,7 @@ use std::path::PathBuf;
 
 #[derive(clap::Args)]
 pub(crate) struct BuildArgs {
-    /// A generator name with optional size (see `--help`), or a .obj file.
+    /// A generator name with optional size (see `--help`), or an .nff/.obj/.ply/.ply.gz/.gltf/.glb file.
     #[arg(long_help = scene_help())]
     scene: String,
     /// Which builder: binned (default), sweep, binned+opt, sweep+opt, ploc10, ploc25, ploc100,

@@ -14,7 +14,7 @@ use std::time::Instant;
 
 #[derive(clap::Args)]
 pub(crate) struct CostsArgs {
-    /// Scenes (generator names with sizes, or .obj files), traced as triangles.
+    /// Scenes (generator names with sizes, or .nff/.obj/.ply/.ply.gz/.gltf/.glb files), traced as triangles.
     #[arg(default_values_t = ["teapot12".to_string(), "balls3".to_string(), "gears3".to_string(), "mount5".to_string(), "rings4".to_string(), "tetra6".to_string()])]
     scenes: Vec<String>,
     /// Builders (default: binned and sweep).

@@ -8,7 +8,7 @@ use std::path::PathBuf;
 
 #[derive(clap::Args)]
 pub(crate) struct GenArgs {
-    /// A generator name with optional size, or an .nff/.obj file.
+    /// A generator name with optional size, or an .nff/.obj/.ply/.ply.gz/.gltf/.glb file.
     #[arg(long_help = scene_help())]
     scene: String,
     /// Tessellate spheres and cones into polygonal patches (the SPD's patch mode).

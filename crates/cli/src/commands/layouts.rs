@@ -14,7 +14,7 @@ use std::path::PathBuf;
 
 #[derive(clap::Args)]
 pub(crate) struct LayoutsArgs {
-    /// Scenes (generator names or .obj files).
+    /// Scenes (generator names or .nff/.obj/.ply/.ply.gz/.gltf/.glb files).
     #[arg(default_values_t = ["tetra9".to_string(), "soup200000".to_string(), "tetra10".to_string()])]
     scenes: Vec<String>,
     /// Layouts to measure (default: all).

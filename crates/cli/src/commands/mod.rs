@@ -122,7 +122,7 @@ fn layout_help() -> String {
 fn scene_help() -> String {
     let mut s = String::from(
         "A generator name with an optional size, e.g. tetra6 (a bare name takes the default size), \
-         or a path to a .obj file. Generators:\n",
+         or a path to an .nff, .obj, .ply, .ply.gz, .gltf or .glb file. Generators:\n",
     );
     for g in GENERATORS {
         s += &format!("  {:<8} {} (default {})\n", g.name, g.about, g.default_size);

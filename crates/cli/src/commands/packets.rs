@@ -4,7 +4,9 @@
 //! and incoherent rays, SPD scenes in curve mode (analytic shapes and whole polygons)
 //! and in patch mode (the scene's triangles), 1 thread and all threads. Built with the
 //! `embree` feature, Intel Embree 3 joins them in patch mode, on the same triangles: one ray
-//! at a time and as coherent streams over the same packet-ordered rays.
+//! at a time and as coherent streams over the same packet-ordered rays. Built with the
+//! `tinybvh` feature, tinybvh's `BVH8_CPU` and `BVH4_CPU` join them likewise, one ray at a
+//! time (tinybvh's packet query is for its binary layout only).
 
 use super::{
     count, measured_threads, parse_layout, pool, thread_count, Result, MAX_RAYS, MAX_REPS,
@@ -16,6 +18,8 @@ use quiver::{BuildOptions, Layout, Primitive, Triangle};
 use quiver_lab::embree::EmbreeScene;
 use quiver_lab::measure::{median_times_interleaved, mrays_per_s, trace, trace_packets, Query};
 use quiver_lab::rays;
+#[cfg(feature = "tinybvh")]
+use quiver_lab::tinybvh::{TinyBvh, TinyLayout};
 use quiver_scenes::scene::tessellate::DEFAULT_RESOLUTION;
 use quiver_scenes::Scene;
 use serde_json::{json, Value};
@@ -57,6 +61,13 @@ const KERNELS: [(&str, Option<PacketMode>); 3] = [
 /// `rtcIntersect1M` / `rtcOccluded1M` with the coherent flag over runs of 64 rays (one tile).
 #[cfg(feature = "embree")]
 const EMBREE_KERNELS: [&str; 2] = ["embree-1", "embree-stream"];
+
+/// tinybvh's kernels, after Embree's: `Intersect` / `IsOccluded` per ray.
+#[cfg(feature = "tinybvh")]
+const TINY_KERNELS: [(&str, TinyLayout); 2] = [
+    ("tinybvh8-1", TinyLayout::Bvh8Cpu),
+    ("tinybvh4-1", TinyLayout::Bvh4Cpu),
+];
 
 /// Runs `quiver packets`.
 pub(crate) fn run(args: PacketsArgs) -> Result<()> {
@@ -141,15 +152,48 @@ fn measure<P: Primitive>(
     // `bvh` is over `tris` itself here, so its hits index them.
     let mirror = tris.map_or_else(Vec::new, |t| rays::reflection_rays(&bvh, t, &eye));
     let random = rays::random_rays(&scene.bounds(), args.rays, 11);
-    // Embree traces triangles only: in patch mode the same triangles as quiver; curve mode's
-    // spheres, cones and whole polygons would need Embree user geometry, so it is left out.
+    // Embree and tinybvh trace triangles only: in patch mode the same triangles as quiver;
+    // curve mode's spheres, cones and whole polygons would need user geometry, so they are
+    // left out there.
+    // Filled only with a comparison engine built in.
+    #[allow(unused_mut)]
+    let mut extra: Vec<&str> = Vec::new();
+    #[allow(unused_mut)]
+    let mut extra_tris = 0;
     #[cfg(feature = "embree")]
-    let (embree, extra, embree_tris): (_, &[&str], _) = match tris {
-        Some(tris) => (Some(EmbreeScene::new(tris)?), &EMBREE_KERNELS, tris.len()),
-        None => (None, &[], 0),
+    let embree = match tris {
+        Some(t) => {
+            extra.extend(EMBREE_KERNELS);
+            extra_tris = t.len();
+            Some(EmbreeScene::new(t)?)
+        }
+        None => None,
     };
-    #[cfg(not(feature = "embree"))]
-    let (extra, embree_tris): (&[&str], usize) = (&[], 0);
+    #[cfg(feature = "tinybvh")]
+    let mut tiny: Vec<TinyBvh> = Vec::new();
+    #[cfg(feature = "tinybvh")]
+    if let Some(t) = tris {
+        extra_tris = t.len();
+        for (name, layout) in TINY_KERNELS {
+            match TinyBvh::new(t, layout) {
+                Ok(b) => {
+                    extra.push(name);
+                    tiny.push(b);
+                }
+                // A tree tinybvh's walk cannot trace safely: no column for it on this scene.
+                Err(e) => {
+                    use std::io::Write as _;
+                    let _ = writeln!(std::io::stderr(), "warning: {}: {e}", scene.name);
+                }
+            }
+        }
+    }
+    #[cfg(feature = "embree")]
+    let embree_count = if embree.is_some() {
+        EMBREE_KERNELS.len()
+    } else {
+        0
+    };
     for &threads in thread_counts {
         let p = pool(Some(threads))?;
         for (kind, set, query) in [
@@ -163,9 +207,19 @@ fn measure<P: Primitive>(
             }
             let times = p.install(|| {
                 median_times_interleaved(args.reps, KERNELS.len() + extra.len(), |i| {
+                    #[allow(unused_mut, unused_variables)]
+                    let mut j = i.checked_sub(KERNELS.len());
                     #[cfg(feature = "embree")]
-                    if let (Some(e), Some(j)) = (&embree, i.checked_sub(KERNELS.len())) {
-                        std::hint::black_box(e.count_hits(set, query == Query::Any, j == 1));
+                    if let (Some(e), Some(k)) = (&embree, j) {
+                        if k < embree_count {
+                            std::hint::black_box(e.count_hits(set, query == Query::Any, k == 1));
+                            return;
+                        }
+                        j = Some(k - embree_count);
+                    }
+                    #[cfg(feature = "tinybvh")]
+                    if let Some(t) = j.and_then(|k| tiny.get(k)) {
+                        std::hint::black_box(t.count_hits(set, query == Query::Any));
                         return;
                     }
                     let hits = match KERNELS[i].1 {
@@ -182,7 +236,7 @@ fn measure<P: Primitive>(
                 let primitives = if i < KERNELS.len() {
                     prims.len()
                 } else {
-                    embree_tris
+                    extra_tris
                 };
                 rows.push(json!({
                     "scene": scene.name, "mode": mode, "primitives": primitives,
@@ -219,6 +273,14 @@ fn print_rows(rows: &[Value]) {
         "embree-1 Mrays/s",
         "ratio",
         "stream Mrays/s",
+        "ratio"
+    );
+    #[cfg(feature = "tinybvh")]
+    out!(
+        " {:>14} {:>6} {:>14} {:>6}",
+        "tiny8-1 Mrays/s",
+        "ratio",
+        "tiny4-1 Mrays/s",
         "ratio"
     );
     outln!();
@@ -265,8 +327,21 @@ fn print_rows(rows: &[Value]) {
                 None => out!(" {:>width$} {:>6}", "-", "-"),
             }
         }
+        #[cfg(feature = "tinybvh")]
+        for kernel in ["tinybvh8-1", "tinybvh4-1"] {
+            match group.iter().find(|r| r["kernel"] == kernel) {
+                Some(r) => out!(
+                    " {:>14} {:>6}",
+                    number(&r["mrays_per_s"], ""),
+                    number(&r["vs_single"], "x")
+                ),
+                None => out!(" {:>14} {:>6}", "-", "-"),
+            }
+        }
         outln!();
     }
+    #[cfg(feature = "tinybvh")]
+    outln!("(tiny8-1, tiny4-1: tinybvh's BVH8_CPU and BVH4_CPU, Intersect / IsOccluded per ray, patch mode only; ratios over quiver's single-ray kernel)");
     #[cfg(feature = "embree")]
     outln!("(ratios: over quiver's single-ray kernel; embree-1: rtcIntersect1 / rtcOccluded1 per ray; embree-stream: rtcIntersect1M / rtcOccluded1M, coherent, 64 rays per call; Embree in patch mode only, on the scene's triangles)");
 }

@@ -16,7 +16,7 @@ use std::path::PathBuf;
 
 #[derive(clap::Args)]
 pub(crate) struct PredictArgs {
-    /// Scenes (generator names with sizes, or .obj files), traced as triangles.
+    /// Scenes (generator names with sizes, or .nff/.obj/.ply/.ply.gz/.gltf/.glb files), traced as triangles.
     #[arg(default_values_t = ["tetra4".to_string(), "teapot6".to_string(), "balls2".to_string()])]
     scenes: Vec<String>,
     /// Builders (default: binned and sweep, the top-down pair; any of `quiver build --help`'s).

@@ -14,7 +14,7 @@ use std::time::Instant;
 
 #[derive(clap::Args)]
 pub(crate) struct RenderArgs {
-    /// A generator name with optional size, or an .nff/.obj file.
+    /// A generator name with optional size, or an .nff/.obj/.ply/.ply.gz/.gltf/.glb file.
     #[arg(default_value = DEFAULT_SCENE, long_help = scene_help())]
     scene: String,
     /// Image width and height in pixels ((res+1)^2 eye rays at the pixel corners).

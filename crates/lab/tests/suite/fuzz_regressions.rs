@@ -58,3 +58,13 @@ fn render_inputs() {
 fn lanes_inputs() {
     assert!(replay("lanes", quiver_lab::checks::analytic_lanes) >= 3);
 }
+
+#[test]
+fn ply_inputs() {
+    assert!(replay("ply", quiver_lab::checks::ply_load) >= 4);
+}
+
+#[test]
+fn gltf_inputs() {
+    assert!(replay("gltf", quiver_lab::checks::gltf_load) >= 3);
+}

@@ -11,6 +11,7 @@ mod fuzz_regressions;
 mod hard_cases;
 mod havran;
 mod inputs;
+mod meshes;
 mod mixed;
 mod obvhs;
 mod packets;

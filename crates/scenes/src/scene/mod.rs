@@ -1,6 +1,7 @@
 //! Scene sources: the ten SPD generators ([`GENERATORS`]), a seeded random triangle soup,
-//! NFF files and OBJ files. A scene argument is either a generator name with an optional size
-//! (`tetra6`, `balls`, `soup100000`) or a path ending in `.nff` or `.obj`.
+//! NFF, OBJ, PLY and glTF files. A scene argument is either a generator name with an optional
+//! size (`tetra6`, `balls`, `soup100000`) or a path ending in `.nff`, `.obj`, `.ply`,
+//! `.ply.gz`, `.gltf` or `.glb`.
 //!
 //! ```
 //! use quiver_scenes::scene::Scene;
@@ -9,8 +10,10 @@
 //! assert!(Scene::load("nosuchscene").unwrap_err().to_string().contains("tetra"));
 //! ```
 //!
-//! Files are read strictly, and both formats report a fault alike, as
-//! `file:line: what was expected` ([`SceneError::Parse`]). A NaN or infinite number is an
+//! Files are read strictly, and every format reports a fault alike: as
+//! `file:line: what was expected` ([`SceneError::Parse`]) where the fault has a line (NFF, OBJ,
+//! a PLY header or ASCII body, glTF's JSON), as `file: item: what was expected`
+//! ([`SceneError::Item`]) where it has none (a binary PLY element, a glTF accessor). A NaN or infinite number is an
 //! error too, unless [`LoadOptions`] asks for the primitives and lights that hold one to be
 //! dropped and counted ([`LoadReport`]):
 //!
@@ -25,8 +28,10 @@
 //! ```
 
 mod camera;
+pub mod gltf;
 pub mod nff;
 pub mod obj;
+pub mod ply;
 mod soup;
 mod spd;
 pub mod tessellate;
@@ -38,6 +43,7 @@ use glam::Vec3A;
 use quiver::geometry::{Aabb, Triangle};
 use quiver::primitive::Primitive;
 use std::fmt;
+use std::ops::Range;
 use std::path::{Path, PathBuf};
 
 /// A surface description in NFF terms (`f r g b Kd Ks Shine T index_of_refraction`).
@@ -108,6 +114,27 @@ pub struct Light {
     pub color: Vec3A,
 }
 
+/// A named run of consecutive objects that came from one mesh of a file: an OBJ `o`/`g`
+/// group, a PLY file, a glTF mesh primitive placed by a node. Plain data, kept so that a later
+/// stage can instance or select meshes; the BVH and the renderer do not read it.
+///
+/// ```
+/// use quiver_scenes::scene::{obj, Group};
+/// let text = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\no wing\nf 1 2 3\ng tip\nf 2 4 3\n";
+/// let scene = obj::parse(text, "plane.obj").unwrap();
+/// assert_eq!(scene.groups, [
+///     Group { name: "wing".into(), objects: 0..1 },
+///     Group { name: "wing/tip".into(), objects: 1..2 },
+/// ]);
+/// ```
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Group {
+    /// The name the file gives it (see each reader for how it is formed).
+    pub name: String,
+    /// Its objects: indices into [`Scene::objects`], never empty.
+    pub objects: Range<u32>,
+}
+
 /// Geometry plus the viewpoint, lights and materials that go with it: an NFF file's content.
 #[derive(Clone, Debug)]
 pub struct Scene {
@@ -127,6 +154,11 @@ pub struct Scene {
     pub hither: f32,
     /// Image size the scene was designed for (NFF `resolution`).
     pub resolution: [u32; 2],
+    /// Which objects came from which mesh of the file, in object order and without overlap:
+    /// OBJ `o`/`g` groups, one group per PLY file, one per glTF mesh primitive placed by a
+    /// node. Empty for generated scenes and NFF files, which have no meshes to name; objects a
+    /// group does not cover belong to none.
+    pub groups: Vec<Group>,
 }
 
 /// A procedural scene: its name, the size it gets without one, and how to make it.
@@ -269,12 +301,37 @@ pub enum SceneError {
         /// What went wrong.
         message: String,
     },
-    /// A fault at one line of a scene file, NFF or OBJ; shown as `file:line: message`.
+    /// A fault at one line of a scene file (NFF, OBJ, a PLY header or ASCII body, glTF JSON);
+    /// shown as `file:line: message`.
     Parse {
         /// The file.
         path: PathBuf,
         /// The line, from 1.
         line: usize,
+        /// What was found and what was expected there.
+        message: String,
+    },
+    /// A fault in a part of a file that has no line: an element of a binary PLY body, a glTF
+    /// accessor, buffer view, node or mesh; shown as `file: item: message`.
+    ///
+    /// ```
+    /// use quiver_scenes::scene::{ply, SceneError};
+    /// // A header of 178 bytes claiming four billion vertices, then 16 bytes.
+    /// let head = "ply\nformat binary_little_endian 1.0\nelement vertex 4000000000\n\
+    ///             property float x\nproperty float y\nproperty float z\nelement face 0\n\
+    ///             property list uchar int vertex_indices\nend_header\n";
+    /// let mut file = head.as_bytes().to_vec();
+    /// file.extend_from_slice(&[0; 16]);
+    /// let e = ply::parse(&file, "short.ply").unwrap_err();
+    /// assert!(matches!(e, SceneError::Item { .. }));
+    /// assert_eq!(e.to_string(), "short.ply: element vertex (byte 178): 4000000000 instances \
+    ///     of at least 12 bytes each do not fit in the 16 bytes left in the file");
+    /// ```
+    Item {
+        /// The file.
+        path: PathBuf,
+        /// Which part: `vertex 12, property y (byte 200)`, `accessors[3]`, ...
+        item: String,
         /// What was found and what was expected there.
         message: String,
     },
@@ -304,7 +361,8 @@ impl fmt::Display for SceneError {
                 let names: Vec<_> = GENERATORS.iter().map(|g| g.name).collect();
                 write!(
                     f,
-                    "unknown scene '{s}': expected a generator name with an optional size ({}), a .nff or a .obj file",
+                    "unknown scene '{s}': expected a generator name with an optional size ({}), \
+                     or a .nff, .obj, .ply, .ply.gz, .gltf or .glb file",
                     names.join(", ")
                 )
             }
@@ -325,6 +383,11 @@ impl fmt::Display for SceneError {
                 line,
                 message,
             } => write!(f, "{}:{line}: {message}", path.display()),
+            SceneError::Item {
+                path,
+                item,
+                message,
+            } => write!(f, "{}: {item}: {message}", path.display()),
         }
     }
 }
@@ -455,14 +518,107 @@ pub(crate) fn non_finite(what: &str, tok: &str, x: f32) -> String {
     format!("{what} is {kind} ('{tok}')")
 }
 
+/// At most 40 characters of `s`, for messages quoting what may be binary garbage.
+pub(crate) fn clip(s: &str) -> String {
+    let mut out: String = s.chars().take(40).collect();
+    if s.chars().count() > 40 {
+        out.push_str("...");
+    }
+    out
+}
+
+/// A file's bytes.
+fn read_bytes(path: &Path) -> Result<Vec<u8>, SceneError> {
+    std::fs::read(path).map_err(|e| SceneError::File {
+        path: path.into(),
+        message: format!("cannot read: {e}"),
+    })
+}
+
 /// A file's text. Invalid UTF-8 becomes U+FFFD, so it fails as a bad token on its own line
 /// where it matters and passes in comments.
 fn read_text(path: &Path) -> Result<String, SceneError> {
-    let bytes = std::fs::read(path).map_err(|e| SceneError::File {
+    Ok(String::from_utf8_lossy(&read_bytes(path)?).into_owned())
+}
+
+/// Most bytes a `.gz` file may inflate to: far above any mesh quiver can hold, low enough that
+/// a small hostile file cannot exhaust memory.
+pub const MAX_INFLATED_BYTES: u64 = 1 << 32;
+
+/// A gzip file's inflated bytes, at most [`MAX_INFLATED_BYTES`].
+fn read_gzip(path: &Path) -> Result<Vec<u8>, SceneError> {
+    use std::io::Read;
+    let packed = read_bytes(path)?;
+    let fail = |message: String| SceneError::File {
         path: path.into(),
-        message: format!("cannot read: {e}"),
-    })?;
-    Ok(String::from_utf8_lossy(&bytes).into_owned())
+        message,
+    };
+    let mut out = Vec::new();
+    flate2::read::MultiGzDecoder::new(packed.as_slice())
+        .take(MAX_INFLATED_BYTES + 1)
+        .read_to_end(&mut out)
+        .map_err(|e| fail(format!("cannot inflate (gzip): {e}")))?;
+    if out.len() as u64 > MAX_INFLATED_BYTES {
+        return Err(fail(format!(
+            "inflates to more than {MAX_INFLATED_BYTES} bytes (gzip)"
+        )));
+    }
+    Ok(out)
+}
+
+/// A scene of the triangles read from a mesh file (OBJ, PLY, glTF): the default material, a
+/// camera that frames the mesh from above one corner, one light beyond the far corner, a grey
+/// background, and the file's groups.
+pub(crate) fn mesh_scene(path: &Path, tris: Vec<Triangle>, groups: Vec<Group>) -> Scene {
+    let bounds = tris.iter().fold(Aabb::EMPTY, |b, t| b.union(&t.bounds()));
+    let camera = Camera::framing(&bounds);
+    // Beyond the far corner; from the eye when the mesh is empty or too large for f32.
+    let light = Some(bounds.max + bounds.extent())
+        .filter(|l| !bounds.is_empty() && l.is_finite())
+        .unwrap_or(camera.from);
+    let mut scene = Scene::from_triangles(
+        path.display().to_string(),
+        tris,
+        camera,
+        vec![light],
+        Vec3A::splat(0.2),
+    );
+    scene.groups = groups;
+    scene
+}
+
+/// Collects [`Group`]s as a reader emits objects: `start` opens a group at the current
+/// object count, and a group that received no object is left out.
+#[derive(Default)]
+pub(crate) struct Groups {
+    done: Vec<Group>,
+    open: Option<(String, u32)>,
+}
+
+impl Groups {
+    /// Closes the open group at `objects` and opens `name` there.
+    pub(crate) fn start(&mut self, name: String, objects: usize) {
+        self.close(objects);
+        self.open = Some((name, objects as u32));
+    }
+
+    /// Closes the open group at `objects`, keeping it if it is not empty.
+    pub(crate) fn close(&mut self, objects: usize) {
+        if let Some((name, start)) = self.open.take() {
+            if objects as u32 > start {
+                self.done.push(Group {
+                    name,
+                    objects: start..objects as u32,
+                });
+            }
+        }
+    }
+
+    /// Every group, the open one closed at `objects`.
+    pub(crate) fn finish(mut self, objects: usize) -> Vec<Group> {
+        self.close(objects);
+        self.done
+    }
 }
 
 impl Scene {
@@ -490,6 +646,15 @@ impl Scene {
     /// ```
     pub fn load_with(spec: &str, opts: &LoadOptions) -> Result<(Scene, LoadReport), SceneError> {
         let lower = spec.to_ascii_lowercase();
+        if lower.ends_with(".ply.gz") {
+            return ply::parse_with(&read_gzip(Path::new(spec))?, spec, opts);
+        }
+        if lower.ends_with(".ply") {
+            return ply::parse_with(&read_bytes(Path::new(spec))?, spec, opts);
+        }
+        if lower.ends_with(".gltf") || lower.ends_with(".glb") {
+            return gltf::parse_with(&read_bytes(Path::new(spec))?, spec, opts);
+        }
         if lower.ends_with(".obj") {
             return obj::parse_with(&read_text(Path::new(spec))?, spec, opts);
         }
@@ -559,6 +724,7 @@ impl Scene {
             background,
             hither: 1e-3,
             resolution: [512, 512],
+            groups: Vec::new(),
         }
     }
 
@@ -629,7 +795,10 @@ impl Scene {
     /// patches [`tessellate`] makes of it at `resolution`; polygons and patches unchanged.
     pub fn into_patches(mut self, resolution: u32) -> Scene {
         let mut objects = Vec::with_capacity(self.objects.len());
+        // Where each old object starts among the new ones (and the end), to move the groups.
+        let mut starts = Vec::with_capacity(self.objects.len() + 1);
         for o in self.objects {
+            starts.push(objects.len() as u32);
             let patches = match &o.shape {
                 Shape::Sphere(s) => tessellate::sphere_patches(s, resolution),
                 Shape::Cone(c) => tessellate::cone_patches(c, resolution),
@@ -642,6 +811,10 @@ impl Scene {
                 shape: Shape::Patch { verts, normals },
                 material: o.material,
             }));
+        }
+        starts.push(objects.len() as u32);
+        for g in &mut self.groups {
+            g.objects = starts[g.objects.start as usize]..starts[g.objects.end as usize];
         }
         self.objects = objects;
         self

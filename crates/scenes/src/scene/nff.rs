@@ -225,6 +225,7 @@ pub fn parse_with(
         background: Vec3A::ZERO,
         hither: 1.0,
         resolution: [512, 512],
+        groups: Vec::new(),
     };
     let mut have_view = false;
     let mut material: Option<u32> = None;

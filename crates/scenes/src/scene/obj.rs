@@ -5,10 +5,14 @@
 //! (`file:line: message`, [`SceneError::Parse`]). Faces take `v`, `v/vt`, `v//vn` and
 //! `v/vt/vn` corners with 1-based or negative (relative) indices; a positive index may point
 //! at a vertex further down the file. Texture coordinates and normals are counted, so their
-//! indices are checked, but not used. Every other OBJ statement (groups, materials,
-//! smoothing, points, lines, free-form curves and surfaces) is skipped; a word that is no
-//! OBJ statement is an error, and so is a file of points, lines or free-form geometry without
-//! any face. A file with no geometry at all is an empty scene, as an empty NFF file is.
+//! indices are checked, but not used. `o` and `g` statements name the [`Group`]s of
+//! [`Scene::groups`]: each starts a new group, named by the latest `o` name and the latest `g`
+//! names after it, joined by `/` (`g` with several names joins them with spaces; faces before
+//! any `o` or `g` are the group `default`, as the OBJ spec names it); a group holds the
+//! triangles of its faces, and one without faces is left out. Every other OBJ statement
+//! (materials, smoothing, points, lines, free-form curves and surfaces) is skipped; a word that
+//! is no OBJ statement is an error, and so is a file of points, lines or free-form geometry
+//! without any face. A file with no geometry at all is an empty scene, as an empty NFF file is.
 //!
 //! ```
 //! use quiver_scenes::scene::obj;
@@ -18,14 +22,14 @@
 //! assert_eq!(e.to_string(), "bad.obj:2: expected a number for vertex y, got 'abc'");
 //! ```
 
-use super::{Camera, LoadOptions, LoadReport, NonFinite, Scene, SceneError};
+use super::{Group, Groups, LoadOptions, LoadReport, NonFinite, Scene, SceneError};
 use glam::Vec3A;
-use quiver::geometry::{Aabb, Triangle};
+use quiver::geometry::Triangle;
 use std::path::Path;
 
 /// The Wavefront spec's other statements, skipped on purpose.
 const SKIPPED: &str = "vp cstype deg bmat step p l curv curv2 surf parm trim hole scrv sp end con \
-                       g s mg o bevel c_interp d_interp lod usemtl mtllib shadow_obj trace_obj \
+                       s mg bevel c_interp d_interp lod usemtl mtllib shadow_obj trace_obj \
                        ctech stech maplib usemap call csh";
 
 /// Parses OBJ text strictly (see [`parse_with`]). `path` names the source in error messages.
@@ -91,9 +95,35 @@ pub fn parse_with(
     // The first point, line or free-form statement: a file of only these is not an empty
     // scene but one quiver cannot read.
     let mut first_unsurfaced: Option<(usize, &str)> = None;
+    // Each `o`/`g` statement: the group name it sets and the number of faces before it.
+    let mut group_starts: Vec<(String, usize)> = Vec::new();
+    let mut object_name: Option<String> = None;
     for (line, keyword, mut words) in lines() {
         match keyword {
             None => {}
+            Some(k @ ("o" | "g")) => {
+                let named = words.collect::<Vec<_>>().join(" ");
+                let named = if named.is_empty() {
+                    "default".to_string()
+                } else {
+                    named
+                };
+                let name = if k == "o" {
+                    object_name = Some(named.clone());
+                    named
+                } else {
+                    match &object_name {
+                        Some(o) => format!("{o}/{named}"),
+                        None => named,
+                    }
+                };
+                let name = if name.is_empty() {
+                    "default".into()
+                } else {
+                    name
+                };
+                group_starts.push((name, faces.len()));
+            }
             Some("v") => {
                 let mut p = [0.0f32; 3];
                 for (axis, x) in ["x", "y", "z"].into_iter().zip(&mut p) {
@@ -230,8 +260,14 @@ pub fn parse_with(
 
     let mut report = LoadReport::default();
     let mut tris = Vec::with_capacity(corners.len().saturating_sub(2 * faces.len()));
+    let mut groups = Groups::default();
+    groups.start("default".into(), 0);
+    let mut next_group = group_starts.iter().peekable();
     let mut start = 0;
-    for &(line, end) in &faces {
+    for (f, &(line, end)) in faces.iter().enumerate() {
+        while let Some((name, _)) = next_group.next_if(|g| g.1 == f) {
+            groups.start(name.clone(), tris.len());
+        }
         let face = &corners[start..end];
         start = end;
         if !bad_verts.is_empty() {
@@ -253,22 +289,8 @@ pub fn parse_with(
             tris.push(Triangle::new(v(0), v(k), v(k + 1)));
         }
     }
-    let bounds = tris.iter().fold(Aabb::EMPTY, |b, t| b.union(&t.bounds()));
-    let camera = Camera::framing(&bounds);
-    // Beyond the far corner; from the eye when the mesh is empty or too large for f32.
-    let light = Some(bounds.max + bounds.extent())
-        .filter(|l| !bounds.is_empty() && l.is_finite())
-        .unwrap_or(camera.from);
-    Ok((
-        Scene::from_triangles(
-            path.display().to_string(),
-            tris,
-            camera,
-            vec![light],
-            Vec3A::splat(0.2),
-        ),
-        report,
-    ))
+    let groups: Vec<Group> = groups.finish(tris.len());
+    Ok((super::mesh_scene(path, tris, groups), report))
 }
 
 /// How many `v`, `vt` and `vn` lines.

@@ -49,6 +49,7 @@ impl Spd {
                 background: v3(DVec3::from(background)),
                 hither: 1.0,
                 resolution: [512, 512],
+                groups: Vec::new(),
             },
             current: None,
         }

