@@ -36,7 +36,9 @@ fn setup(seed: u64) -> Setup {
     let mut instances = vec![Instance::of(GeometryId(0))];
     for i in 1..40u32 {
         let axis = Vec3::from(rng.in_box(Vec3A::splat(-1.0), Vec3A::ONE)).normalize_or(Vec3::Z);
-        let angle = rng.in_box(Vec3A::ZERO, Vec3A::splat(std::f32::consts::TAU)).x;
+        let angle = rng
+            .in_box(Vec3A::ZERO, Vec3A::splat(std::f32::consts::TAU))
+            .x;
         let mut scale = Vec3::from(rng.in_box(Vec3A::splat(0.4), Vec3A::splat(1.6)));
         if i % 7 == 0 {
             scale.x = -scale.x;

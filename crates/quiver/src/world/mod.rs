@@ -636,7 +636,8 @@ mod tests {
                 let at = Vec3A::new((i % 23) as f32, (i / 23) as f32, (i % 7) as f32);
                 b.instance(Instance::of(g).transform(Affine3A::from_translation(at.into())));
             }
-            b.build(&BuildOptions::default().thread_pool(&pool)).unwrap()
+            b.build(&BuildOptions::default().thread_pool(&pool))
+                .unwrap()
         };
         let (a, b, c) = (make(1), make(2), make(2));
         for other in [&b, &c] {
