@@ -39,6 +39,7 @@ use crate::geometry::Aabb;
 use crate::layout::bvh2::{compact_children, Addressing};
 use crate::layout::{Bvh2, Bvh4, Bvh8, Bvh8Node, Node4};
 use crate::primitive::Primitive;
+use crate::world::{Geometry, World};
 
 /// One node as a traversal meets it: its box, the boxes it tests when entered, and the
 /// primitives it tests when it is a leaf.
@@ -343,6 +344,20 @@ impl<P: Primitive> Pieces for Laid<P> {
             Laid::Bvh4(b) => b.pieces(f),
             Laid::QBvh4(b) => b.pieces(f),
             Laid::Bvh8(b) => b.pieces(f),
+        }
+    }
+}
+
+/// The nodes a world's walks can enter: its top level's, then each geometry's once (a census
+/// of the structure; a ray's walk enters a geometry's once per instance it meets).
+impl<P: Primitive> Pieces for World<P> {
+    fn pieces(&self, f: &mut dyn FnMut(Piece)) {
+        self.top().pieces(f);
+        for g in self.geometries() {
+            match g {
+                Geometry::Triangles(b, _) => b.pieces(f),
+                Geometry::Prims(b, _) => b.pieces(f),
+            }
         }
     }
 }

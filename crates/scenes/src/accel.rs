@@ -11,6 +11,7 @@
 //! assert!((bvh.object_of(hit.prim) as usize) < scene.objects.len());
 //! ```
 
+use crate::instanced::Instanced;
 use crate::primitive::{PatchTriangle, Prim};
 use crate::scene::Scene;
 use glam::Vec3A;
@@ -35,6 +36,8 @@ enum Kind {
     /// Triangles and, where they came from patches, their vertex normals.
     Triangles(Bvh<Triangle>, Vec<Triangle>, Vec<Option<[Vec3A; 3]>>),
     Mixed(Bvh<Prim>, Vec<Prim>),
+    /// Spheres and cones as instances of unit shapes (see [`Instanced`]).
+    Instanced(Box<Instanced>),
     /// A BVH that also records every query it answers (see [`SceneBvh::recording`]).
     Record(Box<SceneBvh>, Recording),
 }
@@ -117,9 +120,31 @@ impl SceneBvh {
         )
     }
 
-    /// Primitives in the BVH.
+    /// The scene (in curve mode) in patch mode at `resolution`, with its spheres and cones
+    /// as instances of unit shapes ([`Instanced`]): the same surfaces as
+    /// [`SceneBvh::build_triangles`] over [`Scene::into_patches`] (up to the placements'
+    /// rounding), with hits numbered alike.
+    ///
+    /// # Errors
+    /// As [`Instanced::build`].
+    pub fn build_instanced(
+        scene: &Scene,
+        resolution: u32,
+        options: &BuildOptions,
+    ) -> Result<SceneBvh, quiver::WorldError> {
+        Ok(SceneBvh {
+            kind: Kind::Instanced(Box::new(Instanced::build(scene, resolution, options)?)),
+            owner: Vec::new(),
+        })
+    }
+
+    /// Primitives in the BVH (the flattened count for an instanced scene).
     pub fn primitives(&self) -> usize {
-        self.owner.len()
+        match &self.kind {
+            Kind::Instanced(i) => i.primitives() as usize,
+            Kind::Record(inner, _) => inner.primitives(),
+            _ => self.owner.len(),
+        }
     }
 
     /// True for the pure triangle path.
@@ -132,7 +157,11 @@ impl SceneBvh {
 
     /// The scene object primitive `prim` came from.
     pub fn object_of(&self, prim: u32) -> u32 {
-        self.owner[prim as usize]
+        match &self.kind {
+            Kind::Instanced(i) => i.object_of(prim),
+            Kind::Record(inner, _) => inner.object_of(prim),
+            _ => self.owner[prim as usize],
+        }
     }
 
     /// Shading normal at a hit (see [`Prim::normal`]).
@@ -151,6 +180,7 @@ impl SceneBvh {
                 }
             }
             Kind::Mixed(_, prims) => prims[hit.prim as usize].normal(ray, &th),
+            Kind::Instanced(i) => i.normal(ray, hit),
             Kind::Record(inner, _) => inner.normal(ray, hit),
         }
     }
@@ -160,6 +190,7 @@ impl SceneBvh {
         match &self.kind {
             Kind::Triangles(b, ..) => b.footprint(),
             Kind::Mixed(b, _) => b.footprint(),
+            Kind::Instanced(i) => i.footprint(),
             Kind::Record(inner, _) => inner.footprint(),
         }
     }
@@ -219,6 +250,7 @@ impl SceneBvh {
         match &self.kind {
             Kind::Triangles(_, tris, _) => tris[prim as usize].intersect(ray),
             Kind::Mixed(_, prims) => prims[prim as usize].intersect(ray),
+            Kind::Instanced(i) => i.intersect_one(ray, prim),
             Kind::Record(inner, _) => inner.intersect_one(ray, prim),
         }
     }
@@ -237,6 +269,7 @@ impl Pieces for SceneBvh {
         match &self.kind {
             Kind::Triangles(b, ..) => b.pieces(f),
             Kind::Mixed(b, _) => b.pieces(f),
+            Kind::Instanced(i) => i.world().pieces(f),
             Kind::Record(inner, _) => inner.pieces(f),
         }
     }
@@ -255,6 +288,7 @@ impl RayQuery for SceneBvh {
         match &self.kind {
             Kind::Triangles(b, ..) => b.closest_hit_with::<B, S, F>(ray, stats, filter),
             Kind::Mixed(b, _) => b.closest_hit_with::<B, S, F>(ray, stats, filter),
+            Kind::Instanced(i) => i.closest_hit_with::<B, S, F>(ray, stats, filter),
             Kind::Record(inner, _) => {
                 let hit = inner.closest_hit_with::<B, S, F>(ray, stats, filter);
                 self.record(Traced {
@@ -278,6 +312,7 @@ impl RayQuery for SceneBvh {
         match &self.kind {
             Kind::Triangles(b, ..) => b.any_hit_with::<B, S, F>(ray, stats, filter),
             Kind::Mixed(b, _) => b.any_hit_with::<B, S, F>(ray, stats, filter),
+            Kind::Instanced(i) => i.any_hit_with::<B, S, F>(ray, stats, filter),
             Kind::Record(inner, _) => {
                 let blocked = inner.any_hit_with::<B, S, F>(ray, stats, filter);
                 // The ideal algorithm tests one blocker: the nearest, found without counting.
@@ -309,6 +344,7 @@ impl RayQuery for SceneBvh {
                 b.closest_hit_packet_with::<B, S, F>(query, hits, stats, filter)
             }
             Kind::Mixed(b, _) => b.closest_hit_packet_with::<B, S, F>(query, hits, stats, filter),
+            Kind::Instanced(i) => i.closest_hit_packet_with::<B, S, F>(query, hits, stats, filter),
             Kind::Record(..) => {
                 for (i, (r, h)) in query.rays.iter().zip(hits.iter_mut()).enumerate() {
                     if query.active.is_none_or(|a| a[i]) {
@@ -331,6 +367,7 @@ impl RayQuery for SceneBvh {
                 b.any_hit_packet_with::<B, S, F>(query, occluded, stats, filter)
             }
             Kind::Mixed(b, _) => b.any_hit_packet_with::<B, S, F>(query, occluded, stats, filter),
+            Kind::Instanced(i) => i.any_hit_packet_with::<B, S, F>(query, occluded, stats, filter),
             Kind::Record(..) => {
                 for (i, (r, o)) in query.rays.iter().zip(occluded.iter_mut()).enumerate() {
                     if query.active.is_none_or(|a| a[i]) {

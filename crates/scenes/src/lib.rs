@@ -21,6 +21,7 @@
 #![warn(missing_docs)]
 
 pub mod accel;
+pub mod instanced;
 pub mod primitive;
 pub mod render;
 pub mod rng;

@@ -146,7 +146,25 @@ fn load_and_build(
     patches: bool,
     options: &BuildOptions,
 ) -> Result<(Scene, SceneBvh, BuildTree, f64)> {
+    let (scene, bvh, tree, ms) = load_and_build_as(name, patches, false, options)?;
+    Ok((scene, bvh, tree.expect("a flattened build has a tree"), ms))
+}
+
+/// [`load_and_build`], or with `instanced` the scene in patch mode with its spheres and cones
+/// as instances of unit shapes: then the scene stays in curve mode (its objects name the
+/// materials) and there is no one build tree.
+fn load_and_build_as(
+    name: &str,
+    patches: bool,
+    instanced: bool,
+    options: &BuildOptions,
+) -> Result<(Scene, SceneBvh, Option<BuildTree>, f64)> {
     let mut scene = load_scene(name)?;
+    if instanced {
+        let start = Instant::now();
+        let bvh = SceneBvh::build_instanced(&scene, tessellate::DEFAULT_RESOLUTION, options)?;
+        return Ok((scene, bvh, None, start.elapsed().as_secs_f64() * 1e3));
+    }
     if patches {
         scene = scene.into_patches(tessellate::DEFAULT_RESOLUTION);
     }
@@ -156,5 +174,5 @@ fn load_and_build(
     } else {
         SceneBvh::build_with_tree(&scene, options)
     };
-    Ok((scene, bvh, tree, start.elapsed().as_secs_f64() * 1e3))
+    Ok((scene, bvh, Some(tree), start.elapsed().as_secs_f64() * 1e3))
 }

@@ -1,7 +1,7 @@
 //! `quiver render`: the SPD testing procedure on one scene: a PNG, the ray counts, Havran's
 //! statistics, optionally a heatmap of nodes per eye ray.
 
-use super::{layout_help, load_and_build, parse_layout, pool, scene_help, thread_count, Result};
+use super::{layout_help, load_and_build_as, parse_layout, pool, scene_help, thread_count, Result};
 use crate::output::{check_outputs, heatmap, outln, print_table, write_json, write_png};
 use clap::ValueEnum;
 use quiver::traverse::NoFilter;
@@ -32,6 +32,11 @@ pub(crate) struct RenderArgs {
     /// Tessellate spheres and cones (the SPD's patch mode).
     #[arg(long)]
     patches: bool,
+    /// Patch mode with every sphere and cone an instance of one tessellated unit shape (a
+    /// world of instances instead of one flattened triangle list; the same image up to the
+    /// placements' rounding at silhouettes).
+    #[arg(long)]
+    instanced: bool,
     /// Write a false-colour image of nodes visited per eye ray.
     #[arg(long)]
     heatmap: Option<PathBuf>,
@@ -83,10 +88,15 @@ pub(crate) fn run(args: RenderArgs) -> Result<()> {
     let options = BuildOptions::default()
         .layout(args.layout)
         .thread_pool(&pool);
-    let (scene, bvh, tree, build_ms) = load_and_build(&args.scene, args.patches, &options)?;
+    let (scene, bvh, tree, build_ms) =
+        load_and_build_as(&args.scene, args.patches, args.instanced, &options)?;
     let rconfig = RenderConfig {
         res: args.res,
-        two_sided: scene.two_sided_materials(),
+        two_sided: if args.instanced {
+            scene.patch_mode_two_sided_materials()
+        } else {
+            scene.two_sided_materials()
+        },
         offset: match args.offset {
             OffsetArg::Ulps => Offset::Ulps,
             OffsetArg::Epsilon => Offset::Epsilon,
@@ -138,7 +148,7 @@ pub(crate) fn run(args: RenderArgs) -> Result<()> {
         write_png(h, w as u32, w as u32, &px)?;
     }
     let census = quiver::predict::census(&bvh);
-    let stats = tree.stats();
+    let stats = tree.as_ref().map(|t| t.stats());
     let rays = image.rays;
     let total = rays.total().max(1) as f64;
     let work = counted.work;
@@ -155,8 +165,8 @@ pub(crate) fn run(args: RenderArgs) -> Result<()> {
         "r_SI": rays.hits() as f64 / total,
         "N_rays": rays.total(),
         "box_tests_per_ray": work.box_tests as f64 / total,
-        "build_tree_inner": stats.nodes - stats.leaves,
-        "build_tree_leaves": stats.leaves,
+        "build_tree_inner": stats.map(|s| s.nodes - s.leaves),
+        "build_tree_leaves": stats.map(|s| s.leaves),
         "T_B_ms": build_ms,
         "T_R_ms": trace_ms,
     });

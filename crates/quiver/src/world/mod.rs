@@ -593,6 +593,11 @@ impl<P: Primitive> World<P> {
         })
     }
 
+    /// The top-level BVH, for readers inside the crate (the cost predictor).
+    pub(crate) fn top(&self) -> &Bvh8<Placed> {
+        &self.top
+    }
+
     /// What the world occupies: the top level, every geometry's BVH once (however often it is
     /// placed) and the instance records. `nodes` counts the top level's and the geometries'
     /// node slots.

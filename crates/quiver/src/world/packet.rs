@@ -136,7 +136,9 @@ impl<P: Primitive> World<P> {
             &top.nodes,
             pk,
             stats,
+            #[inline(always)]
             |_| {},
+            #[inline(always)]
             |pk, visit, stats| {
                 match visit {
                     Visit::Leaf(range, b, cand) => {
@@ -147,7 +149,15 @@ impl<P: Primitive> World<P> {
                             if m == 0 {
                                 continue;
                             }
-                            local_rays(p, pk, rays, m, |i| best[i].t, &mut local);
+                            local_rays(
+                                p,
+                                pk,
+                                rays,
+                                m,
+                                #[inline(always)]
+                                |i| best[i].t,
+                                &mut local,
+                            );
                             flags(m, n, &mut active);
                             let mut f = InInstance {
                                 filter: &mut *filter,
@@ -222,7 +232,9 @@ impl<P: Primitive> World<P> {
             &top.nodes,
             pk,
             stats,
+            #[inline(always)]
             |_| {},
+            #[inline(always)]
             |pk, visit, stats| {
                 match visit {
                     Visit::Leaf(range, b, cand) => {
@@ -278,6 +290,7 @@ impl<P: Primitive> World<P> {
         );
     }
 
+    #[inline(always)]
     fn closest_rays_on<V: F8, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
         &self,
         cpu: V::Cpu,
@@ -287,31 +300,37 @@ impl<P: Primitive> World<P> {
         filter: &mut F,
     ) {
         let walkable = !self.top.prims.is_empty();
-        each_packet(query, hits, |rays, on, packet, hits| {
-            hits.fill(None);
-            if !walkable {
-                return;
-            }
-            if packet {
-                let mut pk = RayPacket::new(rays, on);
-                let mut best = [WorldHit::none(0.0); PACKET_RAYS];
-                for (b, r) in best.iter_mut().zip(rays) {
-                    *b = WorldHit::none(r.t_max);
+        each_packet(
+            query,
+            hits,
+            #[inline(always)]
+            |rays, on, packet, hits| {
+                hits.fill(None);
+                if !walkable {
+                    return;
                 }
-                self.closest_packet::<V, B, S, F>(cpu, rays, &mut pk, &mut best, stats, filter);
-                for i in bits(on) {
-                    hits[i] = best[i].found();
+                if packet {
+                    let mut pk = RayPacket::new(rays, on);
+                    let mut best = [WorldHit::none(0.0); PACKET_RAYS];
+                    for (b, r) in best.iter_mut().zip(rays) {
+                        *b = WorldHit::none(r.t_max);
+                    }
+                    self.closest_packet::<V, B, S, F>(cpu, rays, &mut pk, &mut best, stats, filter);
+                    for i in bits(on) {
+                        hits[i] = best[i].found();
+                    }
+                } else {
+                    for i in bits(on) {
+                        let mut best = WorldHit::none(rays[i].t_max);
+                        self.closest_from::<V, B, S, F>(cpu, &rays[i], 0, &mut best, stats, filter);
+                        hits[i] = best.found();
+                    }
                 }
-            } else {
-                for i in bits(on) {
-                    let mut best = WorldHit::none(rays[i].t_max);
-                    self.closest_from::<V, B, S, F>(cpu, &rays[i], 0, &mut best, stats, filter);
-                    hits[i] = best.found();
-                }
-            }
-        });
+            },
+        );
     }
 
+    #[inline(always)]
     fn any_rays_on<V: F8, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
         &self,
         cpu: V::Cpu,
@@ -321,20 +340,25 @@ impl<P: Primitive> World<P> {
         filter: &mut F,
     ) {
         let walkable = !self.top.prims.is_empty();
-        each_packet(query, occluded, |rays, on, packet, out| {
-            out.fill(false);
-            if !walkable {
-                return;
-            }
-            if packet {
-                let mut pk = RayPacket::new(rays, on);
-                self.any_packet::<V, B, S, F>(cpu, rays, &mut pk, out, stats, filter);
-            } else {
-                for i in bits(on) {
-                    out[i] = self.any_from::<V, B, S, F>(cpu, &rays[i], 0, stats, filter);
+        each_packet(
+            query,
+            occluded,
+            #[inline(always)]
+            |rays, on, packet, out| {
+                out.fill(false);
+                if !walkable {
+                    return;
                 }
-            }
-        });
+                if packet {
+                    let mut pk = RayPacket::new(rays, on);
+                    self.any_packet::<V, B, S, F>(cpu, rays, &mut pk, out, stats, filter);
+                } else {
+                    for i in bits(on) {
+                        out[i] = self.any_from::<V, B, S, F>(cpu, &rays[i], 0, stats, filter);
+                    }
+                }
+            },
+        );
     }
 }
 

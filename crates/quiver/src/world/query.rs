@@ -224,6 +224,7 @@ impl<P: Primitive> World<P> {
         !self.top.prims.is_empty()
     }
 
+    #[inline(always)]
     fn closest<V: F8, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
         &self,
         cpu: V::Cpu,
@@ -238,6 +239,7 @@ impl<P: Primitive> World<P> {
         best.found()
     }
 
+    #[inline(always)]
     fn any<V: F8, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
         &self,
         cpu: V::Cpu,

@@ -835,6 +835,32 @@ impl Scene {
         m
     }
 
+    /// The materials [`Scene::two_sided_materials`] gives for this scene in patch mode, without
+    /// tessellating it: those of patches, spheres and cones (which patch mode turns into
+    /// patches).
+    ///
+    /// ```
+    /// use quiver_scenes::Scene;
+    /// let balls = Scene::load("balls1").unwrap();
+    /// assert_eq!(balls.patch_mode_two_sided_materials(), balls.clone().into_patches(2).two_sided_materials());
+    /// ```
+    pub fn patch_mode_two_sided_materials(&self) -> Vec<u32> {
+        let mut m: Vec<u32> = self
+            .objects
+            .iter()
+            .filter(|o| {
+                matches!(
+                    o.shape,
+                    Shape::Patch { .. } | Shape::Sphere(_) | Shape::Cone(_)
+                )
+            })
+            .map(|o| o.material)
+            .collect();
+        m.sort_unstable();
+        m.dedup();
+        m
+    }
+
     /// True when every object is a triangle (no analytic shape, polygon or patch).
     pub fn is_all_triangles(&self) -> bool {
         self.objects

@@ -1,0 +1,405 @@
+//! A scene in the SPD's patch mode traced as a [`World`] of instances: every sphere is an
+//! instance of one tessellated unit sphere, every cone and cylinder an instance of a
+//! tessellated unit cone of its radius ratio (one geometry per ratio, up to
+//! [`MAX_CONE_SHAPES`]; the others stay world-space triangles), and everything else (polygons,
+//! patches, triangles) one world-space geometry placed at the identity.
+//!
+//! The unit shapes are tessellated by the very functions patch mode uses
+//! ([`tessellate::sphere_patches`], [`tessellate::cone_patches`]) and placed by the affine
+//! map that takes the unit shape onto each object, so an instanced scene is the flattened patch
+//! scene up to the rounding of the placement (a vertex lands within an ulp or two of where
+//! patch mode puts it). Hits are numbered as in a flattened list, instance by instance:
+//! `quiver::Hit::prim` is the instance's first number plus the primitive's index in its
+//! geometry, so the renderer and every `RayQuery` user read an instanced scene like any
+//! other.
+//!
+//! ```
+//! use quiver::{BuildOptions, RayQuery};
+//! use quiver_scenes::instanced::Instanced;
+//! use quiver_scenes::Scene;
+//! let scene = Scene::load("balls1").unwrap();
+//! let inst = Instanced::build(&scene, 4, &BuildOptions::default()).unwrap();
+//! assert_eq!(inst.world().instances().len(), 1 + 10); // the floor, and ten spheres
+//! let hit = inst.closest_hit(&scene.camera.ray(0.0, 0.0)).unwrap();
+//! assert!((inst.object_of(hit.prim) as usize) < scene.objects.len());
+//! ```
+
+use crate::primitive::{Cone, PatchTriangle, Prim, Sphere};
+use crate::scene::{tessellate, Scene, Shape};
+use glam::{Affine3A, DVec3, Mat3A, Vec3, Vec3A};
+use quiver::traverse::{BoxTest, Filter, PacketQuery, RayQuery, Stats, PACKET_RAYS};
+use quiver::{
+    BuildOptions, Footprint, GeometryId, Hit, Instance, PrimHit, Ray, Triangle, World, WorldError,
+    WorldHit,
+};
+
+/// Distinct cone radius ratios that get a unit shape of their own; cones of further ratios
+/// stay world-space triangles (a tree of many tapers gains little from a geometry per taper).
+pub const MAX_CONE_SHAPES: usize = 32;
+
+/// A scene's spheres and cones as instances of unit shapes (see the [module](self) docs).
+#[derive(Clone, Debug)]
+pub struct Instanced {
+    world: World,
+    /// Each instance's first hit number (and the end): numbers run instance by instance.
+    starts: Vec<u64>,
+    /// Each instance's scene object (instance 0, the world-space geometry, reads `owner`).
+    object: Vec<u32>,
+    /// For each world-space triangle, its scene object.
+    owner: Vec<u32>,
+    /// Each geometry's triangles' vertex normals, where they came from patches.
+    normals: Vec<Vec<Option<[Vec3A; 3]>>>,
+}
+
+/// A unit shape and the objects placed as it.
+struct Shapes {
+    tris: Vec<Triangle>,
+    normals: Vec<Option<[Vec3A; 3]>>,
+}
+
+impl Shapes {
+    fn of(patches: Vec<(Vec<Vec3A>, Vec<Vec3A>)>) -> Shapes {
+        let (mut tris, mut normals) = (Vec::new(), Vec::new());
+        for (verts, n) in patches {
+            let shape = Shape::Patch { verts, normals: n };
+            tessellate::shape_triangles(&shape, &mut tris, &mut normals);
+        }
+        Shapes { tris, normals }
+    }
+}
+
+/// The map from the unit sphere onto `s`.
+fn sphere_map(s: &Sphere) -> Affine3A {
+    Affine3A::from_scale_rotation_translation(
+        Vec3::splat(s.radius),
+        glam::Quat::IDENTITY,
+        s.center.into(),
+    )
+}
+
+/// The unit cone of `c`'s shape (base radius 1 at the origin, apex radius `ratio` at `+z`)
+/// and the map onto `c`, or `None` for a cone the unit shapes cannot place (no base radius,
+/// no height).
+fn cone_map(c: &Cone) -> Option<(f32, Affine3A)> {
+    let d = |v: Vec3A| DVec3::new(v.x as f64, v.y as f64, v.z as f64);
+    let (base, apex) = (d(c.base), d(c.apex));
+    let (br, ar) = (c.base_radius as f64, c.apex_radius as f64);
+    let axis = apex - base;
+    let h = axis.length();
+    if h == 0.0 || br <= 0.0 || !(h.is_finite() && br.is_finite() && ar.is_finite()) {
+        return None;
+    }
+    let na = axis / h;
+    // The side direction patch mode starts from (`cone_patches`): the unit cone's is +y.
+    let side = axis.cross(DVec3::Z);
+    let sd = if side.length() < 1e-6 {
+        axis.cross(DVec3::X).normalize()
+    } else {
+        side.normalize()
+    };
+    let f = |v: DVec3| Vec3A::new(v.x as f32, v.y as f32, v.z as f32);
+    let m = Affine3A {
+        matrix3: Mat3A::from_cols(f(sd.cross(na) * br), f(sd * br), f(na * h)),
+        translation: f(base),
+    };
+    Some(((ar / br) as f32, m))
+}
+
+impl Instanced {
+    /// `scene` (in curve mode: spheres and cones as shapes) with its spheres and cones
+    /// tessellated at `resolution` as instances of unit shapes, built with `options`.
+    ///
+    /// # Errors
+    /// [`WorldError`] when a placement cannot be inverted (a sphere of radius 0, say), or the
+    /// scene's triangles would number more than `u32::MAX` (hits number them in 32 bits).
+    pub fn build(
+        scene: &Scene,
+        resolution: u32,
+        options: &BuildOptions,
+    ) -> Result<Instanced, WorldError> {
+        let sphere = Shapes::of(tessellate::sphere_patches(
+            &Sphere {
+                center: Vec3A::ZERO,
+                radius: 1.0,
+            },
+            resolution,
+        ));
+        let mut cones: Vec<(u32, Shapes)> = Vec::new();
+        let (mut world_tris, mut owner, mut world_normals) = (Vec::new(), Vec::new(), Vec::new());
+        // (object, shape index: 0 the sphere, 1 + k the k-th cone ratio, map).
+        let mut placed: Vec<(u32, usize, Affine3A)> = Vec::new();
+        for (i, o) in scene.objects.iter().enumerate() {
+            let shape = match &o.shape {
+                Shape::Sphere(s) if s.radius > 0.0 => Some((0, sphere_map(s))),
+                Shape::Cone(c) => cone_map(c).and_then(|(ratio, m)| {
+                    let key = ratio.to_bits();
+                    let k = match cones.iter().position(|(r, _)| *r == key) {
+                        Some(k) => k,
+                        None if cones.len() < MAX_CONE_SHAPES => {
+                            let unit = Cone {
+                                base: Vec3A::ZERO,
+                                base_radius: 1.0,
+                                apex: Vec3A::Z,
+                                apex_radius: ratio,
+                            };
+                            cones.push((
+                                key,
+                                Shapes::of(tessellate::cone_patches(&unit, resolution)),
+                            ));
+                            cones.len() - 1
+                        }
+                        None => return None,
+                    };
+                    Some((1 + k, m))
+                }),
+                _ => None,
+            };
+            match shape {
+                Some((k, m)) => placed.push((i as u32, k, m)),
+                None => {
+                    let patched = match &o.shape {
+                        Shape::Sphere(s) => Some(tessellate::sphere_patches(s, resolution)),
+                        Shape::Cone(c) => Some(tessellate::cone_patches(c, resolution)),
+                        _ => None,
+                    };
+                    let before = world_tris.len();
+                    match patched {
+                        Some(p) => {
+                            for (verts, n) in p {
+                                let s = Shape::Patch { verts, normals: n };
+                                tessellate::shape_triangles(
+                                    &s,
+                                    &mut world_tris,
+                                    &mut world_normals,
+                                );
+                            }
+                        }
+                        None => tessellate::shape_triangles(
+                            &o.shape,
+                            &mut world_tris,
+                            &mut world_normals,
+                        ),
+                    }
+                    owner.resize(owner.len() + world_tris.len() - before, i as u32);
+                }
+            }
+        }
+        let mut b = World::builder();
+        let counts: Vec<u64> = std::iter::once(world_tris.len() as u64)
+            .chain(std::iter::once(sphere.tris.len() as u64))
+            .chain(cones.iter().map(|(_, s)| s.tris.len() as u64))
+            .collect();
+        b.triangles(world_tris);
+        b.triangles(sphere.tris);
+        let mut normals = vec![world_normals, sphere.normals];
+        for (_, s) in cones {
+            b.triangles(s.tris);
+            normals.push(s.normals);
+        }
+        b.instance(Instance::of(GeometryId(0)));
+        let mut starts = vec![0u64, counts[0]];
+        let mut object = vec![u32::MAX];
+        for &(obj, k, m) in &placed {
+            b.instance(Instance::of(GeometryId(1 + k as u32)).transform(m).id(obj));
+            starts.push(starts.last().unwrap() + counts[1 + k]);
+            object.push(obj);
+        }
+        if *starts.last().unwrap() > u32::MAX as u64 {
+            return Err(WorldError::TooMany);
+        }
+        Ok(Instanced {
+            world: b.build(options)?,
+            starts,
+            object,
+            owner,
+            normals,
+        })
+    }
+
+    /// The world traced.
+    pub fn world(&self) -> &World {
+        &self.world
+    }
+
+    /// Triangles in the flattened scene (what hits are numbered by).
+    pub fn primitives(&self) -> u64 {
+        *self.starts.last().unwrap()
+    }
+
+    /// The instance and geometry-local primitive of hit number `prim`.
+    fn split(&self, prim: u32) -> (usize, u32) {
+        let i = self.starts.partition_point(|&s| s <= prim as u64) - 1;
+        (i, (prim as u64 - self.starts[i]) as u32)
+    }
+
+    /// The scene object hit number `prim` came from.
+    pub fn object_of(&self, prim: u32) -> u32 {
+        match self.split(prim) {
+            (0, p) => self.owner[p as usize],
+            (i, _) => self.object[i],
+        }
+    }
+
+    /// A world hit as a hit of the flattened numbering.
+    #[inline(always)]
+    fn flat(&self, h: &WorldHit) -> Hit {
+        Hit {
+            t: h.t,
+            prim: (self.starts[h.instance as usize] + h.prim as u64) as u32,
+            u: h.u,
+            v: h.v,
+        }
+    }
+
+    /// The triangle of hit number `prim` in its geometry's space, its vertex normals if any,
+    /// and the instance.
+    fn triangle(&self, prim: u32) -> (Triangle, Option<[Vec3A; 3]>, &Instance) {
+        let (i, p) = self.split(prim);
+        let inst = self.world.instance(i as u32);
+        let g = inst.geometry.0 as usize;
+        let tri = match &self.world.geometries()[g] {
+            quiver::Geometry::Triangles(_, t) => t[p as usize],
+            quiver::Geometry::Prims(_, t) => t[p as usize],
+        };
+        (tri, self.normals[g][p as usize], inst)
+    }
+
+    /// The shading normal at `hit` of `ray`, as the flattened patch scene's: the patch's
+    /// vertex normals interpolated (a plain triangle's face normal) in object space, brought
+    /// to world space by the inverse transpose of the placement.
+    pub fn normal(&self, ray: &Ray, hit: &Hit) -> Vec3A {
+        let (tri, normals, inst) = self.triangle(hit.prim);
+        let th = PrimHit {
+            t: hit.t,
+            u: hit.u,
+            v: hit.v,
+        };
+        let local = match normals {
+            Some(normals) => Prim::Patch(PatchTriangle { tri, normals }).normal(ray, &th),
+            None => Prim::Triangle(tri).normal(ray, &th),
+        };
+        if inst.transform == Affine3A::IDENTITY {
+            return local;
+        }
+        let inverse_t = inst.transform.matrix3.inverse().transpose();
+        (inverse_t * local).normalize_or_zero()
+    }
+
+    /// Hit number `prim`'s own test against `ray` (in its instance's object space): the one
+    /// test Havran's ideal algorithm makes.
+    pub fn intersect_one(&self, ray: &Ray, prim: u32) -> Option<PrimHit> {
+        let (tri, _, inst) = self.triangle(prim);
+        let to_object = inst.transform.inverse();
+        let local = Ray {
+            origin: to_object.transform_point3a(ray.origin),
+            dir: to_object.transform_vector3a(ray.dir),
+            ..*ray
+        };
+        tri.intersect(&local)
+    }
+
+    /// What the world occupies.
+    pub fn footprint(&self) -> Footprint {
+        self.world.footprint()
+    }
+}
+
+/// The caller's filter on flattened hits, asked about the world's candidates.
+struct Flat<'a, F> {
+    scene: &'a Instanced,
+    filter: &'a mut F,
+}
+
+impl<F: Filter<Hit>> Filter<WorldHit> for Flat<'_, F> {
+    const ACTIVE: bool = F::ACTIVE;
+    #[inline(always)]
+    fn accept(&mut self, h: &WorldHit) -> bool {
+        self.filter.accept(&self.scene.flat(h))
+    }
+}
+
+impl RayQuery for Instanced {
+    type Hit = Hit;
+
+    fn closest_hit_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
+        &self,
+        ray: &Ray,
+        stats: &mut S,
+        filter: &mut F,
+    ) -> Option<Hit> {
+        let mut f = Flat {
+            scene: self,
+            filter,
+        };
+        let h = self.world.closest_hit_with::<B, S, _>(ray, stats, &mut f)?;
+        Some(self.flat(&h))
+    }
+
+    fn any_hit_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
+        &self,
+        ray: &Ray,
+        stats: &mut S,
+        filter: &mut F,
+    ) -> bool {
+        self.world.any_hit_with::<B, S, _>(
+            ray,
+            stats,
+            &mut Flat {
+                scene: self,
+                filter,
+            },
+        )
+    }
+
+    fn closest_hit_packet_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
+        &self,
+        query: PacketQuery<'_>,
+        hits: &mut [Option<Hit>],
+        stats: &mut S,
+        filter: &mut F,
+    ) {
+        assert_eq!(hits.len(), query.rays.len(), "one hit slot per ray");
+        let mut found = [None; PACKET_RAYS];
+        for (k, (rays, hits)) in query
+            .rays
+            .chunks(PACKET_RAYS)
+            .zip(hits.chunks_mut(PACKET_RAYS))
+            .enumerate()
+        {
+            let at = k * PACKET_RAYS;
+            let part = PacketQuery {
+                rays,
+                active: query.active.map(|a| &a[at..at + rays.len()]),
+                mode: query.mode,
+            };
+            let found = &mut found[..rays.len()];
+            let mut f = Flat {
+                scene: self,
+                filter: &mut *filter,
+            };
+            self.world
+                .closest_hit_packet_with::<B, S, _>(part, found, stats, &mut f);
+            for (h, w) in hits.iter_mut().zip(found.iter()) {
+                *h = w.map(|w| self.flat(&w));
+            }
+        }
+    }
+
+    fn any_hit_packet_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
+        &self,
+        query: PacketQuery<'_>,
+        occluded: &mut [bool],
+        stats: &mut S,
+        filter: &mut F,
+    ) {
+        self.world.any_hit_packet_with::<B, S, _>(
+            query,
+            occluded,
+            stats,
+            &mut Flat {
+                scene: self,
+                filter,
+            },
+        )
+    }
+}
