@@ -72,6 +72,7 @@ mod ffi {
 
     pub type RTCGeometryType = u32;
     pub const RTC_GEOMETRY_TYPE_TRIANGLE: RTCGeometryType = 0;
+    pub const RTC_GEOMETRY_TYPE_INSTANCE: RTCGeometryType = 121;
 
     pub type RTCBufferType = u32;
     pub const RTC_BUFFER_TYPE_INDEX: RTCBufferType = 0;
@@ -80,6 +81,7 @@ mod ffi {
     pub type RTCFormat = u32;
     pub const RTC_FORMAT_UINT3: RTCFormat = 0x5003;
     pub const RTC_FORMAT_FLOAT3: RTCFormat = 0x9003;
+    pub const RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR: RTCFormat = 0x9234;
 
     pub type RTCIntersectContextFlags = u32;
     pub const RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT: RTCIntersectContextFlags = 0;
@@ -176,6 +178,14 @@ mod ffi {
         pub fn rtcNewGeometry(device: RTCDevice, ty: RTCGeometryType) -> RTCGeometry;
         pub fn rtcReleaseGeometry(geometry: RTCGeometry);
         pub fn rtcCommitGeometry(geometry: RTCGeometry);
+        pub fn rtcSetGeometryInstancedScene(geometry: RTCGeometry, scene: RTCScene);
+        pub fn rtcSetGeometryTransform(
+            geometry: RTCGeometry,
+            time_step: u32,
+            format: RTCFormat,
+            xfm: *const c_void,
+        );
+        pub fn rtcSetGeometryMask(geometry: RTCGeometry, mask: u32);
         pub fn rtcSetNewGeometryBuffer(
             geometry: RTCGeometry,
             ty: RTCBufferType,
@@ -371,13 +381,17 @@ impl EmbreeDevice {
     }
 }
 
-/// One committed Embree scene holding one triangle mesh; primitive IDs are indices into the
-/// slice it was built from, as in quiver.
+/// One committed Embree scene holding one triangle mesh (primitive IDs are indices into the
+/// slice it was built from, as in quiver), or instances of such scenes
+/// ([`EmbreeScene::instanced`]).
 pub struct EmbreeScene {
     raw: RTCScene,
     streams: bool,
-    /// What the device's memory monitor counted across `rtcCommitScene`.
+    /// What the device's memory monitor counted across `rtcCommitScene` (of this scene and,
+    /// for an instanced one, of the scenes it places).
     bvh_bytes: i64,
+    /// The scenes an instanced scene places, kept alive as long as it.
+    placed: Vec<EmbreeScene>,
     /// Keeps the device (and its error slot) alive as long as the scene.
     _device: Arc<Device>,
 }
@@ -426,6 +440,7 @@ impl EmbreeScene {
             raw,
             streams: device.ray_streams(),
             bvh_bytes: 0,
+            placed: Vec::new(),
             _device: dev.clone(),
         };
         // An empty scene is one without geometry, rather than one with zero-sized buffers.
@@ -451,6 +466,87 @@ impl EmbreeScene {
         unsafe { rtcCommitScene(raw) };
         scene.bvh_bytes = dev.memory.load(Ordering::Relaxed) - before;
         dev.check("rtcCommitScene")?;
+        Ok(scene)
+    }
+
+    /// Instances (`RTC_GEOMETRY_TYPE_INSTANCE`) of one committed scene per geometry, each
+    /// placed by its object-to-world transform (`FLOAT3X4_COLUMN_MAJOR`) with its mask: the
+    /// scene quiver's `World` traces, as Embree builds it (a top-level BVH over the
+    /// instances, each geometry's BVH once). Hits report the geometry's primitive.
+    ///
+    /// ```
+    /// use glam::{Affine3A, Vec3, Vec3A};
+    /// use quiver::{Ray, Triangle};
+    /// use quiver_lab::embree::{EmbreeDevice, EmbreeScene};
+    /// let tri = vec![Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y)];
+    /// let far = Affine3A::from_translation(Vec3::new(0.0, 0.0, -2.0));
+    /// let scene = EmbreeScene::instanced(&EmbreeDevice::new().unwrap(), &[tri], &[(0, Affine3A::IDENTITY, 1), (0, far, 2)]).unwrap();
+    /// let ray = Ray::new(Vec3A::new(0.25, 0.25, 1.0), -Vec3A::Z);
+    /// assert_eq!(scene.closest_hit(&ray), Some((0, 1.0)));
+    /// ```
+    pub fn instanced(
+        device: &EmbreeDevice,
+        geometries: &[Vec<Triangle>],
+        instances: &[(u32, glam::Affine3A, u32)],
+    ) -> Result<Self, String> {
+        let dev = &device.inner;
+        let before = dev.memory.load(Ordering::Relaxed);
+        let placed = geometries
+            .iter()
+            .map(|g| EmbreeScene::on_device(device, g))
+            .collect::<Result<Vec<_>, _>>()?;
+        let raw = unsafe { rtcNewScene(dev.raw) };
+        if raw.is_null() {
+            dev.check("rtcNewScene")?;
+            return Err("Embree: rtcNewScene returned no scene".into());
+        }
+        let mut scene = EmbreeScene {
+            raw,
+            streams: device.ray_streams(),
+            bvh_bytes: 0,
+            placed,
+            _device: dev.clone(),
+        };
+        for &(g, m, mask) in instances {
+            let Some(child) = scene.placed.get(g as usize) else {
+                return Err(format!(
+                    "Embree: an instance of geometry {g} of {}",
+                    geometries.len()
+                ));
+            };
+            let geom = unsafe { rtcNewGeometry(dev.raw, RTC_GEOMETRY_TYPE_INSTANCE) };
+            if geom.is_null() {
+                dev.check("rtcNewGeometry (instance)")?;
+                return Err("Embree: rtcNewGeometry returned no geometry".into());
+            }
+            let cols = [
+                m.matrix3.x_axis,
+                m.matrix3.y_axis,
+                m.matrix3.z_axis,
+                m.translation,
+            ];
+            let xfm: [f32; 12] = std::array::from_fn(|k| cols[k / 3][k % 3]);
+            // SAFETY: `geom` is a new instance geometry of this device, `child.raw` a
+            // committed scene of it that `scene.placed` keeps alive, and `xfm` twelve floats
+            // in the column-major 3x4 layout the format names (Embree copies them).
+            unsafe {
+                rtcSetGeometryInstancedScene(geom, child.raw);
+                rtcSetGeometryTransform(
+                    geom,
+                    0,
+                    RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR,
+                    xfm.as_ptr().cast(),
+                );
+                rtcSetGeometryMask(geom, mask);
+                rtcCommitGeometry(geom);
+                rtcAttachGeometry(raw, geom);
+                rtcReleaseGeometry(geom);
+            }
+            dev.check("instance geometry")?;
+        }
+        unsafe { rtcCommitScene(raw) };
+        scene.bvh_bytes = dev.memory.load(Ordering::Relaxed) - before;
+        dev.check("rtcCommitScene (instances)")?;
         Ok(scene)
     }
 
@@ -643,7 +739,7 @@ fn rtc_ray(r: &Ray) -> RTCRay {
         dir_z: r.dir.z,
         time: 0.0,
         tfar: r.t_max,
-        mask: u32::MAX,
+        mask: r.mask,
         id: 0,
         flags: 0,
     }
