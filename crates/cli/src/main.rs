@@ -12,6 +12,7 @@ use commands::{accuracy, bench, build, builders, costs, gen, layouts, packets, p
 use std::process::ExitCode;
 
 mod commands;
+mod interrupt;
 mod output;
 
 #[derive(Parser)]
@@ -57,6 +58,7 @@ enum Command {
 }
 
 fn main() -> ExitCode {
+    interrupt::install();
     let cli = match Cli::try_parse() {
         Ok(cli) => cli,
         Err(e) => return clap_exit(&e),

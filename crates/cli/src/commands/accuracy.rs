@@ -34,10 +34,13 @@ pub(crate) struct AccuracyArgs {
 
 /// Runs `quiver accuracy`.
 pub(crate) fn run(args: AccuracyArgs) -> Result<()> {
-    check_outputs(&[
-        ("--plot", args.plot.as_deref()),
-        ("--json", args.json.as_deref()),
-    ])?;
+    check_outputs(
+        &[
+            ("--plot", args.plot.as_deref()),
+            ("--json", args.json.as_deref()),
+        ],
+        &[&args.scene],
+    )?;
     let scene = super::load_scene(&args.scene)?;
     let tris = scene.triangles();
     let pool = pool(args.threads.map(usize::from))?;

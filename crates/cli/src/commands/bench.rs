@@ -66,7 +66,7 @@ fn time<T>(f: impl FnOnce() -> T) -> (T, f64) {
 
 /// Runs `quiver bench`.
 pub(crate) fn run(args: BenchArgs) -> Result<()> {
-    check_outputs(&[("--json", args.json.as_deref())])?;
+    check_outputs(&[("--json", args.json.as_deref())], &args.scenes)?;
     // Generated scenes only: a file path fixed at compile time would break as soon as the
     // binary is installed elsewhere or run from another directory.
     let scenes = if args.scenes.is_empty() {

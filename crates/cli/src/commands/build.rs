@@ -52,7 +52,7 @@ pub(crate) struct BuildArgs {
 
 /// Runs `quiver build`.
 pub(crate) fn run(args: BuildArgs) -> Result<()> {
-    check_outputs(&[("--json", args.json.as_deref())])?;
+    check_outputs(&[("--json", args.json.as_deref())], &[&args.scene])?;
     let config = BuildConfig {
         bins: args.bins as usize,
         max_leaf_size: args.max_leaf as usize,

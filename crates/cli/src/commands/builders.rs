@@ -111,10 +111,13 @@ fn time_builds(reps: usize, f: impl Fn() -> BuildTree) -> (BuildTree, f64, f64) 
 
 /// Runs `quiver builders`.
 pub(crate) fn run(args: BuildersArgs) -> Result<()> {
-    check_outputs(&[
-        ("--plot", args.plot.as_deref()),
-        ("--json", args.json.as_deref()),
-    ])?;
+    check_outputs(
+        &[
+            ("--plot", args.plot.as_deref()),
+            ("--json", args.json.as_deref()),
+        ],
+        &args.scenes,
+    )?;
     let mut names: Vec<String> = args.scenes.clone();
     if names.is_empty() {
         names = SMALL.iter().map(|s| s.to_string()).collect();

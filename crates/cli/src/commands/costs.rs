@@ -40,7 +40,7 @@ pub(crate) struct CostsArgs {
 
 /// Runs `quiver costs`.
 pub(crate) fn run(args: CostsArgs) -> Result<()> {
-    check_outputs(&[("--json", args.json.as_deref())])?;
+    check_outputs(&[("--json", args.json.as_deref())], &args.scenes)?;
     // The cost models are read by the top-down builders only.
     let builders = if args.builders.is_empty() {
         vec![Builder::Binned, Builder::Sweep]

@@ -24,7 +24,7 @@ pub(crate) struct GenArgs {
 
 /// Runs `quiver gen`.
 pub(crate) fn run(args: GenArgs) -> Result<()> {
-    check_outputs(&[("--output", args.output.as_deref())])?;
+    check_outputs(&[("--output", args.output.as_deref())], &[&args.scene])?;
     let mut scene = super::load_scene(&args.scene)?;
     if args.patches {
         scene = scene.into_patches(args.resolution);

@@ -49,7 +49,7 @@ struct Row {
 
 /// Runs `quiver layouts`.
 pub(crate) fn run(args: LayoutsArgs) -> Result<()> {
-    check_outputs(&[("--json", args.json.as_deref())])?;
+    check_outputs(&[("--json", args.json.as_deref())], &args.scenes)?;
     let mut layouts: Vec<Layout> = Vec::new();
     // A layout named twice would be timed twice and shown as two equal columns.
     for &l in &args.layouts {

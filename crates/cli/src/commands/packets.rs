@@ -60,7 +60,7 @@ const EMBREE_KERNELS: [&str; 2] = ["embree-1", "embree-stream"];
 
 /// Runs `quiver packets`.
 pub(crate) fn run(args: PacketsArgs) -> Result<()> {
-    check_outputs(&[("--json", args.json.as_deref())])?;
+    check_outputs(&[("--json", args.json.as_deref())], &args.scenes)?;
     if args.layout.name().starts_with("bvh2") {
         return Err(format!(
             "--layout {}: packets need a 4- or 8-wide layout",

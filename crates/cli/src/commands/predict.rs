@@ -94,10 +94,13 @@ struct Timing {
 
 /// Runs `quiver predict`.
 pub(crate) fn run(args: PredictArgs) -> Result<()> {
-    check_outputs(&[
-        ("--json", args.json.as_deref()),
-        ("--plot", args.plot.as_deref()),
-    ])?;
+    check_outputs(
+        &[
+            ("--json", args.json.as_deref()),
+            ("--plot", args.plot.as_deref()),
+        ],
+        &args.scenes,
+    )?;
     let builders = distinct(&args.builders, &[Builder::Binned, Builder::Sweep]);
     let layouts = distinct(&args.layouts, &Layout::ALL);
     let timed_layout = args.layouts.first().copied().unwrap_or(Layout::Bvh8Dfs);

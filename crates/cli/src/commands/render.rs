@@ -73,11 +73,14 @@ enum OffsetArg {
 
 /// Runs `quiver render`.
 pub(crate) fn run(args: RenderArgs) -> Result<()> {
-    check_outputs(&[
-        ("--output", Some(args.output.as_path())),
-        ("--heatmap", args.heatmap.as_deref()),
-        ("--json", args.json.as_deref()),
-    ])?;
+    check_outputs(
+        &[
+            ("--output", Some(args.output.as_path())),
+            ("--heatmap", args.heatmap.as_deref()),
+            ("--json", args.json.as_deref()),
+        ],
+        &[&args.scene],
+    )?;
     let pool = pool(args.threads.map(usize::from))?;
     let options = BuildOptions::default()
         .layout(args.layout)
