@@ -843,3 +843,379 @@ fn the_next_run_sweeps_a_killed_runs_temporary() {
     want.sort();
     assert_eq!(names(d), want, "the killed run's {stale:?} is gone");
 }
+
+/// A small deterministic random number generator (SplitMix64) for the property test.
+struct Rng(u64);
+
+impl Rng {
+    fn next(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+
+    fn below(&mut self, n: usize) -> usize {
+        (self.next() % n as u64) as usize
+    }
+}
+
+/// What the property test puts at an output name before the run.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Entry {
+    Absent,
+    File,
+    Directory,
+    LinkToFile,
+    LinkChainToFile,
+    LinkToDirectory,
+    DanglingLink,
+    DanglingLinkNoDirectory,
+    Fifo,
+    LinkToFifo,
+    LinkToDevNull,
+    LinkToStdout,
+    HardLinkToInput,
+    LinkToInput,
+    CharDevice,
+    LinkLoop,
+}
+
+const ENTRIES: [Entry; 16] = [
+    Entry::Absent,
+    Entry::File,
+    Entry::Directory,
+    Entry::LinkToFile,
+    Entry::LinkChainToFile,
+    Entry::LinkToDirectory,
+    Entry::DanglingLink,
+    Entry::DanglingLinkNoDirectory,
+    Entry::Fifo,
+    Entry::LinkToFifo,
+    Entry::LinkToDevNull,
+    Entry::LinkToStdout,
+    Entry::HardLinkToInput,
+    Entry::LinkToInput,
+    Entry::CharDevice,
+    Entry::LinkLoop,
+];
+
+/// What the documented output rule says a path leads to (the test's own model of it).
+#[derive(Clone, Debug, PartialEq)]
+enum Expect {
+    /// The file at this path (relative to the test directory) is replaced or created.
+    Replace(String),
+    /// Written in place: nothing in the directory changes.
+    Direct,
+    /// Refused before any work, with this in the message.
+    Refuse(&'static str),
+}
+
+/// Creates `entry` at `dir/name` (helper files get names derived from `name`) and returns what
+/// writing to `name` must do.
+fn make_entry(dir: &Path, name: &str, entry: Entry, rng: &mut Rng, root: bool) -> Expect {
+    use std::os::unix::fs::symlink;
+    let p = dir.join(name);
+    let bytes: Vec<u8> = (0..rng.below(64)).map(|_| rng.next() as u8).collect();
+    match entry {
+        Entry::Absent => {
+            if rng.below(2) == 0 {
+                // A killed run's temporary, to be swept when this name is written.
+                std::fs::write(dir.join(format!(".{name}.quiver-2147483646-0.tmp")), "x").unwrap();
+            }
+            Expect::Replace(name.into())
+        }
+        Entry::File => {
+            std::fs::write(&p, bytes).unwrap();
+            Expect::Replace(name.into())
+        }
+        Entry::Directory => {
+            std::fs::create_dir(&p).unwrap();
+            std::fs::write(p.join("inside"), bytes).unwrap();
+            Expect::Refuse("is a directory")
+        }
+        Entry::LinkToFile => {
+            let t = format!("{name}-target");
+            std::fs::write(dir.join(&t), bytes).unwrap();
+            symlink(&t, &p).unwrap();
+            Expect::Replace(t)
+        }
+        Entry::LinkChainToFile => {
+            let (mid, t) = (format!("{name}-mid"), format!("{name}-target"));
+            std::fs::write(dir.join(&t), bytes).unwrap();
+            symlink(&t, dir.join(&mid)).unwrap();
+            symlink(dir.join(&mid), &p).unwrap();
+            Expect::Replace(t)
+        }
+        Entry::LinkToDirectory => {
+            let t = format!("{name}-dir");
+            std::fs::create_dir(dir.join(&t)).unwrap();
+            symlink(&t, &p).unwrap();
+            Expect::Refuse("a directory")
+        }
+        Entry::DanglingLink => {
+            let t = format!("{name}-new");
+            symlink(&t, &p).unwrap();
+            Expect::Replace(t)
+        }
+        Entry::DanglingLinkNoDirectory => {
+            symlink(format!("{name}-nodir/x"), &p).unwrap();
+            Expect::Refuse("does not exist")
+        }
+        Entry::Fifo => {
+            mkfifo(&p);
+            Expect::Refuse("FIFO")
+        }
+        Entry::LinkToFifo => {
+            let t = format!("{name}-fifo");
+            mkfifo(&dir.join(&t));
+            symlink(&t, &p).unwrap();
+            Expect::Refuse("FIFO")
+        }
+        Entry::LinkToDevNull => {
+            symlink("/dev/null", &p).unwrap();
+            Expect::Direct
+        }
+        Entry::LinkToStdout => {
+            symlink("/proc/self/fd/1", &p).unwrap();
+            Expect::Direct
+        }
+        Entry::HardLinkToInput => {
+            std::fs::hard_link(dir.join("in.nff"), &p).unwrap();
+            Expect::Refuse("is the scene file")
+        }
+        Entry::LinkToInput => {
+            symlink("in.nff", &p).unwrap();
+            Expect::Refuse("is the scene file")
+        }
+        Entry::CharDevice if root => {
+            assert!(mknod_null(&p));
+            Expect::Direct
+        }
+        Entry::CharDevice => {
+            symlink("/dev/zero", &p).unwrap();
+            Expect::Direct
+        }
+        Entry::LinkLoop => {
+            let other = format!("{name}-loop");
+            symlink(&other, &p).unwrap();
+            symlink(name, dir.join(&other)).unwrap();
+            Expect::Refuse("levels of symbolic links")
+        }
+    }
+}
+
+/// Every path under `dir` (recursively, not following links) with [`snapshot`]'s description
+/// (directories as "directory", their entries listed on their own).
+fn tree(dir: &Path) -> std::collections::BTreeMap<String, String> {
+    let mut out = std::collections::BTreeMap::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for name in names(&d) {
+            let p = d.join(&name);
+            let key = p.strip_prefix(dir).unwrap().display().to_string();
+            let m = std::fs::symlink_metadata(&p).unwrap();
+            if m.is_dir() {
+                out.insert(key, "directory".into());
+                stack.push(p);
+            } else {
+                out.insert(key, snapshot(&p));
+            }
+        }
+    }
+    out
+}
+
+/// One random case: a directory holding an input scene and entries of random kinds, one
+/// command writing one to three outputs at spellings of those entries. Checks the outcome
+/// against the model: refused (exit 2, the flag and path named, nothing changed) when any
+/// output must be refused, else success with each replaced file whole and valid, devices and
+/// links untouched, nothing else changed; the input never changes and no temporary remains.
+fn output_case(rng: &mut Rng, root: bool, nff: &[u8]) {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("in.nff"), nff).unwrap();
+    let names_used = ["a", "b", "c"];
+    let mut expect = Vec::new();
+    for name in names_used {
+        let entry = ENTRIES[rng.below(ENTRIES.len())];
+        expect.push(make_entry(d, name, entry, rng, root));
+    }
+    // The command and its output flags.
+    let (mut args, flags, kinds): (Vec<String>, Vec<&str>, Vec<&str>) = match rng.below(4) {
+        0 => (vec!["gen".into(), "in.nff".into()], vec!["-o"], vec!["nff"]),
+        1 => (
+            vec!["build".into(), "in.nff".into()],
+            vec!["--json"],
+            vec!["json"],
+        ),
+        _ => {
+            let mut flags = vec!["-o"];
+            let mut kinds = vec!["png"];
+            if rng.below(2) == 0 {
+                flags.push("--heatmap");
+                kinds.push("png");
+            }
+            if rng.below(2) == 0 {
+                flags.push("--json");
+                kinds.push("json");
+            }
+            let head = ["render", "in.nff", "--res", "4", "--threads", "1"];
+            (head.map(String::from).to_vec(), flags, kinds)
+        }
+    };
+    // Each output: an entry under one of its spellings, or a special path.
+    let mut outcome: Vec<(String, Expect)> = Vec::new();
+    for _ in &flags {
+        let k = rng.below(names_used.len());
+        let name = names_used[k];
+        let abs = d.join(name).display().to_string();
+        let (path, e) = match rng.below(10) {
+            0 => (format!("{name}/"), Expect::Refuse("names a directory")),
+            1 => ("in.nff".into(), Expect::Refuse("is the scene file")),
+            2 => ("/dev/null".into(), Expect::Direct),
+            3 => ("missing/x".into(), Expect::Refuse("does not exist")),
+            4 => (format!("./{name}"), expect[k].clone()),
+            5 => (abs, expect[k].clone()),
+            _ => (name.to_string(), expect[k].clone()),
+        };
+        outcome.push((path, e));
+    }
+    // Two outputs replacing the same file: the second would silently replace the first.
+    let mut refuse_dup = None;
+    for i in 0..outcome.len() {
+        for j in 0..i {
+            if let (Expect::Replace(a), Expect::Replace(b)) = (&outcome[i].1, &outcome[j].1) {
+                if a == b && refuse_dup.is_none() {
+                    refuse_dup = Some(i);
+                }
+            }
+        }
+    }
+    for (flag, (path, _)) in flags.iter().zip(&outcome) {
+        args.push(flag.to_string());
+        args.push(path.clone());
+    }
+    let before = tree(d);
+    let out = quiver().args(&args).current_dir(d).output().unwrap();
+    let after = tree(d);
+    let (stdout, stderr) = (
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr),
+    );
+    let context = format!("{args:?}\nmodel {outcome:?}\nstderr {stderr}\nbefore {before:#?}");
+    assert!(!stderr.contains("panicked"), "{context}");
+    assert_eq!(after.get("in.nff"), before.get("in.nff"), "{context}");
+    assert!(
+        !after
+            .keys()
+            .any(|k| k.contains(".quiver-") && !before.contains_key(k)),
+        "a temporary remained: {after:#?}\n{context}"
+    );
+    // The first refused output in flag order (a duplicate counts where it occurs).
+    let refused = outcome
+        .iter()
+        .enumerate()
+        .find_map(|(i, (path, e))| match e {
+            Expect::Refuse(why) => Some((i, path.clone(), *why)),
+            _ if refuse_dup == Some(i) => Some((i, path.clone(), "both name")),
+            _ => None,
+        });
+    if let Some((i, path, why)) = refused {
+        assert_eq!(out.status.code(), Some(2), "{context}");
+        assert_eq!(stdout, "", "{context}");
+        let flag = match flags[i] {
+            "-o" => "--output",
+            f => f,
+        };
+        let named = if why == "both name" {
+            format!("and {flag} both name {path}")
+        } else {
+            format!("error: {flag} {path}: ")
+        };
+        assert!(
+            stderr.contains(&named) && stderr.contains(why),
+            "want {named} ... {why}\n{context}"
+        );
+        // Stale temporaries of earlier outputs may have been swept; nothing else changes.
+        let keep = |m: &std::collections::BTreeMap<String, String>| {
+            m.iter()
+                .filter(|(k, _)| !k.contains(".quiver-2147483646-"))
+                .map(|(k, v)| (k.clone(), v.clone()))
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(keep(&before), keep(&after), "{context}");
+        return;
+    }
+    assert!(out.status.success(), "{context}");
+    let mut changed: Vec<(String, &str)> = Vec::new();
+    for ((_, e), kind) in outcome.iter().zip(&kinds) {
+        if let Expect::Replace(file) = e {
+            changed.push((file.clone(), kind));
+        }
+    }
+    for (key, value) in &after {
+        if let Some((_, kind)) = changed.iter().find(|(f, _)| f == key) {
+            assert!(value.starts_with("file "), "{key}: {value}\n{context}");
+            let bytes = std::fs::read(d.join(key)).unwrap();
+            let valid = match *kind {
+                "png" => bytes.starts_with(b"\x89PNG\r\n\x1a\n"),
+                "json" => serde_json::from_slice::<serde_json::Value>(&bytes)
+                    .is_ok_and(|v| v["scene"] == "in.nff"),
+                _ => bytes.starts_with(b"# in.nff (written by quiver)\n"),
+            };
+            assert!(valid, "{key} is not a whole {kind}\n{context}");
+        } else if key.contains(".quiver-2147483646-") {
+            // A stale temporary survives only if its name was not written.
+            let name = key
+                .trim_start_matches('.')
+                .split(".quiver-")
+                .next()
+                .unwrap();
+            assert!(
+                !changed.iter().any(|(f, _)| f == name),
+                "stale {key} not swept\n{context}"
+            );
+        } else {
+            assert_eq!(before.get(key), Some(value), "{key} changed\n{context}");
+        }
+    }
+    for (file, _) in &changed {
+        assert!(after.contains_key(file), "{file} not written\n{context}");
+    }
+    for key in before.keys() {
+        assert!(
+            after.contains_key(key) || key.contains(".quiver-2147483646-"),
+            "{key} vanished\n{context}"
+        );
+    }
+}
+
+/// Property test of the output rule over random combinations of regular files, directories,
+/// symbolic links (to files, directories, FIFOs, devices, stdout, the input, dangling, loops),
+/// hard links, FIFOs, devices, `/dev/null` and the input itself, through `gen`, `build` and
+/// `render` with one to three outputs. `QUIVER_OUTPUT_CASES` (default 40) cases, or as many as
+/// fit in `QUIVER_OUTPUT_SECONDS`; `QUIVER_OUTPUT_SEED` picks the sequence. Prints the count.
+#[test]
+fn output_paths_property() {
+    let env = |k: &str| std::env::var(k).ok().and_then(|v| v.parse::<u64>().ok());
+    let seconds = env("QUIVER_OUTPUT_SECONDS");
+    let cases = env("QUIVER_OUTPUT_CASES").unwrap_or(if seconds.is_some() { u64::MAX } else { 40 });
+    let mut rng = Rng(env("QUIVER_OUTPUT_SEED").unwrap_or(29));
+    let root = {
+        let dir = tempfile::tempdir().unwrap();
+        mknod_null(&dir.path().join("probe"))
+    };
+    let nff = run("gen tetra1").output().unwrap().stdout;
+    let start = std::time::Instant::now();
+    let mut runs = 0u64;
+    while runs < cases && seconds.is_none_or(|s| start.elapsed().as_secs() < s) {
+        output_case(&mut rng, root, &nff);
+        runs += 1;
+    }
+    eprintln!(
+        "output_paths_property: {runs} runs in {:?}",
+        start.elapsed()
+    );
+}
