@@ -1219,3 +1219,76 @@ fn output_paths_property() {
         start.elapsed()
     );
 }
+
+/// Runs `quiver args` in `dir` and returns its exit code (None if a signal ended it), stdout,
+/// stderr and peak resident memory in bytes (`wait4`'s `ru_maxrss`, this child alone).
+fn run_measured(args: &[&str], dir: &Path) -> (Option<i32>, String, String, u64) {
+    use std::io::Read;
+    let mut child = std::process::Command::new(QUIVER)
+        .args(args)
+        .current_dir(dir)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut out = child.stdout.take().unwrap();
+    let mut err = child.stderr.take().unwrap();
+    let out = std::thread::spawn(move || {
+        let mut s = String::new();
+        out.read_to_string(&mut s).unwrap();
+        s
+    });
+    let err = std::thread::spawn(move || {
+        let mut s = String::new();
+        err.read_to_string(&mut s).unwrap();
+        s
+    });
+    let mut status = 0;
+    // SAFETY: all-zero is a valid `rusage`; `wait4` reaps exactly this child (std's `Child`
+    // is never waited on afterwards) and writes only to the two locals.
+    let mut usage: libc::rusage = unsafe { std::mem::zeroed() };
+    let pid = unsafe { libc::wait4(child.id() as i32, &mut status, 0, &mut usage) };
+    assert_eq!(pid, child.id() as i32);
+    let code = libc::WIFEXITED(status).then(|| libc::WEXITSTATUS(status));
+    let (out, err) = (out.join().unwrap(), err.join().unwrap());
+    (code, out, err, usage.ru_maxrss as u64 * 1024)
+}
+
+/// Item 9: a scene path that is a device, a FIFO or a directory is refused without reading it
+/// (a link to /dev/zero used to grow to 4 GB first), and so is a file over the 1 GiB limit,
+/// from its size alone.
+#[test]
+fn special_and_oversized_scene_files_are_refused_without_reading() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::os::unix::fs::symlink("/dev/zero", d.join("zero.obj")).unwrap();
+    std::os::unix::fs::symlink("/dev/urandom", d.join("random.nff")).unwrap();
+    mkfifo(&d.join("pipe.obj"));
+    std::fs::create_dir(d.join("dir.nff")).unwrap();
+    // A sparse file one byte over the limit: no disk space, but its size says it all.
+    let big = std::fs::File::create(d.join("big.obj")).unwrap();
+    big.set_len((1 << 30) + 1).unwrap();
+    let cases = [
+        ("zero.obj", "is a character device, not a regular file"),
+        ("random.nff", "is a character device, not a regular file"),
+        ("pipe.obj", "is a FIFO (named pipe), not a regular file"),
+        ("dir.nff", "is a directory, not a regular file"),
+        (
+            "big.obj",
+            "1073741825 bytes, more than the 1073741824 a scene file may have",
+        ),
+    ];
+    for (file, why) in cases {
+        for command in ["build", "gen", "render"] {
+            let (code, out, err, peak) = run_measured(&[command, file], d);
+            assert_eq!(code, Some(2), "{command} {file}: {err}");
+            assert_eq!(out, "");
+            assert_eq!(err, format!("error: {file}: {why}\n"), "{command}");
+            assert!(peak < 64 << 20, "{command} {file}: peak {peak} bytes");
+        }
+    }
+    assert_eq!(
+        names(d),
+        ["big.obj", "dir.nff", "pipe.obj", "random.nff", "zero.obj"]
+    );
+}
