@@ -1292,3 +1292,47 @@ fn special_and_oversized_scene_files_are_refused_without_reading() {
         ["big.obj", "dir.nff", "pipe.obj", "random.nff", "zero.obj"]
     );
 }
+
+/// Item 6: an OBJ (no camera of its own) far larger than 1.1e19 used to overflow the framing
+/// camera's f32 arithmetic and render blank with exit 0 from a fixed view of the origin. Now
+/// the framing camera sees it at any extent f32 can frame, and beyond that the load fails
+/// naming the file and the reason.
+#[test]
+fn a_huge_obj_is_framed_or_refused_never_rendered_blank() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    for scale in ["1", "2e19", "1e30", "3e37"] {
+        let obj = format!(
+            "v -{scale} -{scale} 0\nv {scale} -{scale} 0\nv 0 {scale} 0\nv 0 0 {scale}\nf 1 2 3\nf 1 2 4\nf 2 3 4\nf 3 1 4\n"
+        );
+        std::fs::write(d.join("big.obj"), obj).unwrap();
+        run("render big.obj --res 16 --threads 1 -o big.png --json big.json")
+            .current_dir(d)
+            .assert()
+            .success();
+        let report: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(d.join("big.json")).unwrap()).unwrap();
+        let (eye, hit) = (&report["rays"]["eye"], &report["rays"]["eye_hit"]);
+        // The tetrahedron fills a good part of the 45° view: neither blank nor all of it.
+        let share = hit.as_f64().unwrap() / eye.as_f64().unwrap();
+        assert!(
+            (0.05..0.95).contains(&share),
+            "scale {scale}: {hit} of {eye}"
+        );
+    }
+    std::fs::write(
+        d.join("huge.obj"),
+        "v -2e38 -2e38 -2e38\nv 2e38 -2e38 0\nv 0 2e38 2e38\nf 1 2 3\n",
+    )
+    .unwrap();
+    for line in ["render huge.obj --res 16 -o huge.png", "build huge.obj"] {
+        run(line)
+            .current_dir(d)
+            .assert()
+            .code(2)
+            .stdout("")
+            .stderr(predicate::str::starts_with(
+                "error: huge.obj: OBJ files bring no view, and no camera can frame these bounds",
+            ));
+    }
+}

@@ -421,7 +421,10 @@ pub fn parse_with(
         last = Some((line, tok, count));
     }
     if !have_view {
-        scene.camera = Camera::framing(&scene.bounds());
+        scene.camera = Camera::framing(&scene.bounds()).map_err(|e| SceneError::File {
+            path: path.into(),
+            message: format!("the file has no view ('v'), and {e}"),
+        })?;
     }
     Ok((scene, report))
 }

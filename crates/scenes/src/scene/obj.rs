@@ -254,7 +254,10 @@ pub fn parse_with(
         }
     }
     let bounds = tris.iter().fold(Aabb::EMPTY, |b, t| b.union(&t.bounds()));
-    let camera = Camera::framing(&bounds);
+    let camera = Camera::framing(&bounds).map_err(|e| SceneError::File {
+        path: path.into(),
+        message: format!("OBJ files bring no view, and {e}"),
+    })?;
     // Beyond the far corner; from the eye when the mesh is empty or too large for f32.
     let light = Some(bounds.max + bounds.extent())
         .filter(|l| !bounds.is_empty() && l.is_finite())
