@@ -25,6 +25,7 @@
 //! ```
 
 mod camera;
+mod census;
 pub mod nff;
 pub mod obj;
 mod read;
@@ -33,6 +34,7 @@ mod spd;
 pub mod tessellate;
 
 pub use camera::{Camera, CameraError, View};
+pub use census::Census;
 pub use read::{read_bytes, read_text, MAX_FILE_BYTES};
 
 use crate::primitive::{Cone, PatchTriangle, Polygon, PolygonPiece, Prim, Sphere};
