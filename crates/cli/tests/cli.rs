@@ -1222,6 +1222,8 @@ fn output_paths_property() {
 
 /// Runs `quiver args` in `dir` and returns its exit code (None if a signal ended it), stdout,
 /// stderr and peak resident memory in bytes (`wait4`'s `ru_maxrss`, this child alone).
+// `wait4` reaps the child itself, for its resource usage; std's `wait` would fail after it.
+#[allow(clippy::zombie_processes)]
 fn run_measured(args: &[&str], dir: &Path) -> (Option<i32>, String, String, u64) {
     use std::io::Read;
     let mut child = std::process::Command::new(QUIVER)

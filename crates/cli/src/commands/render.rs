@@ -2,7 +2,7 @@
 //! statistics, optionally a heatmap of nodes per eye ray.
 
 use super::{layout_help, load_and_build, parse_layout, pool, scene_help, thread_count, Result};
-use crate::output::{check_outputs, heatmap, outln, print_table, write_json, write_png};
+use crate::output::{check_outputs, outln, print_table, write_heatmap, write_json, write_png};
 use clap::ValueEnum;
 use quiver::{BuildOptions, Layout};
 use quiver_scenes::accel::SceneBvh;
@@ -102,42 +102,36 @@ pub(crate) fn run(args: RenderArgs) -> Result<()> {
         "rendering {bar:40} {pos}/{len} rows [{elapsed}]",
     )?);
     let start = Instant::now();
-    let image = pool.install(|| render(&scene, &bvh, &rconfig, &|n| bar.inc(n as u64)));
+    let mut image = pool.install(|| render(&scene, &bvh, &rconfig, &|n| bar.inc(n as u64)));
     let trace_ms = start.elapsed().as_secs_f64() * 1e3;
     bar.finish_and_clear();
     write_png(&args.output, image.res, image.res, &image.rgb)?;
+    // Written: from here on its digest stands for it, and the pixels are not held twice.
+    image.rgb = Vec::new();
     // Havran's statistics come from a second, counting pass: the timed pass above runs the
     // plain kernels. The counting pass traces ray by ray, so the statistics are per ray as
-    // Havran defines them; both passes must trace the same rays and draw the same image. With
-    // --havran it also records every answer for the ideal runs.
+    // Havran defines them; both passes must trace the same rays and draw the same image (the
+    // same digest: the counting pass keeps no image). With --havran it also records every
+    // answer for the ideal runs; the node counts per eye ray are kept only for --heatmap.
     let counted_config = RenderConfig {
         counters: true,
         packets: false,
+        keep_image: false,
+        eye_nodes: args.heatmap.is_some(),
         ..rconfig.clone()
     };
-    let counting_bvh = if args.havran {
-        bvh.clone().recording()
-    } else {
-        bvh.clone()
-    };
-    let counted = pool.install(|| render(&scene, &counting_bvh, &counted_config, &|_| {}));
+    let recording = args.havran.then(|| bvh.clone().recording());
+    let counting_bvh = recording.as_ref().unwrap_or(&bvh);
+    let counted = pool.install(|| render(&scene, counting_bvh, &counted_config, &|_| {}));
     same_render(&counted, &image, "counting")?;
-    let theta = if args.havran {
-        Some(ideal_runs(
-            &pool,
-            &scene,
-            &bvh,
-            &counting_bvh,
-            &rconfig,
-            &image,
-            args.reps,
-        )?)
-    } else {
-        None
+    let theta = match &recording {
+        Some(recording) => Some(ideal_runs(
+            &pool, &scene, &bvh, recording, &rconfig, &image, args.reps,
+        )?),
+        None => None,
     };
     if let Some(h) = &args.heatmap {
-        let (w, px) = heatmap(&counted.eye_nodes, args.res as usize + 1);
-        write_png(h, w as u32, w as u32, &px)?;
+        write_heatmap(h, &counted.eye_nodes, args.res as usize + 1)?;
     }
     let census = quiver::predict::census(&bvh);
     let stats = tree.stats();
@@ -212,9 +206,10 @@ pub(crate) fn run(args: RenderArgs) -> Result<()> {
     write_json(args.json.as_ref(), &report)
 }
 
-/// Fails unless `other` traced the same rays and drew the same image as the timed pass.
+/// Fails unless `other` traced the same rays and drew the same image (digest) as the timed
+/// pass.
 fn same_render(other: &Rendered, image: &Rendered, pass: &str) -> Result<()> {
-    if other.rays != image.rays || other.rgb != image.rgb {
+    if other.rays != image.rays || other.image_digest != image.image_digest {
         return Err(format!(
             "internal error: the {pass} pass traced different rays than the plain pass"
         )
@@ -259,14 +254,19 @@ fn ideal_runs(
     if traced.len() as u64 != image.rays.total() {
         return Err("internal error: the recording missed rays the render traced".into());
     }
+    // The timed renders keep no image: each is checked against the first pass by its digest
+    // as it finishes, so --reps costs no memory.
     let single = RenderConfig {
         packets: false,
+        keep_image: false,
         ..config.clone()
     };
-    let mut renders = Vec::new();
+    let mut renders: Vec<bool> = Vec::new();
     let times = pool.install(|| {
         quiver_lab::measure::median_times_interleaved(reps, 3, |i| match i {
-            0 => renders.push(render(scene, bvh, &single, &|_| {})),
+            0 => renders.push(
+                same_render(&render(scene, bvh, &single, &|_| {}), image, "single-ray").is_ok(),
+            ),
             1 => {
                 let hits: usize = traced
                     .par_chunks(1024)
@@ -301,8 +301,10 @@ fn ideal_runs(
             }
         })
     });
-    for r in &renders {
-        same_render(r, image, "single-ray")?;
+    if renders.contains(&false) {
+        return Err(
+            "internal error: the single-ray pass traced different rays than the plain pass".into(),
+        );
     }
     let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3;
     let tests = traced.iter().filter(|t| t.hit.is_some()).count().max(1) as f64;

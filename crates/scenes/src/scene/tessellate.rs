@@ -289,7 +289,8 @@ impl PointTree {
             return id;
         }
         // Split at the median of the longer side (NaN coordinates sort last, anywhere).
-        let x_axis = !(bounds[3] - bounds[1] > bounds[2] - bounds[0]);
+        let x_axis = (bounds[3] - bounds[1]).partial_cmp(&(bounds[2] - bounds[0]))
+            != Some(std::cmp::Ordering::Greater);
         let key = |i: usize| if x_axis { pts[i].0 } else { pts[i].1 };
         let mid = range.start + range.len() / 2;
         self.order[range.clone()]
