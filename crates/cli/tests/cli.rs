@@ -1098,7 +1098,13 @@ fn output_case(rng: &mut Rng, root: bool, nff: &[u8]) {
         args.push(path.clone());
     }
     let before = tree(d);
-    let out = quiver().args(&args).current_dir(d).output().unwrap();
+    // QUIVER_BIN: a copy of the binary, so a long run is not fed a rebuilt one mid-way.
+    let binary = std::env::var("QUIVER_BIN").unwrap_or_else(|_| QUIVER.into());
+    let out = std::process::Command::new(binary)
+        .args(&args)
+        .current_dir(d)
+        .output()
+        .unwrap();
     let after = tree(d);
     let (stdout, stderr) = (
         String::from_utf8_lossy(&out.stdout),
@@ -1196,7 +1202,8 @@ fn output_case(rng: &mut Rng, root: bool, nff: &[u8]) {
 /// symbolic links (to files, directories, FIFOs, devices, stdout, the input, dangling, loops),
 /// hard links, FIFOs, devices, `/dev/null` and the input itself, through `gen`, `build` and
 /// `render` with one to three outputs. `QUIVER_OUTPUT_CASES` (default 40) cases, or as many as
-/// fit in `QUIVER_OUTPUT_SECONDS`; `QUIVER_OUTPUT_SEED` picks the sequence. Prints the count.
+/// fit in `QUIVER_OUTPUT_SECONDS`; `QUIVER_OUTPUT_SEED` picks the sequence, `QUIVER_BIN` the
+/// binary. Prints the count.
 #[test]
 fn output_paths_property() {
     let env = |k: &str| std::env::var(k).ok().and_then(|v| v.parse::<u64>().ok());
