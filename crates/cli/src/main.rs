@@ -11,6 +11,7 @@ use clap::{Parser, Subcommand};
 use commands::{accuracy, bench, build, builders, costs, gen, layouts, packets, predict, render};
 use std::process::ExitCode;
 
+mod budget;
 mod commands;
 mod interrupt;
 mod output;
@@ -28,6 +29,10 @@ struct Cli {
     /// on stderr) instead of refusing the file.
     #[arg(long, global = true)]
     drop_non_finite: bool,
+    /// The most memory the run may use, e.g. 8G or 512M (default: the memory available when
+    /// it starts). Work estimated to need more is refused before it starts, with the estimate.
+    #[arg(long, global = true, value_parser = budget::parse_size)]
+    max_memory: Option<u64>,
 }
 
 #[derive(Subcommand)]
@@ -66,6 +71,7 @@ fn main() -> ExitCode {
     if cli.drop_non_finite {
         commands::drop_non_finite();
     }
+    budget::set_limit(cli.max_memory);
     let result = match cli.command {
         Command::Build(args) => build::run(args),
         Command::Builders(args) => builders::run(args),

@@ -1345,3 +1345,236 @@ fn a_huge_obj_is_framed_or_refused_never_rendered_blank() {
             ));
     }
 }
+
+/// The estimate in bytes a refusal states (`needs about 2.8 GiB [3035641824 bytes]`).
+fn estimate_in(err: &str) -> u64 {
+    let start = err
+        .find(" [")
+        .unwrap_or_else(|| panic!("no estimate in {err}"))
+        + 2;
+    let end = start + err[start..].find(" bytes]").unwrap();
+    err[start..end].parse().unwrap()
+}
+
+/// Items 7, 8 and point 2: sizes the CLI accepts but this machine could not hold are refused
+/// before any work, naming the estimate, its parts and the limit: exit 2, nothing written,
+/// and only the memory a refusal takes (the audit saw 7 GB and 23 GB before aborts).
+#[test]
+fn sizes_beyond_the_memory_limit_are_refused_before_work_with_the_estimate() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let cases = [
+        (
+            "build balls6 --patches",
+            "build balls6 --patches: needs about ",
+        ),
+        (
+            "build rings40 --patches",
+            "build rings40 --patches: needs about ",
+        ),
+        (
+            "build lattice60 --patches",
+            "build lattice60 --patches: needs about ",
+        ),
+        ("build soup50000000", "build soup50000000: needs about "),
+        (
+            "render balls6 --patches --res 64",
+            "render balls6 --res 64 --patches: ",
+        ),
+        (
+            "render tetra2 --res 16384 --max-memory 1G",
+            "render tetra2 --res 16384: needs about 2.8 GiB",
+        ),
+        (
+            "render tetra2 --res 4096 --heatmap h.png --havran --max-memory 1G",
+            "render tetra2 --res 4096: needs about",
+        ),
+        ("bench balls6", "bench balls6: needs about"),
+        ("packets rings40", "packets rings40: needs about"),
+        ("builders lattice60", "builders lattice60: needs about"),
+        (
+            "predict tetra4 --lines 100000000 --max-memory 4G",
+            "predict tetra4: needs about",
+        ),
+        (
+            "layouts tetra1 --rays 100000000 --max-memory 2G",
+            "layouts tetra1: needs about",
+        ),
+        (
+            "costs tetra1 --res 8192 --max-memory 2G",
+            "costs tetra1: needs about",
+        ),
+        (
+            "accuracy tetra1 --sphere 8 --max-memory 1G",
+            "accuracy tetra1: needs about",
+        ),
+        (
+            "gen soup50000000 --max-memory 1G",
+            "gen soup50000000: needs about",
+        ),
+    ];
+    for (line, want) in cases {
+        let args: Vec<&str> = line.split(' ').collect();
+        let (code, out, err, peak) = run_measured(&args, d);
+        assert_eq!(code, Some(2), "{line}: {err}");
+        assert_eq!(out, "", "{line}");
+        assert!(err.starts_with(&format!("error: {want}")), "{line}: {err}");
+        assert!(
+            err.contains("more than the ") && err.contains("this run may use ("),
+            "{err}"
+        );
+        // The estimate is more than the limit it is refused by.
+        let limit = if line.contains("--max-memory") {
+            let size = line.rsplit(' ').next().unwrap();
+            size.trim_end_matches('G').parse::<u64>().unwrap() << 30
+        } else {
+            0
+        };
+        assert!(estimate_in(&err) > limit, "{err}");
+        assert!(peak < 128 << 20, "{line}: {peak} bytes to refuse");
+    }
+    assert!(names(d).is_empty(), "{:?}", names(d));
+}
+
+/// The estimates are upper bounds: each command on a scene of some size, run for real, peaks
+/// below the estimate it states when refused by `--max-memory 1`.
+#[test]
+fn memory_estimates_bound_what_runs_take() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("mesh.obj"), TRIANGLE_OBJ).unwrap();
+    let cases = [
+        "build soup200000 --threads 2",
+        "build soup200000 --builder aac-fast --layout bvh4-dfs --threads 2",
+        "build balls4 --patches --threads 2",
+        "build balls5 --layout bvh4-quant --threads 2",
+        "render teapot12 --res 1024 --threads 2 -o r.png --heatmap h.png --json r.json",
+        "render tetra6 --res 128 --havran --reps 1 --threads 2 -o r.png",
+        "render balls3 --patches --res 64 --threads 2 -o r.png",
+        "gen balls4 --patches -o /dev/null",
+        "layouts soup100000 --rays 100000 --res 64 --reps 1 --threads 1",
+        "bench soup100000 --rays 10000 --reps 1 --threads 1",
+        "packets balls3 --res 64 --rays 10000 --reps 1 --threads 1",
+        "predict soup50000 --lines 100000 --time --rays 10000 --res 64 --reps 1 --threads 1",
+        "costs soup50000 --res 64 --reps 1 --threads 1",
+        "builders soup20000 --res 32 --rays 1000 --build-reps 1 --reps 1 --threads 1",
+        "accuracy soup50000 --rays 10000 --reps 1 --sphere 4 --threads 1",
+        "build mesh.obj",
+    ];
+    for line in cases {
+        let mut args: Vec<&str> = line.split(' ').collect();
+        args.extend(["--max-memory", "1"]);
+        let (code, _, err, _) = run_measured(&args, d);
+        assert_eq!(code, Some(2), "{line}: {err}");
+        let estimate = estimate_in(&err);
+        args.truncate(args.len() - 2);
+        let (code, _, err, peak) = run_measured(&args, d);
+        assert_eq!(code, Some(0), "{line}: {err}");
+        assert!(
+            peak <= estimate,
+            "{line}: peak {peak} bytes, estimate {estimate}"
+        );
+        // Not absurdly loose either: within 8 times the peak, or a few hundred MB.
+        assert!(
+            estimate <= (8 * peak).max(320 << 20),
+            "{line}: peak {peak} bytes, estimate {estimate}"
+        );
+    }
+}
+
+/// `gen --patches` streams: balls6's 114.8 million patches start arriving while the process
+/// holds little more than the curve-mode scene (it grew to 23 GB before being killed); the
+/// reader stopping early ends it quietly.
+#[test]
+fn gen_patches_streams_in_little_memory() {
+    use std::io::Read;
+    let mut child = std::process::Command::new(QUIVER)
+        .args(["gen", "balls6", "--patches"])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut first = vec![0u8; 4 << 20];
+    child
+        .stdout
+        .as_mut()
+        .unwrap()
+        .read_exact(&mut first)
+        .unwrap();
+    let text = String::from_utf8_lossy(&first);
+    assert!(text.starts_with("# balls6 (written by quiver)\n"));
+    assert!(text.matches("\npp 3\n").count() > 10_000);
+    // Peak memory so far, from the kernel's record of the running process.
+    let status = std::fs::read_to_string(format!("/proc/{}/status", child.id())).unwrap();
+    let hwm: u64 = status
+        .lines()
+        .find_map(|l| l.strip_prefix("VmHWM:"))
+        .and_then(|v| v.trim().trim_end_matches(" kB").trim().parse().ok())
+        .unwrap();
+    assert!(hwm < 256 << 10, "{hwm} kB");
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    assert_eq!(out.status.code(), Some(0));
+    assert_eq!(String::from_utf8_lossy(&out.stderr), "");
+}
+
+/// An NFF of more patches than its file system has room for is refused before writing
+/// (balls2 at resolution 1000: 1.09 billion triangles, at least 41.7 GiB of text).
+#[test]
+fn gen_refuses_an_nff_larger_than_the_free_disk() {
+    let shm = Path::new("/dev/shm");
+    if !shm.is_dir() {
+        return;
+    }
+    let out = shm.join(format!("quiver-test-{}.nff", std::process::id()));
+    let (code, stdout, err, _) = run_measured(
+        &[
+            "gen",
+            "balls2",
+            "--patches",
+            "--resolution",
+            "1000",
+            "-o",
+            out.to_str().unwrap(),
+        ],
+        Path::new("."),
+    );
+    // Only meaningful where /dev/shm has less than that free (it holds half the RAM at most).
+    if code == Some(2) {
+        assert_eq!(stdout, "");
+        assert!(
+            err.contains("the NFF takes at least 41.7 GiB")
+                && err.contains("free on its file system"),
+            "{err}"
+        );
+    }
+    assert!(!out.exists());
+}
+
+/// A file with more primitives than the run can hold stops being read where the count passes
+/// the share of the limit left for it: one face line fanning into 2 million triangles, read
+/// with 256 MB allowed, fails at that line without storing them.
+#[test]
+fn a_file_past_its_share_of_memory_stops_at_the_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let mut obj = String::from("v 0 0 0\nv 1 0 0\nv 0 1 0\nf");
+    for _ in 0..2_000_000 {
+        obj.push_str(" 1 2 3");
+    }
+    obj.push('\n');
+    std::fs::write(d.join("fan.obj"), obj).unwrap();
+    let (code, out, err, peak) = run_measured(&["build", "fan.obj", "--max-memory", "256M"], d);
+    assert_eq!(code, Some(2), "{err}");
+    assert_eq!(out, "");
+    assert!(
+        err.starts_with("error: fan.obj: more than ")
+            && err.contains(
+                "primitives by line 4, more than this command can hold within the 256 MiB"
+            ),
+        "{err}"
+    );
+    assert!(peak < 96 << 20, "{peak} bytes");
+    // With room for them, the same file loads.
+    run("build fan.obj").current_dir(d).assert().success();
+}

@@ -85,7 +85,19 @@ pub(crate) fn run(args: RenderArgs) -> Result<()> {
     let options = BuildOptions::default()
         .layout(args.layout)
         .thread_pool(&pool);
-    let (scene, bvh, tree, build_ms) = load_and_build(&args.scene, args.patches, &options)?;
+    let threads = pool.current_num_threads();
+    let what = format!(
+        "render {} --res {}{}",
+        args.scene,
+        args.res,
+        if args.patches { " --patches" } else { "" }
+    );
+    let (scene, bvh, tree, build_ms) =
+        load_and_build(&args.scene, args.patches, &options, |censuses, scenes| {
+            let mut e = super::build_estimate(&what, censuses, args.patches);
+            render_estimate(&mut e, &args, threads, censuses, scenes);
+            e
+        })?;
     let rconfig = RenderConfig {
         res: args.res,
         two_sided: scene.two_sided_materials(),
@@ -204,6 +216,67 @@ pub(crate) fn run(args: RenderArgs) -> Result<()> {
         print_table(&report);
     }
     write_json(args.json.as_ref(), &report)
+}
+
+/// Adds what rendering takes beyond the scene and its BVH: the timed pass (the image and its
+/// band buffers), the counting pass (band buffers, node counts per eye ray for --heatmap), and
+/// with --havran the recording BVH's copy and every query it records, at most
+/// `(1 + lights) * (1 + b + ... + b^4)` per eye ray for `b` secondary rays per hit (1 with
+/// reflective or transmitting materials, 2 with transmitting ones), known once the scene is
+/// loaded.
+fn render_estimate(
+    e: &mut crate::budget::Estimate,
+    args: &RenderArgs,
+    threads: usize,
+    censuses: &[quiver_scenes::scene::Census],
+    scenes: Option<&[quiver_scenes::Scene]>,
+) {
+    let timed = RenderConfig {
+        res: args.res,
+        ..RenderConfig::default()
+    };
+    let counting = RenderConfig {
+        counters: true,
+        keep_image: false,
+        eye_nodes: args.heatmap.is_some(),
+        ..timed.clone()
+    };
+    e.add(
+        format!("image and render buffers at {}²", args.res),
+        timed.memory_bytes(threads),
+    );
+    e.add("counting pass", counting.memory_bytes(threads));
+    let Some(scene) = scenes.and_then(|s| s.first()) else {
+        return;
+    };
+    if !args.havran {
+        return;
+    }
+    let prims = super::largest(censuses, |c| {
+        if args.patches {
+            super::triangles_of(c)
+        } else {
+            c.curve_primitives()
+        }
+    });
+    let reflective = scene.materials.iter().any(|m| m.ks > 0.0 || m.t > 0.0);
+    let transmitting = scene.materials.iter().any(|m| m.t > 0.0);
+    let b = reflective as u64 + transmitting as u64;
+    let depth = RenderConfig::default().max_depth;
+    let per_eye = (1 + scene.lights.len() as u64) * (0..depth).map(|d| b.pow(d)).sum::<u64>();
+    let eye = (args.res as u64 + 1).pow(2);
+    let traced = std::mem::size_of::<quiver_scenes::accel::Traced>() as u64;
+    e.add(
+        "--havran's copy of the BVH",
+        prims * crate::budget::TRIANGLE_BUILD / 2,
+    );
+    e.add(
+        format!(
+            "--havran's record of up to {} queries",
+            crate::budget::count(eye * per_eye)
+        ),
+        eye * per_eye * traced,
+    );
 }
 
 /// Fails unless `other` traced the same rays and drew the same image (digest) as the timed

@@ -272,6 +272,16 @@ pub enum SceneError {
         /// What went wrong.
         message: String,
     },
+    /// A file holding more primitives than [`LoadOptions::max_primitives`] allows, found at
+    /// `line` before the rest was read.
+    TooLarge {
+        /// The file.
+        path: PathBuf,
+        /// The line where the count passed the limit.
+        line: usize,
+        /// The limit.
+        limit: u64,
+    },
     /// A fault at one line of a scene file, NFF or OBJ; shown as `file:line: message`.
     Parse {
         /// The file.
@@ -323,6 +333,12 @@ impl fmt::Display for SceneError {
                 )
             }
             SceneError::File { path, message } => write!(f, "{}: {message}", path.display()),
+            SceneError::TooLarge { path, line, limit } => write!(
+                f,
+                "{}:{line}: more than {limit} primitives, the most this load allows \
+                 (LoadOptions::max_primitives)",
+                path.display()
+            ),
             SceneError::Parse {
                 path,
                 line,
@@ -360,6 +376,11 @@ pub struct LoadOptions {
     pub non_finite: NonFinite,
     /// The largest file read ([`read_bytes`]); [`MAX_FILE_BYTES`] by default.
     pub max_file_bytes: u64,
+    /// The most primitives a file may hold, counted as they trace (a sphere, cone or
+    /// triangle is one, a polygon or face of `n` vertices `n - 2`); a file with more fails
+    /// with [`SceneError::TooLarge`] as soon as the count passes it, before the rest is
+    /// stored. Unlimited by default; a caller with a memory budget sets it.
+    pub max_primitives: u64,
 }
 
 impl Default for LoadOptions {
@@ -367,6 +388,7 @@ impl Default for LoadOptions {
         LoadOptions {
             non_finite: NonFinite::default(),
             max_file_bytes: MAX_FILE_BYTES,
+            max_primitives: u64::MAX,
         }
     }
 }
@@ -381,6 +403,22 @@ impl LoadOptions {
     /// Sets [`LoadOptions::max_file_bytes`].
     pub fn max_file_bytes(mut self, bytes: u64) -> Self {
         self.max_file_bytes = bytes;
+        self
+    }
+
+    /// Sets [`LoadOptions::max_primitives`].
+    ///
+    /// ```
+    /// use quiver_scenes::scene::{obj, LoadOptions};
+    /// let quad = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n";
+    /// let two = LoadOptions::default().max_primitives(2);
+    /// assert!(obj::parse_with(quad, "q.obj", &two).is_ok());
+    /// let one = LoadOptions::default().max_primitives(1);
+    /// let e = obj::parse_with(quad, "q.obj", &one).unwrap_err().to_string();
+    /// assert!(e.starts_with("q.obj:5: more than 1 primitives"), "{e}");
+    /// ```
+    pub fn max_primitives(mut self, count: u64) -> Self {
+        self.max_primitives = count;
         self
     }
 }

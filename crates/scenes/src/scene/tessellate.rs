@@ -361,6 +361,15 @@ impl PointTree {
 /// `12 res^2` triangles in all, counter-clockwise from outside, with the unit radial
 /// direction as each vertex normal. Faces come in the order -X, -Y, -Z, +X, +Y, +Z.
 pub fn sphere_patches(s: &Sphere, res: u32) -> Vec<(Vec<Vec3A>, Vec<Vec3A>)> {
+    let mut out = Vec::with_capacity(12 * res.max(1) as usize * res.max(1) as usize);
+    for_each_sphere_patch(s, res, |v, n| out.push((v.to_vec(), n.to_vec())));
+    out
+}
+
+/// [`sphere_patches`] one patch at a time: `f(vertices, normals)` for each, in the same order,
+/// holding only the face grid (`(res + 1)²` points), so a sphere at any resolution can be
+/// written out without its `12 res²` patches in memory.
+pub fn for_each_sphere_patch(s: &Sphere, res: u32, mut f: impl FnMut([Vec3A; 3], [Vec3A; 3])) {
     use std::f64::consts::FRAC_PI_4;
     let r = res.max(1) as usize;
     let angle = |e: usize| FRAC_PI_4 * (2.0 * e as f64 / r as f64 - 1.0);
@@ -379,8 +388,7 @@ pub fn sphere_patches(s: &Sphere, res: u32) -> Vec<(Vec<Vec3A>, Vec<Vec3A>)> {
         .collect();
     let center = DVec3::new(s.center.x as f64, s.center.y as f64, s.center.z as f64);
     let radius = s.radius as f64;
-    let f = |p: DVec3| Vec3A::new(p.x as f32, p.y as f32, p.z as f32);
-    let mut out = Vec::with_capacity(12 * r * r);
+    let v3 = |p: DVec3| Vec3A::new(p.x as f32, p.y as f32, p.z as f32);
     for face in 0..6 {
         // Each face is the previous one turned by a quarter about the next axis.
         for p in grid.iter_mut().flatten() {
@@ -399,21 +407,24 @@ pub fn sphere_patches(s: &Sphere, res: u32) -> Vec<(Vec<Vec3A>, Vec<Vec3A>)> {
                     grid[u + 1][v],
                 ];
                 for tri in [[q[0], q[1], q[2]], [q[2], q[3], q[0]]] {
-                    out.push((
-                        tri.iter().map(|&n| f(center + n * radius)).collect(),
-                        tri.iter().map(|&n| f(n)).collect(),
-                    ));
+                    f(tri.map(|n| v3(center + n * radius)), tri.map(v3));
                 }
             }
         }
     }
-    out
 }
 
 /// A cone or cylinder as the SPD's patch mode writes it (`lib_output_polygon_cylcone`): `4 res`
 /// segments around the axis, two triangles each (`8 res` in all), facing outward, with normals
 /// that lean by the cone's slope.
 pub fn cone_patches(c: &Cone, res: u32) -> Vec<(Vec<Vec3A>, Vec<Vec3A>)> {
+    let mut out = Vec::with_capacity(8 * res.max(1) as usize);
+    for_each_cone_patch(c, res, |v, n| out.push((v.to_vec(), n.to_vec())));
+    out
+}
+
+/// [`cone_patches`] one patch at a time, in the same order (see [`for_each_sphere_patch`]).
+pub fn for_each_cone_patch(c: &Cone, res: u32, mut emit: impl FnMut([Vec3A; 3], [Vec3A; 3])) {
     let d = |v: Vec3A| DVec3::new(v.x as f64, v.y as f64, v.z as f64);
     let f = |p: DVec3| Vec3A::new(p.x as f32, p.y as f32, p.z as f32);
     let (base, apex) = (d(c.base), d(c.apex));
@@ -421,7 +432,7 @@ pub fn cone_patches(c: &Cone, res: u32) -> Vec<(Vec<Vec3A>, Vec<Vec3A>)> {
     let axis = apex - base;
     let h = axis.length();
     if h == 0.0 {
-        return Vec::new();
+        return;
     }
     let na = axis / h;
     let side = axis.cross(DVec3::Z);
@@ -440,7 +451,6 @@ pub fn cone_patches(c: &Cone, res: u32) -> Vec<(Vec<Vec3A>, Vec<Vec3A>)> {
     let step = std::f64::consts::TAU / n as f64;
     let (mut b_prev, mut a_prev, mut n_prev) = (base + r0, apex + r1, sn);
     let mut theta = 0.0;
-    let mut out = Vec::with_capacity(2 * n);
     for _ in 0..n {
         // The angle accumulates by repeated addition, as the SPD library does.
         theta += step;
@@ -449,17 +459,13 @@ pub fn cone_patches(c: &Cone, res: u32) -> Vec<(Vec<Vec3A>, Vec<Vec3A>)> {
             base + rotate(r0, na, theta),
             rotate(sn, na, theta),
         );
-        out.push((
-            vec![f(a_i), f(a_prev), f(b_prev)],
-            vec![f(n_i), f(n_prev), f(n_prev)],
-        ));
-        out.push((
-            vec![f(b_i), f(a_i), f(b_prev)],
-            vec![f(n_i), f(n_i), f(n_prev)],
-        ));
+        emit(
+            [f(a_i), f(a_prev), f(b_prev)],
+            [f(n_i), f(n_prev), f(n_prev)],
+        );
+        emit([f(b_i), f(a_i), f(b_prev)], [f(n_i), f(n_i), f(n_prev)]);
         (a_prev, b_prev, n_prev) = (a_i, b_i, n_i);
     }
-    out
 }
 
 /// Right-handed rotation of `p` about unit axis `u` by `a` radians (Rodrigues' formula).
