@@ -494,7 +494,7 @@ pub fn write(scene: &Scene, w: &mut impl Write) -> io::Result<()> {
     write_as(scene, None, w)
 }
 
-/// Writes the scene as NFF in patch mode at `resolution`: exactly what [`write`] writes of
+/// Writes the scene as NFF in patch mode at `resolution`: exactly what [`write()`] writes of
 /// [`Scene::into_patches`]`(resolution)`, but each sphere's and cone's patches are written as
 /// they are made, never held: memory stays that of the scene in curve mode at any resolution.
 ///
@@ -510,7 +510,7 @@ pub fn write_patches(scene: &Scene, resolution: u32, w: &mut impl Write) -> io::
     write_as(scene, Some(resolution), w)
 }
 
-/// [`write`], with spheres and cones as patches at `patches` if given.
+/// [`write()`], with spheres and cones as patches at `patches` if given.
 fn write_as(scene: &Scene, patches: Option<u32>, w: &mut impl Write) -> io::Result<()> {
     let v = |p: Vec3A| format!("{} {} {}", p.x, p.y, p.z);
     let c = &scene.camera;

@@ -58,7 +58,7 @@ pub const DEFAULT_RESOLUTION: u32 = 4;
 ///
 /// The rule: while more than three vertices remain, cut the first vertex in input order that
 /// is an ear (its corner turns the polygon's way and no other remaining vertex lies in or on
-/// its triangle), or the first remaining vertex when none is. [`ear_clip`] finds that vertex
+/// its triangle), or the first remaining vertex when none is. `ear_clip` finds that vertex
 /// without testing every vertex against every ear, so a convex polygon of 100,000 vertices
 /// takes milliseconds instead of the quadratic search's 40 s; the triangles are the same.
 ///
