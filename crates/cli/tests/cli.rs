@@ -1229,14 +1229,61 @@ fn output_paths_property() {
 }
 
 /// Runs `quiver args` in `dir` and returns its exit code (None if a signal ended it), stdout,
-/// stderr and peak resident memory in bytes (`wait4`'s `ru_maxrss`, this child alone).
+/// stderr and peak resident memory in bytes, quiver's own.
+///
+/// A child's `ru_maxrss` starts at what its parent had resident when it forked (and exec keeps
+/// the larger), so quiver is not spawned from this test process, which holds other tests'
+/// data: a fresh run of this test binary doing only [`peak_launcher`] (a few MB) spawns it,
+/// reaps it with `wait4` and reports.
+fn run_measured(args: &[&str], dir: &Path) -> (Option<i32>, String, String, u64) {
+    let report = tempfile::NamedTempFile::new().unwrap();
+    let out = std::process::Command::new(std::env::current_exe().unwrap())
+        .args([
+            "peak_launcher",
+            "--exact",
+            "--ignored",
+            "--nocapture",
+            "--test-threads=1",
+            "-q",
+        ])
+        .env("QUIVER_PEAK_ARGS", args.join("\u{1f}"))
+        .env("QUIVER_PEAK_REPORT", report.path())
+        .current_dir(dir)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "launcher: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(report.path()).unwrap()).unwrap();
+    (
+        r["code"].as_i64().map(|c| c as i32),
+        r["stdout"].as_str().unwrap().to_string(),
+        r["stderr"].as_str().unwrap().to_string(),
+        r["peak"].as_u64().unwrap(),
+    )
+}
+
+/// Not a test: [`run_measured`]'s launcher, run on its own in a fresh process (ignored in a
+/// normal run). Spawns quiver with `QUIVER_PEAK_ARGS` (separated by U+001F) in the current
+/// directory, reaps it with `wait4` for its resource usage, and writes its exit code, output
+/// and peak resident memory to `QUIVER_PEAK_REPORT` as JSON.
+#[test]
+#[ignore = "run_measured's launcher, not a test"]
 // `wait4` reaps the child itself, for its resource usage; std's `wait` would fail after it.
 #[allow(clippy::zombie_processes)]
-fn run_measured(args: &[&str], dir: &Path) -> (Option<i32>, String, String, u64) {
+fn peak_launcher() {
     use std::io::Read;
+    let (Ok(args), Ok(report)) = (
+        std::env::var("QUIVER_PEAK_ARGS"),
+        std::env::var("QUIVER_PEAK_REPORT"),
+    ) else {
+        panic!("QUIVER_PEAK_ARGS and QUIVER_PEAK_REPORT are run_measured's to set");
+    };
     let mut child = std::process::Command::new(QUIVER)
-        .args(args)
-        .current_dir(dir)
+        .args(args.split('\u{1f}'))
         .stdout(std::process::Stdio::piped())
         .stderr(std::process::Stdio::piped())
         .spawn()
@@ -1260,8 +1307,13 @@ fn run_measured(args: &[&str], dir: &Path) -> (Option<i32>, String, String, u64)
     let pid = unsafe { libc::wait4(child.id() as i32, &mut status, 0, &mut usage) };
     assert_eq!(pid, child.id() as i32);
     let code = libc::WIFEXITED(status).then(|| libc::WEXITSTATUS(status));
-    let (out, err) = (out.join().unwrap(), err.join().unwrap());
-    (code, out, err, usage.ru_maxrss as u64 * 1024)
+    let report_json = serde_json::json!({
+        "code": code,
+        "stdout": out.join().unwrap(),
+        "stderr": err.join().unwrap(),
+        "peak": usage.ru_maxrss as u64 * 1024,
+    });
+    std::fs::write(report, report_json.to_string()).unwrap();
 }
 
 /// Item 9: a scene path that is a device, a FIFO or a directory is refused without reading it
