@@ -11,7 +11,9 @@ use clap::{Parser, Subcommand};
 use commands::{accuracy, bench, build, builders, costs, gen, layouts, packets, predict, render};
 use std::process::ExitCode;
 
+mod budget;
 mod commands;
+mod interrupt;
 mod output;
 
 #[derive(Parser)]
@@ -27,6 +29,10 @@ struct Cli {
     /// on stderr) instead of refusing the file.
     #[arg(long, global = true)]
     drop_non_finite: bool,
+    /// The most memory the run may use, e.g. 8G or 512M (default: the memory available when
+    /// it starts). Work estimated to need more is refused before it starts, with the estimate.
+    #[arg(long, global = true, value_parser = budget::parse_size)]
+    max_memory: Option<u64>,
 }
 
 #[derive(Subcommand)]
@@ -57,6 +63,7 @@ enum Command {
 }
 
 fn main() -> ExitCode {
+    interrupt::install();
     let cli = match Cli::try_parse() {
         Ok(cli) => cli,
         Err(e) => return clap_exit(&e),
@@ -69,6 +76,7 @@ fn main() -> ExitCode {
     if let Err(e) = quiver::Isa::from_env() {
         return fail(&e);
     }
+    budget::set_limit(cli.max_memory);
     let result = match cli.command {
         Command::Build(args) => build::run(args),
         Command::Builders(args) => builders::run(args),

@@ -49,6 +49,50 @@ pub struct RenderConfig {
     /// go one by one. The image and the ray counts are the same either way; only the
     /// traversal work counted with [`RenderConfig::counters`] differs.
     pub packets: bool,
+    /// Keep the pixels ([`Rendered::rgb`]); without it only their digest
+    /// ([`Rendered::image_digest`]) is kept, for a second pass that checks it drew the same
+    /// image without holding a second one (3 bytes a pixel: 805 MB at 16384²).
+    pub keep_image: bool,
+    /// With [`RenderConfig::counters`], keep the nodes each eye ray visited
+    /// ([`Rendered::eye_nodes`], 4 bytes a corner).
+    pub eye_nodes: bool,
+}
+
+impl RenderConfig {
+    /// The most memory a render holds at once beyond the scene and its BVH, in bytes, on
+    /// `threads` worker threads: the image (with [`RenderConfig::keep_image`]), the nodes per
+    /// eye ray (with [`RenderConfig::counters`] and [`RenderConfig::eye_nodes`]), the first and
+    /// last corner row of every band of 8 (the pixels between two bands need both), and per
+    /// thread one band's corner colours and eye-ray buffers. The first three are their
+    /// allocations' exact sizes, the per-thread buffers an upper bound (1 KB per corner of a
+    /// packet group); for callers to refuse a resolution before it cannot fit.
+    ///
+    /// ```
+    /// use quiver_scenes::render::RenderConfig;
+    /// let c = RenderConfig { res: 16384, ..RenderConfig::default() };
+    /// // 805 MB of pixels and 1.07 GB of band edges dominate.
+    /// assert!((1_800_000_000..2_000_000_000).contains(&c.memory_bytes(2)));
+    /// ```
+    pub fn memory_bytes(&self, threads: usize) -> u64 {
+        let res = self.res as u64;
+        let n = res + 1;
+        let bands = n.div_ceil(TILE as u64);
+        let image = if self.keep_image { 3 * res * res } else { 0 };
+        let nodes = if self.counters && self.eye_nodes {
+            4 * n * n
+        } else {
+            0
+        };
+        let edges = bands * 2 * n * std::mem::size_of::<Vec3A>() as u64;
+        let digests = 8 * res + bands * std::mem::size_of::<RayCounts>() as u64 * 2;
+        // A band's corner colours, its across/down parts, a pixel row, and a packet group's
+        // scratch (rays, hits, surfaces for 16 tiles of 64 corners: well under 1 KB each).
+        let band = TILE as u64 * n * std::mem::size_of::<Vec3A>() as u64
+            + (n + TILE as u64) * 16
+            + 3 * res
+            + (TILE * TILE * GROUP) as u64 * 1024;
+        image + nodes + edges + digests + threads.max(1) as u64 * band
+    }
 }
 
 /// How a secondary ray avoids re-hitting the surface it starts on. Both measure their
@@ -141,6 +185,8 @@ impl Default for RenderConfig {
             counters: false,
             offset: Offset::Epsilon,
             packets: true,
+            keep_image: true,
+            eye_nodes: true,
         }
     }
 }
@@ -195,15 +241,19 @@ impl AddAssign for RayCounts {
 pub struct Rendered {
     /// Width = height in pixels.
     pub res: u32,
-    /// Pixels row by row from the top, 8-bit sRGB-less RGB (the SPD's colours are used as is).
+    /// Pixels row by row from the top, 8-bit sRGB-less RGB (the SPD's colours are used as is);
+    /// empty without [`RenderConfig::keep_image`].
     pub rgb: Vec<[u8; 3]>,
+    /// A digest of the pixels (FNV-1a of each row, folded in row order), kept with or without
+    /// the pixels: two renders with equal digests drew the same image.
+    pub image_digest: u64,
     /// Rays traced, by kind.
     pub rays: RayCounts,
     /// Traversal work over all rays (zero unless [`RenderConfig::counters`]).
     pub work: Counters,
     /// Nodes visited by each eye ray, `(res + 1)^2` corners row by row (empty unless
-    /// [`RenderConfig::counters`]). With packets, each eye ray is charged the node visits of
-    /// its eye packet.
+    /// [`RenderConfig::counters`] and [`RenderConfig::eye_nodes`]). With packets, each eye ray
+    /// is charged the node visits of its eye packet.
     pub eye_nodes: Vec<u32>,
     /// Rays the packet kernels traced (0 without [`RenderConfig::packets`]): eye rays, shadow
     /// rays and first-bounce reflection rays sent as packets whose rays point alike
@@ -220,14 +270,11 @@ const TILE: usize = 8;
 /// packets are full.
 const GROUP: usize = 16;
 
-/// What one band of [`TILE`] corner rows adds to the render's totals (its colours go straight
-/// into the image's corner buffer).
+/// What one band of [`TILE`] corner rows adds to the render's totals.
 #[derive(Default)]
 struct Tally {
     rays: RayCounts,
     work: Counters,
-    /// Nodes visited per eye ray of the band, row by row (empty unless counting).
-    eye_nodes: Vec<u32>,
     packet_rays: u64,
 }
 
@@ -303,12 +350,44 @@ fn render_with<W: Work>(
     progress: &(dyn Fn(usize) + Sync),
 ) -> Rendered {
     let n = config.res as usize + 1;
+    let res = config.res as usize;
     let size = scene_size(scene);
-    let mut corners = vec![Vec3A::ZERO; n * n];
-    let tallies: Vec<Tally> = corners
-        .par_chunks_mut(TILE * n)
+    let bands = n.div_ceil(TILE);
+    // Each band traces its corner rows into a buffer of its own and averages the pixel rows
+    // whose four corners it holds; only its first and last corner rows are kept, for the
+    // pixel row between it and the next band. So no buffer of every corner (16 bytes each:
+    // 4.3 GB at 16384²) is ever held.
+    let mut edges = vec![Vec3A::ZERO; bands * 2 * n];
+    let mut rgb = vec![[0u8; 3]; if config.keep_image { res * res } else { 0 }];
+    let mut digests = vec![0u64; res];
+    let mut eye_nodes = vec![
+        0u32;
+        if W::COUNTS && config.eye_nodes {
+            n * n
+        } else {
+            0
+        }
+    ];
+    // Per band: its pixel rows, their digests, its eye rays' node counts (each `None` where
+    // there are none) and its two edge rows.
+    let mut jobs: Vec<Job> = Vec::with_capacity(bands);
+    {
+        let mut pixels = rgb.chunks_mut(TILE * res.max(1));
+        let mut rows = digests.chunks_mut(TILE);
+        let mut nodes = eye_nodes.chunks_mut(TILE * n);
+        for edge in edges.chunks_mut(2 * n) {
+            jobs.push(Job {
+                pixels: pixels.next(),
+                digests: rows.next(),
+                eye_nodes: nodes.next(),
+                edges: edge,
+            });
+        }
+    }
+    let tallies: Vec<Tally> = jobs
+        .into_par_iter()
         .enumerate()
-        .map(|(b, colors)| {
+        .map(|(b, job)| {
             let rows = b * TILE..((b + 1) * TILE).min(n);
             let mut tracer = Tracer {
                 scene,
@@ -319,49 +398,120 @@ fn render_with<W: Work>(
                 work: W::default(),
                 packet_rays: 0,
             };
-            let eye_nodes = tracer.band(rows.clone(), n, colors);
+            let mut colors = vec![Vec3A::ZERO; rows.len() * n];
+            tracer.band(
+                rows.clone(),
+                n,
+                &mut colors,
+                job.eye_nodes.unwrap_or_default(),
+            );
             progress(rows.len());
+            // The pixel rows within the band: row y between corner rows y and y + 1.
+            let mut row = vec![[0u8; 3]; res];
+            let digests = job.digests.unwrap_or_default();
+            let mut pixels = job.pixels;
+            for y in 0..rows
+                .len()
+                .saturating_sub(1)
+                .min(res.saturating_sub(rows.start))
+            {
+                let (top, bottom) = (
+                    &colors[y * n..(y + 1) * n],
+                    &colors[(y + 1) * n..(y + 2) * n],
+                );
+                let out = match pixels.as_deref_mut() {
+                    Some(p) => &mut p[y * res..(y + 1) * res],
+                    None => &mut row[..],
+                };
+                pixel_row(top, bottom, out);
+                digests[y] = fnv1a(out.as_flattened());
+            }
+            job.edges[..n].copy_from_slice(&colors[..n]);
+            job.edges[n..].copy_from_slice(&colors[(rows.len() - 1) * n..]);
             Tally {
                 rays: tracer.rays,
                 work: tracer.work.counters(),
-                eye_nodes,
                 packet_rays: tracer.packet_rays,
             }
         })
         .collect();
+    // The pixel row between band b's last corner row and band b + 1's first: row 8b + 7.
+    let seam = |b: usize| (b + 1) * TILE - 1;
+    let mut seams: Vec<Seam> = Vec::new();
+    {
+        let mut pixels = rgb.chunks_mut(TILE * res.max(1));
+        for (b, rows) in digests.chunks_mut(TILE).enumerate() {
+            let p = pixels.next();
+            if seam(b) < res {
+                let local = seam(b) - b * TILE;
+                let p = p.map(|p| &mut p[local * res..(local + 1) * res]);
+                seams.push((b, p, &mut rows[local]));
+            }
+        }
+    }
+    seams.into_par_iter().for_each(|(b, pixels, digest)| {
+        let top = &edges[b * 2 * n + n..(b + 1) * 2 * n];
+        let bottom = &edges[(b + 1) * 2 * n..(b + 1) * 2 * n + n];
+        let mut row = vec![[0u8; 3]; if pixels.is_some() { 0 } else { res }];
+        let out = match pixels {
+            Some(p) => p,
+            None => &mut row[..],
+        };
+        pixel_row(top, bottom, out);
+        *digest = fnv1a(out.as_flattened());
+    });
     let mut rays = RayCounts::default();
     let mut work = Counters::default();
-    let mut eye_nodes = Vec::new();
     let mut packet_rays = 0;
     for t in &tallies {
         rays += t.rays;
         work += t.work;
         packet_rays += t.packet_rays;
-        eye_nodes.extend_from_slice(&t.eye_nodes);
     }
-    let res = config.res as usize;
-    // Each pixel averages its four corners (rows of pixels in parallel, as the bands were).
-    let mut rgb = vec![[0u8; 3]; res * res];
-    rgb.par_chunks_mut(res.max(1))
-        .zip(
-            corners
-                .par_chunks(n)
-                .zip(corners[n.min(corners.len())..].par_chunks(n)),
-        )
-        .for_each(|(pixels, (top, bottom))| {
-            for (x, p) in pixels.iter_mut().enumerate() {
-                let c = (top[x] + top[x + 1] + bottom[x] + bottom[x + 1]) * 0.25;
-                *p = to_rgb8(c);
-            }
+    let image_digest = digests
+        .iter()
+        .fold(fnv1a(&(res as u64).to_le_bytes()), |h, &d| {
+            (h ^ d).wrapping_mul(FNV_PRIME)
         });
     Rendered {
         res: config.res,
         rgb,
+        image_digest,
         rays,
         work,
         eye_nodes,
         packet_rays,
     }
+}
+
+/// A seam's band, its pixel row (if the image is kept) and that row's digest.
+type Seam<'a> = (usize, Option<&'a mut [[u8; 3]]>, &'a mut u64);
+
+/// One band's share of the render's outputs (see `render_with`).
+struct Job<'a> {
+    /// Its [`TILE`] pixel rows (the last holds the seam with the next band), if kept.
+    pixels: Option<&'a mut [[u8; 3]]>,
+    digests: Option<&'a mut [u64]>,
+    eye_nodes: Option<&'a mut [u32]>,
+    /// Its first corner row, then its last.
+    edges: &'a mut [Vec3A],
+}
+
+/// Each pixel averages its four corners.
+fn pixel_row(top: &[Vec3A], bottom: &[Vec3A], out: &mut [[u8; 3]]) {
+    for (x, p) in out.iter_mut().enumerate() {
+        let c = (top[x] + top[x + 1] + bottom[x] + bottom[x + 1]) * 0.25;
+        *p = to_rgb8(c);
+    }
+}
+
+const FNV_PRIME: u64 = 0x0000_0100_0000_01b3;
+
+/// FNV-1a of `bytes`.
+fn fnv1a(bytes: &[u8]) -> u64 {
+    bytes.iter().fold(0xcbf2_9ce4_8422_2325, |h, &b| {
+        (h ^ b as u64).wrapping_mul(FNV_PRIME)
+    })
 }
 
 fn to_rgb8(c: Vec3A) -> [u8; 3] {
@@ -465,11 +615,12 @@ enum Secondary<'s> {
 
 impl<W: Work> Tracer<'_, W> {
     /// Colours the corners of rows `rows` (of `n` corners each) into `colors` (row-major):
-    /// eye rays in packets of `TILE x TILE` corners, or one by one. Returns the nodes each
-    /// eye ray visited (row-major; empty unless counting).
+    /// eye rays in packets of `TILE x TILE` corners, or one by one. When counting, writes the
+    /// nodes each eye ray visited into `eye_nodes` (row-major) unless it is empty.
     #[inline(never)]
-    fn band(&mut self, rows: Range<usize>, n: usize, colors: &mut [Vec3A]) -> Vec<u32> {
-        let mut eye_nodes = vec![0; if W::COUNTS { rows.len() * n } else { 0 }];
+    fn band(&mut self, rows: Range<usize>, n: usize, colors: &mut [Vec3A], eye_nodes: &mut [u32]) {
+        // Node counts are kept only where the caller gave room for them.
+        let keep = W::COUNTS && !eye_nodes.is_empty();
         let view = self.scene.camera.view();
         let res = self.config.res as f32;
         let across: Vec<Vec3A> = (0..n)
@@ -492,14 +643,14 @@ impl<W: Work> Tracer<'_, W> {
                     let before = self.work.counters().nodes;
                     let hit = self.closest(&ray);
                     let k = (j - rows.start) * n + i;
-                    if W::COUNTS {
+                    if keep {
                         eye_nodes[k] = (self.work.counters().nodes - before) as u32;
                     }
                     let s = hit.map(|h| self.surface(&ray, &h));
                     colors[k] = self.color(s, 1, Secondary::Trace);
                 }
             }
-            return eye_nodes;
+            return;
         }
         let mut sc = Scratch::default();
         for x0 in (0..n).step_by(TILE * GROUP) {
@@ -516,7 +667,7 @@ impl<W: Work> Tracer<'_, W> {
                 sc.eye_hits.resize(sc.eye.len(), None);
                 let before = self.work.counters().nodes;
                 self.packet_query(&sc.eye[from..], Query::Closest(&mut sc.eye_hits[from..]));
-                if W::COUNTS {
+                if keep {
                     let nodes = (self.work.counters().nodes - before) as u32;
                     for &k in &sc.slots[from..] {
                         eye_nodes[k] = nodes;
@@ -536,7 +687,6 @@ impl<W: Work> Tracer<'_, W> {
             }
             self.shade_group(&mut sc, colors);
         }
-        eye_nodes
     }
 
     /// Colours the surfaces a tile group's eye rays hit into `colors`. Their shadow rays,
@@ -764,4 +914,103 @@ fn shade(m: &Material, n: Vec3A, l: Vec3A, d: Vec3A) -> Vec3A {
         c += Vec3A::splat(m.ks * spec);
     }
     c
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use quiver::BuildOptions;
+
+    /// The renderer before issue 29 kept every corner's colour and averaged pixels from that
+    /// buffer; this is that averaging, over corners traced by the same bands.
+    fn full_buffer_pixels(scene: &Scene, bvh: &SceneBvh, config: &RenderConfig) -> Vec<[u8; 3]> {
+        let n = config.res as usize + 1;
+        let res = config.res as usize;
+        let size = scene_size(scene);
+        let mut corners = vec![Vec3A::ZERO; n * n];
+        for (b, colors) in corners.chunks_mut(TILE * n).enumerate() {
+            let rows = b * TILE..((b + 1) * TILE).min(n);
+            let mut tracer = Tracer {
+                scene,
+                bvh,
+                config,
+                size,
+                rays: RayCounts::default(),
+                work: NoStats,
+                packet_rays: 0,
+            };
+            tracer.band(rows, n, colors, &mut []);
+        }
+        let mut rgb = vec![[0u8; 3]; res * res];
+        for (y, pixels) in rgb.chunks_mut(res.max(1)).enumerate() {
+            let (top, bottom) = (&corners[y * n..], &corners[(y + 1) * n..]);
+            for (x, p) in pixels.iter_mut().enumerate() {
+                let c = (top[x] + top[x + 1] + bottom[x] + bottom[x + 1]) * 0.25;
+                *p = to_rgb8(c);
+            }
+        }
+        rgb
+    }
+
+    /// Pixels averaged band by band, seams between bands included, equal the full corner
+    /// buffer's at every resolution around a band's size; the digest without the image is
+    /// the digest with it, and differs when a pixel does.
+    #[test]
+    fn band_pixels_equal_the_full_corner_buffer() {
+        let scene = Scene::load("teapot3").unwrap();
+        let bvh = SceneBvh::build(&scene, &BuildOptions::default());
+        let mut digests = Vec::new();
+        for res in (1..=18).chain([23, 24, 25, 40, 63, 64, 65]) {
+            for packets in [false, true] {
+                let config = RenderConfig {
+                    res,
+                    packets,
+                    ..RenderConfig::default()
+                };
+                let out = render(&scene, &bvh, &config, &|_| {});
+                assert_eq!(
+                    out.rgb,
+                    full_buffer_pixels(&scene, &bvh, &config),
+                    "res {res}"
+                );
+                let lean = RenderConfig {
+                    keep_image: false,
+                    ..config.clone()
+                };
+                let no_image = render(&scene, &bvh, &lean, &|_| {});
+                assert!(no_image.rgb.is_empty());
+                assert_eq!(no_image.image_digest, out.image_digest, "res {res}");
+                assert_eq!(no_image.rays, out.rays);
+                digests.push(out.image_digest);
+            }
+        }
+        // Different images (resolutions), different digests; packets on and off alike.
+        for pair in digests.chunks(2) {
+            assert_eq!(pair[0], pair[1]);
+        }
+        let mut distinct: Vec<u64> = digests.iter().step_by(2).copied().collect();
+        distinct.sort_unstable();
+        distinct.dedup();
+        assert_eq!(distinct.len(), digests.len() / 2);
+    }
+
+    /// Node counts per eye ray are kept only when asked, and then for every corner.
+    #[test]
+    fn eye_nodes_only_when_asked() {
+        let scene = Scene::load("tetra2").unwrap();
+        let bvh = SceneBvh::build(&scene, &BuildOptions::default());
+        for eye_nodes in [false, true] {
+            let config = RenderConfig {
+                res: 20,
+                counters: true,
+                eye_nodes,
+                ..RenderConfig::default()
+            };
+            let out = render(&scene, &bvh, &config, &|_| {});
+            assert_eq!(out.eye_nodes.len(), if eye_nodes { 21 * 21 } else { 0 });
+            if eye_nodes {
+                assert!(out.eye_nodes.iter().all(|&n| n > 0));
+            }
+        }
+    }
 }

@@ -2,6 +2,7 @@
 //! errors, as a table and, with `--plot`, a scatter plot.
 
 use super::{count, pool, scene_help, thread_count, Result, MAX_RAYS, MAX_REPS};
+use crate::budget::{self, Estimate};
 use crate::output::{check_outputs, outln, scatter_svg, write_json, write_text, Axes, Point};
 use quiver_lab::accuracy::{evaluate, Row};
 use serde_json::{json, Value};
@@ -32,13 +33,53 @@ pub(crate) struct AccuracyArgs {
     json: Option<PathBuf>,
 }
 
+/// Memory per triangle of the scene beyond it: twelve intersector, box test and offset
+/// combinations' BVHs (`quiver accuracy soup100000` and `soup300000 --rays 10 --sphere 0`: 88 and
+/// 287 MB, 1000 B a triangle with the scene's 128), rounded up.
+const PER_TRIANGLE: u64 = 1100;
+
+/// Memory per ray with its reference answers (`quiver accuracy soup1000 --rays 2000000`: 156
+/// MB, 75 B), rounded up.
+const PER_RAY: u64 = 96;
+
+/// Memory per triangle of the leak test's icosphere (`quiver accuracy soup1000 --sphere 8`:
+/// 2.31 GB for 1,310,720 triangles, 1760 B), rounded up.
+const PER_SPHERE_TRIANGLE: u64 = 2000;
+
 /// Runs `quiver accuracy`.
 pub(crate) fn run(args: AccuracyArgs) -> Result<()> {
-    check_outputs(&[
-        ("--plot", args.plot.as_deref()),
-        ("--json", args.json.as_deref()),
-    ])?;
-    let scene = super::load_scene(&args.scene)?;
+    check_outputs(
+        &[
+            ("--plot", args.plot.as_deref()),
+            ("--json", args.json.as_deref()),
+        ],
+        &[&args.scene],
+    )?;
+    let scene = super::load_within(std::slice::from_ref(&args.scene), |censuses, _| {
+        let mut e = Estimate::new(format!("accuracy {}", args.scene));
+        e.add("scene", super::scenes_bytes(censuses, false));
+        let tris = super::largest(censuses, super::triangles_of);
+        e.add(
+            format!("{} triangles at {PER_TRIANGLE} B", budget::count(tris)),
+            tris * PER_TRIANGLE,
+        );
+        e.add(
+            format!("{} rays", budget::count(args.rays as u64)),
+            args.rays as u64 * PER_RAY,
+        );
+        let sphere = 20u64 << (2 * args.sphere);
+        e.add(
+            format!(
+                "icosphere{} ({} triangles)",
+                args.sphere,
+                budget::count(sphere)
+            ),
+            sphere * PER_SPHERE_TRIANGLE,
+        );
+        e
+    })?
+    .pop()
+    .ok_or("internal error: no scene loaded")?;
     let tris = scene.triangles();
     let pool = pool(args.threads.map(usize::from))?;
     let bar = indicatif::ProgressBar::new_spinner();

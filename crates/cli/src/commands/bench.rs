@@ -9,7 +9,8 @@
 //! in bytes per triangle: quiver's `Bvh::footprint`, Embree's device memory monitor across the
 //! commit, tinybvh's node and leaf array.
 
-use super::{count, measured_threads, pool, thread_count, Result, MAX_RAYS, MAX_REPS};
+use super::{measured_threads, pool, thread_count, Result, MAX_RAYS, MAX_REPS};
+use crate::budget::{self, Estimate};
 use crate::output::{check_outputs, out, outln, write_json};
 use obvhs::{
     bvh2::builder::build_bvh2_from_tris, cwbvh::builder::build_cwbvh_from_tris, ray::RayHit,
@@ -43,10 +44,10 @@ pub(crate) struct BenchArgs {
     /// `quiver bench crates/lab/tests/data/bunny.obj meshes/dragon_vrip.ply.gz teapot12`.
     scenes: Vec<String>,
     /// Incoherent rays per scene (eye rays: a 256 x 256 image; shadow rays: one per eye hit).
-    #[arg(allow_negative_numbers = true, long, default_value_t = 200_000, value_parser = count(MAX_RAYS))]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 200_000, value_parser = super::count(MAX_RAYS))]
     rays: usize,
     /// Timed rounds per measurement (median).
-    #[arg(allow_negative_numbers = true, long, default_value_t = 3, value_parser = count(MAX_REPS))]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 3, value_parser = super::count(MAX_REPS))]
     reps: usize,
     /// Thread counts to measure, comma-separated (default: 1 and all cores).
     #[arg(allow_negative_numbers = true, long, value_delimiter = ',', value_parser = thread_count())]
@@ -55,6 +56,16 @@ pub(crate) struct BenchArgs {
     #[arg(long)]
     json: Option<PathBuf>,
 }
+
+/// Memory per triangle of the largest scene beyond the scenes themselves: five quiver layouts,
+/// obvhs's BVH2 and CWBVH, their triangle copies and the 256² eye and shadow rays (`quiver
+/// bench soup100000` and `soup300000 --rays 10`: 154 and 503 MB, 1745 B a triangle with the
+/// scene's 128), rounded up.
+const PER_TRIANGLE: u64 = 2000;
+
+/// Memory per incoherent ray (`quiver bench soup1000 --rays 2000000`: 113 MB, 54 B a ray),
+/// rounded up.
+const PER_RAY: u64 = 72;
 
 /// The scenes `quiver bench` measures without arguments.
 const DEFAULT_SCENES: [&str; 3] = ["teapot12", "balls3", "tetra10"];
@@ -79,7 +90,7 @@ fn time<T>(f: impl FnOnce() -> T) -> (T, f64) {
 
 /// Runs `quiver bench`.
 pub(crate) fn run(args: BenchArgs) -> Result<()> {
-    check_outputs(&[("--json", args.json.as_deref())])?;
+    check_outputs(&[("--json", args.json.as_deref())], &args.scenes)?;
     // Generated scenes only: a file path fixed at compile time would break as soon as the
     // binary is installed elsewhere or run from another directory.
     let scenes = if args.scenes.is_empty() {
@@ -90,15 +101,31 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
     let thread_counts = measured_threads(&args.threads);
     // Every scene loads before the first measurement, so a bad name or file fails at once
     // rather than after minutes of measuring the scenes before it.
-    let loaded = scenes
+    let loaded = super::load_within(&scenes, |censuses, _| {
+        let mut e = Estimate::new(format!("bench {}", scenes.join(" ")));
+        e.add(
+            "scenes and their patch mode",
+            super::scenes_bytes(censuses, true),
+        );
+        let tris = super::largest(censuses, super::triangles_of);
+        e.add(
+            format!(
+                "{} triangles' builds, obvhs's included, at {PER_TRIANGLE} B",
+                budget::count(tris)
+            ),
+            tris * PER_TRIANGLE,
+        );
+        e.add(
+            format!("{} incoherent rays", budget::count(args.rays as u64)),
+            args.rays as u64 * PER_RAY,
+        );
+        e
+    })?;
+    let loaded: Vec<_> = scenes
         .iter()
-        .map(|name| {
-            Ok((
-                name,
-                super::load_scene(name)?.into_patches(tessellate::DEFAULT_RESOLUTION),
-            ))
-        })
-        .collect::<Result<Vec<_>>>()?;
+        .zip(loaded)
+        .map(|(name, scene)| (name, scene.into_patches(tessellate::DEFAULT_RESOLUTION)))
+        .collect();
     let bar = indicatif::ProgressBar::new(scenes.len() as u64 * 2);
     bar.set_style(indicatif::ProgressStyle::with_template(
         "{bar:40} {pos}/{len} {msg} [{elapsed}]",

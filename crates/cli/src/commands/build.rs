@@ -52,7 +52,7 @@ pub(crate) struct BuildArgs {
 
 /// Runs `quiver build`.
 pub(crate) fn run(args: BuildArgs) -> Result<()> {
-    check_outputs(&[("--json", args.json.as_deref())])?;
+    check_outputs(&[("--json", args.json.as_deref())], &[&args.scene])?;
     let config = BuildConfig {
         bins: args.bins as usize,
         max_leaf_size: args.max_leaf as usize,
@@ -70,7 +70,15 @@ pub(crate) fn run(args: BuildArgs) -> Result<()> {
         pool: Some(&pool),
         isa: None,
     };
-    let (scene, bvh, tree, build_ms) = load_and_build(&args.scene, args.patches, &options)?;
+    let what = format!(
+        "build {}{}",
+        args.scene,
+        if args.patches { " --patches" } else { "" }
+    );
+    let (scene, bvh, tree, build_ms) =
+        load_and_build(&args.scene, args.patches, &options, |censuses, _| {
+            super::build_estimate(&what, censuses, args.patches)
+        })?;
     let footprint = bvh.footprint();
     let stats = tree.stats();
     let prims = bvh.primitives().max(1) as f64;

@@ -7,6 +7,7 @@
 use super::{
     count, measured_threads, parse_builder, pool, thread_count, Result, MAX_RAYS, MAX_REPS,
 };
+use crate::budget::{self, Estimate};
 use crate::output::{check_outputs, outln, scatter_svg, write_json, write_text, Axes, Point};
 use glam::Vec3A;
 use quiver::builders::{build, prim_bounds, BuildConfig, BuildTree, Builder};
@@ -109,12 +110,25 @@ fn time_builds(reps: usize, f: impl Fn() -> BuildTree) -> (BuildTree, f64, f64) 
     (tree, median(real), median(user))
 }
 
+/// Memory per triangle of the largest scene beyond its patch-mode scene, with all fifteen
+/// builders: their trees, the layouts timed and counted (`quiver builders soup100000` and
+/// `soup300000 --res 8 --rays 10 --build-reps 1`: 418 MB and 1.32 GB, 4517 B a triangle with the
+/// scene's 128), rounded up; fewer builders take their share.
+const PER_TRIANGLE: u64 = 5400;
+
+/// Memory per random or eye ray and its answer (`quiver builders soup1000 --rays 2000000`:
+/// 105 MB, 52 B; `--res 1024`: 78 B an eye ray with its shadow ray), rounded up.
+const PER_RAY: u64 = 64;
+
 /// Runs `quiver builders`.
 pub(crate) fn run(args: BuildersArgs) -> Result<()> {
-    check_outputs(&[
-        ("--plot", args.plot.as_deref()),
-        ("--json", args.json.as_deref()),
-    ])?;
+    check_outputs(
+        &[
+            ("--plot", args.plot.as_deref()),
+            ("--json", args.json.as_deref()),
+        ],
+        &args.scenes,
+    )?;
     let mut names: Vec<String> = args.scenes.clone();
     if names.is_empty() {
         names = SMALL.iter().map(|s| s.to_string()).collect();
@@ -133,10 +147,40 @@ pub(crate) fn run(args: BuildersArgs) -> Result<()> {
     }
     let threads = measured_threads(&args.threads);
     let ray_threads = *threads.iter().max().unwrap_or(&1);
-    let loaded = names
-        .iter()
-        .map(|name| Ok(super::load_scene(name)?.into_patches(tessellate::DEFAULT_RESOLUTION)))
-        .collect::<Result<Vec<_>>>()?;
+    let loaded = super::load_within(&names, |censuses, scenes| {
+        let mut e = Estimate::new(format!("builders {}", names.join(" ")));
+        e.add(
+            "scenes and their patch mode",
+            super::scenes_bytes(censuses, true),
+        );
+        let tris = super::largest(censuses, super::triangles_of);
+        e.add(
+            format!(
+                "{} triangles' trees and layouts for {} builders at {PER_TRIANGLE} B",
+                budget::count(tris),
+                builders.len()
+            ),
+            tris * PER_TRIANGLE * builders.len() as u64 / Builder::ALL.len() as u64,
+        );
+        e.add(
+            format!("{} random rays", budget::count(args.rays as u64)),
+            args.rays as u64 * PER_RAY,
+        );
+        // Shadow rays toward every light (the camera when there is none), known once loaded.
+        let lights = scenes.map_or(1, |s| {
+            s.iter().map(|s| s.lights.len().max(1)).max().unwrap_or(1)
+        });
+        let eye = (args.res as u64).pow(2);
+        e.add(
+            format!("{} eye rays with their shadow rays", budget::count(eye)),
+            eye * PER_RAY * (2 + lights as u64),
+        );
+        e
+    })?;
+    let loaded: Vec<_> = loaded
+        .into_iter()
+        .map(|s| s.into_patches(tessellate::DEFAULT_RESOLUTION))
+        .collect();
     let pools = threads
         .iter()
         .map(|&t| pool(Some(t)))

@@ -3,6 +3,7 @@
 //! ray and time per ray.
 
 use super::{count, parse_builder, parse_layout, pool, thread_count, Result, MAX_REPS};
+use crate::budget::{self, Estimate};
 use crate::output::{check_outputs, outln, write_json};
 use quiver::builders::{BuildConfig, Builder, CostModel};
 use quiver::{BuildOptions, Bvh, Layout, Ray};
@@ -38,20 +39,45 @@ pub(crate) struct CostsArgs {
     json: Option<PathBuf>,
 }
 
+/// Memory per triangle of the largest scene beyond the scene: a tree and layout per builder
+/// and cost model (`quiver costs soup100000` and `soup300000 --res 8`: 115 and 333 MB, 1092 B a
+/// triangle with the scene's 128), rounded up.
+const PER_TRIANGLE: u64 = 1200;
+
+/// Memory per eye ray with its shadow and mirror rays and their answers (`quiver costs soup1000
+/// --res 1024`: 160 MB, 150 B), rounded up.
+const PER_EYE: u64 = 200;
+
 /// Runs `quiver costs`.
 pub(crate) fn run(args: CostsArgs) -> Result<()> {
-    check_outputs(&[("--json", args.json.as_deref())])?;
+    check_outputs(&[("--json", args.json.as_deref())], &args.scenes)?;
     // The cost models are read by the top-down builders only.
     let builders = if args.builders.is_empty() {
         vec![Builder::Binned, Builder::Sweep]
     } else {
         args.builders.clone()
     };
-    let loaded = args
-        .scenes
-        .iter()
-        .map(|name| super::load_scene(name))
-        .collect::<Result<Vec<_>>>()?;
+    let loaded = super::load_within(&args.scenes, |censuses, _| {
+        let mut e = Estimate::new(format!("costs {}", args.scenes.join(" ")));
+        e.add("scenes", super::scenes_bytes(censuses, false));
+        let tris = super::largest(censuses, super::triangles_of);
+        e.add(
+            format!(
+                "{} triangles' trees and layouts at {PER_TRIANGLE} B",
+                budget::count(tris)
+            ),
+            tris * PER_TRIANGLE,
+        );
+        let eye = (args.res as u64).pow(2);
+        e.add(
+            format!(
+                "{} eye rays with their shadow and mirror rays",
+                budget::count(eye)
+            ),
+            eye * PER_EYE,
+        );
+        e
+    })?;
     let pool = pool(Some(args.threads as usize))?;
     let mut rows = Vec::new();
     outln!(

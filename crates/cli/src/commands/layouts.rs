@@ -4,6 +4,7 @@
 use super::{
     count, measured_threads, parse_layout, pool, thread_count, Result, MAX_RAYS, MAX_REPS,
 };
+use crate::budget::{self, Estimate};
 use crate::output::{check_outputs, out, outln, write_json};
 use quiver::builders::{build, prim_bounds, BuildConfig, Builder};
 use quiver::{BuildOptions, Bvh, Layout};
@@ -37,6 +38,16 @@ pub(crate) struct LayoutsArgs {
     json: Option<PathBuf>,
 }
 
+/// Memory per triangle of the largest scene with every layout, beyond the scenes: the build
+/// tree, the eleven layouts kept side by side and their triangle copies (`quiver layouts
+/// soup100000` and `soup300000 --rays 10 --res 8`: 213 and 593 MB, 1900 B a triangle with the
+/// scene's 128), rounded up; fewer layouts take their share.
+const PER_TRIANGLE: u64 = 2200;
+
+/// Memory per random or camera ray and its results (`quiver layouts soup1000 --rays 2000000`:
+/// 102 MB, 48 B a ray; `--res 1024`: 50 B a camera ray), rounded up.
+const PER_RAY: u64 = 64;
+
 /// One throughput measurement.
 struct Row {
     scene: String,
@@ -49,7 +60,7 @@ struct Row {
 
 /// Runs `quiver layouts`.
 pub(crate) fn run(args: LayoutsArgs) -> Result<()> {
-    check_outputs(&[("--json", args.json.as_deref())])?;
+    check_outputs(&[("--json", args.json.as_deref())], &args.scenes)?;
     let mut layouts: Vec<Layout> = Vec::new();
     // A layout named twice would be timed twice and shown as two equal columns.
     for &l in &args.layouts {
@@ -63,11 +74,27 @@ pub(crate) fn run(args: LayoutsArgs) -> Result<()> {
     let threads = measured_threads(&args.threads);
     // Every scene loads before the first measurement, so a bad name or file fails at once
     // rather than after the scenes before it were measured.
-    let loaded = args
-        .scenes
-        .iter()
-        .map(|name| Ok((name, super::load_scene(name)?)))
-        .collect::<Result<Vec<_>>>()?;
+    let loaded = super::load_within(&args.scenes, |censuses, _| {
+        let mut e = Estimate::new(format!("layouts {}", args.scenes.join(" ")));
+        e.add("scenes", super::scenes_bytes(censuses, false));
+        let tris = super::largest(censuses, super::triangles_of);
+        e.add(
+            format!(
+                "{} triangles in {} layouts at {PER_TRIANGLE} B",
+                budget::count(tris),
+                layouts.len()
+            ),
+            tris * PER_TRIANGLE * layouts.len() as u64 / Layout::ALL.len() as u64,
+        );
+        e.add(
+            format!("{} random rays", budget::count(args.rays as u64)),
+            args.rays as u64 * PER_RAY,
+        );
+        let eye = (args.res as u64).pow(2);
+        e.add(format!("{} camera rays", budget::count(eye)), eye * PER_RAY);
+        e
+    })?;
+    let loaded: Vec<_> = args.scenes.iter().zip(loaded).collect();
     let config = BuildConfig::default();
     let count_pool = pool(None)?;
     let per_scene = layouts.len() * threads.len() * 4;

@@ -12,10 +12,13 @@ pub(crate) mod packets;
 pub(crate) mod predict;
 pub(crate) mod render;
 
+use crate::budget;
 use quiver::builders::{BuildTree, Builder};
 use quiver::{BuildOptions, Layout};
 use quiver_scenes::accel::SceneBvh;
-use quiver_scenes::scene::{tessellate, LoadOptions, NonFinite, Scene, GENERATORS};
+use quiver_scenes::scene::{
+    tessellate, Census, LoadOptions, NonFinite, Scene, SceneError, GENERATORS,
+};
 use std::sync::OnceLock;
 use std::time::Instant;
 
@@ -28,17 +31,122 @@ pub(crate) fn drop_non_finite() {
     let _ = LOAD.set(LoadOptions::default().non_finite(NonFinite::Drop));
 }
 
-/// Loads a scene by name or path with the run's options; what `--drop-non-finite` dropped is
-/// reported on stderr as a warning.
-pub(crate) fn load_scene(name: &str) -> Result<Scene> {
-    let options = LOAD.get().copied().unwrap_or_default();
-    let (scene, report) = Scene::load_with(name, &options)?;
+/// Loads a scene by name or path with the run's options, reading at most `max_primitives`
+/// primitives from a file; what `--drop-non-finite` dropped is reported on stderr as a
+/// warning.
+fn load_scene(name: &str, max_primitives: u64) -> Result<Scene> {
+    let options = LOAD
+        .get()
+        .copied()
+        .unwrap_or_default()
+        .max_primitives(max_primitives);
+    let (scene, report) = match Scene::load_with(name, &options) {
+        Ok(loaded) => loaded,
+        Err(SceneError::TooLarge { path, line, limit }) => {
+            let l = budget::limit();
+            return Err(format!(
+                "{}: more than {} primitives by line {line}, more than this command can hold \
+                 within the {} this run may use ({})",
+                path.display(),
+                budget::count(limit),
+                budget::human(l.bytes),
+                l.source
+            )
+            .into());
+        }
+        Err(e) => return Err(e.into()),
+    };
     if !report.is_empty() {
         use std::io::Write as _;
         // A failed stderr has nowhere to be reported; the run goes on.
         let _ = writeln!(std::io::stderr(), "warning: {name}: {report}");
     }
     Ok(scene)
+}
+
+/// Loads the scenes `specs` within the run's memory limit ([`budget`]). `estimate` gives the
+/// command's whole estimate from the scenes' censuses, and from the scenes themselves once
+/// loaded (their lights and materials); it is checked twice:
+///
+/// 1. before anything is made, on the generators' censuses (counted without generating) and
+///    the files' sizes (their text and what parsing it takes); what is left of the limit caps
+///    the primitives each file may hold, so an oversized file stops being read as soon as it
+///    passes its share;
+/// 2. once loaded, on every scene's census: before patch mode, any build or any ray.
+///
+/// Returns the scenes as loaded (curve mode).
+pub(crate) fn load_within(
+    specs: &[String],
+    estimate: impl Fn(&[Census], Option<&[Scene]>) -> budget::Estimate,
+) -> Result<Vec<Scene>> {
+    let mut known = Vec::new();
+    let mut file_bytes = 0u64;
+    for spec in specs {
+        match Census::of_generator(spec)? {
+            Some(c) => known.push(c),
+            // A file (or a name the loader will refuse): its text, and at most five times as
+            // much again while parsing (OBJ vertex, corner and face lists).
+            None => file_bytes += std::fs::metadata(spec).map_or(0, |m| m.len()),
+        }
+    }
+    let mut before = estimate(&known, None);
+    before.add(
+        "scene files' text and parsing",
+        file_bytes.saturating_mul(6),
+    );
+    before.check()?;
+    let max_primitives = if file_bytes == 0 {
+        u64::MAX
+    } else {
+        // The marginal cost of one more triangle-like primitive, from the command's own
+        // model, shares out what is left.
+        let one = Census {
+            triangles: 1,
+            ..Census::default()
+        };
+        let mut with = known.clone();
+        with.push(one);
+        let per = estimate(&with, None)
+            .total()
+            .saturating_sub(estimate(&known, None).total())
+            .max(1);
+        budget::limit().bytes.saturating_sub(before.total()) / per
+    };
+    let scenes = specs
+        .iter()
+        .map(|spec| load_scene(spec, max_primitives))
+        .collect::<Result<Vec<_>>>()?;
+    let censuses: Vec<Census> = scenes.iter().map(Census::of).collect();
+    estimate(&censuses, Some(&scenes)).check()?;
+    Ok(scenes)
+}
+
+/// What holding scenes of `censuses` takes: each as loaded, and with `patches` its patch-mode
+/// conversion too (both are alive while it is made).
+pub(crate) fn scenes_bytes(censuses: &[Census], patches: bool) -> u64 {
+    censuses
+        .iter()
+        .map(|c| {
+            let patched = if patches {
+                budget::scene_bytes(&c.in_patch_mode(tessellate::DEFAULT_RESOLUTION))
+            } else {
+                0
+            };
+            budget::scene_bytes(c) + patched
+        })
+        .sum()
+}
+
+/// The largest of `f` over `censuses` (0 for none): a command that measures scenes one after
+/// another holds one scene's work at a time.
+pub(crate) fn largest(censuses: &[Census], f: impl Fn(&Census) -> u64) -> u64 {
+    censuses.iter().map(f).max().unwrap_or(0)
+}
+
+/// Triangles a command working on `scene.triangles()` gets from a scene of census `c` (spheres
+/// and cones tessellated as patch mode does).
+pub(crate) fn triangles_of(c: &Census) -> u64 {
+    c.patch_triangles(tessellate::DEFAULT_RESOLUTION)
 }
 
 /// A command's outcome; the error is printed as `error: ...` with exit code 2.
@@ -138,16 +246,46 @@ fn finite_cost(flag: &str, v: f32) -> Result<f32> {
     }
 }
 
-/// Loads a scene (in patch mode if asked) and builds its BVH on `pool`: curve mode keeps
+/// The memory estimate of loading `censuses` (one scene) in curve or patch mode and building
+/// its BVH: the scene (and its patch-mode conversion), and build and layout per primitive.
+pub(crate) fn build_estimate(what: &str, censuses: &[Census], patches: bool) -> budget::Estimate {
+    let mut e = budget::Estimate::new(what);
+    e.add("scene", scenes_bytes(censuses, patches));
+    let prims = largest(censuses, |c| {
+        if patches {
+            triangles_of(c)
+        } else {
+            c.curve_primitives()
+        }
+    });
+    e.add(
+        format!(
+            "build and layout of {} primitives at {} B",
+            budget::count(prims),
+            budget::TRIANGLE_BUILD
+        ),
+        prims * budget::TRIANGLE_BUILD,
+    );
+    e
+}
+
+/// Loads a scene (in patch mode if asked) within the memory limit, `estimate` giving what the
+/// whole command takes ([`load_within`]), and builds its BVH on `pool`: curve mode keeps
 /// analytic shapes on the mixed path, patch mode puts everything on the triangle path.
 /// Returns the build time in ms beside the results.
 fn load_and_build(
     name: &str,
     patches: bool,
     options: &BuildOptions,
+    estimate: impl Fn(&[Census], Option<&[Scene]>) -> budget::Estimate,
 ) -> Result<(Scene, SceneBvh, BuildTree, f64)> {
-    let (scene, bvh, tree, ms) = load_and_build_as(name, patches, false, options)?;
-    Ok((scene, bvh, tree.expect("a flattened build has a tree"), ms))
+    let (scene, bvh, tree, ms) = load_and_build_as(name, patches, false, options, estimate)?;
+    Ok((
+        scene,
+        bvh,
+        tree.ok_or("internal error: a flattened build without a tree")?,
+        ms,
+    ))
 }
 
 /// [`load_and_build`], or with `instanced` the scene in patch mode with its spheres and cones
@@ -158,8 +296,11 @@ fn load_and_build_as(
     patches: bool,
     instanced: bool,
     options: &BuildOptions,
+    estimate: impl Fn(&[Census], Option<&[Scene]>) -> budget::Estimate,
 ) -> Result<(Scene, SceneBvh, Option<BuildTree>, f64)> {
-    let mut scene = load_scene(name)?;
+    let mut scene = load_within(&[name.to_string()], estimate)?
+        .pop()
+        .ok_or("internal error: no scene loaded")?;
     if instanced {
         let start = Instant::now();
         let bvh = SceneBvh::build_instanced(&scene, tessellate::DEFAULT_RESOLUTION, options)?;

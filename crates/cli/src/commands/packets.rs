@@ -11,6 +11,7 @@
 use super::{
     count, measured_threads, parse_layout, pool, thread_count, Result, MAX_RAYS, MAX_REPS,
 };
+use crate::budget::{self, Estimate, MIXED_BUILD};
 use crate::output::{check_outputs, out, outln, write_json};
 use quiver::traverse::PacketMode;
 use quiver::{BuildOptions, Layout, Primitive, Triangle};
@@ -71,7 +72,7 @@ const TINY_KERNELS: [(&str, TinyLayout); 2] = [
 
 /// Runs `quiver packets`.
 pub(crate) fn run(args: PacketsArgs) -> Result<()> {
-    check_outputs(&[("--json", args.json.as_deref())])?;
+    check_outputs(&[("--json", args.json.as_deref())], &args.scenes)?;
     if args.layout.name().starts_with("bvh2") {
         return Err(format!(
             "--layout {}: packets need a 4- or 8-wide layout",
@@ -86,9 +87,45 @@ pub(crate) fn run(args: PacketsArgs) -> Result<()> {
     } else {
         args.scenes.clone()
     };
+    let loaded = super::load_within(&scenes, |censuses, scenes| {
+        let mut e = Estimate::new(format!("packets {}", scenes_text(&args.scenes)));
+        // Each scene in curve mode, its copy and its patch-mode conversion.
+        e.add(
+            "scenes, curve and patch mode",
+            super::scenes_bytes(censuses, true) + super::scenes_bytes(censuses, false),
+        );
+        let tris = super::largest(censuses, super::triangles_of);
+        let curve = super::largest(censuses, |c| c.curve_primitives());
+        e.add(
+            format!("{} triangles at {PER_TRIANGLE} B", budget::count(tris)),
+            tris * PER_TRIANGLE,
+        );
+        e.add(
+            format!(
+                "{} curve-mode primitives at {} B",
+                budget::count(curve),
+                MIXED_BUILD
+            ),
+            curve * MIXED_BUILD,
+        );
+        e.add(
+            format!("{} random rays", budget::count(args.rays as u64)),
+            args.rays as u64 * PER_RAY,
+        );
+        // Shadow rays toward every light from every eye hit (known once loaded).
+        let lights = scenes.map_or(0, |s| s.iter().map(|s| s.lights.len()).max().unwrap_or(0));
+        let eye = (args.res as u64).pow(2);
+        e.add(
+            format!(
+                "{} eye rays with their shadow and mirror rays",
+                budget::count(eye)
+            ),
+            eye * (PER_EYE + PER_RAY * (1 + lights as u64)),
+        );
+        e
+    })?;
     let mut jobs = Vec::new();
-    for name in &scenes {
-        let scene = super::load_scene(name)?;
+    for scene in loaded {
         if !scene.is_all_triangles() {
             jobs.push(("curve", scene.clone()));
         }
@@ -132,6 +169,29 @@ pub(crate) fn run(args: PacketsArgs) -> Result<()> {
     print_rows(&rows);
     write_json(args.json.as_ref(), &json!({ "rows": rows }))
 }
+
+/// The scenes named, for messages (the defaults when none were).
+fn scenes_text(given: &[String]) -> String {
+    if given.is_empty() {
+        "balls3 gears3 teapot12 tetra9".into()
+    } else {
+        given.join(" ")
+    }
+}
+
+/// Memory per triangle of the largest scene's patch mode beyond the scenes: its BVH, triangle
+/// copies and packet buffers (`quiver packets balls4 --res 8 --rays 10`: 708 MB for 1.42
+/// million triangles with both modes' scenes; soup100000 and soup300000: 472 B a triangle),
+/// rounded up.
+const PER_TRIANGLE: u64 = 600;
+
+/// Memory per random ray and its answer (`quiver packets soup1000 --rays 2000000`: 101 MB, 48 B
+/// a ray), rounded up; shadow and mirror rays likewise.
+const PER_RAY: u64 = 64;
+
+/// Memory per eye ray in tiles with its hit (`quiver packets soup1000 --res 1024`: 109 MB,
+/// 100 B an eye ray with its one light's shadow ray), rounded up.
+const PER_EYE: u64 = 64;
 
 /// Times every kernel on the scene's ray sets over `prims`. `tris`, given when `prims` are
 /// the scene's triangles (patch mode), adds the first-bounce mirror rays off them and

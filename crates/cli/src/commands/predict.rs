@@ -4,6 +4,7 @@
 //! shadow rays across scenes (correlations, and `--plot` a scatter plot).
 
 use super::{count, parse_builder, parse_layout, pool, thread_count, Result, MAX_RAYS, MAX_REPS};
+use crate::budget::{self, Estimate};
 use crate::output::{check_outputs, out, outln, scatter_svg, write_json, write_text, Axes, Point};
 use quiver::builders::Builder;
 use quiver::predict::Prediction;
@@ -92,21 +93,61 @@ struct Timing {
     ns_per_ray: f64,
 }
 
+/// Memory per triangle of the largest scene beyond the scene: build trees of both builders,
+/// every layout over the triangles and over never-hit copies (`quiver predict soup100000` and
+/// `soup300000 --time --lines 10 --rays 10 --res 8`: 118 and 383 MB, 1325 B a triangle with
+/// the scene's 128), rounded up.
+const PER_TRIANGLE: u64 = 1500;
+
+/// Memory per isotropic line and its measurements (`quiver predict soup1000 --lines 2000000`:
+/// 258 MB, 125 B a line), rounded up.
+const PER_LINE: u64 = 160;
+
+/// Memory per timed ray (`--rays 2000000`: 102 MB, 48 B; `--res 1024`: 77 B an eye ray with
+/// its shadow ray), rounded up.
+const PER_RAY: u64 = 64;
+
 /// Runs `quiver predict`.
 pub(crate) fn run(args: PredictArgs) -> Result<()> {
-    check_outputs(&[
-        ("--json", args.json.as_deref()),
-        ("--plot", args.plot.as_deref()),
-    ])?;
+    check_outputs(
+        &[
+            ("--json", args.json.as_deref()),
+            ("--plot", args.plot.as_deref()),
+        ],
+        &args.scenes,
+    )?;
     let builders = distinct(&args.builders, &[Builder::Binned, Builder::Sweep]);
     let layouts = distinct(&args.layouts, &Layout::ALL);
     let timed_layout = args.layouts.first().copied().unwrap_or(Layout::Bvh8Dfs);
     let time = args.time || args.plot.is_some();
-    let loaded = args
-        .scenes
-        .iter()
-        .map(|name| super::load_scene(name))
-        .collect::<Result<Vec<_>>>()?;
+    let loaded = super::load_within(&args.scenes, |censuses, _| {
+        let mut e = Estimate::new(format!("predict {}", args.scenes.join(" ")));
+        e.add("scenes", super::scenes_bytes(censuses, false));
+        let tris = super::largest(censuses, super::triangles_of);
+        e.add(
+            format!(
+                "{} triangles' trees and layouts at {PER_TRIANGLE} B",
+                budget::count(tris)
+            ),
+            tris * PER_TRIANGLE,
+        );
+        e.add(
+            format!("{} lines", budget::count(args.lines as u64)),
+            args.lines as u64 * PER_LINE,
+        );
+        if time {
+            e.add(
+                format!("{} random rays", budget::count(args.rays as u64)),
+                args.rays as u64 * PER_RAY,
+            );
+            let eye = (args.res as u64).pow(2);
+            e.add(
+                format!("{} eye and shadow rays", budget::count(eye)),
+                eye * 2 * PER_RAY,
+            );
+        }
+        e
+    })?;
     let count_pool = pool(None)?;
     let time_pool = pool(Some(args.threads as usize))?;
     let mut rows = Vec::new();

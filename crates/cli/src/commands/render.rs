@@ -2,7 +2,7 @@
 //! statistics, optionally a heatmap of nodes per eye ray.
 
 use super::{layout_help, load_and_build_as, parse_layout, pool, scene_help, thread_count, Result};
-use crate::output::{check_outputs, heatmap, outln, print_table, write_json, write_png};
+use crate::output::{check_outputs, outln, print_table, write_heatmap, write_json, write_png};
 use clap::ValueEnum;
 use quiver::traverse::NoFilter;
 use quiver::{BuildOptions, Layout};
@@ -79,17 +79,44 @@ enum OffsetArg {
 
 /// Runs `quiver render`.
 pub(crate) fn run(args: RenderArgs) -> Result<()> {
-    check_outputs(&[
-        ("--output", Some(args.output.as_path())),
-        ("--heatmap", args.heatmap.as_deref()),
-        ("--json", args.json.as_deref()),
-    ])?;
+    check_outputs(
+        &[
+            ("--output", Some(args.output.as_path())),
+            ("--heatmap", args.heatmap.as_deref()),
+            ("--json", args.json.as_deref()),
+        ],
+        &[&args.scene],
+    )?;
     let pool = pool(args.threads.map(usize::from))?;
     let options = BuildOptions::default()
         .layout(args.layout)
         .thread_pool(&pool);
-    let (scene, bvh, tree, build_ms) =
-        load_and_build_as(&args.scene, args.patches, args.instanced, &options)?;
+    let threads = pool.current_num_threads();
+    let what = format!(
+        "render {} --res {}{}",
+        args.scene,
+        args.res,
+        if args.instanced {
+            " --instanced"
+        } else if args.patches {
+            " --patches"
+        } else {
+            ""
+        }
+    );
+    let (scene, bvh, tree, build_ms) = load_and_build_as(
+        &args.scene,
+        args.patches,
+        args.instanced,
+        &options,
+        |censuses, scenes| {
+            // An instanced scene holds far less than its flattened triangles: the estimate
+            // of the flattened build bounds it.
+            let mut e = super::build_estimate(&what, censuses, args.patches || args.instanced);
+            render_estimate(&mut e, &args, threads, censuses, scenes);
+            e
+        },
+    )?;
     let rconfig = RenderConfig {
         res: args.res,
         two_sided: if args.instanced {
@@ -110,42 +137,36 @@ pub(crate) fn run(args: RenderArgs) -> Result<()> {
         "rendering {bar:40} {pos}/{len} rows [{elapsed}]",
     )?);
     let start = Instant::now();
-    let image = pool.install(|| render(&scene, &bvh, &rconfig, &|n| bar.inc(n as u64)));
+    let mut image = pool.install(|| render(&scene, &bvh, &rconfig, &|n| bar.inc(n as u64)));
     let trace_ms = start.elapsed().as_secs_f64() * 1e3;
     bar.finish_and_clear();
     write_png(&args.output, image.res, image.res, &image.rgb)?;
+    // Written: from here on its digest stands for it, and the pixels are not held twice.
+    image.rgb = Vec::new();
     // Havran's statistics come from a second, counting pass: the timed pass above runs the
     // plain kernels. The counting pass traces ray by ray, so the statistics are per ray as
-    // Havran defines them; both passes must trace the same rays and draw the same image. With
-    // --havran it also records every answer for the ideal runs.
+    // Havran defines them; both passes must trace the same rays and draw the same image (the
+    // same digest: the counting pass keeps no image). With --havran it also records every
+    // answer for the ideal runs; the node counts per eye ray are kept only for --heatmap.
     let counted_config = RenderConfig {
         counters: true,
         packets: false,
+        keep_image: false,
+        eye_nodes: args.heatmap.is_some(),
         ..rconfig.clone()
     };
-    let counting_bvh = if args.havran {
-        bvh.clone().recording()
-    } else {
-        bvh.clone()
-    };
-    let counted = pool.install(|| render(&scene, &counting_bvh, &counted_config, &|_| {}));
+    let recording = args.havran.then(|| bvh.clone().recording());
+    let counting_bvh = recording.as_ref().unwrap_or(&bvh);
+    let counted = pool.install(|| render(&scene, counting_bvh, &counted_config, &|_| {}));
     same_render(&counted, &image, "counting")?;
-    let theta = if args.havran {
-        Some(ideal_runs(
-            &pool,
-            &scene,
-            &bvh,
-            &counting_bvh,
-            &rconfig,
-            &image,
-            args.reps,
-        )?)
-    } else {
-        None
+    let theta = match &recording {
+        Some(recording) => Some(ideal_runs(
+            &pool, &scene, &bvh, recording, &rconfig, &image, args.reps,
+        )?),
+        None => None,
     };
     if let Some(h) = &args.heatmap {
-        let (w, px) = heatmap(&counted.eye_nodes, args.res as usize + 1);
-        write_png(h, w as u32, w as u32, &px)?;
+        write_heatmap(h, &counted.eye_nodes, args.res as usize + 1)?;
     }
     let census = quiver::predict::census(&bvh);
     let stats = tree.as_ref().map(|t| t.stats());
@@ -220,9 +241,71 @@ pub(crate) fn run(args: RenderArgs) -> Result<()> {
     write_json(args.json.as_ref(), &report)
 }
 
-/// Fails unless `other` traced the same rays and drew the same image as the timed pass.
+/// Adds what rendering takes beyond the scene and its BVH: the timed pass (the image and its
+/// band buffers), the counting pass (band buffers, node counts per eye ray for --heatmap), and
+/// with --havran the recording BVH's copy and every query it records, at most
+/// `(1 + lights) * (1 + b + ... + b^4)` per eye ray for `b` secondary rays per hit (1 with
+/// reflective or transmitting materials, 2 with transmitting ones), known once the scene is
+/// loaded.
+fn render_estimate(
+    e: &mut crate::budget::Estimate,
+    args: &RenderArgs,
+    threads: usize,
+    censuses: &[quiver_scenes::scene::Census],
+    scenes: Option<&[quiver_scenes::Scene]>,
+) {
+    let timed = RenderConfig {
+        res: args.res,
+        ..RenderConfig::default()
+    };
+    let counting = RenderConfig {
+        counters: true,
+        keep_image: false,
+        eye_nodes: args.heatmap.is_some(),
+        ..timed.clone()
+    };
+    e.add(
+        format!("image and render buffers at {}²", args.res),
+        timed.memory_bytes(threads),
+    );
+    e.add("counting pass", counting.memory_bytes(threads));
+    let Some(scene) = scenes.and_then(|s| s.first()) else {
+        return;
+    };
+    if !args.havran {
+        return;
+    }
+    let prims = super::largest(censuses, |c| {
+        if args.patches {
+            super::triangles_of(c)
+        } else {
+            c.curve_primitives()
+        }
+    });
+    let reflective = scene.materials.iter().any(|m| m.ks > 0.0 || m.t > 0.0);
+    let transmitting = scene.materials.iter().any(|m| m.t > 0.0);
+    let b = reflective as u64 + transmitting as u64;
+    let depth = RenderConfig::default().max_depth;
+    let per_eye = (1 + scene.lights.len() as u64) * (0..depth).map(|d| b.pow(d)).sum::<u64>();
+    let eye = (args.res as u64 + 1).pow(2);
+    let traced = std::mem::size_of::<quiver_scenes::accel::Traced>() as u64;
+    e.add(
+        "--havran's copy of the BVH",
+        prims * crate::budget::TRIANGLE_BUILD / 2,
+    );
+    e.add(
+        format!(
+            "--havran's record of up to {} queries",
+            crate::budget::count(eye * per_eye)
+        ),
+        eye * per_eye * traced,
+    );
+}
+
+/// Fails unless `other` traced the same rays and drew the same image (digest) as the timed
+/// pass.
 fn same_render(other: &Rendered, image: &Rendered, pass: &str) -> Result<()> {
-    if other.rays != image.rays || other.rgb != image.rgb {
+    if other.rays != image.rays || other.image_digest != image.image_digest {
         return Err(format!(
             "internal error: the {pass} pass traced different rays than the plain pass"
         )
@@ -267,14 +350,19 @@ fn ideal_runs(
     if traced.len() as u64 != image.rays.total() {
         return Err("internal error: the recording missed rays the render traced".into());
     }
+    // The timed renders keep no image: each is checked against the first pass by its digest
+    // as it finishes, so --reps costs no memory.
     let single = RenderConfig {
         packets: false,
+        keep_image: false,
         ..config.clone()
     };
-    let mut renders = Vec::new();
+    let mut renders: Vec<bool> = Vec::new();
     let times = pool.install(|| {
         quiver_lab::measure::median_times_interleaved(reps, 3, |i| match i {
-            0 => renders.push(render(scene, bvh, &single, &|_| {})),
+            0 => renders.push(
+                same_render(&render(scene, bvh, &single, &|_| {}), image, "single-ray").is_ok(),
+            ),
             1 => {
                 let hits: usize = traced
                     .par_chunks(1024)
@@ -314,8 +402,10 @@ fn ideal_runs(
             }
         })
     });
-    for r in &renders {
-        same_render(r, image, "single-ray")?;
+    if renders.contains(&false) {
+        return Err(
+            "internal error: the single-ray pass traced different rays than the plain pass".into(),
+        );
     }
     let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3;
     let tests = traced.iter().filter(|t| t.hit.is_some()).count().max(1) as f64;

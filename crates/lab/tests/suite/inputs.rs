@@ -425,16 +425,75 @@ fn generator_and_framing_cameras_are_valid() {
         }
     }
     let b = |lo: f32, hi: f32| quiver::geometry::Aabb::new(Vec3A::splat(lo), Vec3A::splat(hi));
+    // Every finite extent f32 can frame from outside, however large (2e19 used to overflow
+    // the f32 length of the extent and fall back to a fixed view of the origin) or small;
+    // beyond that, and for bounds that are not finite, an error instead of a view that shows
+    // something else.
     for bounds in [
         quiver::geometry::Aabb::EMPTY,
         b(0.0, 0.0),
         b(1e30, 1e30),
-        b(-3e38, 3e38),
+        b(-1e19, 1e19),
+        b(-2e19, 2e19),
+        b(-3e37, 3e37),
         b(-1e-40, 1e-40),
+        b(-1e-45, 0.0),
+        b(3e38, 3e38),
+    ] {
+        let cam = Camera::framing(&bounds).unwrap_or_else(|e| panic!("{bounds:?}: {e}"));
+        assert_eq!(cam.validate(), Ok(()), "{bounds:?}");
+        let c = (bounds.min + bounds.max) * 0.5;
+        // (A point, or bounds a few ulps across, get a view whose direction is as coarse as
+        // its f32 ends: only its validity is checked.)
+        if !bounds.is_empty()
+            && (bounds.max - bounds.min).min_element() > c.abs().max_element() * 1e-4
+        {
+            // It looks at the centre, and every corner lies within the 45° view.
+            let c = (bounds.min + bounds.max) * 0.5;
+            let close = |a: f32, b: f32| (a - b).abs() <= a.abs().max(b.abs()) * 1e-6;
+            assert!(
+                (0..3).all(|k| close(cam.at[k], c[k])),
+                "{bounds:?}: {cam:?}"
+            );
+            // In f64: the f32 length of these differences overflows at 1e19.
+            let d = |v: Vec3A| glam::DVec3::new(v.x as f64, v.y as f64, v.z as f64);
+            let w = (d(cam.at) - d(cam.from)).normalize();
+            for corner in [bounds.min, bounds.max] {
+                let to = (d(corner) - d(cam.from)).normalize();
+                assert!(w.dot(to) >= 22.5f64.to_radians().cos() - 1e-6, "{bounds:?}");
+            }
+        }
+    }
+    for bounds in [
+        b(-3e38, 3e38),
+        b(-1e38, 1e38),
         b(f32::NAN, 1.0),
         b(0.0, f32::INFINITY),
     ] {
-        assert_eq!(Camera::framing(&bounds).validate(), Ok(()), "{bounds:?}");
+        assert_eq!(
+            Camera::framing(&bounds),
+            Err(quiver_scenes::scene::CameraError::CannotFrame),
+            "{bounds:?}"
+        );
+    }
+    // Scaled by a power of two, the same camera scaled (its f64 arithmetic is exact under it).
+    let base = Camera::framing(&quiver::geometry::Aabb::new(
+        Vec3A::new(-1.0, 0.25, 3.0),
+        Vec3A::new(2.0, 5.0, 3.5),
+    ))
+    .unwrap();
+    for k in [-100, -20, 20, 100] {
+        let s = 2f32.powi(k);
+        let scaled = Camera::framing(&quiver::geometry::Aabb::new(
+            Vec3A::new(-1.0, 0.25, 3.0) * s,
+            Vec3A::new(2.0, 5.0, 3.5) * s,
+        ))
+        .unwrap();
+        assert_eq!(
+            (scaled.from, scaled.at),
+            (base.from * s, base.at * s),
+            "2^{k}"
+        );
     }
 }
 

@@ -47,6 +47,10 @@ pub enum CameraError {
     UpAlongView,
     /// The field of view is not strictly between 0 and 180 degrees.
     Angle(f32),
+    /// [`Camera::framing`] was given bounds no f32 camera can frame: not finite, or so large
+    /// that the eye point outside them would pass the largest f32 (coordinates within about
+    /// a factor 4 of `f32::MAX`).
+    CannotFrame,
 }
 
 impl CameraError {
@@ -57,6 +61,7 @@ impl CameraError {
             CameraError::NoViewDirection => "at",
             CameraError::UpAlongView => "up",
             CameraError::Angle(_) => "angle",
+            CameraError::CannotFrame => "from",
         }
     }
 }
@@ -77,6 +82,11 @@ impl fmt::Display for CameraError {
             CameraError::Angle(a) => write!(
                 f,
                 "camera 'angle' {a} must lie strictly between 0 and 180 degrees"
+            ),
+            CameraError::CannotFrame => write!(
+                f,
+                "no camera can frame these bounds in f32: they are not finite, or so large that \
+                 a viewpoint outside them lies beyond the largest f32 (give the scene a view)"
             ),
         }
     }
@@ -142,23 +152,49 @@ impl Camera {
         Ok(())
     }
 
-    /// A camera that frames `bounds` from a diagonal viewpoint (for files without one). Always
-    /// valid: bounds too large or too small to frame in f32 get a fixed view of the origin.
-    pub fn framing(bounds: &Aabb) -> Self {
+    /// A camera that frames `bounds` from a diagonal viewpoint (for files without one): the
+    /// bounding sphere fills a 45° view. Computed in f64, so it works at any scale f32 can
+    /// hold, and alike at every scale (bounds scaled by a power of two give the camera scaled
+    /// by the same power, bit for bit); empty bounds get a view of the unit sphere at the
+    /// origin. Fails ([`CameraError::CannotFrame`]) rather than return a view that does not
+    /// show the bounds: for bounds that are not finite, and for bounds so large that the
+    /// viewpoint, about 4.5 half-diagonals from the centre, would lie beyond `f32::MAX`.
+    ///
+    /// ```
+    /// use quiver_scenes::scene::{Camera, CameraError};
+    /// use quiver::geometry::Aabb;
+    /// use glam::Vec3A;
+    /// let unit = Camera::framing(&Aabb::new(Vec3A::ZERO, Vec3A::ONE)).unwrap();
+    /// assert_eq!(unit.at, Vec3A::splat(0.5));
+    /// // 2e19 overflowed the f32 length of the extent, once.
+    /// let big = Camera::framing(&Aabb::new(Vec3A::splat(-2e19), Vec3A::splat(2e19))).unwrap();
+    /// assert!(big.from.length() > 2e19 && big.validate().is_ok());
+    /// let huge = Aabb::new(Vec3A::splat(-3e38), Vec3A::splat(3e38));
+    /// assert_eq!(Camera::framing(&huge), Err(CameraError::CannotFrame));
+    /// ```
+    pub fn framing(bounds: &Aabb) -> Result<Self, CameraError> {
+        use glam::DVec3;
+        let d = |v: Vec3A| DVec3::new(v.x as f64, v.y as f64, v.z as f64);
         let (c, r) = if bounds.is_empty() {
-            (Vec3A::ZERO, 1.0)
+            (DVec3::ZERO, 1.0)
         } else {
-            (bounds.center(), (bounds.extent().length() * 0.5).max(1e-6))
+            let (lo, hi) = (d(bounds.min), d(bounds.max));
+            if !(lo.is_finite() && hi.is_finite()) {
+                return Err(CameraError::CannotFrame);
+            }
+            // f64 holds the extent and its length for any f32 bounds. A point (no extent)
+            // gets a sphere a few ulps across, so the view still has a direction.
+            let c = (lo + hi) * 0.5;
+            let r = ((hi - lo).length() * 0.5)
+                .max(c.abs().max_element() * f64::from(f32::EPSILON) * 8.0);
+            (c, r.max(f64::from(f32::MIN_POSITIVE)))
         };
-        let dir = Vec3A::new(0.6, 0.45, 1.0).normalize();
+        let dir = DVec3::new(0.6, 0.45, 1.0).normalize();
         // 45° full angle: the bounding sphere fits when the distance is r / sin(22.5°).
-        let dist = r / (22.5f32).to_radians().sin();
-        Camera::try_new(c + dir * dist, c, Vec3A::Y, 45.0).unwrap_or(Camera::new(
-            Vec3A::new(0.0, 0.0, 10.0),
-            Vec3A::ZERO,
-            Vec3A::Y,
-            45.0,
-        ))
+        let dist = r / 22.5f64.to_radians().sin();
+        let f = |v: DVec3| Vec3A::new(v.x as f32, v.y as f32, v.z as f32);
+        Camera::try_new(f(c + dir * dist), f(c), Vec3A::Y, 45.0)
+            .map_err(|_| CameraError::CannotFrame)
     }
 
     /// The eye ray through image-plane point `(sx, sy)`, both in `[-1, 1]`: `(-1, 1)` is the

@@ -114,7 +114,7 @@ pub fn parse_with(
         ));
     }
     let groups = groups.finish(tris.len());
-    Ok((super::mesh_scene(path, tris, groups), report))
+    Ok((super::mesh_scene(path, tris, groups)?, report))
 }
 
 fn item(path: &Path, item: String, message: String) -> SceneError {
@@ -850,6 +850,13 @@ impl<'a> Reader<'a> {
             return Err(fail(format!(
                 "has {} bytes, and the buffer's byteLength is {len}",
                 meta.len()
+            )));
+        }
+        // The same bound as every file quiver reads (`read_bytes`).
+        if len > self.opts.max_file_bytes {
+            return Err(fail(format!(
+                "the buffer's byteLength {len} is above the {} bytes a file may hold",
+                self.opts.max_file_bytes
             )));
         }
         use std::io::Read;

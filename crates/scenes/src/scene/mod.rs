@@ -28,15 +28,19 @@
 //! ```
 
 mod camera;
+mod census;
 pub mod gltf;
 pub mod nff;
 pub mod obj;
 pub mod ply;
+mod read;
 mod soup;
 mod spd;
 pub mod tessellate;
 
 pub use camera::{Camera, CameraError, View};
+pub use census::Census;
+pub use read::{read_bytes, read_text, MAX_FILE_BYTES};
 
 use crate::primitive::{Cone, PatchTriangle, Polygon, PolygonPiece, Prim, Sphere};
 use glam::Vec3A;
@@ -301,6 +305,16 @@ pub enum SceneError {
         /// What went wrong.
         message: String,
     },
+    /// A file holding more primitives than [`LoadOptions::max_primitives`] allows, found at
+    /// `line` before the rest was read.
+    TooLarge {
+        /// The file.
+        path: PathBuf,
+        /// The line where the count passed the limit.
+        line: usize,
+        /// The limit.
+        limit: u64,
+    },
     /// A fault at one line of a scene file (NFF, OBJ, a PLY header or ASCII body, glTF JSON);
     /// shown as `file:line: message`.
     Parse {
@@ -378,6 +392,12 @@ impl fmt::Display for SceneError {
                 )
             }
             SceneError::File { path, message } => write!(f, "{}: {message}", path.display()),
+            SceneError::TooLarge { path, line, limit } => write!(
+                f,
+                "{}:{line}: more than {limit} primitives, the most this load allows \
+                 (LoadOptions::max_primitives)",
+                path.display()
+            ),
             SceneError::Parse {
                 path,
                 line,
@@ -408,21 +428,61 @@ pub enum NonFinite {
 /// How files are read: [`Scene::load_with`], [`nff::parse_with`], [`obj::parse_with`].
 ///
 /// ```
-/// use quiver_scenes::scene::{LoadOptions, NonFinite};
+/// use quiver_scenes::scene::{LoadOptions, NonFinite, MAX_FILE_BYTES};
 /// assert_eq!(LoadOptions::default().non_finite, NonFinite::Error);
-/// let lax = LoadOptions::default().non_finite(NonFinite::Drop);
-/// assert_eq!(lax.non_finite, NonFinite::Drop);
+/// assert_eq!(LoadOptions::default().max_file_bytes, MAX_FILE_BYTES);
+/// let lax = LoadOptions::default().non_finite(NonFinite::Drop).max_file_bytes(1 << 20);
+/// assert_eq!((lax.non_finite, lax.max_file_bytes), (NonFinite::Drop, 1 << 20));
 /// ```
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct LoadOptions {
     /// What a NaN or infinite number does.
     pub non_finite: NonFinite,
+    /// The largest file read ([`read_bytes`]); [`MAX_FILE_BYTES`] by default.
+    pub max_file_bytes: u64,
+    /// The most primitives a file may hold, counted as they trace (a sphere, cone or
+    /// triangle is one, a polygon or face of `n` vertices `n - 2`); a file with more fails
+    /// with [`SceneError::TooLarge`] as soon as the count passes it, before the rest is
+    /// stored. Unlimited by default; a caller with a memory budget sets it.
+    pub max_primitives: u64,
+}
+
+impl Default for LoadOptions {
+    fn default() -> Self {
+        LoadOptions {
+            non_finite: NonFinite::default(),
+            max_file_bytes: MAX_FILE_BYTES,
+            max_primitives: u64::MAX,
+        }
+    }
 }
 
 impl LoadOptions {
     /// Sets [`LoadOptions::non_finite`].
     pub fn non_finite(mut self, n: NonFinite) -> Self {
         self.non_finite = n;
+        self
+    }
+
+    /// Sets [`LoadOptions::max_file_bytes`].
+    pub fn max_file_bytes(mut self, bytes: u64) -> Self {
+        self.max_file_bytes = bytes;
+        self
+    }
+
+    /// Sets [`LoadOptions::max_primitives`].
+    ///
+    /// ```
+    /// use quiver_scenes::scene::{obj, LoadOptions};
+    /// let quad = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n";
+    /// let two = LoadOptions::default().max_primitives(2);
+    /// assert!(obj::parse_with(quad, "q.obj", &two).is_ok());
+    /// let one = LoadOptions::default().max_primitives(1);
+    /// let e = obj::parse_with(quad, "q.obj", &one).unwrap_err().to_string();
+    /// assert!(e.starts_with("q.obj:5: more than 1 primitives"), "{e}");
+    /// ```
+    pub fn max_primitives(mut self, count: u64) -> Self {
+        self.max_primitives = count;
         self
     }
 }
@@ -527,41 +587,27 @@ pub(crate) fn clip(s: &str) -> String {
     out
 }
 
-/// A file's bytes.
-fn read_bytes(path: &Path) -> Result<Vec<u8>, SceneError> {
-    std::fs::read(path).map_err(|e| SceneError::File {
-        path: path.into(),
-        message: format!("cannot read: {e}"),
-    })
-}
-
-/// A file's text. Invalid UTF-8 becomes U+FFFD, so it fails as a bad token on its own line
-/// where it matters and passes in comments.
-fn read_text(path: &Path) -> Result<String, SceneError> {
-    Ok(String::from_utf8_lossy(&read_bytes(path)?).into_owned())
-}
-
 /// Most bytes a `.gz` file may inflate to: far above any mesh quiver can hold, low enough that
 /// a small hostile file cannot exhaust memory.
 pub const MAX_INFLATED_BYTES: u64 = 1 << 32;
 
-/// A gzip file's inflated bytes, at most [`MAX_INFLATED_BYTES`].
-fn read_gzip(path: &Path) -> Result<Vec<u8>, SceneError> {
+/// A gzip file's inflated bytes, at most [`MAX_INFLATED_BYTES`] and at most `limit` (the file
+/// itself is read within `limit` too, [`read_bytes`]).
+fn read_gzip(path: &Path, limit: u64) -> Result<Vec<u8>, SceneError> {
     use std::io::Read;
-    let packed = read_bytes(path)?;
+    let packed = read_bytes(path, limit)?;
+    let cap = MAX_INFLATED_BYTES.min(limit);
     let fail = |message: String| SceneError::File {
         path: path.into(),
         message,
     };
     let mut out = Vec::new();
     flate2::read::MultiGzDecoder::new(packed.as_slice())
-        .take(MAX_INFLATED_BYTES + 1)
+        .take(cap + 1)
         .read_to_end(&mut out)
         .map_err(|e| fail(format!("cannot inflate (gzip): {e}")))?;
-    if out.len() as u64 > MAX_INFLATED_BYTES {
-        return Err(fail(format!(
-            "inflates to more than {MAX_INFLATED_BYTES} bytes (gzip)"
-        )));
+    if out.len() as u64 > cap {
+        return Err(fail(format!("inflates to more than {cap} bytes (gzip)")));
     }
     Ok(out)
 }
@@ -569,9 +615,16 @@ fn read_gzip(path: &Path) -> Result<Vec<u8>, SceneError> {
 /// A scene of the triangles read from a mesh file (OBJ, PLY, glTF): the default material, a
 /// camera that frames the mesh from above one corner, one light beyond the far corner, a grey
 /// background, and the file's groups.
-pub(crate) fn mesh_scene(path: &Path, tris: Vec<Triangle>, groups: Vec<Group>) -> Scene {
+pub(crate) fn mesh_scene(
+    path: &Path,
+    tris: Vec<Triangle>,
+    groups: Vec<Group>,
+) -> Result<Scene, SceneError> {
     let bounds = tris.iter().fold(Aabb::EMPTY, |b, t| b.union(&t.bounds()));
-    let camera = Camera::framing(&bounds);
+    let camera = Camera::framing(&bounds).map_err(|e| SceneError::File {
+        path: path.into(),
+        message: format!("mesh files bring no view, and {e}"),
+    })?;
     // Beyond the far corner; from the eye when the mesh is empty or too large for f32.
     let light = Some(bounds.max + bounds.extent())
         .filter(|l| !bounds.is_empty() && l.is_finite())
@@ -584,7 +637,7 @@ pub(crate) fn mesh_scene(path: &Path, tris: Vec<Triangle>, groups: Vec<Group>) -
         Vec3A::splat(0.2),
     );
     scene.groups = groups;
-    scene
+    Ok(scene)
 }
 
 /// Collects [`Group`]s as a reader emits objects: `start` opens a group at the current
@@ -647,19 +700,39 @@ impl Scene {
     pub fn load_with(spec: &str, opts: &LoadOptions) -> Result<(Scene, LoadReport), SceneError> {
         let lower = spec.to_ascii_lowercase();
         if lower.ends_with(".ply.gz") {
-            return ply::parse_with(&read_gzip(Path::new(spec))?, spec, opts);
+            return ply::parse_with(
+                &read_gzip(Path::new(spec), opts.max_file_bytes)?,
+                spec,
+                opts,
+            );
         }
         if lower.ends_with(".ply") {
-            return ply::parse_with(&read_bytes(Path::new(spec))?, spec, opts);
+            return ply::parse_with(
+                &read_bytes(Path::new(spec), opts.max_file_bytes)?,
+                spec,
+                opts,
+            );
         }
         if lower.ends_with(".gltf") || lower.ends_with(".glb") {
-            return gltf::parse_with(&read_bytes(Path::new(spec))?, spec, opts);
+            return gltf::parse_with(
+                &read_bytes(Path::new(spec), opts.max_file_bytes)?,
+                spec,
+                opts,
+            );
         }
         if lower.ends_with(".obj") {
-            return obj::parse_with(&read_text(Path::new(spec))?, spec, opts);
+            return obj::parse_with(
+                &read_text(Path::new(spec), opts.max_file_bytes)?,
+                spec,
+                opts,
+            );
         }
         if lower.ends_with(".nff") {
-            return nff::parse_with(&read_text(Path::new(spec))?, spec, opts);
+            return nff::parse_with(
+                &read_text(Path::new(spec), opts.max_file_bytes)?,
+                spec,
+                opts,
+            );
         }
         let split = spec
             .find(|c: char| c.is_ascii_digit())

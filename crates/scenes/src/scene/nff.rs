@@ -32,11 +32,19 @@ use std::path::Path;
 
 const ENTITIES: &str = "v, b, l, f, c, s, p or pp";
 
-/// Token stream with line numbers.
+/// Token stream with line numbers, read as it is consumed: one token of lookahead, never a
+/// list of every token (24 bytes each, 12 times the text for a file of one-digit numbers).
 struct Tokens<'a> {
     path: &'a Path,
-    items: Vec<(usize, &'a str)>,
-    at: usize,
+    /// The lines after the current one, numbered from 1.
+    lines: std::iter::Enumerate<std::str::Lines<'a>>,
+    /// The rest of the current line's tokens, and its number.
+    words: std::str::SplitWhitespace<'a>,
+    line: usize,
+    /// The next token and its line, or `None` at the end of the file.
+    ahead: Option<(usize, &'a str)>,
+    /// The line of the last token taken (where an unexpected end is reported).
+    last_line: usize,
     non_finite: NonFinite,
     /// The first non-finite number of the current entity under [`NonFinite::Drop`]: its line
     /// and message.
@@ -47,19 +55,39 @@ struct Tokens<'a> {
 
 impl<'a> Tokens<'a> {
     fn new(text: &'a str, path: &'a Path, non_finite: NonFinite) -> Self {
-        let mut items = Vec::new();
-        for (n, line) in text.lines().enumerate() {
-            let line = line.split('#').next().unwrap_or("");
-            items.extend(line.split_whitespace().map(|t| (n + 1, t)));
-        }
-        Tokens {
+        let mut tk = Tokens {
             path,
-            items,
-            at: 0,
+            lines: text.lines().enumerate(),
+            words: "".split_whitespace(),
+            line: 0,
+            ahead: None,
+            last_line: 1,
             non_finite,
             dropped: None,
             hint: None,
+        };
+        tk.ahead = tk.scan();
+        tk
+    }
+
+    /// The token after the current lookahead.
+    fn scan(&mut self) -> Option<(usize, &'a str)> {
+        loop {
+            if let Some(w) = self.words.next() {
+                return Some((self.line, w));
+            }
+            let (n, line) = self.lines.next()?;
+            self.line = n + 1;
+            self.words = line.split('#').next().unwrap_or("").split_whitespace();
         }
+    }
+
+    /// Takes the lookahead token.
+    fn advance(&mut self) -> Option<(usize, &'a str)> {
+        let t = self.ahead.take()?;
+        self.last_line = t.0;
+        self.ahead = self.scan();
+        Some(t)
     }
 
     fn err(&self, line: usize, message: String) -> SceneError {
@@ -80,25 +108,21 @@ impl<'a> Tokens<'a> {
 
     /// The line of the current (or, at the end, the last) token.
     fn line(&self) -> usize {
-        self.items
-            .get(self.at)
-            .or(self.items.last())
-            .map_or(1, |t| t.0)
+        self.ahead.map_or(self.last_line, |t| t.0)
     }
 
     fn next(&mut self, what: &str) -> Result<&'a str, SceneError> {
-        let t = self.items.get(self.at).ok_or_else(|| {
-            self.syntax(
+        match self.advance() {
+            Some(t) => Ok(t.1),
+            None => Err(self.syntax(
                 self.line(),
                 format!("unexpected end of file, expected {what}"),
-            )
-        })?;
-        self.at += 1;
-        Ok(t.1)
+            )),
+        }
     }
 
     fn peek(&self) -> Option<&'a str> {
-        self.items.get(self.at).map(|t| t.1)
+        self.ahead.map(|t| t.1)
     }
 
     /// A number of what no primitive or light owns (view, background, material): NaN and
@@ -229,31 +253,50 @@ pub fn parse_with(
     };
     let mut have_view = false;
     let mut material: Option<u32> = None;
+    // Primitives so far, for `LoadOptions::max_primitives`.
+    let mut prims = 0u64;
     // The entity before the current one, to explain a stray number by a wrong count.
     let mut last: Option<(usize, &str, Option<usize>)> = None;
     while let Some(tok) = tk.peek() {
         let line = tk.line();
-        tk.at += 1;
+        tk.advance();
         tk.dropped = None;
         let mut count = None;
         // Stores a shape unless one of its numbers was not finite under `NonFinite::Drop`.
-        let shape =
-            |s: Shape, tk: &mut Tokens, objects: &mut Vec<Object>, report: &mut LoadReport| {
-                let m = material
-                    .ok_or_else(|| tk.err(line, format!("'{tok}' before any 'f' material")))?;
-                match tk.dropped.take() {
-                    Some((l, why)) => report.drop_primitive(format!(
-                        "{}:{l}: {} dropped: {why}",
-                        path.display(),
-                        shape_name(tok)
-                    )),
-                    None => objects.push(Object {
+        let shape = |s: Shape,
+                     tk: &mut Tokens,
+                     objects: &mut Vec<Object>,
+                     report: &mut LoadReport,
+                     prims: &mut u64| {
+            let m =
+                material.ok_or_else(|| tk.err(line, format!("'{tok}' before any 'f' material")))?;
+            match tk.dropped.take() {
+                Some((l, why)) => report.drop_primitive(format!(
+                    "{}:{l}: {} dropped: {why}",
+                    path.display(),
+                    shape_name(tok)
+                )),
+                None => {
+                    // What it traces as: a polygon or patch of n vertices is n - 2 triangles.
+                    *prims += match &s {
+                        Shape::Polygon(v) | Shape::Patch { verts: v, .. } => v.len() as u64 - 2,
+                        _ => 1,
+                    };
+                    if *prims > opts.max_primitives {
+                        return Err(SceneError::TooLarge {
+                            path: path.into(),
+                            line,
+                            limit: opts.max_primitives,
+                        });
+                    }
+                    objects.push(Object {
                         shape: s,
                         material: m,
-                    }),
+                    })
                 }
-                Ok::<(), SceneError>(())
-            };
+            }
+            Ok::<(), SceneError>(())
+        };
         match tok {
             "v" => {
                 let l_from = tk.keyword("from")?;
@@ -339,6 +382,7 @@ pub fn parse_with(
                     &mut tk,
                     &mut scene.objects,
                     &mut report,
+                    &mut prims,
                 )?;
             }
             "c" => {
@@ -371,7 +415,13 @@ pub fn parse_with(
                     apex,
                     apex_radius,
                 };
-                shape(Shape::Cone(c), &mut tk, &mut scene.objects, &mut report)?;
+                shape(
+                    Shape::Cone(c),
+                    &mut tk,
+                    &mut scene.objects,
+                    &mut report,
+                    &mut prims,
+                )?;
             }
             "p" | "pp" => {
                 let n = tk.count("vertex count", 3, |n| {
@@ -379,8 +429,8 @@ pub fn parse_with(
                 })?;
                 count = Some(n);
                 // A count larger than the rest of the file is an error found below; do not let
-                // it reserve memory first.
-                let mut verts = Vec::with_capacity(n.min(tk.items.len() - tk.at));
+                // it reserve memory first (a vertex takes at least six bytes of text).
+                let mut verts = Vec::with_capacity(n.min(text.len() / 6 + 1));
                 let mut normals = Vec::new();
                 // A word or the end of the file where a vertex should be: say what the count
                 // promised.
@@ -397,7 +447,7 @@ pub fn parse_with(
                     (_, 3) => Shape::Triangle(Triangle::new(verts[0], verts[1], verts[2])),
                     _ => Shape::Polygon(verts),
                 };
-                shape(s, &mut tk, &mut scene.objects, &mut report)?;
+                shape(s, &mut tk, &mut scene.objects, &mut report, &mut prims)?;
             }
             other if other.parse::<f32>().is_ok() => {
                 let hint = match last {
@@ -422,7 +472,10 @@ pub fn parse_with(
         last = Some((line, tok, count));
     }
     if !have_view {
-        scene.camera = Camera::framing(&scene.bounds());
+        scene.camera = Camera::framing(&scene.bounds()).map_err(|e| SceneError::File {
+            path: path.into(),
+            message: format!("the file has no view ('v'), and {e}"),
+        })?;
     }
     Ok((scene, report))
 }
@@ -439,6 +492,27 @@ fn shape_name(entity: &str) -> &'static str {
 /// Writes the scene as NFF. Numbers are printed in Rust's shortest round-trip form, so
 /// reading the file back gives exactly the same scene.
 pub fn write(scene: &Scene, w: &mut impl Write) -> io::Result<()> {
+    write_as(scene, None, w)
+}
+
+/// Writes the scene as NFF in patch mode at `resolution`: exactly what [`write()`] writes of
+/// [`Scene::into_patches`]`(resolution)`, but each sphere's and cone's patches are written as
+/// they are made, never held: memory stays that of the scene in curve mode at any resolution.
+///
+/// ```
+/// use quiver_scenes::scene::{nff, Scene};
+/// let s = Scene::load("balls1").unwrap();
+/// let (mut streamed, mut whole) = (Vec::new(), Vec::new());
+/// nff::write_patches(&s, 3, &mut streamed).unwrap();
+/// nff::write(&s.clone().into_patches(3), &mut whole).unwrap();
+/// assert_eq!(streamed, whole);
+/// ```
+pub fn write_patches(scene: &Scene, resolution: u32, w: &mut impl Write) -> io::Result<()> {
+    write_as(scene, Some(resolution), w)
+}
+
+/// [`write()`], with spheres and cones as patches at `patches` if given.
+fn write_as(scene: &Scene, patches: Option<u32>, w: &mut impl Write) -> io::Result<()> {
     let v = |p: Vec3A| format!("{} {} {}", p.x, p.y, p.z);
     let c = &scene.camera;
     writeln!(w, "# {} (written by quiver)", scene.name)?;
@@ -458,9 +532,10 @@ pub fn write(scene: &Scene, w: &mut impl Write) -> io::Result<()> {
         }
     }
     let mut current = None;
-    for o in &scene.objects {
-        if current != Some(o.material) {
-            let m = &scene.materials[o.material as usize];
+    // A material line before an object whose material differs from the last one written.
+    let material = |w: &mut dyn Write, current: &mut Option<u32>, k: u32| -> io::Result<()> {
+        if *current != Some(k) {
+            let m = &scene.materials[k as usize];
             writeln!(
                 w,
                 "f {} {} {} {} {} {}",
@@ -471,8 +546,36 @@ pub fn write(scene: &Scene, w: &mut impl Write) -> io::Result<()> {
                 m.t,
                 m.ior
             )?;
-            current = Some(o.material);
+            *current = Some(k);
         }
+        Ok(())
+    };
+    for o in &scene.objects {
+        if let (Some(r), Shape::Sphere(_) | Shape::Cone(_)) = (patches, &o.shape) {
+            // Patches as into_patches makes them, three vertices with their normals, each
+            // written as it is made (none for a cone of no height, as into_patches).
+            let mut result = Ok(());
+            let mut patch = |verts: [Vec3A; 3], normals: [Vec3A; 3]| {
+                if result.is_ok() {
+                    result = material(w, &mut current, o.material)
+                        .and_then(|_| writeln!(w, "pp 3"))
+                        .and_then(|_| {
+                            verts
+                                .iter()
+                                .zip(&normals)
+                                .try_for_each(|(&x, &n)| writeln!(w, "{} {}", v(x), v(n)))
+                        });
+                }
+            };
+            match &o.shape {
+                Shape::Sphere(s) => super::tessellate::for_each_sphere_patch(s, r, &mut patch),
+                Shape::Cone(k) => super::tessellate::for_each_cone_patch(k, r, &mut patch),
+                _ => {}
+            }
+            result?;
+            continue;
+        }
+        material(w, &mut current, o.material)?;
         match &o.shape {
             Shape::Sphere(s) => writeln!(w, "s {} {}", v(s.center), s.radius)?,
             Shape::Cone(k) => writeln!(
@@ -540,6 +643,42 @@ mod tests {
             err("v\nfrom 0 0 0\nlookat 0 0 1"),
             "t.nff:3: expected 'at', got 'lookat'"
         );
+    }
+
+    /// Streamed patch mode writes exactly the text of the converted scene, cones and
+    /// spheres among other objects, at several resolutions.
+    #[test]
+    fn streamed_patches_equal_the_converted_scene() {
+        for (name, res) in [("lattice1", 1), ("tree3", 2), ("jacks1", 3), ("balls1", 4)] {
+            let s = Scene::load(name).unwrap();
+            let (mut streamed, mut whole) = (Vec::new(), Vec::new());
+            write_patches(&s, res, &mut streamed).unwrap();
+            write(&s.clone().into_patches(res), &mut whole).unwrap();
+            assert!(streamed == whole, "{name} at {res}");
+        }
+    }
+
+    /// A file past LoadOptions::max_primitives stops at the line where the count passes it:
+    /// a polygon counts as its triangles.
+    #[test]
+    fn max_primitives_stops_at_the_line_that_passes_it() {
+        let text =
+            "f 1 1 1 1 0 0 0 1\ns 0 0 0 1\ns 1 0 0 1\np 5\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n0 0.5 0\n";
+        let at = |n: u64| {
+            parse_with(text, "m.nff", &LoadOptions::default().max_primitives(n))
+                .map(|(s, _)| s.objects.len())
+                .map_err(|e| e.to_string())
+        };
+        assert_eq!(at(5), Ok(3));
+        assert_eq!(
+            at(4),
+            Err(
+                "m.nff:4: more than 4 primitives, the most this load allows \
+                 (LoadOptions::max_primitives)"
+                    .into()
+            )
+        );
+        assert!(at(1).unwrap_err().starts_with("m.nff:3: "));
     }
 
     #[test]

@@ -71,8 +71,21 @@ pub fn parse_with(
     // Totals first, so that a positive index pointing further down is checked on its face's
     // own line.
     let mut total = Counts::default();
-    for (_, keyword, _) in lines() {
+    // The triangles the faces fan into, counted before any is made, so that a file past
+    // `LoadOptions::max_primitives` costs no memory for them.
+    let mut triangles = 0u64;
+    for (line, keyword, words) in lines() {
         total.add(keyword);
+        if keyword == Some("f") {
+            triangles += (words.count() as u64).saturating_sub(2);
+            if triangles > opts.max_primitives {
+                return Err(SceneError::TooLarge {
+                    path: path.into(),
+                    line,
+                    limit: opts.max_primitives,
+                });
+            }
+        }
     }
     if total.v > u32::MAX as usize {
         return Err(SceneError::File {
@@ -290,7 +303,7 @@ pub fn parse_with(
         }
     }
     let groups: Vec<Group> = groups.finish(tris.len());
-    Ok((super::mesh_scene(path, tris, groups), report))
+    Ok((super::mesh_scene(path, tris, groups)?, report))
 }
 
 /// How many `v`, `vt` and `vn` lines.

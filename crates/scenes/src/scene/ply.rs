@@ -872,7 +872,7 @@ impl Mesh {
         );
         groups.start(name, 0);
         let groups = groups.finish(tris.len());
-        Ok((super::mesh_scene(path, tris, groups), report))
+        Ok((super::mesh_scene(path, tris, groups)?, report))
     }
 }
 

@@ -21,7 +21,8 @@ pub(super) fn soup(n: u32) -> Scene {
     Scene::from_triangles(
         format!("soup{n}"),
         tris,
-        Camera::framing(&Aabb::new(Vec3A::ZERO, Vec3A::ONE)),
+        Camera::framing(&Aabb::new(Vec3A::ZERO, Vec3A::ONE))
+            .expect("the unit cube is framed at any scale"),
         vec![Vec3A::new(3.0, 4.0, 5.0)],
         Vec3A::splat(0.2),
     )

@@ -18,10 +18,11 @@ pub(crate) mod teapot;
 pub(crate) mod tetra;
 pub(crate) mod tree;
 
-use super::{Camera, Light, Material, Object, Scene, Shape};
+use super::{Camera, Census, Light, Material, Object, Scene, Shape};
 use crate::primitive::{Cone, Sphere};
 use glam::{DVec3, Vec3A};
 use quiver::Triangle;
+use std::cell::RefCell;
 
 /// The SPD's "UNC sky blue" background.
 pub(crate) const SKY: [f64; 3] = [0.078, 0.361, 0.753];
@@ -96,7 +97,11 @@ impl Spd {
         let material = self
             .current
             .expect("an SPD generator sets a material before its objects");
-        self.scene.objects.push(Object { shape, material });
+        // Under `count`, the object is counted and not kept.
+        let counted = COUNTING.with(|c| c.borrow_mut().as_mut().map(|n| n.add(&shape)));
+        if counted.is_none() {
+            self.scene.objects.push(Object { shape, material });
+        }
     }
 
     /// `lib_output_sphere` in curve mode.
@@ -148,6 +153,28 @@ impl Spd {
     pub fn finish(self) -> Scene {
         self.scene
     }
+}
+
+thread_local! {
+    /// Set while [`count`] runs a generator on this thread: objects go into it, not the scene.
+    static COUNTING: RefCell<Option<Census>> = const { RefCell::new(None) };
+}
+
+/// The census of the scene `make(size)` would make, found by running it with every object
+/// counted instead of stored (the SPD programs' arithmetic without their memory).
+pub(crate) fn count(make: fn(u32) -> Scene, size: u32) -> Census {
+    /// Ends counting on this thread however `make` returns (a panic included), so a later
+    /// generator run keeps its objects.
+    struct Reset;
+    impl Drop for Reset {
+        fn drop(&mut self) {
+            COUNTING.with(|c| c.borrow_mut().take());
+        }
+    }
+    let _reset = Reset;
+    COUNTING.with(|c| *c.borrow_mut() = Some(Census::default()));
+    drop(make(size));
+    COUNTING.with(|c| c.borrow_mut().take()).unwrap_or_default()
 }
 
 /// The Phong exponent for a highlight that falls to 50% at `ang` degrees off the mirror
