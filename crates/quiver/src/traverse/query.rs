@@ -57,7 +57,7 @@ impl<H, F: FnMut(&H) -> bool> Filter<H> for F {
 ///
 /// Every layout ([`crate::Bvh2`], [`crate::Bvh4`], [`crate::QBvh4`], [`crate::Bvh8`]), the
 /// layout-erased [`crate::Bvh`], a [`crate::World`] of instances and quiver-scenes' `SceneBvh`
-/// implement it. What a hit names is the implementor's [`RayQuery::Hit`]: [`Hit`] for one BVH,
+/// implement it. What a hit names is the implementor's [`RayQuery::Hit`]: [`crate::Hit`] for one BVH,
 /// [`crate::WorldHit`] (instance, geometry, primitive) for a world. An implementor writes the
 /// two single-ray `*_with` methods, generic over the box test ([`BoxTest`]), a statistics sink
 /// ([`Stats`]) and a candidate [`Filter`], and the two packet `*_with` methods where it has a

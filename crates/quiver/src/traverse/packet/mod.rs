@@ -101,7 +101,7 @@ impl PacketMode {
 }
 
 /// What a packet query traces: the rays, which of them, and how ([`PacketMode`]). One value,
-/// so the packet forms of [`RayQuery`] keep one signature as options join.
+/// so the packet forms of [`RayQuery`](crate::RayQuery) keep one signature as options join.
 ///
 /// ```
 /// use quiver::traverse::{PacketMode, PacketQuery};
