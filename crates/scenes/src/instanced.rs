@@ -403,3 +403,55 @@ impl RayQuery for Instanced {
         )
     }
 }
+
+/// A mesh file's groups ([`Scene::groups`]: OBJ `o`/`g` groups, glTF mesh primitives, a PLY
+/// file) as the geometries of one [`World`], so that a hit names its mesh: geometry `g` holds
+/// the triangles of group `g`'s objects in object order (as [`Scene::triangles`] lists them)
+/// and is placed once at the identity, with the instance id `g`, so [`WorldHit::instance`]
+/// and [`WorldHit::geometry`] are both the group's index. Objects no group covers (and all of
+/// them in a scene without groups) form one more geometry, its instance id `u32::MAX`. A
+/// group with no triangles (degenerate polygons only) gets an empty geometry, never hit.
+///
+/// Placed at the identity, every instance costs no transform work, so the world answers what
+/// a BVH over [`Scene::triangles`] answers; only the numbering differs.
+///
+/// ```
+/// use quiver::{BuildOptions, RayQuery};
+/// use quiver::glam::Vec3A;
+/// use quiver_scenes::instanced::grouped;
+/// use quiver_scenes::scene::obj;
+/// let text = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 0 1 1\n\
+///             o near\nf 4 5 6\no far\nf 1 2 3\n";
+/// let scene = obj::parse(text, "two.obj").unwrap();
+/// let world = grouped(&scene, &BuildOptions::default()).unwrap();
+/// let hit = world.closest_hit(&quiver::Ray::new(Vec3A::new(0.2, 0.2, 2.0), -Vec3A::Z)).unwrap();
+/// assert_eq!(scene.groups[hit.instance as usize].name, "near");
+/// ```
+///
+/// # Errors
+/// [`WorldError::TooMany`] when a group has more than `u32::MAX` triangles.
+pub fn grouped(scene: &Scene, options: &BuildOptions) -> Result<World, WorldError> {
+    let mut b = World::builder();
+    let mut covered = vec![false; scene.objects.len()];
+    let triangles_of = |objects: &mut dyn Iterator<Item = usize>| {
+        let (mut tris, mut normals) = (Vec::new(), Vec::new());
+        for i in objects {
+            tessellate::shape_triangles(&scene.objects[i].shape, &mut tris, &mut normals);
+        }
+        tris
+    };
+    for (g, group) in scene.groups.iter().enumerate() {
+        let range = group.objects.start as usize..(group.objects.end as usize).min(covered.len());
+        for c in &mut covered[range.clone()] {
+            *c = true;
+        }
+        let geometry = b.triangles(triangles_of(&mut range.into_iter()));
+        b.instance(Instance::of(geometry).id(g as u32));
+    }
+    if covered.iter().any(|c| !c) {
+        let rest = triangles_of(&mut (0..covered.len()).filter(|&i| !covered[i]));
+        let geometry = b.triangles(rest);
+        b.instance(Instance::of(geometry).id(u32::MAX));
+    }
+    b.build(options)
+}

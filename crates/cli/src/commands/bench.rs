@@ -55,6 +55,13 @@ pub(crate) struct BenchArgs {
     /// Write the machine description and all rows as JSON.
     #[arg(long)]
     json: Option<PathBuf>,
+    /// Measure SPD scenes traced as worlds of instances (every sphere and cone an instance of
+    /// one tessellated unit shape) beside the same scenes flattened, and beside Embree's
+    /// instanced and flattened scenes when built with the `embree` feature: build time,
+    /// memory, single rays, packets, a filter that accepts all and masks that exclude
+    /// nothing. Default scenes: balls4 and lattice6.
+    #[arg(long)]
+    instanced: bool,
 }
 
 /// Memory per triangle of the largest scene beyond the scenes themselves: five quiver layouts,
@@ -91,6 +98,16 @@ fn time<T>(f: impl FnOnce() -> T) -> (T, f64) {
 /// Runs `quiver bench`.
 pub(crate) fn run(args: BenchArgs) -> Result<()> {
     check_outputs(&[("--json", args.json.as_deref())], &args.scenes)?;
+    if args.instanced {
+        let scenes = super::instances::load("bench", &args.scenes, args.rays)?;
+        return super::instances::run(super::instances::Settings {
+            scenes,
+            rays: args.rays,
+            reps: args.reps,
+            threads: args.threads.clone(),
+            json: args.json.clone(),
+        });
+    }
     // Generated scenes only: a file path fixed at compile time would break as soon as the
     // binary is installed elsewhere or run from another directory.
     let scenes = if args.scenes.is_empty() {

@@ -7,6 +7,7 @@ pub(crate) mod build;
 pub(crate) mod builders;
 pub(crate) mod costs;
 pub(crate) mod gen;
+pub(crate) mod instances;
 pub(crate) mod layouts;
 pub(crate) mod packets;
 pub(crate) mod predict;
@@ -265,6 +266,35 @@ pub(crate) fn build_estimate(what: &str, censuses: &[Census], patches: bool) -> 
             budget::TRIANGLE_BUILD
         ),
         prims * budget::TRIANGLE_BUILD,
+    );
+    e
+}
+
+/// The memory estimate of loading `censuses` (one scene) in curve mode and building it as
+/// a world of instances ([`SceneBvh::build_instanced`]): the scene, each sphere and cone an
+/// instance at [`budget::INSTANCE_BUILD`], and the rest flattened into one world-space
+/// geometry at [`budget::TRIANGLE_BUILD`] a triangle (the unit shapes are a few thousand
+/// triangles).
+pub(crate) fn instanced_estimate(what: &str, censuses: &[Census]) -> budget::Estimate {
+    let mut e = budget::Estimate::new(what);
+    e.add("scene", scenes_bytes(censuses, false));
+    let instances = largest(censuses, |c| c.spheres + c.cones);
+    e.add(
+        format!(
+            "{} instances at {} B",
+            budget::count(instances),
+            budget::INSTANCE_BUILD
+        ),
+        instances * budget::INSTANCE_BUILD,
+    );
+    let tris = largest(censuses, |c| c.triangles + c.polygon_triangles());
+    e.add(
+        format!(
+            "{} world-space triangles at {} B",
+            budget::count(tris),
+            budget::TRIANGLE_BUILD
+        ),
+        tris * budget::TRIANGLE_BUILD,
     );
     e
 }

@@ -49,6 +49,11 @@ pub(crate) struct PacketsArgs {
     /// Write all rows as JSON.
     #[arg(long)]
     json: Option<PathBuf>,
+    /// Measure SPD scenes traced as worlds of instances beside the same scenes flattened
+    /// (and Embree's instanced scenes with the `embree` feature): the same table as
+    /// `quiver bench --instanced`, packets included. Default scenes: balls4 and lattice6.
+    #[arg(long)]
+    instanced: bool,
 }
 
 /// The kernels timed side by side.
@@ -73,6 +78,16 @@ const TINY_KERNELS: [(&str, TinyLayout); 2] = [
 /// Runs `quiver packets`.
 pub(crate) fn run(args: PacketsArgs) -> Result<()> {
     check_outputs(&[("--json", args.json.as_deref())], &args.scenes)?;
+    if args.instanced {
+        let scenes = super::instances::load("packets", &args.scenes, args.rays)?;
+        return super::instances::run(super::instances::Settings {
+            scenes,
+            rays: args.rays,
+            reps: args.reps,
+            threads: args.threads.clone(),
+            json: args.json.clone(),
+        });
+    }
     if args.layout.name().starts_with("bvh2") {
         return Err(format!(
             "--layout {}: packets need a 4- or 8-wide layout",

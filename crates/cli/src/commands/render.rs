@@ -110,9 +110,11 @@ pub(crate) fn run(args: RenderArgs) -> Result<()> {
         args.instanced,
         &options,
         |censuses, scenes| {
-            // An instanced scene holds far less than its flattened triangles: the estimate
-            // of the flattened build bounds it.
-            let mut e = super::build_estimate(&what, censuses, args.patches || args.instanced);
+            let mut e = if args.instanced {
+                super::instanced_estimate(&what, censuses)
+            } else {
+                super::build_estimate(&what, censuses, args.patches)
+            };
             render_estimate(&mut e, &args, threads, censuses, scenes);
             e
         },

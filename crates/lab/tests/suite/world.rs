@@ -490,3 +490,77 @@ fn the_same_world_on_any_pool() {
         assert_eq!(a.closest_hit(r), b.closest_hit(r));
     }
 }
+
+/// An OBJ's `o`/`g` groups as the geometries of one world (`quiver_scenes::instanced::
+/// grouped`): every hit names the group whose triangle the f64 oracle finds over the whole
+/// file's triangles, and the triangle within it; objects before the first group form the
+/// last geometry.
+#[test]
+fn obj_groups_are_the_geometries_of_one_world() {
+    use std::fmt::Write as _;
+    let parts = [
+        tris("soup200"),
+        tris("tetra3"),
+        tris("icosphere2"),
+        tris("soup50"),
+    ];
+    let mut text = String::new();
+    let mut v = 0;
+    for (k, part) in parts.iter().enumerate() {
+        match k {
+            0 => {} // before any `o`: in no group
+            1 => text.push_str("o tetra\n"),
+            2 => text.push_str("g ball\n"),
+            _ => text.push_str("o soup\n"),
+        }
+        for t in part {
+            for p in t.v {
+                // Moved apart so the parts overlap only partly.
+                let p = p + Vec3A::new(k as f32 * 0.7, 0.0, 0.0);
+                writeln!(text, "v {} {} {}", p.x, p.y, p.z).unwrap();
+            }
+            writeln!(text, "f {} {} {}", v + 1, v + 2, v + 3).unwrap();
+            v += 3;
+        }
+    }
+    let scene = quiver_scenes::scene::obj::parse(&text, "groups.obj").unwrap();
+    let names: Vec<&str> = scene.groups.iter().map(|g| g.name.as_str()).collect();
+    assert_eq!(names, ["tetra", "tetra/ball", "soup"]);
+    let flat = scene.triangles();
+    // Where each group's triangles start in the file's list, and the ungrouped part.
+    let sizes: Vec<usize> = parts.iter().map(Vec::len).collect();
+    let starts = [
+        sizes[0],
+        sizes[0] + sizes[1],
+        sizes[0] + sizes[1] + sizes[2],
+        0,
+    ];
+    let world = quiver_scenes::instanced::grouped(&scene, &BuildOptions::default()).unwrap();
+    assert_eq!(world.instances().len(), 4);
+    let bounds = flat.iter().fold(Aabb::EMPTY, |b, t| b.union(&t.bounds()));
+    let rays = random_rays(&bounds, 2000, 5);
+    let answers = Oracle::new(&flat).closest_hits(&rays);
+    let mut named = 0;
+    for (ray, answer) in rays.iter().zip(&answers) {
+        let got = world.closest_hit(ray).map(|h| {
+            let group = world.instance(h.instance).id;
+            assert_eq!(h.geometry, h.instance);
+            let start = if group == u32::MAX {
+                starts[3]
+            } else {
+                starts[group as usize]
+            };
+            named += 1;
+            Hit {
+                t: h.t,
+                prim: start as u32 + h.prim,
+                u: h.u,
+                v: h.v,
+            }
+        });
+        if answer.is_decidable() {
+            answer.check(got).unwrap();
+        }
+    }
+    assert!(named > 500, "{named} hits");
+}
