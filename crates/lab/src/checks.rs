@@ -580,3 +580,127 @@ pub fn mesh_load(data: &[u8], ext: &str) {
         }
     }
 }
+
+/// Worlds of instances against the flattened oracle: triangles and rays from the bytes as
+/// for [`build_and_trace`], the triangles dealt round-robin into one to three geometries
+/// (the second given as an indexed mesh) placed by one to eight instances whose geometry,
+/// mask and transform (identity, or a rotation, an uneven scale of 1/4 to 4 that may mirror,
+/// and a move) come from the input's last bytes, read backwards; rays carry one of three
+/// masks and, if the input says so, a filter rejects every third (instance, primitive). Nothing
+/// may panic and both instruction sets must agree bit for bit; on tame inputs every closest
+/// hit, single and in packets, names the instance, geometry and primitive the f64 oracle
+/// finds over the flattened scene with the masked and rejected triangles left out (bands
+/// widened by the transforms' rounding), and any-hit agrees on decidable rays.
+///
+/// ```
+/// quiver_lab::checks::instanced_against_oracle(&[7u8; 500]);
+/// ```
+pub fn instanced_against_oracle(data: &[u8]) {
+    use crate::worlds::{check, Placements};
+    use glam::{Affine3A, Quat, Vec3};
+    use quiver::{GeometryId, Instance, WorldHit};
+    let Some((setup, tris, rays)) = fuzz_input(data) else {
+        return;
+    };
+    let control: Vec<u8> = data[HEADER..].iter().rev().copied().collect();
+    let byte = |k: usize| control.get(k).copied().unwrap_or(0);
+    let geometries_n = 1 + (data[4] >> 2) as usize % 3;
+    let instances_n = 1 + (data[4] >> 4) as usize % 8;
+    let filtering = data[4] & 0x80 != 0;
+    let mut geometries = vec![Vec::new(); geometries_n];
+    for (k, t) in tris.iter().enumerate() {
+        geometries[k % geometries_n].push(*t);
+    }
+    let instances: Vec<Instance> = (0..instances_n)
+        .map(|i| {
+            let b = |k: usize| byte(12 * i + k);
+            let unit = |x: u8| x as f32 / 255.0;
+            let geometry = GeometryId(b(0) as u32 % geometries_n as u32);
+            let mask = [u32::MAX, 0b01, 0b10, 0b11][b(1) as usize % 4];
+            let transform = if b(2) % 4 == 0 {
+                Affine3A::IDENTITY
+            } else {
+                let axis = Vec3::new(unit(b(3)) - 0.5, unit(b(4)) - 0.5, unit(b(5)) - 0.5)
+                    .normalize_or(Vec3::Z);
+                let angle = unit(b(6)) * std::f32::consts::TAU;
+                let mut scale = Vec3::new(b(7) as f32, b(8) as f32, b(9) as f32) / 68.0 + 0.25;
+                if b(2) & 4 != 0 {
+                    scale.x = -scale.x;
+                }
+                let at = Vec3::new(b(10) as f32 - 128.0, b(11) as f32 - 128.0, b(3) as f32) / 16.0;
+                Affine3A::from_scale_rotation_translation(
+                    scale,
+                    Quat::from_axis_angle(axis, angle),
+                    at,
+                )
+            };
+            Instance::of(geometry).transform(transform).mask(mask)
+        })
+        .collect();
+    let placements = Placements {
+        geometries,
+        instances,
+    };
+    let config = BuildConfig {
+        max_leaf_size: setup.max_leaf,
+        ..BuildConfig::default()
+    };
+    let options = BuildOptions::default()
+        .builder(setup.builder)
+        .layout(setup.layout)
+        .config(config);
+    let world = placements.world(&options);
+    let portable = placements.world(&options.clone().isa(Isa::Portable));
+    let ray_masks = [u32::MAX, 0b01, 0b10];
+    let rays: Vec<Ray> = rays
+        .iter()
+        .enumerate()
+        .map(|(i, r)| r.with_mask(ray_masks[i % 3]))
+        .collect();
+    let keep = |instance: u32, prim: u32| !(filtering && (instance * 7 + prim) % 3 == 0);
+    let mut filter = |h: &WorldHit| keep(h.instance, h.prim);
+    // One oracle per ray mask: the flattened scene without the masked and rejected triangles.
+    let judged: Vec<_> = ray_masks
+        .iter()
+        .map(|&m| {
+            let (flat, names) = placements
+                .flattened(|i, p| placements.instances[i as usize].mask & m != 0 && keep(i, p));
+            (Oracle::with_slack(&flat, placements.slack()), names)
+        })
+        .collect();
+    let mut hits = vec![None; rays.len()];
+    world.closest_hit_packet_with::<FastBoxes, _, _>(
+        PacketQuery::new(&rays).mode(PacketMode::Always),
+        &mut hits,
+        &mut NoStats,
+        &mut filter,
+    );
+    for (i, r) in rays.iter().enumerate() {
+        let got = world.closest_hit_filtered(r, &mut filter);
+        let any = world.any_hit_filtered(r, &mut filter);
+        assert_eq!(
+            got,
+            portable.closest_hit_filtered(r, &mut filter),
+            "isa {r:?}"
+        );
+        assert_eq!(
+            any,
+            portable.any_hit_filtered(r, &mut filter),
+            "isa any {r:?}"
+        );
+        if !(setup.tame && judgeable(r)) {
+            continue;
+        }
+        let (oracle, names) = &judged[i % 3];
+        let answer = oracle.closest_hit(r);
+        if let Err(e) = check(&answer, got, names) {
+            panic!("{setup:?} {placements:?} {r:?}: {e}");
+        }
+        if let Err(e) = check(&answer, hits[i], names) {
+            panic!("{setup:?} {placements:?} packet {r:?}: {e}");
+        }
+        if answer.is_decidable() {
+            assert_eq!(any, answer.hit.is_some(), "{setup:?} any-hit {r:?}");
+        }
+    }
+}

@@ -20,3 +20,4 @@ pub mod oracle;
 pub mod rays;
 #[cfg(feature = "tinybvh")]
 pub mod tinybvh;
+pub mod worlds;

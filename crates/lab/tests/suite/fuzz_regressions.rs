@@ -68,3 +68,8 @@ fn ply_inputs() {
 fn gltf_inputs() {
     assert!(replay("gltf", quiver_lab::checks::gltf_load) >= 3);
 }
+
+#[test]
+fn instanced_inputs() {
+    assert!(replay("instanced", quiver_lab::checks::instanced_against_oracle) >= 5);
+}

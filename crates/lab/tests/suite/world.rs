@@ -15,12 +15,7 @@ use quiver_lab::rays::random_rays;
 use quiver_scenes::rng::Rng;
 use quiver_scenes::Scene;
 
-/// A scene to instance: geometries (triangle lists, one given as an indexed mesh) and
-/// instances of them with transforms and masks.
-struct Setup {
-    geometries: Vec<Vec<Triangle>>,
-    instances: Vec<Instance>,
-}
+use quiver_lab::worlds::{check, Placements as Setup};
 
 /// The triangles of `scene`.
 fn tris(scene: &str) -> Vec<Triangle> {
@@ -60,111 +55,6 @@ fn setup(seed: u64) -> Setup {
         geometries,
         instances,
     }
-}
-
-impl Setup {
-    /// The world, every geometry built with `options`; the second geometry as a mesh.
-    fn world(&self, options: &BuildOptions) -> World {
-        let mut b = World::builder();
-        for (g, tris) in self.geometries.iter().enumerate() {
-            if g == 1 {
-                let positions: Vec<[f32; 3]> = tris
-                    .iter()
-                    .flat_map(|t| t.v.map(|v| v.to_array()))
-                    .collect();
-                let indices: Vec<[u32; 3]> = (0..tris.len() as u32)
-                    .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
-                    .collect();
-                b.mesh(&positions, &indices).unwrap();
-            } else {
-                b.triangles(tris.clone());
-            }
-        }
-        for inst in &self.instances {
-            b.instance(*inst);
-        }
-        b.build(options).unwrap()
-    }
-
-    /// The scene flattened instance by instance into world-space triangles, keeping those
-    /// `keep(instance, prim)` accepts, and what each flattened triangle is.
-    fn flattened(&self, keep: impl Fn(u32, u32) -> bool) -> (Vec<Triangle>, Vec<(u32, u32, u32)>) {
-        let (mut out, mut names) = (Vec::new(), Vec::new());
-        for (i, inst) in self.instances.iter().enumerate() {
-            let g = inst.geometry.0;
-            for (j, t) in self.geometries[g as usize].iter().enumerate() {
-                if keep(i as u32, j as u32) {
-                    out.push(Triangle::new(
-                        inst.transform.transform_point3a(t.v[0]),
-                        inst.transform.transform_point3a(t.v[1]),
-                        inst.transform.transform_point3a(t.v[2]),
-                    ));
-                    names.push((i as u32, g, j as u32));
-                }
-            }
-        }
-        (out, names)
-    }
-
-    /// How much more than an f32 test of the flattened triangles the instanced path may round:
-    /// a transform rounds a point to within about `cond(M)` ulps of its coordinates (the
-    /// flattened vertices, and the ray brought into object space, each once), so the bands
-    /// widen by `1 + 2·cond` for the worst-conditioned transform.
-    fn slack(&self) -> f64 {
-        let cond = self
-            .instances
-            .iter()
-            .filter(|i| i.transform != Affine3A::IDENTITY)
-            .map(|i| {
-                let m = i.transform.matrix3;
-                let f = |m: glam::Mat3A| {
-                    (m.x_axis.length_squared()
-                        + m.y_axis.length_squared()
-                        + m.z_axis.length_squared())
-                    .sqrt()
-                };
-                (f(m) * f(m.inverse()) / 3.0) as f64
-            })
-            .fold(1.0, f64::max);
-        1.0 + 2.0 * cond
-    }
-
-    /// Random rays through the scene and rays aimed at random flattened triangles.
-    fn rays(&self, n: usize, seed: u64) -> Vec<Ray> {
-        let (flat, _) = self.flattened(|_, _| true);
-        let bounds = flat.iter().fold(Aabb::EMPTY, |b, t| b.union(&t.bounds()));
-        let mut rays = random_rays(&bounds, n, seed);
-        let from = random_rays(&bounds, n, seed + 1);
-        for (k, r) in from.iter().enumerate() {
-            let t = &flat[(k * 7919) % flat.len()];
-            let target = (t.v[0] + t.v[1] + t.v[2]) / 3.0;
-            rays.push(Ray::new(r.origin, target - r.origin));
-        }
-        rays
-    }
-}
-
-/// Checks `got` (a world hit) against the oracle's answer over the flattened triangles
-/// `names`: on a decidable ray the same instance, geometry and primitive and `t`, `u`, `v`
-/// within the widened bands; on an ambiguous one an admissible hit or an allowed miss.
-fn check(
-    answer: &quiver_lab::oracle::Answer,
-    got: Option<WorldHit>,
-    names: &[(u32, u32, u32)],
-) -> Result<(), String> {
-    let as_flat = got.map(|h| {
-        let k = names
-            .iter()
-            .position(|&n| n == (h.instance, h.geometry, h.prim))
-            .expect("a hit names a triangle of the flattened scene");
-        Hit {
-            t: h.t,
-            prim: k as u32,
-            u: h.u,
-            v: h.v,
-        }
-    });
-    answer.check(as_flat)
 }
 
 #[test]
@@ -525,42 +415,51 @@ fn obj_groups_are_the_geometries_of_one_world() {
     }
     let scene = quiver_scenes::scene::obj::parse(&text, "groups.obj").unwrap();
     let names: Vec<&str> = scene.groups.iter().map(|g| g.name.as_str()).collect();
-    assert_eq!(names, ["tetra", "tetra/ball", "soup"]);
+    assert_eq!(names, ["default", "tetra", "tetra/ball", "soup"]);
     let flat = scene.triangles();
-    // Where each group's triangles start in the file's list, and the ungrouped part.
+    // Where each part's triangles start in the file's list.
     let sizes: Vec<usize> = parts.iter().map(Vec::len).collect();
-    let starts = [
-        sizes[0],
-        sizes[0] + sizes[1],
-        sizes[0] + sizes[1] + sizes[2],
-        0,
-    ];
-    let world = quiver_scenes::instanced::grouped(&scene, &BuildOptions::default()).unwrap();
-    assert_eq!(world.instances().len(), 4);
+    let starts: Vec<u32> = (0..4)
+        .map(|k| sizes[..k].iter().sum::<usize>() as u32)
+        .collect();
     let bounds = flat.iter().fold(Aabb::EMPTY, |b, t| b.union(&t.bounds()));
-    let rays = random_rays(&bounds, 2000, 5);
-    let answers = Oracle::new(&flat).closest_hits(&rays);
-    let mut named = 0;
-    for (ray, answer) in rays.iter().zip(&answers) {
-        let got = world.closest_hit(ray).map(|h| {
-            let group = world.instance(h.instance).id;
-            assert_eq!(h.geometry, h.instance);
-            let start = if group == u32::MAX {
-                starts[3]
-            } else {
-                starts[group as usize]
-            };
-            named += 1;
-            Hit {
-                t: h.t,
-                prim: start as u32 + h.prim,
-                u: h.u,
-                v: h.v,
-            }
-        });
-        if answer.is_decidable() {
-            answer.check(got).unwrap();
-        }
+    // Random rays, and as many aimed at the centroids of triangles spread over the file.
+    let mut rays = random_rays(&bounds, 1000, 5);
+    for (k, r) in random_rays(&bounds, 1000, 6).iter().enumerate() {
+        let t = &flat[(k * 7919) % flat.len()];
+        rays.push(Ray::new(
+            r.origin,
+            (t.v[0] + t.v[1] + t.v[2]) / 3.0 - r.origin,
+        ));
     }
-    assert!(named > 500, "{named} hits");
+    let answers = Oracle::new(&flat).closest_hits(&rays);
+    // Every object in a group; then the first group dropped, so its objects are in none and
+    // form the last geometry.
+    let mut partial = scene.clone();
+    partial.groups.remove(0);
+    for (scene, first) in [(&scene, 0), (&partial, 1)] {
+        let world = quiver_scenes::instanced::grouped(scene, &BuildOptions::default()).unwrap();
+        assert_eq!(world.instances().len(), 4);
+        let mut named = 0;
+        for (ray, answer) in rays.iter().zip(&answers) {
+            let got = world.closest_hit(ray).map(|h| {
+                assert_eq!(h.geometry, h.instance);
+                let part = match world.instance(h.instance).id {
+                    u32::MAX => 0,
+                    group => group as usize + first,
+                };
+                named += 1;
+                Hit {
+                    t: h.t,
+                    prim: starts[part] + h.prim,
+                    u: h.u,
+                    v: h.v,
+                }
+            });
+            if answer.is_decidable() {
+                answer.check(got).unwrap();
+            }
+        }
+        assert!(named > 1000, "{named} hits");
+    }
 }

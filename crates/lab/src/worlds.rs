@@ -1,0 +1,141 @@
+//! Worlds of instances beside the same scene flattened to world-space triangles: what the
+//! world tests and the instanced fuzz check judge a [`World`] by (the f64 oracle over the
+//! flattened triangles, its bands widened by the transforms' rounding).
+
+use crate::oracle::Answer;
+use crate::rays::random_rays;
+use glam::Affine3A;
+use quiver::{Aabb, BuildOptions, Hit, Instance, Ray, Triangle, World, WorldHit};
+
+/// A scene to instance: geometries (triangle lists; the second is given to the world as an
+/// indexed mesh) and instances of them with transforms and masks.
+///
+/// ```
+/// use quiver::{BuildOptions, GeometryId, Instance, Triangle};
+/// use quiver::glam::{Affine3A, Vec3A};
+/// use quiver_lab::worlds::Placements;
+/// let tri = Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y);
+/// let p = Placements {
+///     geometries: vec![vec![tri]],
+///     instances: vec![Instance::of(GeometryId(0)).transform(Affine3A::from_translation(Vec3A::Z.into()))],
+/// };
+/// let (flat, names) = p.flattened(|_, _| true);
+/// assert_eq!(flat[0].v[0], Vec3A::Z);
+/// assert_eq!(names, [(0, 0, 0)]);
+/// assert_eq!(p.world(&BuildOptions::default()).instances().len(), 1);
+/// ```
+#[derive(Clone, Debug)]
+pub struct Placements {
+    /// The geometries' triangles.
+    pub geometries: Vec<Vec<Triangle>>,
+    /// The instances.
+    pub instances: Vec<Instance>,
+}
+
+impl Placements {
+    /// The world, every geometry built with `options`; the second geometry as a mesh.
+    pub fn world(&self, options: &BuildOptions) -> World {
+        let mut b = World::builder();
+        for (g, tris) in self.geometries.iter().enumerate() {
+            if g == 1 {
+                let positions: Vec<[f32; 3]> = tris
+                    .iter()
+                    .flat_map(|t| t.v.map(|v| v.to_array()))
+                    .collect();
+                let indices: Vec<[u32; 3]> = (0..tris.len() as u32)
+                    .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
+                    .collect();
+                b.mesh(&positions, &indices).unwrap();
+            } else {
+                b.triangles(tris.clone());
+            }
+        }
+        for inst in &self.instances {
+            b.instance(*inst);
+        }
+        b.build(options).unwrap()
+    }
+
+    /// The scene flattened instance by instance into world-space triangles, keeping those
+    /// `keep(instance, prim)` accepts, and what each flattened triangle is.
+    pub fn flattened(
+        &self,
+        keep: impl Fn(u32, u32) -> bool,
+    ) -> (Vec<Triangle>, Vec<(u32, u32, u32)>) {
+        let (mut out, mut names) = (Vec::new(), Vec::new());
+        for (i, inst) in self.instances.iter().enumerate() {
+            let g = inst.geometry.0;
+            for (j, t) in self.geometries[g as usize].iter().enumerate() {
+                if keep(i as u32, j as u32) {
+                    out.push(Triangle::new(
+                        inst.transform.transform_point3a(t.v[0]),
+                        inst.transform.transform_point3a(t.v[1]),
+                        inst.transform.transform_point3a(t.v[2]),
+                    ));
+                    names.push((i as u32, g, j as u32));
+                }
+            }
+        }
+        (out, names)
+    }
+
+    /// How much more than an f32 test of the flattened triangles the instanced path may round:
+    /// a transform rounds a point to within about `cond(M)` ulps of its coordinates (the
+    /// flattened vertices, and the ray brought into object space, each once), so the bands
+    /// widen by `1 + 2·cond` for the worst-conditioned transform.
+    pub fn slack(&self) -> f64 {
+        let cond = self
+            .instances
+            .iter()
+            .filter(|i| i.transform != Affine3A::IDENTITY)
+            .map(|i| {
+                let m = i.transform.matrix3;
+                let f = |m: glam::Mat3A| {
+                    (m.x_axis.length_squared()
+                        + m.y_axis.length_squared()
+                        + m.z_axis.length_squared())
+                    .sqrt()
+                };
+                (f(m) * f(m.inverse()) / 3.0) as f64
+            })
+            .fold(1.0, f64::max);
+        1.0 + 2.0 * cond
+    }
+
+    /// Random rays through the scene and rays aimed at random flattened triangles.
+    pub fn rays(&self, n: usize, seed: u64) -> Vec<Ray> {
+        let (flat, _) = self.flattened(|_, _| true);
+        let bounds = flat.iter().fold(Aabb::EMPTY, |b, t| b.union(&t.bounds()));
+        let mut rays = random_rays(&bounds, n, seed);
+        let from = random_rays(&bounds, n, seed + 1);
+        for (k, r) in from.iter().enumerate() {
+            let t = &flat[(k * 7919) % flat.len()];
+            let target = (t.v[0] + t.v[1] + t.v[2]) / 3.0;
+            rays.push(Ray::new(r.origin, target - r.origin));
+        }
+        rays
+    }
+}
+
+/// Checks `got` (a world hit) against the oracle's answer over the flattened triangles
+/// `names`: on a decidable ray the same instance, geometry and primitive and `t`, `u`, `v`
+/// within the widened bands; on an ambiguous one an admissible hit or an allowed miss.
+pub fn check(
+    answer: &Answer,
+    got: Option<WorldHit>,
+    names: &[(u32, u32, u32)],
+) -> Result<(), String> {
+    let as_flat = got.map(|h| {
+        let k = names
+            .iter()
+            .position(|&n| n == (h.instance, h.geometry, h.prim))
+            .expect("a hit names a triangle of the flattened scene");
+        Hit {
+            t: h.t,
+            prim: k as u32,
+            u: h.u,
+            v: h.v,
+        }
+    });
+    answer.check(as_flat)
+}
