@@ -140,7 +140,7 @@ fn obj_files_load_as_triangles_with_a_framing_camera() {
 #[test]
 fn bad_names_and_files_are_clear_errors() {
     let e = |s: &str| Scene::load(s).unwrap_err().to_string();
-    assert!(e("balls99").contains("size '99' must be a number from 0 to 6"));
+    assert!(e("balls99").contains("size '99' must be a number from 0 to 7"));
     assert!(e("nosuch").contains("balls, gears"));
     assert!(e("/nonexistent/x.nff").contains("/nonexistent/x.nff: cannot read"));
 }

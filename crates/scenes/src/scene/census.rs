@@ -13,7 +13,7 @@
 //! let big = Census::of_generator("balls6").unwrap().unwrap();
 //! assert_eq!(big.patch_triangles(4), 597_871 * 192 + 2);
 //! assert!(Census::of_generator("teapot.obj").unwrap().is_none());
-//! assert!(Census::of_generator("balls7").is_err());
+//! assert!(Census::of_generator("balls8").is_err());
 //! ```
 
 use super::{Scene, SceneError, Shape, GENERATORS};

@@ -187,7 +187,9 @@ pub const GENERATORS: &[Generator] = &[
         name: "balls",
         default_size: 4,
         min_size: 0,
-        max_size: 6,
+        // 7 is 5.4 million spheres: traced as instances (`--instanced`) it fits in a few GB;
+        // flattened, the memory estimate refuses it before any work.
+        max_size: 7,
         about: "SPD sphereflake: (9^(size+1)-1)/8 mirrored spheres on a floor",
         make: spd::balls::make,
     },
