@@ -657,7 +657,7 @@ pub fn instanced_against_oracle(data: &[u8]) {
         .enumerate()
         .map(|(i, r)| r.with_mask(ray_masks[i % 3]))
         .collect();
-    let keep = |instance: u32, prim: u32| !(filtering && (instance * 7 + prim) % 3 == 0);
+    let keep = |instance: u32, prim: u32| !(filtering && (instance * 7 + prim).is_multiple_of(3));
     let mut filter = |h: &WorldHit| keep(h.instance, h.prim);
     // One oracle per ray mask: the flattened scene without the masked and rejected triangles.
     let judged: Vec<_> = ray_masks
