@@ -68,3 +68,8 @@ fn ply_inputs() {
 fn gltf_inputs() {
     assert!(replay("gltf", quiver_lab::checks::gltf_load) >= 3);
 }
+
+#[test]
+fn from_tree_inputs() {
+    assert!(replay("from_tree", quiver_lab::checks::from_tree_against_reference) >= 3);
+}
