@@ -714,6 +714,9 @@ fn fuzz_tree(b: &mut ByteReader<'_>, mode: u8, tris: &[Triangle]) -> quiver::bui
             let (_, mut tree) = options.build_with_tree(tris);
             for _ in 0..b.u8() % 4 {
                 let n = tree.nodes.len();
+                if n == 0 {
+                    break; // truncated away
+                }
                 let i = b.u8() as usize % n;
                 let (what, x) = (b.u8() % 6, b.index());
                 match (what, &mut tree.nodes[i].kind) {
@@ -807,10 +810,15 @@ fn trees_against_reference<P: Primitive>(
     };
     let mut traced = 0;
     for layout in Layout::ALL {
-        let options = BuildOptions::default().layout(layout).config(config.clone());
+        let options = BuildOptions::default()
+            .layout(layout)
+            .config(config.clone());
         let bvh = Bvh::from_tree(tree, prims, &options);
         let shape = bvh.as_ref().map(|_| ()).map_err(Clone::clone);
-        assert!(agree(&shape), "{layout}: {shape:?}, check: {valid:?}; {what}");
+        assert!(
+            agree(&shape),
+            "{layout}: {shape:?}, check: {valid:?}; {what}"
+        );
         if let Ok(bvh) = bvh {
             same_as_reference(&bvh, prims, rays, &format!("{layout} {what}"));
             same_on_every_isa(&bvh, rays, &what);
@@ -828,9 +836,9 @@ fn trees_against_reference<P: Primitive>(
         let name = format!("Bvh2 {mapping:?}");
         match Bvh2::from_tree(tree, prims, mapping) {
             Ok(q) => {
-            check(&name, Ok(()));
-            same_as_reference(&q, prims, rays, &format!("{name} {what}"));
-        }
+                check(&name, Ok(()));
+                same_as_reference(&q, prims, rays, &format!("{name} {what}"));
+            }
             Err(e) => check(&name, Err(e)),
         }
     }
@@ -856,7 +864,10 @@ fn trees_against_reference<P: Primitive>(
         }
         Err(e) => check("Bvh8", Err(e)),
     }
-    assert!(valid.is_err() || traced > 0, "a valid tree laid out nowhere: {what}");
+    assert!(
+        valid.is_err() || traced > 0,
+        "a valid tree laid out nowhere: {what}"
+    );
 }
 
 /// `q` answers every ray as [`quiver::reference`] does over `prims` (see
