@@ -670,7 +670,7 @@ fn fuzz_tree(b: &mut ByteReader<'_>, mode: u8, tris: &[Triangle]) -> quiver::bui
                 loop {
                     let split = nodes.len() < 300
                         && d < 100
-                        && (chain || (b.u8() % 2 == 0 && nodes.len() < 60));
+                        && (chain || (b.u8().is_multiple_of(2) && nodes.len() < 60));
                     if !split {
                         let count = (b.u8() as usize % 5).min(order.len() - used);
                         nodes.push(BuildNode {

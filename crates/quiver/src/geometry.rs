@@ -92,7 +92,7 @@ impl Ray {
 
     /// The ray as every query takes it: a `t_min` below zero (or NaN) raised to zero.
     #[inline(always)]
-    pub(crate) fn from_zero(&self) -> Ray {
+    pub(crate) fn raised_t_min(&self) -> Ray {
         Ray {
             // `max` returns the other operand for a NaN.
             t_min: self.t_min.max(0.0),
@@ -300,7 +300,8 @@ impl Triangle {
     /// ```
     /// use quiver::{Ray, Triangle};
     /// use glam::Vec3A;
-    /// for s in [1e-30f32, 1.0, 1e15, 1e30, 1e35] {
+    /// // Sizes from about 1e-30 to 1e35, powers of two so that the expected values are exact.
+    /// for s in [-100, 0, 50, 100, 116].map(|e| 2f32.powi(e)) {
     ///     let tri = Triangle::new(Vec3A::ZERO, Vec3A::X * s, Vec3A::Y * s);
     ///     let ray = Ray::new(Vec3A::new(0.25 * s, 0.25 * s, -s), Vec3A::Z);
     ///     let hit = tri.intersect(&ray).unwrap();

@@ -22,7 +22,7 @@ fn visible<P: Primitive>(p: &P) -> bool {
 /// Each primitive is tested as every kernel tests it (for a triangle [`crate::LeafFormat`],
 /// as its triangle).
 pub fn closest_hit<P: Primitive>(prims: &[P], ray: &Ray) -> Option<Hit> {
-    let ray = &ray.from_zero();
+    let ray = &ray.raised_t_min();
     let mut best: Option<Hit> = None;
     for (i, p) in prims.iter().enumerate() {
         if !visible(p) {
@@ -44,7 +44,7 @@ pub fn closest_hit<P: Primitive>(prims: &[P], ray: &Ray) -> Option<Hit> {
 
 /// True when any finite primitive is hit within the ray's interval.
 pub fn any_hit<P: Primitive>(prims: &[P], ray: &Ray) -> bool {
-    let ray = &ray.from_zero();
+    let ray = &ray.raised_t_min();
     prims
         .iter()
         .any(|p| visible(p) && super::prim_hit(p, ray).is_some())

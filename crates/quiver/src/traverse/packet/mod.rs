@@ -237,7 +237,7 @@ pub(crate) fn each_packet<T>(
         let rays = if rays.iter().all(|r| r.t_min >= 0.0) {
             rays
         } else {
-            raised = std::array::from_fn(|i| rays[i.min(rays.len() - 1)].from_zero());
+            raised = std::array::from_fn(|i| rays[i.min(rays.len() - 1)].raised_t_min());
             &raised[..rays.len()]
         };
         let packet = match mode {
