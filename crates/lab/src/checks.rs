@@ -704,3 +704,330 @@ pub fn instanced_against_oracle(data: &[u8]) {
         }
     }
 }
+
+/// Bytes read in order; zero once they run out, so every input decodes to something.
+struct ByteReader<'a>(&'a [u8]);
+
+impl ByteReader<'_> {
+    fn u8(&mut self) -> u8 {
+        let (&b, rest) = self.0.split_first().unwrap_or((&0, &[]));
+        self.0 = rest;
+        b
+    }
+
+    /// Usually a small number (below 32), sometimes (a byte of 250 or more) any `u32`: node
+    /// links, leaf ranges and primitive indices both plausible and wild.
+    fn index(&mut self) -> u32 {
+        match self.u8() {
+            b if b >= 250 => u32::from_le_bytes([self.u8(), self.u8(), self.u8(), self.u8()]),
+            b => b as u32 % 32,
+        }
+    }
+
+    /// A coordinate on a grid of 1/8 within ±16: shared vertices, edges and coplanar
+    /// triangles are common, and no product of lengths leaves f32's range.
+    fn coord(&mut self) -> f32 {
+        self.u8() as i8 as f32 / 8.0
+    }
+
+    fn point(&mut self) -> Vec3A {
+        Vec3A::new(self.coord(), self.coord(), self.coord())
+    }
+}
+
+/// A build tree from the bytes in one of three ways (byte 2, low two bits): node by node with
+/// arbitrary kinds, links, leaf ranges and index array (mostly invalid); a random shape built
+/// valid (any leaf sizes, empty leaves, chains deeper than the kernels' stacks allow); or a
+/// builder's tree with a few of its links, ranges or indices changed.
+fn fuzz_tree(b: &mut ByteReader<'_>, mode: u8, tris: &[Triangle]) -> quiver::builders::BuildTree {
+    use quiver::builders::{BuildNode, NodeKind};
+    let bounds = quiver::builders::prim_bounds(tris);
+    let finite: Vec<u32> = (0..tris.len() as u32)
+        .filter(|&i| bounds[i as usize].is_finite())
+        .collect();
+    match mode % 3 {
+        0 => {
+            let nodes = (0..b.u8() % 40)
+                .map(|_| {
+                    let leaf = b.u8() & 1 == 1;
+                    let (x, y) = (b.index(), b.index());
+                    let kind = match leaf {
+                        true => NodeKind::Leaf { first: x, count: y },
+                        false => NodeKind::Inner { left: x, right: y },
+                    };
+                    let (lo, hi) = (b.point(), b.point());
+                    BuildNode {
+                        bounds: quiver::Aabb::new(lo, hi),
+                        kind,
+                    }
+                })
+                .collect();
+            let prim_indices = (0..b.u8() % 24).map(|_| b.index()).collect();
+            quiver::builders::BuildTree {
+                nodes,
+                prim_indices,
+                dropped: b.index() as usize,
+            }
+        }
+        1 => {
+            // Finite primitives in an order the bytes choose, handed out leaf by leaf.
+            let mut order = finite.clone();
+            for i in (1..order.len()).rev() {
+                order.swap(i, b.u8() as usize % (i + 1));
+            }
+            let mut nodes: Vec<BuildNode> = Vec::new();
+            let mut used = 0usize;
+            // Preorder by an explicit stack of parents waiting for their right child.
+            let mut pending: Vec<(usize, usize)> = vec![(usize::MAX, 0)];
+            while let Some((parent, depth)) = pending.pop() {
+                let i = nodes.len();
+                if parent != usize::MAX {
+                    if let NodeKind::Inner { right, .. } = &mut nodes[parent].kind {
+                        *right = i as u32;
+                    }
+                }
+                // A chain (byte of 240 or more) goes past the stacks' depth; otherwise split
+                // about half the time while the node budget lasts.
+                let mut d = depth;
+                let mut node = i;
+                let chain = b.u8() >= 240;
+                loop {
+                    let split = nodes.len() < 300
+                        && d < 100
+                        && (chain || (b.u8().is_multiple_of(2) && nodes.len() < 60));
+                    if !split {
+                        let count = (b.u8() as usize % 5).min(order.len() - used);
+                        nodes.push(BuildNode {
+                            bounds: quiver::Aabb::EMPTY,
+                            kind: NodeKind::Leaf {
+                                first: used as u32,
+                                count: count as u32,
+                            },
+                        });
+                        used += count;
+                        break;
+                    }
+                    nodes.push(BuildNode {
+                        bounds: quiver::Aabb::EMPTY,
+                        kind: NodeKind::Inner {
+                            left: node as u32 + 1,
+                            right: 0,
+                        },
+                    });
+                    pending.push((node, d + 1));
+                    node += 1;
+                    d += 1;
+                }
+            }
+            // The last leaf in preorder takes whatever is left.
+            if let Some(NodeKind::Leaf { count, .. }) =
+                nodes.iter_mut().rev().map(|n| &mut n.kind).next()
+            {
+                *count += (order.len() - used) as u32;
+            }
+            quiver::builders::BuildTree {
+                nodes,
+                prim_indices: order,
+                dropped: tris.len() - finite.len(),
+            }
+        }
+        _ => {
+            let options = BuildOptions::default()
+                .max_leaf_size(1 + b.u8() as usize % 6)
+                .builder(Builder::ALL[b.u8() as usize % Builder::ALL.len()]);
+            let (_, mut tree) = options.build_with_tree(tris);
+            for _ in 0..b.u8() % 4 {
+                let n = tree.nodes.len();
+                if n == 0 {
+                    break; // truncated away
+                }
+                let i = b.u8() as usize % n;
+                let (what, x) = (b.u8() % 6, b.index());
+                match (what, &mut tree.nodes[i].kind) {
+                    (0, NodeKind::Inner { left, .. }) => *left = x,
+                    (1, NodeKind::Inner { right, .. }) => *right = x,
+                    (0, NodeKind::Leaf { first, .. }) => *first = x,
+                    (1, NodeKind::Leaf { count, .. }) => *count = x,
+                    (2, _) => tree.dropped = x as usize,
+                    (3, _) if !tree.prim_indices.is_empty() => {
+                        let k = x as usize % tree.prim_indices.len();
+                        tree.prim_indices[k] = b.index();
+                    }
+                    (4, _) => tree.nodes.truncate(x as usize % (n + 1)),
+                    _ => {
+                        let k = x as usize % n;
+                        tree.nodes.swap(i, k);
+                    }
+                }
+            }
+            tree
+        }
+    }
+}
+
+/// Build trees from outside: arbitrary bytes decoded into up to 12 triangles (on a grid of
+/// 1/8, one of them sometimes with a NaN corner) and a [`quiver::builders::BuildTree`] over them —
+/// arbitrary nodes, a random valid shape, or a builder's tree with links, leaf ranges, indices
+/// or the dropped count changed (see `fuzz_tree`) — laid out by [`Bvh::from_tree`] in every
+/// layout and by each layout type's own `from_tree`. A tree [`quiver::builders::BuildTree::check`]
+/// refuses must be refused by all of them; one it accepts must be accepted (unless a leaf is
+/// too large for the layout) and then every query must answer as
+/// [`quiver::reference::closest_hit`] over the same triangles: a hit or a miss alike, the
+/// same `t` to rounding (a hit on an edge two triangles share at the same distance may be
+/// either's, and a hit at an interval end may round in or out), any-hit alike. Nothing may
+/// panic or loop.
+pub fn from_tree_against_reference(data: &[u8]) {
+    let mut b = ByteReader(data);
+    let n = b.u8() as usize % 13;
+    let flags = b.u8();
+    let mode = b.u8();
+    let max_leaf = 1 + b.u8() as usize % 16;
+    let mut tris: Vec<Triangle> = (0..n)
+        .map(|_| Triangle::new(b.point(), b.point(), b.point()))
+        .collect();
+    if flags & 4 == 4 && n > 0 {
+        let i = b.u8() as usize % n;
+        tris[i].v[b.u8() as usize % 3].y = f32::NAN;
+    }
+    let tree = fuzz_tree(&mut b, mode, &tris);
+    let rays: Vec<Ray> = (0..b.0.len() / 8)
+        .map(|_| {
+            let origin = b.point() * 2.0;
+            let dir = Vec3A::new(b.coord(), b.coord(), b.coord()) * 8.0;
+            let t_min = b.u8() as f32 / 16.0;
+            let t_max = match b.u8() {
+                255 => f32::INFINITY,
+                x => t_min + x as f32 / 8.0,
+            };
+            Ray::segment(origin, dir, t_min, t_max)
+        })
+        .take(16)
+        .collect();
+    if flags & 1 == 1 {
+        let prims: Vec<Watertight> = tris.iter().map(|&t| Watertight(t)).collect();
+        trees_against_reference(&tree, &prims, max_leaf, &rays);
+    } else {
+        trees_against_reference(&tree, &tris, max_leaf, &rays);
+    }
+}
+
+fn trees_against_reference<P: Primitive>(
+    tree: &quiver::builders::BuildTree,
+    prims: &[P],
+    max_leaf: usize,
+    rays: &[Ray],
+) {
+    use quiver::builders::TreeError;
+    use quiver::layout::{Bvh2, Bvh2Mapping, Bvh4, Bvh4Mapping, Bvh8, QBvh4};
+    let bounds = quiver::builders::prim_bounds(prims);
+    let valid = tree.check(&bounds);
+    let what = format!("{tree:?} over {} primitives", prims.len());
+    // Refused exactly when the check refuses, or for a leaf the layout cannot store.
+    let agree = |got: &Result<(), TreeError>| match (&valid, got) {
+        (Ok(()), Ok(())) | (Ok(()), Err(TreeError::LeafSize { .. })) => true,
+        (Err(want), Err(e)) => want == e || matches!(e, TreeError::LeafSize { .. }),
+        (Err(_), Ok(())) | (Ok(()), Err(_)) => false,
+    };
+    let config = BuildConfig {
+        max_leaf_size: max_leaf,
+        ..BuildConfig::default()
+    };
+    let mut traced = 0;
+    for layout in Layout::ALL {
+        let options = BuildOptions::default()
+            .layout(layout)
+            .config(config.clone());
+        let bvh = Bvh::from_tree(tree, prims, &options);
+        let shape = bvh.as_ref().map(|_| ()).map_err(Clone::clone);
+        assert!(
+            agree(&shape),
+            "{layout}: {shape:?}, check: {valid:?}; {what}"
+        );
+        if let Ok(bvh) = bvh {
+            same_as_reference(&bvh, prims, rays, &format!("{layout} {what}"));
+            same_on_every_isa(&bvh, rays, &what);
+            traced += 1;
+        }
+    }
+    let check = |name: &str, shape: Result<(), TreeError>| {
+        assert!(agree(&shape), "{name}: {shape:?}, check: {valid:?}; {what}");
+    };
+    for mapping in [
+        Bvh2Mapping::DepthFirst,
+        Bvh2Mapping::Subtree,
+        Bvh2Mapping::Compact,
+    ] {
+        let name = format!("Bvh2 {mapping:?}");
+        match Bvh2::from_tree(tree, prims, mapping) {
+            Ok(q) => {
+                check(&name, Ok(()));
+                same_as_reference(&q, prims, rays, &format!("{name} {what}"));
+            }
+            Err(e) => check(&name, Err(e)),
+        }
+    }
+    let isa = Isa::best();
+    match Bvh4::<P>::from_tree(tree, prims, Bvh4Mapping::DepthFirst, isa) {
+        Ok(q) => {
+            check("Bvh4", Ok(()));
+            same_as_reference(&q, prims, rays, &format!("Bvh4 {what}"));
+        }
+        Err(e) => check("Bvh4", Err(e)),
+    }
+    match QBvh4::<P>::from_tree(tree, prims, Bvh4Mapping::Subtree, isa) {
+        Ok(q) => {
+            check("QBvh4", Ok(()));
+            same_as_reference(&q, prims, rays, &format!("QBvh4 {what}"));
+        }
+        Err(e) => check("QBvh4", Err(e)),
+    }
+    match Bvh8::from_tree(tree, prims, &config, isa) {
+        Ok(q) => {
+            check("Bvh8", Ok(()));
+            same_as_reference(&q, prims, rays, &format!("Bvh8 {what}"));
+        }
+        Err(e) => check("Bvh8", Err(e)),
+    }
+    assert!(
+        valid.is_err() || traced > 0,
+        "a valid tree laid out nowhere: {what}"
+    );
+}
+
+/// `q` answers every ray as [`quiver::reference`] does over `prims` (see
+/// [`from_tree_against_reference`] for the rounding it allows).
+fn same_as_reference<P: Primitive>(
+    q: &impl RayQuery<Hit = quiver::Hit>,
+    prims: &[P],
+    rays: &[Ray],
+    what: &str,
+) {
+    let close = |a: f32, b: f32| (a - b).abs() <= 1e-4 * (1.0 + a.abs().max(b.abs()));
+    for r in rays {
+        let want = quiver::reference::closest_hit(prims, r);
+        let got = q.closest_hit(r);
+        let at_end = want.is_some_and(|h| close(h.t, r.t_min) || close(h.t, r.t_max));
+        match (want, got) {
+            (Some(w), Some(g)) => {
+                assert!(close(w.t, g.t), "{what}: {r:?}: {g:?}, reference {w:?}");
+                if g.prim != w.prim {
+                    // Another primitive at (about) the same distance: it must really be hit
+                    // there.
+                    let own = quiver::reference::closest_hit(&prims[g.prim as usize..][..1], r);
+                    assert!(
+                        own.is_some_and(|h| h.t == g.t),
+                        "{what}: {r:?}: {g:?}, reference {w:?}"
+                    );
+                }
+            }
+            (None, None) => {}
+            (Some(_), None) if at_end => {}
+            _ => panic!("{what}: {r:?}: {got:?}, reference {want:?}"),
+        }
+        let any = q.any_hit(r);
+        assert!(
+            any == want.is_some() || at_end,
+            "{what}: {r:?}: any-hit {any}, reference {want:?}"
+        );
+    }
+}

@@ -1,8 +1,10 @@
 //! Geometry core: rays, boxes, triangles and hit records on glam's `Vec3A`.
 //!
 //! Conventions every kernel in quiver shares:
-//! - a ray accepts hits with `t_min <= t <= t_max` (a closed interval), and callers keep
-//!   `0 <= t_min <= t_max`;
+//! - a ray accepts hits with `t_min <= t <= t_max` (a closed interval); every query (the
+//!   [`crate::reference`], every layout and kernel, packets, [`crate::World`]) takes a
+//!   `t_min` below zero, `-inf` or NaN as zero: nothing behind the origin is ever hit (see
+//!   [`Ray`]);
 //! - among hits at the same distance the lower primitive index wins, so every kernel, whatever
 //!   order it visits primitives in, reports the same primitive as the brute-force reference;
 //! - a primitive with a non-finite vertex is invisible: builds drop it (and count it), the
@@ -13,6 +15,25 @@ use glam::Vec3A;
 /// A ray `origin + t * dir` restricted to `t_min <= t <= t_max`.
 ///
 /// `dir` need not be normalised; `t` is measured in units of `dir`.
+///
+/// Queries search `[max(t_min, 0), t_max]`: a `t_min` below zero, `-inf` or NaN counts as
+/// zero in the [`crate::reference`], every layout, packets and [`crate::World`] alike, so a
+/// ray never hits what lies behind its origin. (A primitive's own test, called directly, takes
+/// the interval as given; the queries hand it the raised one.)
+///
+/// ```
+/// use quiver::{reference, Bvh, Ray, RayQuery, Triangle};
+/// use glam::Vec3A;
+/// let behind = Triangle::new(Vec3A::new(0.0, 0.0, -5.0), Vec3A::new(1.0, 0.0, -5.0), Vec3A::new(0.0, 1.0, -5.0));
+/// let ahead = Triangle::new(Vec3A::new(0.0, 0.0, 3.0), Vec3A::new(1.0, 0.0, 3.0), Vec3A::new(0.0, 1.0, 3.0));
+/// let tris = [behind, ahead];
+/// let bvh = Bvh::new(&tris);
+/// for t_min in [-10.0, f32::NEG_INFINITY, f32::NAN] {
+///     let ray = Ray::segment(Vec3A::new(0.2, 0.2, 0.0), Vec3A::Z, t_min, f32::INFINITY);
+///     assert_eq!(reference::closest_hit(&tris, &ray).map(|h| (h.prim, h.t)), Some((1, 3.0)));
+///     assert_eq!(bvh.closest_hit(&ray), reference::closest_hit(&tris, &ray));
+/// }
+/// ```
 ///
 /// ```
 /// use quiver::Ray;
@@ -27,7 +48,7 @@ pub struct Ray {
     pub origin: Vec3A,
     /// Direction; zero components (either sign) are allowed.
     pub dir: Vec3A,
-    /// Smallest accepted hit distance.
+    /// Smallest accepted hit distance; queries take anything below zero (and NaN) as zero.
     pub t_min: f32,
     /// Largest accepted hit distance.
     pub t_max: f32,
@@ -67,6 +88,16 @@ impl Ray {
     #[inline]
     pub fn with_mask(self, mask: u32) -> Self {
         Ray { mask, ..self }
+    }
+
+    /// The ray as every query takes it: a `t_min` below zero (or NaN) raised to zero.
+    #[inline(always)]
+    pub(crate) fn raised_t_min(&self) -> Ray {
+        Ray {
+            // `max` returns the other operand for a NaN.
+            t_min: self.t_min.max(0.0),
+            ..*self
+        }
     }
 
     /// The point at distance `t`.
@@ -142,9 +173,32 @@ impl Aabb {
     }
 
     /// Half the surface area: the SAH only ever needs ratios of areas. Zero when empty.
+    ///
+    /// For a finite box it is finite: past f32's range (edges of about `1e19` and more) it
+    /// saturates at `f32::MAX`. [`Aabb::half_area_f64`] has the exact value.
+    ///
+    /// ```
+    /// use quiver::Aabb;
+    /// use glam::Vec3A;
+    /// let huge = Aabb::new(Vec3A::splat(-1e30), Vec3A::splat(1e30));
+    /// assert_eq!(huge.half_area(), f32::MAX);
+    /// assert_eq!(huge.half_area_f64(), 3.0 * 2e30f32 as f64 * 2e30f32 as f64);
+    /// ```
     #[inline]
     pub fn half_area(&self) -> f32 {
         let e = self.extent();
+        let a = e.x * e.y + e.y * e.z + e.z * e.x;
+        if a.is_finite() || !self.is_finite() {
+            a
+        } else {
+            self.half_area_f64().min(f32::MAX as f64) as f32
+        }
+    }
+
+    /// Half the surface area in f64, where no finite box overflows. Zero when empty.
+    #[inline]
+    pub fn half_area_f64(&self) -> f64 {
+        let e = (self.max.as_dvec3() - self.min.as_dvec3()).max(glam::DVec3::ZERO);
         e.x * e.y + e.y * e.z + e.z * e.x
     }
 
@@ -226,14 +280,46 @@ impl Triangle {
     ///
     /// Degenerate triangles (zero area) never hit: their determinant is zero. Every comparison
     /// is written so that a NaN rejects the hit.
+    ///
+    /// # Numbers at the edge of f32
+    ///
+    /// The test multiplies up to three lengths (`n·c`), so on its own it would overflow for
+    /// triangles beyond about `1e12` and lose `t` below about `1e-12`. When the determinant,
+    /// `u`, `v` or `t` comes out of range (non-finite, or a determinant or `t` numerator
+    /// below `2^-100`, a product that may have underflowed), a cold path takes the test again
+    /// with the vertices and origin scaled by a power of two that brings the triangle near
+    /// unit size, and the direction near unit length (exact in f32; `t` scaled back exactly),
+    /// as a [`crate::Bvh`] over such a scene traces it. So for every finite input the test
+    /// returns a finite `t` or a miss, and it hits wherever the triangle scaled to unit size
+    /// is hit: from `1e-30` to `1e35` and beyond. Ordinary inputs never take the cold path
+    /// (except a ray exactly parallel to the plane, which it finds parallel again). Still
+    /// missed: a triangle whose area underflows even at unit size (a sliver of relative width
+    /// below `2^-120`), and one more than `2^100` times smaller than its distance from the
+    /// ray's origin (the ray cannot aim at it in f32).
+    ///
+    /// ```
+    /// use quiver::{Ray, Triangle};
+    /// use glam::Vec3A;
+    /// // Sizes from about 1e-30 to 1e35, powers of two so that the expected values are exact.
+    /// for s in [-100, 0, 50, 100, 116].map(|e| 2f32.powi(e)) {
+    ///     let tri = Triangle::new(Vec3A::ZERO, Vec3A::X * s, Vec3A::Y * s);
+    ///     let ray = Ray::new(Vec3A::new(0.25 * s, 0.25 * s, -s), Vec3A::Z);
+    ///     let hit = tri.intersect(&ray).unwrap();
+    ///     assert_eq!((hit.t, hit.u, hit.v), (s, 0.25, 0.25));
+    /// }
+    /// ```
     #[inline(always)]
     pub fn intersect(&self, ray: &Ray) -> Option<PrimHit> {
+        // Determinants and `t` numerators in this band are clear of overflow and underflow.
+        const SMALL: f32 = 1.0 / (1u128 << 100) as f32;
+        const LARGE: f32 = (1u128 << 100) as f32;
         let e1 = self.v[0] - self.v[1];
         let e2 = self.v[2] - self.v[0];
         let n = e1.cross(e2);
         let det = n.dot(ray.dir);
-        if det == 0.0 {
-            return None;
+        if !(det.abs() >= SMALL && det.abs() <= LARGE) {
+            // Zero (parallel or degenerate), underflowed, overflowed or NaN.
+            return self.intersect_rescaled(ray);
         }
         let inv = 1.0 / det;
         let c = self.v[0] - ray.origin;
@@ -241,15 +327,89 @@ impl Triangle {
         let u = r.dot(e2) * inv;
         let v = r.dot(e1) * inv;
         if !(u >= 0.0 && v >= 0.0 && u + v <= 1.0) {
+            // A product that overflowed makes `u` or `v` infinite or NaN.
+            if ((u + v) * 0.0).is_nan() {
+                return self.intersect_rescaled(ray);
+            }
             return None;
         }
-        let t = n.dot(c) * inv;
+        let tn = n.dot(c);
+        let t = tn * inv;
+        if !(t.is_finite() && tn.abs() >= SMALL) {
+            // Overflowed, or possibly underflowed (also an origin on the plane: t = 0).
+            return self.intersect_rescaled(ray);
+        }
         if t >= ray.t_min && t <= ray.t_max {
             Some(PrimHit { t, u, v })
         } else {
             None
         }
     }
+
+    /// [`Triangle::intersect`] on the triangle and ray in their [`unit_frame`]: the test's
+    /// own operations, unchecked (in that frame nothing leaves f32's range), and `t` scaled
+    /// back.
+    #[cold]
+    #[inline(never)]
+    fn intersect_rescaled(&self, ray: &Ray) -> Option<PrimHit> {
+        let (tri, local, e) = unit_frame(self, ray)?;
+        let e1 = tri.v[0] - tri.v[1];
+        let e2 = tri.v[2] - tri.v[0];
+        let n = e1.cross(e2);
+        let det = n.dot(local.dir);
+        if det == 0.0 {
+            return None;
+        }
+        let inv = 1.0 / det;
+        let c = tri.v[0] - local.origin;
+        let r = local.dir.cross(c);
+        let u = r.dot(e2) * inv;
+        let v = r.dot(e1) * inv;
+        if !(u >= 0.0 && v >= 0.0 && u + v <= 1.0) {
+            return None;
+        }
+        let t = scale2(scale2(n.dot(c) * inv, e / 2), e - e / 2);
+        (t.is_finite() && t >= ray.t_min && t <= ray.t_max).then_some(PrimHit { t, u, v })
+    }
+}
+
+/// The triangle and ray scaled by powers of two for a test whose products of lengths would
+/// leave f32's range: the vertices and origin by the one that brings the triangle's extent
+/// near 1 (but no coordinate past `2^100`), the direction by the one that brings it near
+/// unit length, the ray's interval opened to everything. Returns them with `e`: a distance
+/// found in the frame is `2^e` times as long in world units. Both factors are exact, and the
+/// triangle tests commute with them. `None` when no test can hit: a non-finite or zero
+/// direction, a non-finite origin or vertex, a triangle that is a point.
+pub(crate) fn unit_frame(tri: &Triangle, ray: &Ray) -> Option<(Triangle, Ray, i32)> {
+    let b = tri.bounds();
+    let reach = b.min.abs().max(b.max.abs()).max_element();
+    let reach = reach.max(ray.origin.abs().max_element());
+    let m = ray.dir.abs().max_element();
+    if !(tri.is_finite() && reach.is_finite() && m.is_finite() && m > 0.0) {
+        return None;
+    }
+    // Halves first: the extent of a triangle spanning -3e38..3e38 is not an f32.
+    let half = (b.max * 0.5 - b.min * 0.5).max_element();
+    if half == 0.0 {
+        return None;
+    }
+    let k = (exponent(half) + 1).max(exponent(reach) - 100);
+    let j = exponent(m);
+    let scale = |p: Vec3A, e: i32| Vec3A::new(scale2(p.x, e), scale2(p.y, e), scale2(p.z, e));
+    let local = Ray {
+        origin: scale(ray.origin, -k),
+        dir: scale(ray.dir, -j),
+        t_min: f32::NEG_INFINITY,
+        t_max: f32::INFINITY,
+        mask: ray.mask,
+    };
+    Some((
+        Triangle {
+            v: tri.v.map(|p| scale(p, -k)),
+        },
+        local,
+        k - j,
+    ))
 }
 
 /// `v` scaled to unit length at any size, or zero for a zero or non-finite vector.

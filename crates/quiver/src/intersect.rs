@@ -98,52 +98,102 @@ impl Primitive for Watertight {
         self.0.scaled(s).map(Watertight)
     }
 
+    /// The watertight test. Like [`Triangle::intersect`] it takes the test again on the
+    /// triangle and ray scaled by powers of two (exact) when a product of lengths may have
+    /// left f32's range (a determinant or `t` numerator non-finite or below `2^-100`), so
+    /// every finite input gives a finite `t` or a miss, at any scale.
     #[inline(always)]
     fn intersect(&self, ray: &Ray) -> Option<PrimHit> {
-        let d = ray.dir;
-        let (kx, ky, kz) = shear_axes(d);
-        let sz = 1.0 / d[kz];
-        let (sx, sy) = (d[kx] * sz, d[ky] * sz);
-        let rel = self.0.v.map(|p| p - ray.origin);
-        let x = rel.map(|p| p[kx] - sx * p[kz]);
-        let y = rel.map(|p| p[ky] - sy * p[kz]);
-        // Edge functions: U for the edge opposite vertex 0, and so on.
-        let mut u = x[2] * y[1] - y[2] * x[1];
-        let mut v = x[0] * y[2] - y[0] * x[2];
-        let mut w = x[1] * y[0] - y[1] * x[0];
-        if u == 0.0 || v == 0.0 || w == 0.0 {
-            // On an edge in f32: decide in f64, where the products are exact.
-            let e = |a: f32, b: f32, c: f32, dd: f32| {
-                (a as f64 * b as f64 - c as f64 * dd as f64) as f32
-            };
-            u = e(x[2], y[1], y[2], x[1]);
-            v = e(x[0], y[2], y[0], x[2]);
-            w = e(x[1], y[0], y[1], x[0]);
+        match watertight::<true>(&self.0, ray) {
+            Ok(h) => h,
+            Err(OutOfRange) => watertight_rescaled(&self.0, ray),
         }
-        if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
-            return None;
-        }
-        let det = u + v + w;
-        if det == 0.0 {
-            return None;
-        }
-        let z = rel.map(|p| sz * p[kz]);
-        let t_scaled = u * z[0] + v * z[1] + w * z[2];
-        let inv = 1.0 / det;
-        let t = t_scaled * inv;
-        if !(t >= ray.t_min && t <= ray.t_max) {
-            return None;
-        }
-        Some(PrimHit {
-            t,
-            u: v * inv,
-            v: w * inv,
-        })
     }
 
     fn surface_area(&self) -> f32 {
         self.0.surface_area()
     }
+}
+
+/// A product of lengths in the watertight test may have left f32's range.
+struct OutOfRange;
+
+/// The watertight test in the ray's and triangle's own units; with `CHECKED`, an error where
+/// a product may have left f32's range (without, as computed: in the unit frame).
+#[inline(always)]
+fn watertight<const CHECKED: bool>(
+    tri: &Triangle,
+    ray: &Ray,
+) -> Result<Option<PrimHit>, OutOfRange> {
+    const SMALL: f32 = 1.0 / (1u128 << 100) as f32;
+    const LARGE: f32 = (1u128 << 100) as f32;
+    let d = ray.dir;
+    let (kx, ky, kz) = shear_axes(d);
+    let sz = 1.0 / d[kz];
+    let (sx, sy) = (d[kx] * sz, d[ky] * sz);
+    let rel = tri.v.map(|p| p - ray.origin);
+    let x = rel.map(|p| p[kx] - sx * p[kz]);
+    let y = rel.map(|p| p[ky] - sy * p[kz]);
+    // Edge functions: U for the edge opposite vertex 0, and so on.
+    let mut u = x[2] * y[1] - y[2] * x[1];
+    let mut v = x[0] * y[2] - y[0] * x[2];
+    let mut w = x[1] * y[0] - y[1] * x[0];
+    if u == 0.0 || v == 0.0 || w == 0.0 {
+        // On an edge in f32: decide in f64, where the products are exact.
+        let e =
+            |a: f32, b: f32, c: f32, dd: f32| (a as f64 * b as f64 - c as f64 * dd as f64) as f32;
+        u = e(x[2], y[1], y[2], x[1]);
+        v = e(x[0], y[2], y[0], x[2]);
+        w = e(x[1], y[0], y[1], x[0]);
+    }
+    if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
+        return Ok(None);
+    }
+    let det = u + v + w;
+    if det == 0.0 {
+        // Degenerate or parallel, unless everything underflowed.
+        // (Products of coordinates of at least 2^-50 cannot underflow.)
+        let tiny = 1.0 / (1u64 << 50) as f32;
+        return if !CHECKED
+            || sz.is_finite() && x.iter().chain(&y).all(|c| c.abs() >= tiny || *c == 0.0)
+        {
+            Ok(None)
+        } else {
+            Err(OutOfRange)
+        };
+    }
+    let z = rel.map(|p| sz * p[kz]);
+    let t_scaled = u * z[0] + v * z[1] + w * z[2];
+    let inv = 1.0 / det;
+    let t = t_scaled * inv;
+    if CHECKED
+        && !(det.abs() >= SMALL && det.abs() <= LARGE && t.is_finite() && t_scaled.abs() >= SMALL)
+    {
+        return Err(OutOfRange);
+    }
+    if !(t >= ray.t_min && t <= ray.t_max) {
+        return Ok(None);
+    }
+    Ok(Some(PrimHit {
+        t,
+        u: v * inv,
+        v: w * inv,
+    }))
+}
+
+/// [`watertight`] on the triangle and ray scaled by powers of two: the vertices and origin to
+/// bring the triangle near unit size (no coordinate past `2^100`), the direction near unit
+/// length; `t` scaled back by their ratio.
+#[cold]
+#[inline(never)]
+fn watertight_rescaled(tri: &Triangle, ray: &Ray) -> Option<PrimHit> {
+    let (tri_l, ray_l, e) = crate::geometry::unit_frame(tri, ray)?;
+    let Ok(h) = watertight::<false>(&tri_l, &ray_l) else {
+        return None;
+    };
+    let h = h?;
+    let t = crate::geometry::scale2(crate::geometry::scale2(h.t, e / 2), e - e / 2);
+    (t.is_finite() && t >= ray.t_min && t <= ray.t_max).then_some(PrimHit { t, ..h })
 }
 
 impl Primitive for Exact {

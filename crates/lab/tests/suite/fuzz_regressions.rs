@@ -73,3 +73,8 @@ fn gltf_inputs() {
 fn instanced_inputs() {
     assert!(replay("instanced", quiver_lab::checks::instanced_against_oracle) >= 5);
 }
+
+#[test]
+fn from_tree_inputs() {
+    assert!(replay("from_tree", quiver_lab::checks::from_tree_against_reference) >= 3);
+}

@@ -403,3 +403,87 @@ fn all_subnormal_direction() {
         }
     }
 }
+
+/// A `t_min` below zero, `-inf` or NaN counts as zero in the reference and every layout,
+/// single rays and packets: the hit in front is found, the triangle behind the origin (at
+/// `t = -5`) never. Before, the reference returned the hit behind and the layouts none.
+#[test]
+fn negative_and_nan_t_min_count_as_zero() {
+    use quiver::traverse::{PacketMode, PacketQuery};
+    let at = |z: f32| {
+        Triangle::new(
+            Vec3A::new(0.0, 0.0, z),
+            Vec3A::new(1.0, 0.0, z),
+            Vec3A::new(0.0, 1.0, z),
+        )
+    };
+    let tris = [at(-5.0), at(3.0), at(7.0)];
+    let behind_only = [at(-5.0)];
+    let o = Vec3A::new(0.2, 0.3, 0.0);
+    for t_min in [-5.0, -1e30, f32::NEG_INFINITY, f32::NAN, -0.0] {
+        let ray = Ray::segment(o, Vec3A::Z, t_min, f32::INFINITY);
+        let want = reference::closest_hit(&tris, &ray);
+        assert_eq!(want.map(|h| (h.prim, h.t)), Some((1, 3.0)), "{t_min}");
+        assert_eq!(reference::closest_hit(&behind_only, &ray), None, "{t_min}");
+        assert!(!reference::any_hit(&behind_only, &ray), "{t_min}");
+        for got in all_layout_hits(&tris, &ray) {
+            assert_eq!(got, Some(3.0), "{t_min}");
+        }
+        for got in all_layout_hits(&behind_only, &ray) {
+            assert_eq!(got, None, "{t_min}");
+        }
+        // Packets (every mode) and any-hit, on every layout, rays mixed with ordinary ones.
+        let rays: Vec<Ray> = (0..40)
+            .map(|i| Ray::segment(o, Vec3A::Z, if i % 3 == 0 { t_min } else { 0.0 }, 100.0))
+            .collect();
+        for layout in Layout::ALL {
+            for (prims, hit) in [(&tris[..], Some(3.0)), (&behind_only[..], None)] {
+                let bvh = build(prims, layout);
+                assert_eq!(bvh.any_hit(&ray), hit.is_some(), "{t_min} {layout}");
+                for mode in [PacketMode::Always, PacketMode::Never, PacketMode::Auto] {
+                    let mut hits = vec![None; rays.len()];
+                    let mut occluded = vec![false; rays.len()];
+                    let q = PacketQuery::new(&rays).mode(mode);
+                    bvh.closest_hit_packet_with::<ConservativeBoxes, _, _>(
+                        q,
+                        &mut hits,
+                        &mut NoStats,
+                        &mut NoFilter,
+                    );
+                    bvh.any_hit_packet_with::<ConservativeBoxes, _, _>(
+                        q,
+                        &mut occluded,
+                        &mut NoStats,
+                        &mut NoFilter,
+                    );
+                    for (h, any) in hits.iter().zip(&occluded) {
+                        assert_eq!(h.map(|h| h.t), hit, "{t_min} {layout} {mode:?}");
+                        assert_eq!(*any, hit.is_some(), "{t_min} {layout} {mode:?}");
+                    }
+                }
+            }
+        }
+        // A world of the same triangles.
+        let mut world = quiver::WorldBuilder::<Triangle>::new();
+        let g = world.triangles(tris.to_vec());
+        world.instance(quiver::Instance::of(g));
+        let world = world.build(&quiver::BuildOptions::default()).unwrap();
+        assert_eq!(
+            world.closest_hit(&ray).map(|h| h.t),
+            Some(3.0),
+            "{t_min} world"
+        );
+        assert!(world.any_hit(&ray), "{t_min} world");
+        let mut hits = vec![None; rays.len()];
+        world.closest_hit_packet_with::<ConservativeBoxes, _, _>(
+            PacketQuery::new(&rays).mode(PacketMode::Always),
+            &mut hits,
+            &mut NoStats,
+            &mut NoFilter,
+        );
+        assert!(
+            hits.iter().all(|h| h.map(|h| h.t) == Some(3.0)),
+            "{t_min} world packets"
+        );
+    }
+}

@@ -233,3 +233,82 @@ fn spd_scenes_render_alike_at_every_scale() {
         renders_match(&Scene::load(name).unwrap(), patches);
     }
 }
+
+/// A triangle far from unit size hit head-on, alone (the BVH traces it in its own scaled
+/// frame) and as the brute-force reference tests it (`Triangle::intersect`, `Watertight`,
+/// in their own units): a finite `t`, the f64 oracle's to 1e-5, and the BVH's in every
+/// layout. Before the scalar tests rescaled out-of-range products, 1e15 gave `t = inf` and
+/// 1e30 a miss.
+#[test]
+fn one_triangle_at_the_edge_of_f32() {
+    for s in [1e15f32, 1e20, 1e30, 1e35, 1e-30] {
+        let tris = [Triangle::new(
+            Vec3A::new(0.0, 0.0, s),
+            Vec3A::new(s, 0.1 * s, s),
+            Vec3A::new(0.2 * s, s, 1.1 * s),
+        )];
+        let wt = [Watertight(tris[0])];
+        let oracle = quiver_lab::oracle::Oracle::new(&tris);
+        for dir in [Vec3A::Z, Vec3A::new(0.1, 0.0, 1.0) * s] {
+            let ray = quiver::Ray::new(Vec3A::new(0.3 * s, 0.25 * s, -s), dir);
+            let want = oracle.closest_hit(&ray).hit.expect("the oracle hits").t;
+            let fast = quiver::reference::closest_hit(&tris, &ray);
+            let water = quiver::reference::closest_hit(&wt, &ray);
+            for (name, got) in [("fast", fast), ("watertight", water)] {
+                let t = got.unwrap_or_else(|| panic!("{s} {name}: missed")).t;
+                assert!(t.is_finite(), "{s} {name}: t = {t}");
+                let err = (t as f64 - want).abs() / want;
+                assert!(err <= 1e-5, "{s} {name}: t = {t}, oracle {want}");
+            }
+            for layout in Layout::ALL {
+                let options = BuildOptions::default().layout(layout);
+                assert_eq!(options.build(&tris).closest_hit(&ray), fast, "{s} {layout}");
+                let w = options.build(&wt).closest_hit(&ray).map(|h| h.t);
+                let err = (w.unwrap_or(f32::NAN) as f64 - want).abs() / want;
+                assert!(err <= 1e-5, "{s} {layout} watertight: {w:?}, oracle {want}");
+            }
+            assert_eq!(quiver::Bvh::new(&tris).closest_hit(&ray), fast, "{s}");
+        }
+    }
+}
+
+/// Scenes of extents where half areas overflow f32 (1e19 and beyond): every builder
+/// finishes with a valid tree of finite SAH cost, and `Aabb::half_area` stays finite. Both
+/// through `BuildOptions` (which builds a scene all of one size in a scaled frame) and
+/// straight on the world boxes (no frame: the builders' own f32 areas), and for a scene that
+/// mixes 1e30 with unit sizes.
+#[test]
+fn huge_scenes_build_valid_trees_with_finite_costs() {
+    use quiver::builders::{build, prim_bounds, BuildConfig, Builder};
+    let grid = |s: f32| -> Vec<Triangle> {
+        (0..64)
+            .map(|i| {
+                let p = Vec3A::new((i % 4) as f32, (i / 4 % 4) as f32, (i / 16) as f32) * s;
+                Triangle::new(p, p + Vec3A::X * 0.5 * s, p + Vec3A::Y * 0.5 * s)
+            })
+            .collect()
+    };
+    let huge = quiver::Aabb::new(Vec3A::splat(-3e38), Vec3A::splat(3e38));
+    assert_eq!(huge.half_area(), f32::MAX);
+    assert!(huge.half_area_f64().is_finite());
+    let config = BuildConfig::default();
+    for s in [1e19f32, 1e25, 1e30, 1e37] {
+        let mut mixed = grid(s);
+        mixed.extend(grid(1.0));
+        for tris in [grid(s), mixed] {
+            let bounds = prim_bounds(&tris);
+            for builder in Builder::ALL {
+                let (_, tree) = BuildOptions::default()
+                    .builder(builder)
+                    .build_with_tree(&tris);
+                let raw = build(&bounds, &config, builder);
+                for (how, tree) in [("options", tree), ("boxes", raw)] {
+                    tree.validate(&bounds, &config)
+                        .unwrap_or_else(|e| panic!("{s} {builder:?} {how}: {e}"));
+                    let cost = tree.sah_cost(&config);
+                    assert!(cost.is_finite(), "{s} {builder:?} {how}: cost {cost}");
+                }
+            }
+        }
+    }
+}

@@ -162,10 +162,10 @@ impl Links {
     /// [`super::BuildTree::sah_cost`] does.
     fn leaf_choice(&self, config: &BuildConfig) -> Vec<bool> {
         let n = self.bounds.len();
-        let root_area = self.bounds[self.root as usize].half_area() as f64;
+        let root_area = self.bounds[self.root as usize].half_area_f64();
         let area = |x: u32| {
             if root_area > 0.0 {
-                self.bounds[x as usize].half_area() as f64
+                self.bounds[x as usize].half_area_f64()
             } else {
                 1.0
             }

@@ -383,7 +383,7 @@ mod tests {
 
     fn inner_area(links: &Links) -> f64 {
         let u = links.units();
-        links.bounds[u..].iter().map(|b| b.half_area() as f64).sum()
+        links.bounds[u..].iter().map(|b| b.half_area_f64()).sum()
     }
 
     #[test]

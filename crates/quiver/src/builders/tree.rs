@@ -243,12 +243,13 @@ impl BuildTree {
     /// SAH cost `c_T * ΣA(inner)/A(root) + c_I * Σ A(leaf)·n(leaf)/A(root)`.
     ///
     /// A root of zero area (all geometry on one point or line) makes every node equally likely:
-    /// the cost becomes `c_T * inner_nodes + c_I * references`.
+    /// the cost becomes `c_T * inner_nodes + c_I * references`. Areas are taken in f64, so the
+    /// cost of a tree with finite boxes is finite at any scale.
     pub fn sah_cost(&self, config: &BuildConfig) -> f64 {
-        let root_area = self.nodes[0].bounds.half_area() as f64;
+        let root_area = self.nodes[0].bounds.half_area_f64();
         let area = |b: &Aabb| {
             if root_area > 0.0 {
-                b.half_area() as f64 / root_area
+                b.half_area_f64() / root_area
             } else {
                 1.0
             }

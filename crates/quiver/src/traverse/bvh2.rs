@@ -58,6 +58,7 @@ impl<P: Primitive> RayQuery for Bvh2<P> {
         stats: &mut S,
         filter: &mut F,
     ) -> Option<Hit> {
+        let ray = &ray.raised_t_min();
         let mut best = Hit::none(ray.t_max);
         traverse::<P, B, S, _>(self, ray, stats, |range, limit, stats| {
             leaf_closest_hit(
@@ -80,6 +81,7 @@ impl<P: Primitive> RayQuery for Bvh2<P> {
         stats: &mut S,
         filter: &mut F,
     ) -> bool {
+        let ray = &ray.raised_t_min();
         let mut hit = false;
         traverse::<P, B, S, _>(self, ray, stats, |range, _, stats| {
             hit = leaf_any_hit(

@@ -146,6 +146,7 @@ pub(crate) fn closest<N: WideNode, B: BoxTest, P: Primitive, S: Stats, F: Filter
     stats: &mut S,
     filter: &mut F,
 ) -> Option<Hit> {
+    let ray = &ray.raised_t_min();
     let mut best = Hit::none(ray.t_max);
     closest_from::<N, B, P, S, F>(nodes, leaves, ray, 0, &mut best, stats, filter);
     best.found()
@@ -180,7 +181,7 @@ pub(crate) fn any<N: WideNode, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit
     stats: &mut S,
     filter: &mut F,
 ) -> bool {
-    any_from::<N, B, P, S, F>(nodes, leaves, ray, 0, stats, filter)
+    any_from::<N, B, P, S, F>(nodes, leaves, &ray.raised_t_min(), 0, stats, filter)
 }
 
 /// Any hit in the subtree of inner node `root`.

@@ -216,6 +216,7 @@ fn closest<V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
     stats: &mut S,
     filter: &mut F,
 ) -> Option<Hit> {
+    let ray = &ray.raised_t_min();
     let mut best = Hit::none(ray.t_max);
     let leaves = bvh.leaves();
     closest_from::<V, B, P, S, F>(cpu, &bvh.nodes, &leaves, ray, 0, &mut best, stats, filter);
@@ -231,6 +232,7 @@ fn any<V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
     stats: &mut S,
     filter: &mut F,
 ) -> bool {
+    let ray = &ray.raised_t_min();
     any_from::<V, B, P, S, F>(cpu, &bvh.nodes, &bvh.leaves(), ray, 0, stats, filter)
 }
 

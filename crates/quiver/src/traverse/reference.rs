@@ -17,10 +17,12 @@ fn visible<P: Primitive>(p: &P) -> bool {
     p.is_finite()
 }
 
-/// The nearest hit; on equal distance the lowest index. Non-finite primitives are skipped.
+/// The nearest hit; on equal distance the lowest index. Non-finite primitives are skipped; a
+/// `t_min` below zero or NaN counts as zero (see [`Ray`]).
 /// Each primitive is tested as every kernel tests it (for a triangle [`crate::LeafFormat`],
 /// as its triangle).
 pub fn closest_hit<P: Primitive>(prims: &[P], ray: &Ray) -> Option<Hit> {
+    let ray = &ray.raised_t_min();
     let mut best: Option<Hit> = None;
     for (i, p) in prims.iter().enumerate() {
         if !visible(p) {
@@ -42,6 +44,7 @@ pub fn closest_hit<P: Primitive>(prims: &[P], ray: &Ray) -> Option<Hit> {
 
 /// True when any finite primitive is hit within the ray's interval.
 pub fn any_hit<P: Primitive>(prims: &[P], ray: &Ray) -> bool {
+    let ray = &ray.raised_t_min();
     prims
         .iter()
         .any(|p| visible(p) && super::prim_hit(p, ray).is_some())

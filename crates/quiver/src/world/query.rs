@@ -232,6 +232,7 @@ impl<P: Primitive> World<P> {
         stats: &mut S,
         filter: &mut F,
     ) -> Option<WorldHit> {
+        let ray = &ray.raised_t_min();
         let mut best = WorldHit::none(ray.t_max);
         if self.walkable() {
             self.closest_from::<V, B, S, F>(cpu, ray, 0, &mut best, stats, filter);
@@ -247,7 +248,7 @@ impl<P: Primitive> World<P> {
         stats: &mut S,
         filter: &mut F,
     ) -> bool {
-        self.walkable() && self.any_from::<V, B, S, F>(cpu, ray, 0, stats, filter)
+        self.walkable() && self.any_from::<V, B, S, F>(cpu, &ray.raised_t_min(), 0, stats, filter)
     }
 }
 

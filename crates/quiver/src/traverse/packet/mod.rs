@@ -212,7 +212,7 @@ fn coherent(rays: &[Ray], active: u64) -> bool {
 
 /// Cuts the query's rays into packets and hands each to `run(rays, active bits, use packets,
 /// out)`, after checking lengths and deciding by the query's mode whether the packet path
-/// pays.
+/// pays; a packet with a `t_min` below zero or NaN is handed over with it raised to zero.
 #[inline(always)]
 pub(crate) fn each_packet<T>(
     query: PacketQuery<'_>,
@@ -231,6 +231,15 @@ pub(crate) fn each_packet<T>(
     {
         let from = c * PACKET_RAYS;
         let on = active_bits(rays.len(), active.map(|a| &a[from..from + rays.len()]));
+        // A t_min below zero or NaN counts as zero, as for single rays: such a packet is
+        // traced as a copy with the interval raised (one comparison per ray otherwise).
+        let raised: [Ray; PACKET_RAYS];
+        let rays = if rays.iter().all(|r| r.t_min >= 0.0) {
+            rays
+        } else {
+            raised = std::array::from_fn(|i| rays[i.min(rays.len() - 1)].raised_t_min());
+            &raised[..rays.len()]
+        };
         let packet = match mode {
             PacketMode::Always => true,
             PacketMode::Never => false,
