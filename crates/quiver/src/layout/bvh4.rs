@@ -389,7 +389,10 @@ impl Node4 for QBvh4Node {
             n.exp[a] = e;
         }
         for (i, (b, k)) in w.boxes.iter().zip(&w.kids).enumerate() {
-            if *k == Child::Empty {
+            // A leaf of no primitives holds nothing: it becomes an unused slot, since a count
+            // of 0 here means an inner node (a tree from outside may give such a leaf a real
+            // box and any `first`, which would otherwise send the walk to node `first`).
+            if matches!(*k, Child::Empty | Child::Leaf { count: 0, .. }) {
                 for a in 0..3 {
                     (n.q[a][i], n.q[3 + a][i]) = (255, 0);
                 }
@@ -410,7 +413,7 @@ impl Node4 for QBvh4Node {
                 (n.q[a][i], n.q[3 + a][i]) = (qlo, qhi);
             }
             (n.child[i], n.count[i]) = match *k {
-                Child::Empty => unreachable!(),
+                Child::Empty | Child::Leaf { count: 0, .. } => unreachable!(),
                 Child::Inner(j) => (pos[j as usize], 0),
                 // Leaves above `MAX_LEAF` are refused before encoding (`from_tree`) or
                 // never built (`BuildOptions` caps the leaf size for this layout).
@@ -438,6 +441,27 @@ impl QBvh4Node {
 mod tests {
     use super::*;
     use glam::Vec3A;
+
+    /// An empty leaf with a real box (a tree from outside can have one) must not read as
+    /// an inner node: with `first` 0 that was the root, and the walk never ended.
+    #[test]
+    fn an_empty_leaf_is_an_unused_slot_not_an_inner_node() {
+        let b = Aabb::new(Vec3A::ZERO, Vec3A::ONE);
+        let w = Wide {
+            boxes: [b; 4],
+            kids: [
+                Child::Leaf { first: 0, count: 0 },
+                Child::Leaf { first: 0, count: 2 },
+                Child::Empty,
+                Child::Leaf { first: 5, count: 0 },
+            ],
+        };
+        let n = QBvh4Node::encode(&w, &[]);
+        for i in [0, 2, 3] {
+            assert_eq!(n.child(i), (0, Bvh4Node::LEAF), "slot {i}");
+        }
+        assert_eq!(n.child(1), (0, Bvh4Node::LEAF | 2));
+    }
 
     #[test]
     fn quantized_boxes_contain_the_exact_ones() {
