@@ -99,14 +99,14 @@ fn time<T>(f: impl FnOnce() -> T) -> (T, f64) {
 pub(crate) fn run(args: BenchArgs) -> Result<()> {
     check_outputs(&[("--json", args.json.as_deref())], &args.scenes)?;
     if args.instanced {
-        let scenes = super::instances::load("bench", &args.scenes, args.rays)?;
-        return super::instances::run(super::instances::Settings {
-            scenes,
-            rays: args.rays,
-            reps: args.reps,
-            threads: args.threads.clone(),
-            json: args.json.clone(),
-        });
+        return super::instances::load_and_run(
+            "bench",
+            &args.scenes,
+            args.rays,
+            args.reps,
+            &args.threads,
+            args.json.as_ref(),
+        );
     }
     // Generated scenes only: a file path fixed at compile time would break as soon as the
     // binary is installed elsewhere or run from another directory.

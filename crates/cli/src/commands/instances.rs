@@ -89,6 +89,26 @@ pub(crate) fn load(command: &str, names: &[String], rays: usize) -> Result<Vec<S
     })
 }
 
+/// `command --instanced` (`bench` or `packets`): loads the scenes ([`load`]) and measures
+/// them ([`run`]).
+pub(crate) fn load_and_run(
+    command: &str,
+    names: &[String],
+    rays: usize,
+    reps: usize,
+    threads: &[u16],
+    json: Option<&PathBuf>,
+) -> Result<()> {
+    let scenes = load(command, names, rays)?;
+    run(Settings {
+        scenes,
+        rays,
+        reps,
+        threads: threads.to_vec(),
+        json: json.cloned(),
+    })
+}
+
 /// Runs the instanced measurement.
 pub(crate) fn run(s: Settings) -> Result<()> {
     let loaded = &s.scenes;
@@ -222,8 +242,7 @@ pub(crate) fn run(s: Settings) -> Result<()> {
                     ("embree", "instanced"),
                     ("embree", "flattened"),
                 ];
-                for (i, t) in times.iter().enumerate() {
-                    let (e, k) = names[i];
+                for (&(e, k), t) in names.iter().zip(&times) {
                     rows.push(row(
                         e,
                         k,
@@ -296,8 +315,7 @@ pub(crate) fn run(s: Settings) -> Result<()> {
                     ("quiver", "instanced-packets"),
                     ("embree", "instanced-stream"),
                 ];
-                for (i, t) in times.iter().enumerate() {
-                    let (e, k) = names[i];
+                for (&(e, k), t) in names.iter().zip(&times) {
                     rows.push(row(
                         e,
                         k,

@@ -79,14 +79,14 @@ const TINY_KERNELS: [(&str, TinyLayout); 2] = [
 pub(crate) fn run(args: PacketsArgs) -> Result<()> {
     check_outputs(&[("--json", args.json.as_deref())], &args.scenes)?;
     if args.instanced {
-        let scenes = super::instances::load("packets", &args.scenes, args.rays)?;
-        return super::instances::run(super::instances::Settings {
-            scenes,
-            rays: args.rays,
-            reps: args.reps,
-            threads: args.threads.clone(),
-            json: args.json.clone(),
-        });
+        return super::instances::load_and_run(
+            "packets",
+            &args.scenes,
+            args.rays,
+            args.reps,
+            &args.threads,
+            args.json.as_ref(),
+        );
     }
     if args.layout.name().starts_with("bvh2") {
         return Err(format!(
