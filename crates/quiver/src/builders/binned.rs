@@ -2,7 +2,10 @@
 //! bins finds the cheapest plane. Nodes above [`BuildConfig::horizontal_threshold`] are binned
 //! by all threads at once (private bins merged by an exact reduction).
 
-use super::recurse::{build_tree, stable_partition, take_split, Ctx, Partition, Splitter, CHUNK};
+use super::recurse::{
+    build_tree, par_partition_into, partition_into, take_split, Ctx, Partition, Ref, Splitter,
+    CHUNK,
+};
 use super::{model_score, BuildConfig, BuildNode, Side};
 use crate::geometry::Aabb;
 use glam::{UVec3, Vec3A};
@@ -46,6 +49,8 @@ struct Mapper {
     origin: Vec3A,
     scale: Vec3A,
     last: UVec3,
+    /// `last` as floats, the clamp before the truncation.
+    top: Vec3A,
 }
 
 impl Mapper {
@@ -58,14 +63,20 @@ impl Mapper {
             origin: centroids.min,
             scale,
             last: UVec3::splat(bins as u32 - 1),
+            top: Vec3A::splat((bins - 1) as f32),
         }
     }
 
-    /// The bin on all three axes at once. The float-to-int cast saturates (and maps NaN to
-    /// 0), so every centroid lands in a valid bin.
+    /// The bin on all three axes at once. The position is clamped to `0..=last` in floats
+    /// (`max` maps NaN, from 0 · inf on a tiny extent, to 0), so truncating it is exact: the
+    /// bin a saturating cast and a clamp to `last` would give.
     #[inline(always)]
     fn bins(&self, c: Vec3A) -> UVec3 {
-        ((c - self.origin) * self.scale).as_uvec3().min(self.last)
+        truncate(
+            ((c - self.origin) * self.scale)
+                .max(Vec3A::ZERO)
+                .min(self.top),
+        )
     }
 
     /// Whether `bins(c)[axis] < bin` for a split bin `1 <= bin <= last`, without the cast:
@@ -79,22 +90,47 @@ impl Mapper {
     }
 }
 
-fn bin_prims(ctx: &Ctx, idx: &[u32], map: &Mapper) -> Vec<Bin> {
+/// Bins `refs` into `bins` (three rows of `k`, one per axis).
+/// Truncates three floats in `0..=1024` to integers, four lanes in one instruction.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn truncate(f: Vec3A) -> UVec3 {
+    let lanes: wide::f32x4 = bytemuck::cast(std::arch::x86_64::__m128::from(f));
+    let i = lanes.fast_trunc_int().to_array();
+    UVec3::new(i[0] as u32, i[1] as u32, i[2] as u32)
+}
+
+#[cfg(not(target_arch = "x86_64"))]
+#[inline(always)]
+fn truncate(f: Vec3A) -> UVec3 {
+    f.as_uvec3()
+}
+
+/// Bins `refs` into `bins` (three rows of `k`, one per axis). Returns which bins are
+/// occupied on each axis as bit masks (bin `j` is bit `j`; only meaningful for `k <= 64`).
+fn bin_prims(refs: &[Ref], map: &Mapper, bins: &mut [Bin]) -> [u64; 3] {
     let k = map.last.x as usize + 1;
-    let mut bins = vec![Bin::EMPTY; 3 * k];
     let (x, rest) = bins.split_at_mut(k);
     let (y, z) = rest.split_at_mut(k);
-    for &i in idx {
-        let b = ctx.bounds[i as usize];
-        let at = map.bins(ctx.centroids[i as usize]);
-        for (row, j) in [(&mut *x, at.x), (&mut *y, at.y), (&mut *z, at.z)] {
+    let mut occupied = [0u64; 3];
+    for r in refs {
+        let b = r.bounds();
+        let at = map.bins(r.center());
+        for (a, (row, j)) in [(&mut *x, at.x), (&mut *y, at.y), (&mut *z, at.z)]
+            .into_iter()
+            .enumerate()
+        {
             let bin = &mut row[j as usize];
             bin.bounds = bin.bounds.union(&b);
             bin.count += 1;
+            occupied[a] |= 1 << (j & 63);
         }
     }
-    bins
+    occupied
 }
+
+/// Bins per axis up to which a node's bins live on the stack (the default is 16).
+const STACK_BINS: usize = 16;
 
 /// The cheapest plane: axis, first bin of the right side, and Σ area·count of both sides.
 struct Plane {
@@ -103,32 +139,65 @@ struct Plane {
     weighted: f32,
 }
 
-fn best_plane(bins: &[Bin], k: usize, map: &Mapper) -> Option<Plane> {
+///
+/// Only the planes just right of a non-empty bin are scored: a plane right of an empty bin
+/// splits the primitives exactly as the plane one bin to its left does, so its cost is that
+/// plane's and it could never win (ties go to the first plane). Small nodes, most of whose
+/// bins are empty, are the bulk of a build, and this makes their sweep cost their primitive
+/// count instead of the bin count.
+fn best_plane(bins: &[Bin], occupied: [u64; 3], k: usize, map: &Mapper) -> Option<Plane> {
+    // Zeroing sweep buffers for 1024 bins cost more than the whole sweep of a small node.
+    if k <= STACK_BINS {
+        let (mut cost, mut used) = ([0.0; STACK_BINS], [0; STACK_BINS]);
+        best_plane_in(bins, occupied, k, map, &mut cost, &mut used)
+    } else {
+        best_plane_in(bins, occupied, k, map, &mut vec![0.0; k], &mut vec![0; k])
+    }
+}
+
+/// [`best_plane`] with buffers of at least `k` entries.
+fn best_plane_in(
+    bins: &[Bin],
+    occupied: [u64; 3],
+    k: usize,
+    map: &Mapper,
+    right_cost: &mut [f32],
+    used: &mut [u16],
+) -> Option<Plane> {
     let mut best: Option<Plane> = None;
-    // Bin counts are small (the CLI caps them at 1024), so the sweep fits on the stack.
-    let mut right_cost = [0f32; 1024];
     for axis in 0..3 {
         if map.scale[axis] == 0.0 {
             continue;
         }
         let bins = &bins[axis * k..(axis + 1) * k];
-        let mut acc = Bin::EMPTY;
-        for b in (1..k).rev() {
-            acc = acc.merge(&bins[b]);
-            right_cost[b] = acc.bounds.half_area() * acc.count as f32;
-        }
-        let total = acc.count + bins[0].count;
-        let mut left = Bin::EMPTY;
-        for b in 1..k {
-            left = left.merge(&bins[b - 1]);
-            if left.count == 0 || left.count == total {
-                continue;
+        let mut m = 0;
+        if k <= 64 {
+            let mut bits = occupied[axis];
+            while bits != 0 {
+                used[m] = bits.trailing_zeros() as u16;
+                m += 1;
+                bits &= bits - 1;
             }
-            let w = left.bounds.half_area() * left.count as f32 + right_cost[b];
+        } else {
+            for (b, bin) in bins.iter().enumerate() {
+                used[m] = b as u16;
+                m += (bin.count > 0) as usize;
+            }
+        }
+        let used = &used[..m];
+        let mut acc = Bin::EMPTY;
+        for j in (1..m).rev() {
+            acc = acc.merge(&bins[used[j] as usize]);
+            right_cost[j] = acc.bounds.half_area() * acc.count as f32;
+        }
+        let mut left = Bin::EMPTY;
+        for j in 1..m {
+            left = left.merge(&bins[used[j - 1] as usize]);
+            let w = left.bounds.half_area() * left.count as f32 + right_cost[j];
             if best.as_ref().is_none_or(|p| w < p.weighted) {
                 best = Some(Plane {
                     axis,
-                    bin: b,
+                    bin: used[j - 1] as usize + 1,
                     weighted: w,
                 });
             }
@@ -140,13 +209,13 @@ fn best_plane(bins: &[Bin], k: usize, map: &Mapper) -> Option<Plane> {
 /// Σ surface area of the primitives in each bin, per axis (for the cost models other than the
 /// SAH). Large nodes are summed chunk by chunk in parallel and the chunks' sums added in chunk
 /// order, so the float sums, and the tree, do not depend on the number of threads.
-fn bin_areas(ctx: &Ctx, areas: &[f32], idx: &[u32], map: &Mapper, horizontal: bool) -> Vec<f32> {
+fn bin_areas(areas: &[f32], refs: &[Ref], map: &Mapper, horizontal: bool) -> Vec<f32> {
     let k = map.last.x as usize + 1;
-    let one = |ch: &[u32]| {
+    let one = |ch: &[Ref]| {
         let mut sums = vec![0f32; 3 * k];
-        for &i in ch {
-            let at = map.bins(ctx.centroids[i as usize]);
-            let a = areas[i as usize];
+        for r in ch {
+            let at = map.bins(r.center());
+            let a = areas[r.id() as usize];
             sums[at.x as usize] += a;
             sums[k + at.y as usize] += a;
             sums[2 * k + at.z as usize] += a;
@@ -154,9 +223,9 @@ fn bin_areas(ctx: &Ctx, areas: &[f32], idx: &[u32], map: &Mapper, horizontal: bo
         sums
     };
     if !horizontal {
-        return one(idx);
+        return one(refs);
     }
-    let parts: Vec<Vec<f32>> = idx.par_chunks(CHUNK).map(one).collect();
+    let parts: Vec<Vec<f32>> = refs.par_chunks(CHUNK).map(one).collect();
     parts.into_iter().fold(vec![0f32; 3 * k], |mut acc, p| {
         acc.iter_mut().zip(&p).for_each(|(a, b)| *a += b);
         acc
@@ -166,7 +235,7 @@ fn bin_areas(ctx: &Ctx, areas: &[f32], idx: &[u32], map: &Mapper, horizontal: bo
 /// [`best_plane`] under the configured cost model: the lowest score, with the weighted child
 /// cost the leaf test reads.
 fn best_plane_model(
-    ctx: &Ctx,
+    config: &BuildConfig,
     bins: &[Bin],
     areas: &[f32],
     k: usize,
@@ -198,8 +267,7 @@ fn best_plane_model(
                 count: bin.count as usize,
                 prim_area: a,
             };
-            let (score, weighted) =
-                model_score(ctx.config, parent_area, &side(left), &side(right[b]));
+            let (score, weighted) = model_score(config, parent_area, &side(left), &side(right[b]));
             if best.as_ref().is_none_or(|(s, _)| score < *s) {
                 best = Some((
                     score,
@@ -219,46 +287,77 @@ impl Splitter for Binned {
     fn split(
         &self,
         ctx: &Ctx,
-        idx: &mut [u32],
-        scratch: &mut [u32],
+        refs: &mut [Ref],
+        spare: &mut [Ref],
         node: &Aabb,
         centroids: &Aabb,
     ) -> Option<Partition> {
         let k = ctx.config.bins;
         let map = Mapper::new(centroids, k);
-        let horizontal = idx.len() >= ctx.config.horizontal_threshold;
-        let bins = if horizontal {
-            idx.par_chunks(CHUNK)
-                .map(|ch| bin_prims(ctx, ch, &map))
-                .reduce(
-                    || vec![Bin::EMPTY; 3 * k],
-                    |a, b| a.iter().zip(&b).map(|(x, y)| x.merge(y)).collect(),
-                )
+        let horizontal = refs.len() >= ctx.config.horizontal_threshold;
+        // Large nodes keep each chunk's bins: their counts give every chunk its share of
+        // the partition's output without a counting pass.
+        let mut chunks: Vec<Vec<Bin>> = Vec::new();
+        let mut stack = [Bin::EMPTY; 3 * STACK_BINS];
+        let mut heap: Vec<Bin>;
+        let mut occupied = [0u64; 3];
+        let bins: &[Bin] = if horizontal {
+            let parts: Vec<(Vec<Bin>, [u64; 3])> = refs
+                .par_chunks(CHUNK)
+                .map(|ch| {
+                    let mut b = vec![Bin::EMPTY; 3 * k];
+                    let o = bin_prims(ch, &map, &mut b);
+                    (b, o)
+                })
+                .collect();
+            heap = vec![Bin::EMPTY; 3 * k];
+            for (c, o) in parts {
+                heap.iter_mut().zip(&c).for_each(|(a, b)| *a = a.merge(b));
+                (0..3).for_each(|a| occupied[a] |= o[a]);
+                chunks.push(c);
+            }
+            &heap
+        } else if k <= STACK_BINS {
+            occupied = bin_prims(refs, &map, &mut stack[..3 * k]);
+            &stack[..3 * k]
         } else {
-            bin_prims(ctx, idx, &map)
+            heap = vec![Bin::EMPTY; 3 * k];
+            occupied = bin_prims(refs, &map, &mut heap);
+            &heap
         };
         let plane = match ctx.areas {
-            None => best_plane(&bins, k, &map)?,
+            None => best_plane(bins, occupied, k, &map)?,
             Some(areas) => {
-                let sums = bin_areas(ctx, areas, idx, &map, horizontal);
-                best_plane_model(ctx, &bins, &sums, k, &map, node.half_area())?
+                let sums = bin_areas(areas, refs, &map, horizontal);
+                best_plane_model(ctx.config, bins, &sums, k, &map, node.half_area())?
             }
         };
-        if !take_split(ctx.config, node.half_area(), plane.weighted, idx.len()) {
+        if !take_split(ctx.config, node.half_area(), plane.weighted, refs.len()) {
             return None;
         }
-        let row = &bins[plane.axis * k..(plane.axis + 1) * k];
         let side = |r: &[Bin]| r.iter().fold(Bin::EMPTY, |a, b| a.merge(b));
-        let (l, r) = (side(&row[..plane.bin]), side(&row[plane.bin..]));
+        let (lo, mid, hi) = (
+            plane.axis * k,
+            plane.axis * k + plane.bin,
+            (plane.axis + 1) * k,
+        );
+        let (l, r) = (side(&bins[lo..mid]), side(&bins[mid..hi]));
         let (axis, bin) = (plane.axis, plane.bin as f32);
-        let (nl, cl, cr) = stable_partition(idx, scratch, ctx.centroids, horizontal, |c| {
-            map.left_of(c, axis, bin)
-        });
-        debug_assert_eq!(nl, l.count as usize);
+        let goes_left = |c| map.left_of(c, axis, bin);
+        let (cl, cr) = if horizontal {
+            let counts: Vec<usize> = chunks
+                .iter()
+                .map(|c| c[lo..mid].iter().map(|b| b.count as usize).sum())
+                .collect();
+            par_partition_into(refs, spare, &counts, goes_left)
+        } else {
+            partition_into(refs, spare, l.count as usize, goes_left)
+        };
         Some(Partition {
-            left_len: nl,
+            left_len: l.count as usize,
             left: (l.bounds, cl),
             right: (r.bounds, cr),
+            moved: true,
         })
     }
 }

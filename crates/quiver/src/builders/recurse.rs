@@ -1,12 +1,12 @@
 //! The recursion both builders share: leaf-or-split decision, depth guard, median fallback,
 //! node slots and vertical (task) parallelism. A builder only supplies how to find and apply
-//! the best SAH split of one node.
+//! the best SAH split of one node. Primitives travel as [`Ref`]s (box and index in one
+//! 32-byte record) between two buffers: a split partitions a node's references from one
+//! into the other, so no pass gathers through an index and none copies back.
 
-use super::{
-    bounds_of, median_split, split_beats_leaf, BuildConfig, BuildNode, NodeKind, MEDIAN_DEPTH,
-};
+use super::{split_beats_leaf, widest_axis, BuildConfig, BuildNode, NodeKind, MEDIAN_DEPTH};
 use crate::geometry::Aabb;
-use glam::Vec3A;
+use glam::{Vec3A, Vec4};
 use rayon::prelude::*;
 
 /// Below this many primitives a subtree is built on the current thread: a rayon task costs
@@ -16,12 +16,62 @@ const TASK_CUTOFF: usize = 512;
 /// Chunk size for the horizontal (data-parallel) passes over one node's primitives.
 pub(crate) const CHUNK: usize = 16 * 1024;
 
+/// A primitive as the top-down builders move it: its box, with its index in the input kept
+/// in the otherwise unused fourth lane of the lower corner. Splitting moves these 32-byte
+/// records through two buffers, so binning and partitioning read memory in order instead of
+/// gathering each primitive's box and centroid through an index.
+#[derive(Clone, Copy)]
+#[repr(C)]
+pub(crate) struct Ref {
+    lo: Vec4,
+    hi: Vec4,
+}
+
+impl Ref {
+    pub fn new(b: &Aabb, id: u32) -> Ref {
+        Ref {
+            lo: b.min.extend(f32::from_bits(id)),
+            hi: b.max.extend(0.0),
+        }
+    }
+
+    #[inline(always)]
+    pub fn bounds(&self) -> Aabb {
+        Aabb {
+            min: Vec3A::from_vec4(self.lo),
+            max: Vec3A::from_vec4(self.hi),
+        }
+    }
+
+    /// The box's centre, exactly as [`Aabb::center`] computes it.
+    #[inline(always)]
+    pub fn center(&self) -> Vec3A {
+        (Vec3A::from_vec4(self.lo) + Vec3A::from_vec4(self.hi)) * 0.5
+    }
+
+    /// The primitive's index in the input.
+    #[inline(always)]
+    pub fn id(&self) -> u32 {
+        self.lo.w.to_bits()
+    }
+}
+
+/// Bounds and centroid bounds of a run of references.
+pub(crate) fn refs_bounds(refs: &[Ref]) -> (Aabb, Aabb) {
+    let mut b = Aabb::EMPTY;
+    let mut c = Aabb::EMPTY;
+    for r in refs {
+        b = b.union(&r.bounds());
+        c.grow(r.center());
+    }
+    (b, c)
+}
+
 /// Everything a node's split needs to read.
 pub(crate) struct Ctx<'a> {
     pub config: &'a BuildConfig,
-    pub bounds: &'a [Aabb],
-    pub centroids: &'a [Vec3A],
-    /// Each primitive's surface area, for cost models other than the SAH (`None` for it).
+    /// Each primitive's surface area by input index, for cost models other than the SAH
+    /// (`None` for it).
     pub areas: Option<&'a [f32]>,
 }
 
@@ -32,18 +82,20 @@ pub(crate) struct Partition {
     pub left: (Aabb, Aabb),
     /// Bounds and centroid bounds of the right side.
     pub right: (Aabb, Aabb),
+    /// Whether the partitioned references were written to `spare` (else they are in place).
+    pub moved: bool,
 }
 
 /// How a builder splits one node.
 pub(crate) trait Splitter: Sync {
-    /// Finds the cheapest SAH split of `idx` and, if it beats a leaf (or `idx` is too large
-    /// for a leaf), reorders `idx` (using `scratch` of equal length) and describes the halves.
-    /// Returns `None` when no split separates the primitives or a leaf is cheaper.
+    /// Finds the cheapest SAH split of `refs` and, if it beats a leaf (or `refs` is too large
+    /// for a leaf), partitions them, in place or into `spare` (of equal length), and describes
+    /// the halves. Returns `None` when no split separates the primitives or a leaf is cheaper.
     fn split(
         &self,
         ctx: &Ctx,
-        idx: &mut [u32],
-        scratch: &mut [u32],
+        refs: &mut [Ref],
+        spare: &mut [Ref],
         node: &Aabb,
         centroids: &Aabb,
     ) -> Option<Partition>;
@@ -60,39 +112,41 @@ pub(crate) fn build_tree<S: Splitter>(
     splitter: &S,
     bounds: &[Aabb],
     areas: Option<&[f32]>,
-    mut idx: Vec<u32>,
+    idx: Vec<u32>,
     config: &BuildConfig,
 ) -> (Vec<BuildNode>, Vec<u32>) {
     assert!(
         idx.len() < (u32::MAX / 2) as usize,
         "too many primitives for 32-bit node indices"
     );
-    let centroids: Vec<Vec3A> = bounds.par_iter().map(|b| b.center()).collect();
-    let ctx = Ctx {
-        config,
-        bounds,
-        centroids: &centroids,
-        areas,
-    };
-    let (node, cent) = idx
-        .par_chunks(CHUNK)
-        .map(|ch| bounds_of(bounds, ch))
-        .reduce(
-            || (Aabb::EMPTY, Aabb::EMPTY),
-            |a, b| (a.0.union(&b.0), a.1.union(&b.1)),
-        );
-    let mut scratch = vec![0u32; idx.len()];
+    let ctx = Ctx { config, areas };
+    let mut refs: Vec<Ref> = idx
+        .par_iter()
+        .map(|&i| Ref::new(&bounds[i as usize], i))
+        .collect();
+    let (node, cent) = refs.par_chunks(CHUNK).map(refs_bounds).reduce(
+        || (Aabb::EMPTY, Aabb::EMPTY),
+        |a, b| (a.0.union(&b.0), a.1.union(&b.1)),
+    );
+    let mut spare = refs.clone();
+    let mut order = idx;
     // A subtree over n primitives has at most 2n - 1 nodes. Giving each subtree exactly that
     // many slots fixes every node's position by the input alone, so parallel tasks write
     // disjoint ranges and the result cannot depend on scheduling.
     // Zeroed memory comes from the OS lazily, so the slots a tree never uses cost nothing.
-    let mut slots: Vec<Slot> = bytemuck::zeroed_vec(2 * idx.len() - 1);
+    let mut slots: Vec<Slot> = bytemuck::zeroed_vec(2 * order.len() - 1);
     let job = Job {
         splitter,
         ctx: &ctx,
     };
-    job.node(&mut idx, &mut scratch, &mut slots, 0, 0, node, cent, 0);
-    (compact(&slots), idx)
+    let at = Place {
+        slots: &mut slots,
+        order: &mut order,
+        slot: 0,
+        first: 0,
+    };
+    job.node(&mut refs, &mut spare, at, node, cent, 0);
+    (compact(&slots), order)
 }
 
 /// A node as the recursion writes it into its preallocated position; all zeros is "no node".
@@ -162,77 +216,86 @@ struct Job<'a, S> {
     ctx: &'a Ctx<'a>,
 }
 
+/// Where a subtree's output goes: its node slots and its run of the leaf order.
+struct Place<'a> {
+    slots: &'a mut [Slot],
+    order: &'a mut [u32],
+    /// The subtree root's slot index (the first of `slots`).
+    slot: u32,
+    /// The subtree's first position in the leaf order (the first of `order`).
+    first: u32,
+}
+
 impl<S: Splitter> Job<'_, S> {
-    #[allow(clippy::too_many_arguments)]
+    /// Builds the subtree over `refs` (with `spare` of equal length to partition into).
     fn node(
         &self,
-        idx: &mut [u32],
-        scratch: &mut [u32],
-        slots: &mut [Slot],
-        slot: u32,
-        first: u32,
+        refs: &mut [Ref],
+        spare: &mut [Ref],
+        at: Place,
         bounds: Aabb,
         centroids: Aabb,
         depth: usize,
     ) {
-        let n = idx.len();
+        let n = refs.len();
         let config = self.ctx.config;
         let split = if n == 1 {
             None
         } else if depth < MEDIAN_DEPTH {
             self.splitter
-                .split(self.ctx, idx, scratch, &bounds, &centroids)
+                .split(self.ctx, refs, spare, &bounds, &centroids)
         } else {
             None
         };
         let split = match split {
             Some(s) => s,
             None if n <= config.max_leaf_size => {
-                slots[0] = Slot::new(&bounds, Slot::LEAF, first, n as u32);
+                at.slots[0] = Slot::new(&bounds, Slot::LEAF, at.first, n as u32);
+                for (o, r) in at.order.iter_mut().zip(refs.iter()) {
+                    *o = r.id();
+                }
                 return;
             }
             None => {
-                let nl = median_split(self.ctx.bounds, idx, &centroids);
+                let nl = median_split(refs, &centroids);
                 Partition {
                     left_len: nl,
-                    left: bounds_of(self.ctx.bounds, &idx[..nl]),
-                    right: bounds_of(self.ctx.bounds, &idx[nl..]),
+                    left: refs_bounds(&refs[..nl]),
+                    right: refs_bounds(&refs[nl..]),
+                    moved: false,
                 }
             }
         };
         let nl = split.left_len;
         debug_assert!(nl > 0 && nl < n);
-        let left_slot = slot + 1;
-        let right_slot = slot + 2 * nl as u32;
-        slots[0] = Slot::new(&bounds, Slot::INNER, left_slot, right_slot);
-        let (l_idx, r_idx) = idx.split_at_mut(nl);
-        let (l_scr, r_scr) = scratch.split_at_mut(nl);
-        let (l_slots, r_slots) = slots[1..].split_at_mut(2 * nl - 1);
-        let mut left = || {
-            self.node(
-                l_idx,
-                l_scr,
-                l_slots,
-                left_slot,
-                first,
-                split.left.0,
-                split.left.1,
-                depth + 1,
-            )
+        let left_slot = at.slot + 1;
+        let right_slot = at.slot + 2 * nl as u32;
+        at.slots[0] = Slot::new(&bounds, Slot::INNER, left_slot, right_slot);
+        let (data, other) = if split.moved {
+            (spare, refs)
+        } else {
+            (refs, spare)
         };
-        let mut right = || {
-            let rfirst = first + nl as u32;
-            self.node(
-                r_idx,
-                r_scr,
-                r_slots,
-                right_slot,
-                rfirst,
-                split.right.0,
-                split.right.1,
-                depth + 1,
-            )
+        let (l_refs, r_refs) = data.split_at_mut(nl);
+        let (l_other, r_other) = other.split_at_mut(nl);
+        let (l_slots, r_slots) = at.slots[1..].split_at_mut(2 * nl - 1);
+        let (l_order, r_order) = at.order.split_at_mut(nl);
+        let left = Place {
+            slots: l_slots,
+            order: l_order,
+            slot: left_slot,
+            first: at.first,
         };
+        let right = Place {
+            slots: r_slots,
+            order: r_order,
+            slot: right_slot,
+            first: at.first + nl as u32,
+        };
+        let (lb, rb) = (split.left, split.right);
+        let depth = depth + 1;
+        let left = || self.node(l_refs, l_other, left, lb.0, lb.1, depth);
+        let right = || self.node(r_refs, r_other, right, rb.0, rb.1, depth);
         if n >= TASK_CUTOFF {
             rayon::join(left, right);
         } else {
@@ -242,87 +305,91 @@ impl<S: Splitter> Job<'_, S> {
     }
 }
 
-/// Stable partition of `idx` by `goes_left` (called with each primitive's centroid), through
-/// `scratch`; returns the left count and the centroid bounds of both sides. Large inputs are
-/// partitioned by all threads: each chunk counts its left elements, a prefix sum gives every
-/// chunk its output ranges, and chunks scatter in parallel. Being stable, and the box
-/// reductions exact, the result is the same for any number of threads.
-pub(crate) fn stable_partition<F>(
-    idx: &mut [u32],
-    scratch: &mut [u32],
-    centroids: &[Vec3A],
-    parallel: bool,
+/// Splits `refs` at the median along the widest centroid axis (ties broken by input index, so
+/// the result is a function of the input alone). Returns the size of the left half.
+fn median_split(refs: &mut [Ref], centroid_bounds: &Aabb) -> usize {
+    sort_on(refs, widest_axis(centroid_bounds.extent()));
+    refs.len() / 2
+}
+
+/// Sorts by centroid on `axis`, ties by input index (so the order is a function of the input).
+pub(crate) fn sort_on(refs: &mut [Ref], axis: usize) {
+    refs.sort_unstable_by(|a, b| {
+        let (ca, cb) = (a.center()[axis], b.center()[axis]);
+        ca.total_cmp(&cb).then(a.id().cmp(&b.id()))
+    });
+}
+
+/// Stable partition of `src` into `dst` by `goes_left` (called with each centroid), given
+/// how many go left: those fill `dst[..n_left]`, the rest `dst[n_left..]`, each side in its
+/// order in `src`. Returns the centroid bounds of both sides.
+pub(crate) fn partition_into<F>(
+    src: &[Ref],
+    dst: &mut [Ref],
+    n_left: usize,
     goes_left: F,
-) -> (usize, Aabb, Aabb)
+) -> (Aabb, Aabb)
+where
+    F: Fn(Vec3A) -> bool,
+{
+    let (l, r) = dst.split_at_mut(n_left);
+    scatter(src, l, r, &goes_left)
+}
+
+/// [`partition_into`] by all threads, given how many of each [`CHUNK`] of `src` go left:
+/// every chunk writes its own ranges of both sides, so the output is the serial one.
+pub(crate) fn par_partition_into<F>(
+    src: &[Ref],
+    dst: &mut [Ref],
+    chunk_left: &[usize],
+    goes_left: F,
+) -> (Aabb, Aabb)
 where
     F: Fn(Vec3A) -> bool + Sync,
 {
-    let left_of = |i: u32| goes_left(centroids[i as usize]);
-    let scatter = |src: &[u32], l: &mut [u32], r: &mut [u32]| {
-        let (mut a, mut b) = (0, 0);
-        let (mut cl, mut cr) = (Aabb::EMPTY, Aabb::EMPTY);
-        for &i in src {
-            let c = centroids[i as usize];
-            if goes_left(c) {
-                l[a] = i;
-                a += 1;
-                cl.grow(c);
-            } else {
-                r[b] = i;
-                b += 1;
-                cr.grow(c);
-            }
-        }
-        (cl, cr)
-    };
-    if parallel {
-        let counts: Vec<usize> = idx
-            .par_chunks(CHUNK)
-            .map(|ch| ch.iter().filter(|&&i| left_of(i)).count())
-            .collect();
-        let n_left: usize = counts.iter().sum();
-        let (mut ls, mut rs) = scratch.split_at_mut(n_left);
-        let mut parts = Vec::with_capacity(counts.len());
-        for (ch, &c) in idx.chunks(CHUNK).zip(&counts) {
-            let (l, lrest) = std::mem::take(&mut ls).split_at_mut(c);
-            let (r, rrest) = std::mem::take(&mut rs).split_at_mut(ch.len() - c);
-            ls = lrest;
-            rs = rrest;
-            parts.push((ch, l, r));
-        }
-        let (cl, cr) = parts
-            .into_par_iter()
-            .map(|(ch, l, r)| scatter(ch, l, r))
-            .reduce(
-                || (Aabb::EMPTY, Aabb::EMPTY),
-                |a, b| (a.0.union(&b.0), a.1.union(&b.1)),
-            );
-        idx.par_chunks_mut(CHUNK)
-            .zip(scratch.par_chunks(CHUNK))
-            .for_each(|(d, s)| d.copy_from_slice(s));
-        (n_left, cl, cr)
-    } else {
-        // One pass: left elements fill `scratch` from the front, right ones from the back
-        // (so the right side comes out reversed and is turned around on the way back).
-        let n = idx.len();
-        let (mut a, mut b) = (0, n);
-        let (mut cl, mut cr) = (Aabb::EMPTY, Aabb::EMPTY);
-        for &i in idx.iter() {
-            let c = centroids[i as usize];
-            if goes_left(c) {
-                scratch[a] = i;
-                a += 1;
-                cl.grow(c);
-            } else {
-                b -= 1;
-                scratch[b] = i;
-                cr.grow(c);
-            }
-        }
-        idx[..a].copy_from_slice(&scratch[..a]);
-        for (d, s) in idx[a..].iter_mut().zip(scratch[a..].iter().rev()) {
-            *d = *s;
-        }
-        (a, cl, cr)
+    let n_left: usize = chunk_left.iter().sum();
+    let (mut ls, mut rs) = dst.split_at_mut(n_left);
+    let mut parts = Vec::with_capacity(chunk_left.len());
+    for (ch, &c) in src.chunks(CHUNK).zip(chunk_left) {
+        let (l, lrest) = std::mem::take(&mut ls).split_at_mut(c);
+        let (r, rrest) = std::mem::take(&mut rs).split_at_mut(ch.len() - c);
+        ls = lrest;
+        rs = rrest;
+        parts.push((ch, l, r));
     }
+    parts
+        .into_par_iter()
+        .map(|(ch, l, r)| scatter(ch, l, r, &goes_left))
+        .reduce(
+            || (Aabb::EMPTY, Aabb::EMPTY),
+            |a, b| (a.0.union(&b.0), a.1.union(&b.1)),
+        )
+}
+
+/// Writes the references of `src` that go left to `l`, the others to `r`, in order; the
+/// lengths of `l` and `r` are the counts (a mismatch panics on the index).
+fn scatter<F>(src: &[Ref], l: &mut [Ref], r: &mut [Ref], goes_left: &F) -> (Aabb, Aabb)
+where
+    F: Fn(Vec3A) -> bool,
+{
+    let (mut a, mut b) = (0, 0);
+    let (mut cl, mut cr) = (Aabb::EMPTY, Aabb::EMPTY);
+    for x in src {
+        let c = x.center();
+        if goes_left(c) {
+            l[a] = *x;
+            a += 1;
+            cl.grow(c);
+        } else {
+            r[b] = *x;
+            b += 1;
+            cr.grow(c);
+        }
+    }
+    debug_assert_eq!(
+        (a, b),
+        (l.len(), r.len()),
+        "the counts must match the partition"
+    );
+    (cl, cr)
 }

@@ -2,8 +2,8 @@
 //! two distinct centroids is evaluated exactly. O(n log² n) overall; the quality reference the
 //! binned builder is measured against.
 
-use super::recurse::{build_tree, take_split, Ctx, Partition, Splitter};
-use super::{bounds_of, model_score, BuildConfig, BuildNode, Side};
+use super::recurse::{build_tree, refs_bounds, sort_on, take_split, Ctx, Partition, Ref, Splitter};
+use super::{model_score, BuildConfig, BuildNode, Side};
 use crate::geometry::Aabb;
 
 pub(super) fn build(
@@ -21,12 +21,12 @@ impl Splitter for Sweep {
     fn split(
         &self,
         ctx: &Ctx,
-        idx: &mut [u32],
-        scratch: &mut [u32],
+        refs: &mut [Ref],
+        scratch: &mut [Ref],
         node: &Aabb,
         _: &Aabb,
     ) -> Option<Partition> {
-        let n = idx.len();
+        let n = refs.len();
         let mut right_area = vec![0f32; n];
         // The cost models other than the SAH also need each right side's box and primitive
         // area on their own.
@@ -34,28 +34,28 @@ impl Splitter for Sweep {
         // (score, axis, left count, weighted cost for the leaf test)
         let mut best: Option<(f32, usize, usize, f32)> = None;
         for axis in 0..3 {
-            let key = |i: u32| ctx.centroids[i as usize][axis];
-            scratch.copy_from_slice(idx);
-            scratch.sort_unstable_by(|&a, &b| key(a).total_cmp(&key(b)).then(a.cmp(&b)));
+            scratch.copy_from_slice(refs);
+            sort_on(scratch, axis);
+            let key = |j: usize| scratch[j].center()[axis];
             let mut acc = Aabb::EMPTY;
             let mut acc_area = 0f32;
             for j in (1..n).rev() {
-                acc = acc.union(&ctx.bounds[scratch[j] as usize]);
+                acc = acc.union(&scratch[j].bounds());
                 right_area[j] = acc.half_area() * (n - j) as f32;
                 if let Some(areas) = ctx.areas {
-                    acc_area += areas[scratch[j] as usize];
+                    acc_area += areas[scratch[j].id() as usize];
                     right_side[j] = (acc.half_area(), acc_area);
                 }
             }
             let mut left = Aabb::EMPTY;
             let mut left_area = 0f32;
             for j in 1..n {
-                left = left.union(&ctx.bounds[scratch[j - 1] as usize]);
+                left = left.union(&scratch[j - 1].bounds());
                 if let Some(areas) = ctx.areas {
-                    left_area += areas[scratch[j - 1] as usize];
+                    left_area += areas[scratch[j - 1].id() as usize];
                 }
                 // Only a plane between two distinct centroids is a real split.
-                if key(scratch[j - 1]) == key(scratch[j]) {
+                if key(j - 1) == key(j) {
                     continue;
                 }
                 let (score, w) = if ctx.areas.is_some() {
@@ -83,12 +83,12 @@ impl Splitter for Sweep {
         if !take_split(ctx.config, node.half_area(), weighted, n) {
             return None;
         }
-        let key = |i: u32| ctx.centroids[i as usize][axis];
-        idx.sort_unstable_by(|&a, &b| key(a).total_cmp(&key(b)).then(a.cmp(&b)));
+        sort_on(refs, axis);
         Some(Partition {
             left_len: nl,
-            left: bounds_of(ctx.bounds, &idx[..nl]),
-            right: bounds_of(ctx.bounds, &idx[nl..]),
+            left: refs_bounds(&refs[..nl]),
+            right: refs_bounds(&refs[nl..]),
+            moved: false,
         })
     }
 }

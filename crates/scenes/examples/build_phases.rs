@@ -1,0 +1,87 @@
+//! Where a default build's time goes, phase by phase, on any scene `quiver` can load:
+//! `cargo run --release -p quiver-scenes --example build_phases -- meshes/dragon_vrip.ply.gz`.
+//! Prints the median of 5 runs of each phase at 1 and 2 threads: primitive bounds, the binary
+//! tree (binned SAH), the layout (collapse, nodes, leaf groups, primitive copy) and the whole
+//! `Bvh::new` for comparison.
+
+use quiver::builders::{build, prim_bounds, BuildConfig, Builder};
+use quiver::{BuildOptions, Bvh};
+use std::time::Instant;
+
+fn ms<R>(f: impl FnOnce() -> R) -> (R, f64) {
+    let t = Instant::now();
+    let r = f();
+    (r, t.elapsed().as_secs_f64() * 1e3)
+}
+
+/// A fingerprint of the tree (every node's box bits and links, the leaf order), to see that
+/// a change to the builder left the tree as it was and that thread counts agree.
+fn fingerprint(tree: &quiver::builders::BuildTree) -> u64 {
+    use std::hash::{Hash, Hasher};
+    let mut h = std::collections::hash_map::DefaultHasher::new();
+    for n in &tree.nodes {
+        for v in n
+            .bounds
+            .min
+            .to_array()
+            .iter()
+            .chain(&n.bounds.max.to_array())
+        {
+            v.to_bits().hash(&mut h);
+        }
+        format!("{:?}", n.kind).hash(&mut h);
+    }
+    tree.prim_indices.hash(&mut h);
+    h.finish()
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+fn main() {
+    let spec = std::env::args().nth(1).unwrap_or_else(|| "tetra9".into());
+    let scene = quiver_scenes::Scene::load(&spec).unwrap_or_else(|e| panic!("{spec}: {e}"));
+    let tris = scene.triangles();
+    println!("{spec}: {} triangles", tris.len());
+    for threads in [1, 2] {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        let options = BuildOptions::default().thread_pool(&pool);
+        let config = BuildConfig::default();
+        let builder: Builder =
+            std::env::var("BUILDER").map_or(Builder::Binned, |b| b.parse().unwrap());
+        let tree = pool.install(|| build(&prim_bounds(&tris), &config, builder));
+        println!(
+            "threads {threads}: tree {:016x}, SAH {:.3}",
+            fingerprint(&tree),
+            tree.sah_cost(&config)
+        );
+        let (mut b, mut t, mut l, mut all) = (vec![], vec![], vec![], vec![]);
+        let reps: usize = std::env::var("REPS").map_or(5, |r| r.parse().unwrap());
+        for _ in 0..reps {
+            pool.install(|| {
+                let (bounds, mb) = ms(|| prim_bounds(&tris));
+                let (tree, mt) = ms(|| build(&bounds, &config, Builder::Binned));
+                let (bvh, ml) = ms(|| Bvh::from_tree(&tree, &tris, &options).unwrap());
+                drop(bvh);
+                let (bvh, ma) = ms(|| Bvh::new(&tris));
+                drop(bvh);
+                b.push(mb);
+                t.push(mt);
+                l.push(ml);
+                all.push(ma);
+            });
+        }
+        println!(
+            "threads {threads}: bounds {:.1} ms, tree {:.1} ms, layout {:.1} ms, Bvh::new {:.1} ms",
+            median(b),
+            median(t),
+            median(l),
+            median(all)
+        );
+    }
+}
