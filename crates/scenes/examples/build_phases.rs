@@ -60,6 +60,16 @@ fn main() {
             fingerprint(&tree),
             tree.sah_cost(&config)
         );
+        let bvh8 = pool.install(|| {
+            quiver::Bvh8::from_tree(&tree, &tris, &config, quiver::Isa::detect()).unwrap()
+        });
+        let mut h = std::collections::hash_map::DefaultHasher::new();
+        std::hash::Hash::hash(bvh8.node_bytes(), &mut h);
+        std::hash::Hash::hash(quiver::bytemuck::cast_slice::<_, u8>(bvh8.groups()), &mut h);
+        println!(
+            "threads {threads}: bvh8 {:016x}",
+            std::hash::Hasher::finish(&h)
+        );
         let (mut b, mut t, mut l, mut all) = (vec![], vec![], vec![], vec![]);
         let reps: usize = std::env::var("REPS").map_or(5, |r| r.parse().unwrap());
         for _ in 0..reps {

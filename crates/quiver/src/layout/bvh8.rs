@@ -10,6 +10,7 @@ use crate::geometry::Triangle;
 use crate::isa::{Isa, Kernels};
 use crate::primitive::{LeafFormat, Primitive};
 use bytemuck::{Pod, Zeroable};
+use rayon::prelude::*;
 
 /// An 8-wide node with exact boxes: 256 bytes (four cache lines), 64-byte aligned.
 ///
@@ -134,7 +135,7 @@ impl<P: Primitive> Bvh8<P> {
         let max_leaf = config.max_leaf_size.min((Bvh8Node::LEAF - 1) as usize);
         let mut wide = collapse_sah::<8>(tree, max_leaf, config.traversal_cost, leaf_cost);
         let groups = tri4::pack_leaves(&mut wide, &prims, &tree.prim_indices);
-        let nodes = wide.iter().map(Bvh8Node::encode).collect();
+        let nodes = wide.par_iter().map(Bvh8Node::encode).collect();
         Bvh8 {
             nodes,
             prims,

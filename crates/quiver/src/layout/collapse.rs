@@ -155,7 +155,7 @@ pub(crate) fn collapse_sah<const W: usize>(
     tree: &BuildTree,
     max_leaf: usize,
     traversal_cost: f32,
-    leaf_cost: impl Fn(u32) -> f32,
+    leaf_cost: impl Fn(u32) -> f32 + Sync,
 ) -> Vec<Wide<W>> {
     let n = tree.nodes.len();
     let root = &tree.nodes[0];
@@ -163,29 +163,116 @@ pub(crate) fn collapse_sah<const W: usize>(
         return collapse::<W>(tree);
     }
     // A leaf the build made always fits, whatever `max_leaf` says.
-    let max_leaf = max_leaf.max(tree.stats().max_leaf) as u32;
-    let mut range = vec![(0u32, 0u32); n];
-    let mut cost = vec![[0.0f32; W]; n];
-    let mut choice = vec![[Choice::Fewer; W]; n];
-    let mut open_k = vec![0u8; n];
-    // Children come after their parent in preorder: backwards, each node sees its children done.
-    for i in (0..n).rev() {
-        let node = &tree.nodes[i];
+    let built_max = tree.nodes.iter().map(|n| match n.kind {
+        NodeKind::Leaf { count, .. } => count as usize,
+        NodeKind::Inner { .. } => 0,
+    });
+    let max_leaf = max_leaf.max(built_max.max().unwrap_or(0)) as u32;
+    let costs = Costs {
+        tree,
+        max_leaf,
+        traversal_cost,
+        leaf_cost,
+    };
+    let mut dp = vec![Dp::<W>::UNSET; n];
+    costs.subtree(0, &mut dp);
+    let plan = Plan { tree, dp: &dp };
+    let mut out = Vec::with_capacity(n / (W - 1) + 1);
+    plan.emit(0, &mut out);
+    out
+}
+
+/// Below this many binary nodes a subtree's costs are computed on one thread.
+const PAR_NODES: usize = 8192;
+
+/// The dynamic programme's answer for one binary node.
+#[derive(Clone, Copy)]
+struct Dp<const W: usize> {
+    /// Cheapest cost with at most `i + 1` slots, and how it is reached.
+    cost: [f32; W],
+    choice: [Choice; W],
+    /// Should the node become a wide node, the slots its left subtree gets.
+    open_k: u8,
+    /// The node's primitives: first and count in leaf order.
+    range: (u32, u32),
+    /// Binary leaves in the subtree.
+    leaves: u32,
+}
+
+impl<const W: usize> Dp<W> {
+    const UNSET: Self = Dp {
+        cost: [0.0; W],
+        choice: [Choice::Fewer; W],
+        open_k: 0,
+        range: (0, 0),
+        leaves: 1,
+    };
+}
+
+/// What the programme weighs.
+struct Costs<'a, F> {
+    tree: &'a BuildTree,
+    max_leaf: u32,
+    traversal_cost: f32,
+    leaf_cost: F,
+}
+
+impl<F: Fn(u32) -> f32 + Sync> Costs<'_, F> {
+    /// Fills `dp` (one entry per node of the subtree rooted at `i0`, which in preorder are
+    /// the nodes `i0..i0 + dp.len()`), splitting large subtrees between threads: a
+    /// subtree's nodes are one contiguous run, its left child's right after it.
+    fn subtree<const W: usize>(&self, i0: usize, dp: &mut [Dp<W>]) {
+        if dp.len() < PAR_NODES {
+            // Children come after their parent in preorder: backwards, each node sees its
+            // children done.
+            for i in (0..dp.len()).rev() {
+                dp[i] = self.node(i0 + i, |c| &dp[c - i0]);
+            }
+            return;
+        }
+        let NodeKind::Inner { left, right } = self.tree.nodes[i0].kind else {
+            unreachable!("a subtree of many nodes has an inner root")
+        };
+        let (left, right) = (left as usize, right as usize);
+        debug_assert_eq!(left, i0 + 1, "preorder: the left child follows its parent");
+        let (me, kids) = dp.split_at_mut(1);
+        let (l, r) = kids.split_at_mut(right - left);
+        rayon::join(|| self.subtree(left, l), || self.subtree(right, r));
+        me[0] = self.node(i0, |c| if c == left { &l[0] } else { &r[0] });
+    }
+
+    /// Node `i`'s entry from its children's (`done(child)`).
+    fn node<'d, const W: usize>(&self, i: usize, done: impl Fn(usize) -> &'d Dp<W>) -> Dp<W> {
+        let node = &self.tree.nodes[i];
         let area = node.bounds.half_area();
+        let mut out = Dp::UNSET;
         let (split, split_k) = match node.kind {
             NodeKind::Leaf { first, count } => {
-                range[i] = (first, count);
+                out.range = (first, count);
                 ([f32::INFINITY; W], [0u8; W])
             }
             NodeKind::Inner { left, right } => {
-                let (l, r) = (left as usize, right as usize);
-                debug_assert_eq!(range[r].0, range[l].0 + range[l].1, "contiguous leaves");
-                range[i] = (range[l].0, range[l].1 + range[r].1);
+                let (l, r) = (done(left as usize), done(right as usize));
+                debug_assert_eq!(r.range.0, l.range.0 + l.range.1, "contiguous leaves");
+                out.range = (l.range.0, l.range.1 + r.range.1);
+                out.leaves = l.leaves + r.leaves;
                 let mut split = [f32::INFINITY; W];
                 let mut split_k = [0u8; W];
-                for j in 2..=W {
+                // A subtree of L binary leaves fills at most L slots: with more, its children's
+                // costs stay at their last value, every budget past L keeps L's cost (the
+                // `Fewer` below) and only the full budget's split matters (the wide node's
+                // cost and how it shares its slots out). Costs never rise with the budget,
+                // so the sums past L cannot beat L's; the full loop stays for NaN costs,
+                // where that order does not hold.
+                let finite = |d: &Dp<W>| !d.cost.iter().any(|c| c.is_nan());
+                let top = if finite(l) && finite(r) {
+                    (out.leaves as usize).min(W)
+                } else {
+                    W
+                };
+                for j in (2..=top).chain((top < W).then_some(W)) {
                     for k in 1..j {
-                        let c = cost[l][k - 1] + cost[r][j - k - 1];
+                        let c = l.cost[k - 1] + r.cost[j - k - 1];
                         // The first candidate always counts, so a split is chosen even when
                         // every cost is infinite or NaN (boxes out at f32's range).
                         if k == 1 || c < split[j - 1] {
@@ -196,61 +283,56 @@ pub(crate) fn collapse_sah<const W: usize>(
                 (split, split_k)
             }
         };
-        let count = range[i].1;
-        let leaf = if count <= max_leaf {
-            area * leaf_cost(count)
+        let count = out.range.1;
+        let leaf = if count <= self.max_leaf {
+            area * (self.leaf_cost)(count)
         } else {
             f32::INFINITY
         };
-        let wide = traversal_cost * area + split[W - 1];
+        let wide = self.traversal_cost * area + split[W - 1];
         let inner = matches!(node.kind, NodeKind::Inner { .. });
         // A leaf only within `max_leaf` (infinite costs must not tie a big node into one).
         let leaf_wins = wide.partial_cmp(&leaf) != Some(std::cmp::Ordering::Less);
-        (cost[i][0], choice[i][0]) = if !inner || (count <= max_leaf && leaf_wins) {
+        (out.cost[0], out.choice[0]) = if !inner || (count <= self.max_leaf && leaf_wins) {
             (leaf, Choice::Leaf)
         } else {
             (wide, Choice::Wide)
         };
         for j in 2..=W {
-            (cost[i][j - 1], choice[i][j - 1]) = if !inner || cost[i][j - 2] <= split[j - 1] {
-                (cost[i][j - 2], Choice::Fewer)
+            (out.cost[j - 1], out.choice[j - 1]) = if !inner || out.cost[j - 2] <= split[j - 1] {
+                (out.cost[j - 2], Choice::Fewer)
             } else {
                 (split[j - 1], Choice::Split(split_k[j - 1]))
             };
         }
-        // Should the node become a wide node, how its W slots go to its two children.
-        open_k[i] = split_k[W - 1];
+        out.open_k = split_k[W - 1];
+        out
     }
-    let plan = Plan {
-        tree,
-        choice: &choice,
-        open_k: &open_k,
-        range: &range,
-    };
-    let mut out = Vec::with_capacity(n / (W - 1) + 1);
-    plan.emit(0, &mut out);
-    out
 }
 
 /// The collapse's decisions, and what the nodes cover.
 struct Plan<'a, const W: usize> {
     tree: &'a BuildTree,
-    choice: &'a [[Choice; W]],
-    /// For an inner node made a wide node: the slots its left subtree gets.
-    open_k: &'a [u8],
-    range: &'a [(u32, u32)],
+    dp: &'a [Dp<W>],
 }
 
 /// A slot of a wide node: a binary node that becomes a leaf or a wide node.
+#[derive(Clone, Copy)]
 enum Slot {
     Leaf(usize),
     Wide(usize),
 }
 
+/// The slots of one wide node (at most `W`).
+struct Slots<const W: usize> {
+    slots: [Slot; W],
+    len: usize,
+}
+
 impl<const W: usize> Plan<'_, W> {
     /// The slots binary node `n` fills with a budget of `i`.
-    fn slots(&self, n: usize, i: usize, out: &mut Vec<Slot>) {
-        match self.choice[n][i - 1] {
+    fn slots(&self, n: usize, i: usize, out: &mut Slots<W>) {
+        match self.dp[n].choice[i - 1] {
             Choice::Leaf => out.push(Slot::Leaf(n)),
             Choice::Wide => out.push(Slot::Wide(n)),
             Choice::Fewer => self.slots(n, i - 1, out),
@@ -273,15 +355,18 @@ impl<const W: usize> Plan<'_, W> {
             unreachable!("wide nodes come from inner nodes")
         };
         // The node's own W slots, as its best split shared them out.
-        let k = self.open_k[n] as usize;
+        let k = self.dp[n].open_k as usize;
         debug_assert!((1..W).contains(&k));
-        let mut slots = Vec::with_capacity(W);
+        let mut slots = Slots {
+            slots: [Slot::Leaf(0); W],
+            len: 0,
+        };
         self.slots(left as usize, k, &mut slots);
         self.slots(right as usize, W - k, &mut slots);
-        for (slot, s) in slots.into_iter().enumerate() {
+        for (slot, &s) in slots.slots[..slots.len].iter().enumerate() {
             let (b, kid) = match s {
                 Slot::Leaf(c) => {
-                    let (first, count) = self.range[c];
+                    let (first, count) = self.dp[c].range;
                     (c, Child::Leaf { first, count })
                 }
                 Slot::Wide(c) => (c, Child::Inner(self.emit(c, out))),
@@ -290,6 +375,13 @@ impl<const W: usize> Plan<'_, W> {
             out[me as usize].kids[slot] = kid;
         }
         me
+    }
+}
+
+impl<const W: usize> Slots<W> {
+    fn push(&mut self, s: Slot) {
+        self.slots[self.len] = s;
+        self.len += 1;
     }
 }
 

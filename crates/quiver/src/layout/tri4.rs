@@ -34,10 +34,11 @@ pub(crate) fn groups(count: u32) -> u32 {
     count.div_ceil(4)
 }
 
-/// Appends the groups of one leaf (`prims` and their input `ids`) in `format` to `out`.
-fn pack<P: Primitive>(prims: &[P], ids: &[u32], format: LeafFormat, out: &mut Vec<Tri4>) {
-    for (chunk, chunk_ids) in prims.chunks(4).zip(ids.chunks(4)) {
-        let mut g = Tri4 {
+/// Writes the groups of one leaf (`prims` and their input `ids`) in `format` to `out`, which
+/// holds exactly `groups(prims.len())` of them.
+fn pack<P: Primitive>(prims: &[P], ids: &[u32], format: LeafFormat, out: &mut [Tri4]) {
+    for ((chunk, chunk_ids), g) in prims.chunks(4).zip(ids.chunks(4)).zip(out) {
+        *g = Tri4 {
             rows: [[[f32::NAN; 4]; 3]; 4],
             id: [u32::MAX; 4],
         };
@@ -60,38 +61,46 @@ fn pack<P: Primitive>(prims: &[P], ids: &[u32], format: LeafFormat, out: &mut Ve
                 }
             }
         }
-        out.push(g);
     }
 }
 
 /// For primitive types with a triangle [`LeafFormat`]: packs every leaf of the collapsed tree
 /// into groups and points the leaf at its first group instead of its first primitive. Plain
-/// formats keep their leaves and get no groups.
+/// formats keep their leaves and get no groups. The groups are numbered in one pass over the
+/// nodes, then filled by all threads, each leaf into its own range.
 pub(crate) fn pack_leaves<P: Primitive, const W: usize>(
     wide: &mut [Wide<W>],
     prims: &[P],
     ids: &[u32],
 ) -> Vec<Tri4> {
-    let mut groups = Vec::new();
+    use rayon::prelude::*;
     if P::LEAF_FORMAT == LeafFormat::Plain {
-        return groups;
+        return Vec::new();
     }
+    // (first primitive, count) of each leaf, in the order its groups are stored.
+    let mut leaves = Vec::new();
+    let mut total = 0u32;
     for w in wide {
         for k in &mut w.kids {
             if let Child::Leaf { first, count } = k {
-                let range = *first as usize..(*first + *count) as usize;
-                let at = groups.len() as u32;
-                pack(
-                    &prims[range.clone()],
-                    &ids[range],
-                    P::LEAF_FORMAT,
-                    &mut groups,
-                );
-                *first = at;
+                leaves.push((*first as usize, *count as usize));
+                *first = total;
+                total += groups(*count);
             }
         }
     }
-    groups
+    let mut out: Vec<Tri4> = bytemuck::zeroed_vec(total as usize);
+    let mut rest = &mut out[..];
+    let mut jobs = Vec::with_capacity(leaves.len());
+    for (first, count) in leaves {
+        let (mine, tail) = std::mem::take(&mut rest).split_at_mut(groups(count as u32) as usize);
+        rest = tail;
+        jobs.push((first..first + count, mine));
+    }
+    jobs.into_par_iter()
+        .with_min_len(256)
+        .for_each(|(range, mine)| pack(&prims[range.clone()], &ids[range], P::LEAF_FORMAT, mine));
+    out
 }
 
 impl Tri4 {
