@@ -1,0 +1,624 @@
+//! Refitting a laid-out BVH in place: the same tree and node order over primitives that moved.
+//!
+//! The primitives come from a [`Source`] by their input index. Every layout refreshes its
+//! leaf-order copy of the primitives, repacks its SIMD triangle groups ([`Tri4`]) lane by lane
+//! (each lane names its input index), and recomputes every box bottom-up: a leaf's box is the
+//! union of its primitives' boxes, an inner node's the union of its children's, exactly as a
+//! fresh layout of the build tree over the new primitives computes them (unions are exact, so
+//! the grouping does not matter). Quantized nodes are encoded again from the exact boxes.
+//! Nothing is allocated beyond a few task records.
+//!
+//! Depth-first layouts (`bvh2-dfs`, `bvh4-dfs`, `bvh4-quant`, `bvh8-dfs`) keep every subtree
+//! in one contiguous run of the node array, and its SIMD groups in one run of the group
+//! array: the arrays split into disjoint slices per subtree, and subtrees are refit as
+//! parallel tasks (safe code, `split_at_mut`). The other mappings scatter a subtree, so their
+//! leaves are refit in parallel and their inner nodes by one bottom-up walk.
+
+use super::bvh2::{compact_children, Addressing, Bvh2, Bvh2Mapping, Bvh2Node};
+use super::bvh4::{Bvh4, Bvh4Mapping, Bvh4Node, Node4};
+use super::bvh8::{Bvh8, Bvh8Node};
+use super::collapse::{Child, Wide};
+use super::tri4::{groups as group_count, Tri4};
+use crate::geometry::{Aabb, Triangle};
+use crate::primitive::{LeafFormat, Primitive};
+use glam::Vec3A;
+use rayon::prelude::*;
+
+/// Where a refit takes its new primitives: by input index, in the layout's own frame.
+pub(crate) trait Source<P>: Sync {
+    /// Primitive `id` of the new input.
+    fn get(&self, id: u32) -> P;
+
+    /// Brings `p`, the layout's copy of primitive `id`, up to date.
+    #[inline]
+    fn refresh(&self, id: u32, p: &mut P) {
+        *p = self.get(id);
+    }
+}
+
+/// A subtree of at most this many nodes is refit by one task, without further splitting.
+const TASK_NODES: usize = 64;
+
+/// Primitives per task when the leaf-order copy is refreshed.
+const TASK_PRIMS: usize = 4096;
+
+/// Refreshes the leaf-order copy: `prims[k]` is input primitive `ids[k]`.
+fn refresh_prims<P: Primitive, S: Source<P>>(prims: &mut [P], ids: &[u32], src: &S) {
+    prims
+        .par_iter_mut()
+        .zip(ids.par_iter())
+        .with_min_len(TASK_PRIMS)
+        .for_each(|(p, &id)| src.refresh(id, p));
+}
+
+/// The box of a plain leaf: `count` primitives of the leaf-order copy from `first`.
+#[inline]
+fn plain_leaf<P: Primitive>(prims: &[P], first: u32, count: u32) -> Aabb {
+    let first = first as usize;
+    prims[first..first + count as usize]
+        .iter()
+        .fold(Aabb::EMPTY, |b, p| b.union(&p.bounds()))
+}
+
+/// Writes triangle `t` (or, for a primitive without one, NaN: never hit) into `lane` of `g`
+/// as the leaf format stores it: what [`super::tri4::pack_leaves`] writes.
+#[inline]
+fn set_lane(g: &mut Tri4, lane: usize, t: Option<Triangle>, format: LeafFormat) {
+    let vectors: [Vec3A; 4] = match (t, format) {
+        (_, LeafFormat::Plain) => return,
+        (None, _) => [Vec3A::NAN; 4],
+        (Some(t), LeafFormat::FastTriangles) => {
+            let e1 = t.v[0] - t.v[1];
+            let e2 = t.v[2] - t.v[0];
+            [t.v[0], e1, e2, e1.cross(e2)]
+        }
+        (Some(t), LeafFormat::WatertightTriangles) => [t.v[0], t.v[1], t.v[2], Vec3A::ZERO],
+    };
+    for (row, v) in g.rows.iter_mut().zip(vectors) {
+        for a in 0..3 {
+            row[a][lane] = v[a];
+        }
+    }
+}
+
+/// Repacks one SIMD leaf's groups from the source (every used lane names its input index)
+/// and returns the leaf's box.
+#[inline]
+fn tri4_leaf<P: Primitive, S: Source<P>>(groups: &mut [Tri4], src: &S) -> Aabb {
+    let mut b = Aabb::EMPTY;
+    for g in groups {
+        for lane in 0..4 {
+            let id = g.id[lane];
+            if id == u32::MAX {
+                continue;
+            }
+            let p = src.get(id);
+            b = b.union(&p.bounds());
+            set_lane(g, lane, p.triangle(), P::LEAF_FORMAT);
+        }
+    }
+    b
+}
+
+/// What a wide refit reads: the refreshed leaf-order primitives (plain leaves) and the source
+/// (SIMD leaves, which are repacked from it).
+struct Ctx<'a, P, S> {
+    prims: &'a [P],
+    src: &'a S,
+}
+
+impl<P: Primitive, S: Source<P>> Ctx<'_, P, S> {
+    /// The box of a leaf slot (`first`, `count`); for SIMD leaves `first` is a group index and
+    /// `groups` the run of groups that starts at group `gbase`.
+    #[inline]
+    fn leaf(&self, first: u32, count: u32, groups: &mut [Tri4], gbase: usize) -> Aabb {
+        if count == 0 {
+            // Also an unused slot, whatever its `first`.
+            Aabb::EMPTY
+        } else if P::LEAF_FORMAT == LeafFormat::Plain {
+            plain_leaf(self.prims, first, count)
+        } else {
+            let at = first as usize - gbase;
+            tri4_leaf(&mut groups[at..at + group_count(count) as usize], self.src)
+        }
+    }
+}
+
+/// One slot of a wide node.
+#[derive(Clone, Copy, Debug)]
+enum Slot {
+    /// An inner child at this node position.
+    Inner(u32),
+    /// A leaf (or, with `count` 0, an unused slot).
+    Leaf { first: u32, count: u32 },
+}
+
+/// A wide node format as the refit reads and rewrites it.
+trait WideNode<const W: usize>: Send + Sync {
+    /// The node's slots.
+    fn slots(&self) -> [Slot; W];
+    /// Rewrites the node's boxes (its links stay as they are).
+    fn set(&mut self, boxes: &[Aabb; W], slots: &[Slot; W]);
+}
+
+impl WideNode<8> for Bvh8Node {
+    #[inline]
+    fn slots(&self) -> [Slot; 8] {
+        std::array::from_fn(|i| match self.count[i] {
+            0 => Slot::Inner(self.child[i]),
+            c => Slot::Leaf {
+                first: self.child[i],
+                count: c & !Bvh8Node::LEAF,
+            },
+        })
+    }
+
+    #[inline]
+    fn set(&mut self, boxes: &[Aabb; 8], _: &[Slot; 8]) {
+        for (i, b) in boxes.iter().enumerate() {
+            for a in 0..3 {
+                self.planes[a][i] = b.min[a];
+                self.planes[3 + a][i] = b.max[a];
+            }
+        }
+    }
+}
+
+impl<N: Node4> WideNode<4> for N {
+    #[inline]
+    fn slots(&self) -> [Slot; 4] {
+        std::array::from_fn(|i| match self.child(i) {
+            (c, 0) => Slot::Inner(c),
+            (first, c) => Slot::Leaf {
+                first,
+                count: c & !Bvh4Node::LEAF,
+            },
+        })
+    }
+
+    /// Encodes the node again from its exact boxes (a quantized node's frame and planes
+    /// follow its boxes), as the layout encoded it.
+    fn set(&mut self, boxes: &[Aabb; 4], slots: &[Slot; 4]) {
+        let mut w = Wide::<4>::EMPTY;
+        // Inner child `i` names entry `i` of `pos`, which holds its node position.
+        let mut pos = [0u32; 4];
+        for (i, s) in slots.iter().enumerate() {
+            w.boxes[i] = boxes[i];
+            w.kids[i] = match *s {
+                Slot::Inner(c) => {
+                    pos[i] = c;
+                    Child::Inner(i as u32)
+                }
+                Slot::Leaf { first, count } => Child::Leaf { first, count },
+            };
+        }
+        *self = N::encode(&w, &pos);
+    }
+}
+
+fn union_all(boxes: &[Aabb]) -> Aabb {
+    boxes.iter().fold(Aabb::EMPTY, |a, b| a.union(b))
+}
+
+/// Refits the subtree at node position `at`, one node after another, in any mapping: `nodes`
+/// holds the node positions from `base` on, `groups` the groups from `gbase` on.
+fn wide_seq<const W: usize, N: WideNode<W>, P: Primitive, S: Source<P>>(
+    nodes: &mut [N],
+    base: usize,
+    groups: &mut [Tri4],
+    gbase: usize,
+    at: usize,
+    cx: &Ctx<'_, P, S>,
+) -> Aabb {
+    let slots = nodes[at - base].slots();
+    let mut boxes = [Aabb::EMPTY; W];
+    for (b, s) in boxes.iter_mut().zip(&slots) {
+        *b = match *s {
+            Slot::Inner(c) => wide_seq(nodes, base, groups, gbase, c as usize, cx),
+            Slot::Leaf { first, count } => cx.leaf(first, count, groups, gbase),
+        };
+    }
+    nodes[at - base].set(&boxes, &slots);
+    union_all(&boxes)
+}
+
+/// A subtree handed to a task: its nodes (from position `base`), its groups (from `gbase`),
+/// the parent's slot it fills and, once refit, its box.
+struct Task<'a, N> {
+    nodes: &'a mut [N],
+    base: usize,
+    groups: &'a mut [Tri4],
+    gbase: usize,
+    slot: usize,
+    out: Aabb,
+}
+
+impl<N> Default for Task<'_, N> {
+    fn default() -> Self {
+        Task {
+            nodes: &mut [],
+            base: 0,
+            groups: &mut [],
+            gbase: 0,
+            slot: 0,
+            out: Aabb::EMPTY,
+        }
+    }
+}
+
+/// The first group of the first node in `nodes` that has a SIMD leaf: where the groups of
+/// the subtrees laid out from there begin (groups are packed node by node, in node order).
+fn first_group<const W: usize, N: WideNode<W>>(nodes: &[N]) -> Option<usize> {
+    nodes.iter().find_map(|n| {
+        n.slots().iter().find_map(|s| match *s {
+            Slot::Leaf { first, count } if count > 0 => Some(first as usize),
+            _ => None,
+        })
+    })
+}
+
+/// Refits a depth-first subtree: `nodes` is the whole subtree (its root first, at position
+/// `base`) and `groups` all of its SIMD groups (from group `gbase`). Large subtrees hand
+/// their inner children to parallel tasks, each with its own slices.
+fn wide_dfs<const W: usize, N: WideNode<W>, P: Primitive, S: Source<P>>(
+    nodes: &mut [N],
+    base: usize,
+    groups: &mut [Tri4],
+    gbase: usize,
+    cx: &Ctx<'_, P, S>,
+) -> Aabb {
+    if nodes.len() <= TASK_NODES {
+        return if nodes.is_empty() {
+            Aabb::EMPTY
+        } else {
+            wide_seq(nodes, base, groups, gbase, base, cx)
+        };
+    }
+    let simd = P::LEAF_FORMAT != LeafFormat::Plain;
+    let end = base + nodes.len();
+    let groups_end = gbase + groups.len();
+    let (root, rest) = nodes.split_first_mut().expect("a non-empty subtree");
+    let slots = root.slots();
+    // The root's own leaves were packed first, then each inner child's subtree, in slot order.
+    let own: usize = slots
+        .iter()
+        .map(|s| match *s {
+            Slot::Leaf { count, .. } if simd => group_count(count) as usize,
+            _ => 0,
+        })
+        .sum();
+    let (own_groups, mut rest_groups) = groups.split_at_mut(own);
+    let mut tasks: [Task<'_, N>; W] = std::array::from_fn(|_| Task::default());
+    let mut n_tasks = 0;
+    let (mut rest_nodes, mut at, mut g_at) = (rest, base + 1, gbase + own);
+    for (i, s) in slots.iter().enumerate() {
+        let Slot::Inner(c) = *s else { continue };
+        debug_assert_eq!(c as usize, at, "depth-first: each subtree follows the last");
+        // The subtree runs to the next inner child, or to the end of this one.
+        let next = slots[i + 1..]
+            .iter()
+            .find_map(|s| match *s {
+                Slot::Inner(c) => Some(c as usize),
+                Slot::Leaf { .. } => None,
+            })
+            .unwrap_or(end);
+        let (mine, tail) = std::mem::take(&mut rest_nodes).split_at_mut(next - at);
+        let g_end = if simd {
+            first_group(tail).unwrap_or(groups_end)
+        } else {
+            g_at
+        };
+        let (my_groups, g_tail) = std::mem::take(&mut rest_groups).split_at_mut(g_end - g_at);
+        tasks[n_tasks] = Task {
+            nodes: mine,
+            base: at,
+            groups: my_groups,
+            gbase: g_at,
+            slot: i,
+            out: Aabb::EMPTY,
+        };
+        n_tasks += 1;
+        (rest_nodes, rest_groups, at, g_at) = (tail, g_tail, next, g_end);
+    }
+    run_tasks(&mut tasks[..n_tasks], cx);
+    let mut boxes = [Aabb::EMPTY; W];
+    for t in &tasks[..n_tasks] {
+        boxes[t.slot] = t.out;
+    }
+    for (b, s) in boxes.iter_mut().zip(&slots) {
+        if let Slot::Leaf { first, count } = *s {
+            *b = cx.leaf(first, count, own_groups, gbase);
+        }
+    }
+    root.set(&boxes, &slots);
+    union_all(&boxes)
+}
+
+/// Runs the tasks, halves in parallel.
+fn run_tasks<const W: usize, N: WideNode<W>, P: Primitive, S: Source<P>>(
+    tasks: &mut [Task<'_, N>],
+    cx: &Ctx<'_, P, S>,
+) {
+    match tasks {
+        [] => {}
+        [t] => t.out = wide_dfs(t.nodes, t.base, t.groups, t.gbase, cx),
+        _ => {
+            let (a, b) = tasks.split_at_mut(tasks.len() / 2);
+            rayon::join(|| run_tasks(a, cx), || run_tasks(b, cx));
+        }
+    }
+}
+
+/// The shared steps of the wide layouts: the leaf-order copy refreshed, then (or, with SIMD
+/// leaves, which are repacked from the source and never read the copy, at the same time)
+/// every box; returns the root's.
+fn refit_wide<const W: usize, N: WideNode<W>, P: Primitive, S: Source<P>>(
+    nodes: &mut [N],
+    prims: &mut [P],
+    ids: &[u32],
+    groups: &mut [Tri4],
+    depth_first: bool,
+    src: &S,
+) -> Aabb {
+    let boxes = |prims: &[P], nodes: &mut [N], groups: &mut [Tri4]| {
+        let cx = Ctx { prims, src };
+        if depth_first {
+            wide_dfs(nodes, 0, groups, 0, &cx)
+        } else {
+            wide_seq(nodes, 0, groups, 0, 0, &cx)
+        }
+    };
+    if P::LEAF_FORMAT == LeafFormat::Plain {
+        refresh_prims(prims, ids, src);
+        boxes(prims, nodes, groups)
+    } else {
+        rayon::join(
+            || refresh_prims(prims, ids, src),
+            || boxes(&[], nodes, groups),
+        )
+        .1
+    }
+}
+
+impl<P: Primitive> Bvh8<P> {
+    /// Refits in place from `src` (see the [module](self) docs).
+    pub(crate) fn refit<S: Source<P>>(&mut self, src: &S) {
+        self.bounds = refit_wide::<8, _, _, _>(
+            &mut self.nodes,
+            &mut self.prims,
+            &self.prim_ids,
+            &mut self.tri4,
+            true,
+            src,
+        );
+    }
+}
+
+impl<P: Primitive, N: Node4> Bvh4<P, N> {
+    /// Refits in place from `src`, quantized nodes encoded again (see the [module](self) docs).
+    pub(crate) fn refit<S: Source<P>>(&mut self, src: &S) {
+        self.bounds = refit_wide::<4, _, _, _>(
+            &mut self.nodes,
+            &mut self.prims,
+            &self.prim_ids,
+            &mut self.tri4,
+            self.mapping == Bvh4Mapping::DepthFirst,
+            src,
+        );
+    }
+}
+
+#[inline]
+fn set_box(n: &mut Bvh2Node, b: &Aabb) {
+    n.min = b.min.into();
+    n.max = b.max.into();
+}
+
+/// Refits a depth-first binary subtree (`nodes` from position `base`, the root first); the
+/// two children of a large subtree in parallel.
+fn bvh2_dfs<P: Primitive>(nodes: &mut [Bvh2Node], base: usize, prims: &[P]) -> Aabb {
+    let len = nodes.len();
+    let Some((root, rest)) = nodes.split_first_mut() else {
+        return Aabb::EMPTY;
+    };
+    let b = if root.is_leaf() {
+        plain_leaf(prims, root.link, root.prim_count())
+    } else {
+        let right = root.link as usize;
+        let (l, r) = rest.split_at_mut(right - base - 1);
+        let (lb, rb) = if len > TASK_NODES {
+            rayon::join(
+                || bvh2_dfs(l, base + 1, prims),
+                || bvh2_dfs(r, right, prims),
+            )
+        } else {
+            (bvh2_dfs(l, base + 1, prims), bvh2_dfs(r, right, prims))
+        };
+        lb.union(&rb)
+    };
+    set_box(root, &b);
+    b
+}
+
+/// The inner boxes of any binary mapping, bottom-up from node `at` (leaf boxes already set).
+fn bvh2_inner(nodes: &mut [Bvh2Node], at: usize, addressing: Addressing) -> Aabb {
+    let n = nodes[at];
+    if n.is_leaf() {
+        return n.bounds();
+    }
+    let (l, r) = match addressing {
+        Addressing::DepthFirst => (at + 1, n.link as usize),
+        Addressing::Explicit => (n.link as usize, n.count as usize),
+        Addressing::Compact if n.count == 0 => compact_children(at, n.link),
+        Addressing::Compact => (n.link as usize, n.count as usize),
+    };
+    let b = bvh2_inner(nodes, l, addressing).union(&bvh2_inner(nodes, r, addressing));
+    set_box(&mut nodes[at], &b);
+    b
+}
+
+impl<P: Primitive> Bvh2<P> {
+    /// Refits in place from `src` (see the [module](self) docs).
+    pub(crate) fn refit<S: Source<P>>(&mut self, src: &S) {
+        refresh_prims(&mut self.prims, &self.prim_ids, src);
+        let prims = &self.prims;
+        if self.mapping == Bvh2Mapping::DepthFirst {
+            bvh2_dfs(&mut self.nodes, 0, prims);
+            return;
+        }
+        // Leaves (padding slots are empty leaves and stay empty) are independent.
+        self.nodes
+            .par_iter_mut()
+            .with_min_len(TASK_NODES)
+            .filter(|n| n.is_leaf())
+            .for_each(|n| set_box(n, &plain_leaf(prims, n.link, n.prim_count())));
+        if !self.nodes.is_empty() {
+            bvh2_inner(&mut self.nodes, 0, self.mapping.addressing());
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::builders::{prim_bounds, BuildTree};
+    use crate::bvh::BuildOptions;
+    use crate::intersect::Watertight;
+    use crate::layout::bvh2::leaf_order;
+    use crate::layout::Layout;
+    use crate::testing::soup;
+
+    /// The new primitives straight from a slice.
+    struct Slice<'a, P>(&'a [P]);
+
+    impl<P: Primitive> Source<P> for Slice<'_, P> {
+        fn get(&self, id: u32) -> P {
+            self.0[id as usize].clone()
+        }
+    }
+
+    /// Every layout of `tree`, laid out over `prims` from scratch.
+    fn laid<P: Primitive>(tree: &BuildTree, prims: &[P]) -> Vec<(Layout, crate::bvh::Laid<P>)> {
+        let tree = tree.refit(&prim_bounds(prims));
+        Layout::ALL
+            .iter()
+            .map(|&l| {
+                let options = BuildOptions::default().layout(l);
+                (l, options.lay_out(&tree, leaf_order(&tree, prims)))
+            })
+            .collect()
+    }
+
+    fn refit<P: Primitive>(l: &mut crate::bvh::Laid<P>, prims: &[P]) {
+        let src = Slice(prims);
+        match l {
+            crate::bvh::Laid::Bvh2(b) => b.refit(&src),
+            crate::bvh::Laid::Bvh4(b) => b.refit(&src),
+            crate::bvh::Laid::QBvh4(b) => b.refit(&src),
+            crate::bvh::Laid::Bvh8(b) => b.refit(&src),
+        }
+    }
+
+    /// The arrays of a layout, as bytes (NaN lanes compare by their bits).
+    fn bytes<P: Primitive>(l: &crate::bvh::Laid<P>) -> (Vec<u8>, Vec<u8>, Vec<u32>, Aabb) {
+        use crate::bvh::Laid;
+        match l {
+            Laid::Bvh2(b) => (
+                b.node_bytes().to_vec(),
+                Vec::new(),
+                b.prim_ids().to_vec(),
+                b.bounds(),
+            ),
+            Laid::Bvh4(b) => (
+                b.node_bytes().to_vec(),
+                bytemuck::cast_slice(b.groups()).to_vec(),
+                b.prim_ids().to_vec(),
+                b.bounds(),
+            ),
+            Laid::QBvh4(b) => (
+                b.node_bytes().to_vec(),
+                bytemuck::cast_slice(b.groups()).to_vec(),
+                b.prim_ids().to_vec(),
+                b.bounds(),
+            ),
+            Laid::Bvh8(b) => (
+                b.node_bytes().to_vec(),
+                bytemuck::cast_slice(b.groups()).to_vec(),
+                b.prim_ids().to_vec(),
+                b.bounds(),
+            ),
+        }
+    }
+
+    fn moved(tris: &[Triangle], by: f32) -> Vec<Triangle> {
+        tris.iter()
+            .map(|t| {
+                let w = |v: Vec3A| v + by * Vec3A::new((3.0 * v.y).sin(), (2.0 * v.z).cos(), 0.5);
+                Triangle::new(w(t.v[0]), w(t.v[1]), w(t.v[2]))
+            })
+            .collect()
+    }
+
+    /// A refit to other primitives and back gives the original layout bit for bit: the
+    /// boxes, the quantized planes, the SIMD groups, in every layout, on any pool.
+    #[test]
+    fn a_refit_there_and_back_is_the_original_layout_bit_for_bit() {
+        let a = soup(3000, 7);
+        let b = moved(&a, 0.05);
+        for builder_leaf in [1usize, 8] {
+            let options = BuildOptions::default().max_leaf_size(builder_leaf);
+            let (_, tree) = options.build_with_tree(&a);
+            for threads in [1, 2] {
+                let pool = rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .unwrap();
+                for ((layout, mut l), (_, original)) in
+                    laid(&tree, &a).into_iter().zip(laid(&tree, &a))
+                {
+                    pool.install(|| refit(&mut l, &b));
+                    assert_ne!(bytes(&l).0, bytes(&original).0, "{layout}: the boxes moved");
+                    pool.install(|| refit(&mut l, &a));
+                    assert_eq!(bytes(&l), bytes(&original), "{layout}, {threads} threads");
+                }
+            }
+        }
+    }
+
+    /// Where the layout's shape does not depend on the boxes (the binary layouts but the
+    /// area-grown page blocks), a refit is a fresh layout over the new primitives, bit for bit.
+    #[test]
+    fn a_refit_binary_layout_is_the_fresh_layout_of_the_new_primitives() {
+        let a = soup(2000, 3);
+        let b = moved(&a, 0.2);
+        let (_, tree) = BuildOptions::default().build_with_tree(&a);
+        for ((layout, mut l), (_, fresh)) in laid(&tree, &a).into_iter().zip(laid(&tree, &b)) {
+            if !matches!(l, crate::bvh::Laid::Bvh2(_)) || layout == Layout::Bvh2SubtreePage {
+                continue;
+            }
+            refit(&mut l, &b);
+            assert_eq!(bytes(&l), bytes(&fresh), "{layout}");
+        }
+    }
+
+    /// A scene scaled by a power of two has every area scaled exactly, so every layout (the
+    /// collapses, the area-grown blocks, the quantization) makes the same shape: there the
+    /// refit of a layout over `a` to `2a` must be the fresh layout over `2a`, bit for bit,
+    /// nodes and SIMD groups in both triangle formats.
+    #[test]
+    fn a_refit_to_a_scaled_scene_is_its_fresh_layout_in_every_layout() {
+        let a = soup(1500, 5);
+        let b: Vec<Triangle> = a.iter().map(|t| t.scaled(2.0).unwrap()).collect();
+        let (_, tree) = BuildOptions::default().build_with_tree(&a);
+        for ((layout, mut l), (_, fresh)) in laid(&tree, &a).into_iter().zip(laid(&tree, &b)) {
+            refit(&mut l, &b);
+            assert_eq!(bytes(&l), bytes(&fresh), "{layout}: fast triangles");
+        }
+        let wa: Vec<Watertight> = a.iter().map(|t| Watertight(*t)).collect();
+        let wb: Vec<Watertight> = b.iter().map(|t| Watertight(*t)).collect();
+        for ((layout, mut l), (_, fresh)) in laid(&tree, &wa).into_iter().zip(laid(&tree, &wb)) {
+            refit(&mut l, &wb);
+            assert_eq!(bytes(&l), bytes(&fresh), "{layout}: watertight triangles");
+        }
+    }
+}
