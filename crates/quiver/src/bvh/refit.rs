@@ -115,15 +115,20 @@ impl Default for Summary {
 }
 
 impl Summary {
-    fn add(mut self, i: usize, b: &Aabb) -> Summary {
-        if b.is_finite() {
-            self.finite += 1;
-            self.all = self.all.union(b);
-        } else {
-            self.first_bad = self.first_bad.min(i);
+    /// The summary of primitives `range`, whose boxes `boxes_of` gives.
+    fn of(range: std::ops::Range<usize>, boxes_of: impl Fn(usize) -> Aabb) -> Summary {
+        let mut s = Summary::default();
+        for i in range {
+            let b = boxes_of(i);
+            if b.is_finite() {
+                s.finite += 1;
+                s.all = s.all.union(&b);
+            } else {
+                s.first_bad = s.first_bad.min(i);
+            }
+            s.sizes.add(&b);
         }
-        self.sizes.add(b);
-        self
+        s
     }
 
     fn merge(self, o: Summary) -> Summary {
@@ -317,10 +322,11 @@ impl<P: Primitive> Bvh<P> {
             });
         }
         let boxes_of = |i: usize| get(i as u32).bounds();
-        let summary = (0..n)
+        // In chunks, each a plain loop with its summary in registers.
+        const CHUNK: usize = 8192;
+        let summary = (0..n.div_ceil(CHUNK))
             .into_par_iter()
-            .with_min_len(4096)
-            .fold(Summary::default, |s, i| s.add(i, &boxes_of(i)))
+            .map(|c| Summary::of(c * CHUNK..n.min((c + 1) * CHUNK), boxes_of))
             .reduce(Summary::default, Summary::merge);
         let held = self.nodes.laid().prim_ids();
         if held.len() == n {

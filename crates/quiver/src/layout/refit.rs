@@ -37,7 +37,7 @@ pub(crate) trait Source<P>: Sync {
 }
 
 /// A subtree of at most this many nodes is refit by one task, without further splitting.
-const TASK_NODES: usize = 64;
+const TASK_NODES: usize = 256;
 
 /// Primitives per task when the leaf-order copy is refreshed.
 const TASK_PRIMS: usize = 4096;
@@ -49,15 +49,6 @@ fn refresh_prims<P: Primitive, S: Source<P>>(prims: &mut [P], ids: &[u32], src: 
         .zip(ids.par_iter())
         .with_min_len(TASK_PRIMS)
         .for_each(|(p, &id)| src.refresh(id, p));
-}
-
-/// The box of a plain leaf: `count` primitives of the leaf-order copy from `first`.
-#[inline]
-fn plain_leaf<P: Primitive>(prims: &[P], first: u32, count: u32) -> Aabb {
-    let first = first as usize;
-    prims[first..first + count as usize]
-        .iter()
-        .fold(Aabb::EMPTY, |b, p| b.union(&p.bounds()))
 }
 
 /// Writes triangle `t` (or, for a primitive without one, NaN: never hit) into `lane` of `g`
@@ -81,47 +72,70 @@ fn set_lane(g: &mut Tri4, lane: usize, t: Option<Triangle>, format: LeafFormat) 
     }
 }
 
-/// Repacks one SIMD leaf's groups from the source (every used lane names its input index)
-/// and returns the leaf's box.
-#[inline]
-fn tri4_leaf<P: Primitive, S: Source<P>>(groups: &mut [Tri4], src: &S) -> Aabb {
-    let mut b = Aabb::EMPTY;
-    for g in groups {
-        for lane in 0..4 {
-            let id = g.id[lane];
-            if id == u32::MAX {
-                continue;
-            }
-            let p = src.get(id);
-            b = b.union(&p.bounds());
-            set_lane(g, lane, p.triangle(), P::LEAF_FORMAT);
-        }
-    }
-    b
-}
-
-/// What a wide refit reads: the refreshed leaf-order primitives (plain leaves) and the source
-/// (SIMD leaves, which are repacked from it).
-struct Ctx<'a, P, S> {
-    prims: &'a [P],
+/// How a refit reads its new primitives.
+struct Ctx<'a, S> {
     src: &'a S,
+    /// The leaf-order copy was refreshed beforehand (in parallel): leaves only read it.
+    fresh: bool,
 }
 
-impl<P: Primitive, S: Source<P>> Ctx<'_, P, S> {
-    /// The box of a leaf slot (`first`, `count`); for SIMD leaves `first` is a group index and
-    /// `groups` the run of groups that starts at group `gbase`.
-    #[inline]
-    fn leaf(&self, first: u32, count: u32, groups: &mut [Tri4], gbase: usize) -> Aabb {
-        if count == 0 {
-            // Also an unused slot, whatever its `first`.
-            Aabb::EMPTY
-        } else if P::LEAF_FORMAT == LeafFormat::Plain {
-            plain_leaf(self.prims, first, count)
-        } else {
-            let at = first as usize - gbase;
-            tri4_leaf(&mut groups[at..at + group_count(count) as usize], self.src)
+impl<'a, S> Ctx<'a, S> {
+    /// `run` refreshed unless it already is, and the context that reads it as it is.
+    fn fresh<P: Primitive>(cx: &Ctx<'a, S>, run: &mut Run<'_, P>) -> Ctx<'a, S>
+    where
+        S: Source<P>,
+    {
+        if !cx.fresh {
+            for (p, &id) in run.prims.iter_mut().zip(run.ids) {
+                cx.src.refresh(id, p);
+            }
+        }
+        Ctx {
+            src: cx.src,
+            fresh: true,
         }
     }
+
+    /// One leaf: its primitives of the leaf-order copy (`prims`, input indices `ids`)
+    /// refreshed, its SIMD `groups` (for a triangle leaf format) repacked from them, and its
+    /// box: the union of theirs.
+    #[inline]
+    fn leaf<P: Primitive>(&self, prims: &mut [P], ids: &[u32], groups: &mut [Tri4]) -> Aabb
+    where
+        S: Source<P>,
+    {
+        let mut b = Aabb::EMPTY;
+        for (p, &id) in prims.iter_mut().zip(ids) {
+            if !self.fresh {
+                self.src.refresh(id, p);
+            }
+            b = b.union(&p.bounds());
+        }
+        if P::LEAF_FORMAT != LeafFormat::Plain {
+            for (g, four) in groups.iter_mut().zip(prims.chunks(4)) {
+                for (lane, p) in four.iter().enumerate() {
+                    set_lane(g, lane, p.triangle(), P::LEAF_FORMAT);
+                }
+            }
+        }
+        b
+    }
+}
+
+/// The SIMD groups of a leaf slot (`first`, `count`) in `groups`, which start at group
+/// `gbase`; none for plain leaves (whose `first` is a primitive) and for empty slots.
+#[inline]
+fn leaf_groups<P: Primitive>(
+    groups: &mut [Tri4],
+    gbase: usize,
+    first: u32,
+    count: u32,
+) -> &mut [Tri4] {
+    if P::LEAF_FORMAT == LeafFormat::Plain || count == 0 {
+        return &mut [];
+    }
+    let at = first as usize - gbase;
+    &mut groups[at..at + group_count(count) as usize]
 }
 
 /// One slot of a wide node.
@@ -137,6 +151,16 @@ enum Slot {
 trait WideNode<const W: usize>: Send + Sync {
     /// The node's slots.
     fn slots(&self) -> [Slot; W];
+    /// The primitives in the node's leaf slots.
+    fn leaf_prims(&self) -> usize {
+        self.slots()
+            .iter()
+            .map(|s| match *s {
+                Slot::Leaf { count, .. } => count as usize,
+                Slot::Inner(_) => 0,
+            })
+            .sum()
+    }
     /// Rewrites the node's boxes (its links stay as they are).
     fn set(&mut self, boxes: &[Aabb; W], slots: &[Slot; W]);
 }
@@ -151,6 +175,15 @@ impl WideNode<8> for Bvh8Node {
                 count: c & !Bvh8Node::LEAF,
             },
         })
+    }
+
+    #[inline]
+    fn leaf_prims(&self) -> usize {
+        // Inner children count 0; leaves and unused slots carry the flag.
+        self.count
+            .iter()
+            .map(|&c| (c & !Bvh8Node::LEAF) as usize)
+            .sum()
     }
 
     #[inline]
@@ -200,22 +233,46 @@ fn union_all(boxes: &[Aabb]) -> Aabb {
     boxes.iter().fold(Aabb::EMPTY, |a, b| a.union(b))
 }
 
+/// The leaf-order primitives of a subtree (from position `at` of the whole copy) and their
+/// input indices: a leaf takes the next `count` of them.
+struct Run<'a, P> {
+    prims: &'a mut [P],
+    ids: &'a [u32],
+}
+
+impl<'a, P> Run<'a, P> {
+    /// The first `count` primitives, for a leaf or a subtree; the rest stay.
+    fn take(&mut self, count: usize) -> Run<'a, P> {
+        let (prims, rest) = std::mem::take(&mut self.prims).split_at_mut(count);
+        let (ids, rest_ids) = self.ids.split_at(count);
+        (self.prims, self.ids) = (rest, rest_ids);
+        Run { prims, ids }
+    }
+}
+
 /// Refits the subtree at node position `at`, one node after another, in any mapping: `nodes`
-/// holds the node positions from `base` on, `groups` the groups from `gbase` on.
+/// holds the node positions from `base` on, `groups` the groups from `gbase` on, `run` the
+/// subtree's primitives (and those after it), which the leaves take in slot order: leaf order.
+#[allow(clippy::too_many_arguments)]
 fn wide_seq<const W: usize, N: WideNode<W>, P: Primitive, S: Source<P>>(
     nodes: &mut [N],
     base: usize,
     groups: &mut [Tri4],
     gbase: usize,
+    run: &mut Run<'_, P>,
     at: usize,
-    cx: &Ctx<'_, P, S>,
+    cx: &Ctx<'_, S>,
 ) -> Aabb {
     let slots = nodes[at - base].slots();
     let mut boxes = [Aabb::EMPTY; W];
     for (b, s) in boxes.iter_mut().zip(&slots) {
         *b = match *s {
-            Slot::Inner(c) => wide_seq(nodes, base, groups, gbase, c as usize, cx),
-            Slot::Leaf { first, count } => cx.leaf(first, count, groups, gbase),
+            Slot::Inner(c) => wide_seq(nodes, base, groups, gbase, run, c as usize, cx),
+            Slot::Leaf { first, count } => {
+                let leaf = run.take(count as usize);
+                let g = leaf_groups::<P>(groups, gbase, first, count);
+                cx.leaf(leaf.prims, leaf.ids, g)
+            }
         };
     }
     nodes[at - base].set(&boxes, &slots);
@@ -223,23 +280,28 @@ fn wide_seq<const W: usize, N: WideNode<W>, P: Primitive, S: Source<P>>(
 }
 
 /// A subtree handed to a task: its nodes (from position `base`), its groups (from `gbase`),
-/// the parent's slot it fills and, once refit, its box.
-struct Task<'a, N> {
+/// its primitives, the parent's slot it fills and, once refit, its box.
+struct Task<'a, N, P> {
     nodes: &'a mut [N],
     base: usize,
     groups: &'a mut [Tri4],
     gbase: usize,
+    run: Run<'a, P>,
     slot: usize,
     out: Aabb,
 }
 
-impl<N> Default for Task<'_, N> {
+impl<N, P> Default for Task<'_, N, P> {
     fn default() -> Self {
         Task {
             nodes: &mut [],
             base: 0,
             groups: &mut [],
             gbase: 0,
+            run: Run {
+                prims: &mut [],
+                ids: &[],
+            },
             slot: 0,
             out: Aabb::EMPTY,
         }
@@ -257,22 +319,31 @@ fn first_group<const W: usize, N: WideNode<W>>(nodes: &[N]) -> Option<usize> {
     })
 }
 
+/// The primitives under the nodes of a depth-first subtree: its leaves' counts.
+fn prims_under<const W: usize, N: WideNode<W>>(nodes: &[N]) -> usize {
+    nodes.iter().map(|n| n.leaf_prims()).sum()
+}
+
 /// Refits a depth-first subtree: `nodes` is the whole subtree (its root first, at position
-/// `base`) and `groups` all of its SIMD groups (from group `gbase`). Large subtrees hand
-/// their inner children to parallel tasks, each with its own slices.
+/// `base`), `groups` all of its SIMD groups (from group `gbase`), `run` its primitives. A
+/// large subtree hands its inner children to parallel tasks, each with its own slices.
 fn wide_dfs<const W: usize, N: WideNode<W>, P: Primitive, S: Source<P>>(
     nodes: &mut [N],
     base: usize,
     groups: &mut [Tri4],
     gbase: usize,
-    cx: &Ctx<'_, P, S>,
+    mut run: Run<'_, P>,
+    cx: &Ctx<'_, S>,
 ) -> Aabb {
     if nodes.len() <= TASK_NODES {
-        return if nodes.is_empty() {
-            Aabb::EMPTY
-        } else {
-            wide_seq(nodes, base, groups, gbase, base, cx)
-        };
+        if nodes.is_empty() {
+            return Aabb::EMPTY;
+        }
+        // The task's primitives first, in one tight loop (the new input is read in leaf
+        // order, out of its own: the loads overlap best without the leaf work between them),
+        // then the walk reads the fresh copy.
+        let fresh = Ctx::fresh(cx, &mut run);
+        return wide_seq(nodes, base, groups, gbase, &mut run, base, &fresh);
     }
     let simd = P::LEAF_FORMAT != LeafFormat::Plain;
     let end = base + nodes.len();
@@ -288,12 +359,22 @@ fn wide_dfs<const W: usize, N: WideNode<W>, P: Primitive, S: Source<P>>(
         })
         .sum();
     let (own_groups, mut rest_groups) = groups.split_at_mut(own);
-    let mut tasks: [Task<'_, N>; W] = std::array::from_fn(|_| Task::default());
+    let mut tasks: [Task<'_, N, P>; W] = std::array::from_fn(|_| Task::default());
+    let mut leaves: [Run<'_, P>; W] = std::array::from_fn(|_| Run {
+        prims: &mut [],
+        ids: &[],
+    });
     let mut n_tasks = 0;
     let (mut rest_nodes, mut at, mut g_at) = (rest, base + 1, gbase + own);
     for (i, s) in slots.iter().enumerate() {
-        let Slot::Inner(c) = *s else { continue };
-        debug_assert_eq!(c as usize, at, "depth-first: each subtree follows the last");
+        let c = match *s {
+            Slot::Leaf { count, .. } => {
+                leaves[i] = run.take(count as usize);
+                continue;
+            }
+            Slot::Inner(c) => c as usize,
+        };
+        debug_assert_eq!(c, at, "depth-first: each subtree follows the last");
         // The subtree runs to the next inner child, or to the end of this one.
         let next = slots[i + 1..]
             .iter()
@@ -309,11 +390,13 @@ fn wide_dfs<const W: usize, N: WideNode<W>, P: Primitive, S: Source<P>>(
             g_at
         };
         let (my_groups, g_tail) = std::mem::take(&mut rest_groups).split_at_mut(g_end - g_at);
+        let my_run = run.take(prims_under(mine));
         tasks[n_tasks] = Task {
             nodes: mine,
             base: at,
             groups: my_groups,
             gbase: g_at,
+            run: my_run,
             slot: i,
             out: Aabb::EMPTY,
         };
@@ -325,9 +408,17 @@ fn wide_dfs<const W: usize, N: WideNode<W>, P: Primitive, S: Source<P>>(
     for t in &tasks[..n_tasks] {
         boxes[t.slot] = t.out;
     }
-    for (b, s) in boxes.iter_mut().zip(&slots) {
+    for (i, s) in slots.iter().enumerate() {
         if let Slot::Leaf { first, count } = *s {
-            *b = cx.leaf(first, count, own_groups, gbase);
+            let leaf = std::mem::replace(
+                &mut leaves[i],
+                Run {
+                    prims: &mut [],
+                    ids: &[],
+                },
+            );
+            let g = leaf_groups::<P>(own_groups, gbase, first, count);
+            boxes[i] = cx.leaf(leaf.prims, leaf.ids, g);
         }
     }
     root.set(&boxes, &slots);
@@ -336,12 +427,18 @@ fn wide_dfs<const W: usize, N: WideNode<W>, P: Primitive, S: Source<P>>(
 
 /// Runs the tasks, halves in parallel.
 fn run_tasks<const W: usize, N: WideNode<W>, P: Primitive, S: Source<P>>(
-    tasks: &mut [Task<'_, N>],
-    cx: &Ctx<'_, P, S>,
+    tasks: &mut [Task<'_, N, P>],
+    cx: &Ctx<'_, S>,
 ) {
     match tasks {
         [] => {}
-        [t] => t.out = wide_dfs(t.nodes, t.base, t.groups, t.gbase, cx),
+        [t] => {
+            let run = Run {
+                prims: std::mem::take(&mut t.run.prims),
+                ids: t.run.ids,
+            };
+            t.out = wide_dfs(t.nodes, t.base, t.groups, t.gbase, run, cx);
+        }
         _ => {
             let (a, b) = tasks.split_at_mut(tasks.len() / 2);
             rayon::join(|| run_tasks(a, cx), || run_tasks(b, cx));
@@ -349,9 +446,10 @@ fn run_tasks<const W: usize, N: WideNode<W>, P: Primitive, S: Source<P>>(
     }
 }
 
-/// The shared steps of the wide layouts: the leaf-order copy refreshed, then (or, with SIMD
-/// leaves, which are repacked from the source and never read the copy, at the same time)
-/// every box; returns the root's.
+/// The shared steps of the wide layouts; returns the root's box. Depth-first layouts refresh
+/// the leaf-order copy leaf by leaf inside their parallel tasks (one read of each new
+/// primitive serves its copy, its SIMD lanes and its leaf's box); the other mappings refresh
+/// it in parallel first, then walk the tree once.
 fn refit_wide<const W: usize, N: WideNode<W>, P: Primitive, S: Source<P>>(
     nodes: &mut [N],
     prims: &mut [P],
@@ -360,23 +458,13 @@ fn refit_wide<const W: usize, N: WideNode<W>, P: Primitive, S: Source<P>>(
     depth_first: bool,
     src: &S,
 ) -> Aabb {
-    let boxes = |prims: &[P], nodes: &mut [N], groups: &mut [Tri4]| {
-        let cx = Ctx { prims, src };
-        if depth_first {
-            wide_dfs(nodes, 0, groups, 0, &cx)
-        } else {
-            wide_seq(nodes, 0, groups, 0, 0, &cx)
-        }
-    };
-    if P::LEAF_FORMAT == LeafFormat::Plain {
-        refresh_prims(prims, ids, src);
-        boxes(prims, nodes, groups)
+    if depth_first {
+        let cx = Ctx { src, fresh: false };
+        wide_dfs(nodes, 0, groups, 0, Run { prims, ids }, &cx)
     } else {
-        rayon::join(
-            || refresh_prims(prims, ids, src),
-            || boxes(&[], nodes, groups),
-        )
-        .1
+        refresh_prims(prims, ids, src);
+        let cx = Ctx { src, fresh: true };
+        wide_seq(nodes, 0, groups, 0, &mut Run { prims, ids }, 0, &cx)
     }
 }
 
@@ -414,25 +502,57 @@ fn set_box(n: &mut Bvh2Node, b: &Aabb) {
     n.max = b.max.into();
 }
 
-/// Refits a depth-first binary subtree (`nodes` from position `base`, the root first); the
+/// The box of a plain leaf: `count` primitives of the (refreshed) leaf-order copy from
+/// `first`.
+#[inline]
+fn plain_leaf<P: Primitive>(prims: &[P], first: u32, count: u32) -> Aabb {
+    let first = first as usize;
+    prims[first..first + count as usize]
+        .iter()
+        .fold(Aabb::EMPTY, |b, p| b.union(&p.bounds()))
+}
+
+/// Refits a depth-first binary subtree (`nodes` from position `base`, the root first) over
+/// its primitives (`run`, from leaf-order position `pbase`), each refreshed by its leaf; the
 /// two children of a large subtree in parallel.
-fn bvh2_dfs<P: Primitive>(nodes: &mut [Bvh2Node], base: usize, prims: &[P]) -> Aabb {
+fn bvh2_dfs<P: Primitive, S: Source<P>>(
+    nodes: &mut [Bvh2Node],
+    base: usize,
+    mut run: Run<'_, P>,
+    pbase: usize,
+    cx: &Ctx<'_, S>,
+) -> Aabb {
     let len = nodes.len();
+    if len <= TASK_NODES && !cx.fresh {
+        // As in `wide_dfs`: the task's primitives in one loop, then its nodes.
+        let fresh = Ctx::fresh(cx, &mut run);
+        return bvh2_dfs(nodes, base, run, pbase, &fresh);
+    }
     let Some((root, rest)) = nodes.split_first_mut() else {
         return Aabb::EMPTY;
     };
     let b = if root.is_leaf() {
-        plain_leaf(prims, root.link, root.prim_count())
+        cx.leaf(run.prims, run.ids, &mut [])
     } else {
         let right = root.link as usize;
         let (l, r) = rest.split_at_mut(right - base - 1);
+        // The right subtree's primitives start at its leftmost leaf's (in preorder, its first
+        // leaf), every leaf's `first` being its leaf-order position.
+        let split = r
+            .iter()
+            .find(|n| n.is_leaf())
+            .map_or(pbase + run.prims.len(), |n| n.link as usize);
+        let left = run.take(split - pbase);
         let (lb, rb) = if len > TASK_NODES {
             rayon::join(
-                || bvh2_dfs(l, base + 1, prims),
-                || bvh2_dfs(r, right, prims),
+                || bvh2_dfs(l, base + 1, left, pbase, cx),
+                || bvh2_dfs(r, right, run, split, cx),
             )
         } else {
-            (bvh2_dfs(l, base + 1, prims), bvh2_dfs(r, right, prims))
+            (
+                bvh2_dfs(l, base + 1, left, pbase, cx),
+                bvh2_dfs(r, right, run, split, cx),
+            )
         };
         lb.union(&rb)
     };
@@ -460,12 +580,16 @@ fn bvh2_inner(nodes: &mut [Bvh2Node], at: usize, addressing: Addressing) -> Aabb
 impl<P: Primitive> Bvh2<P> {
     /// Refits in place from `src` (see the [module](self) docs).
     pub(crate) fn refit<S: Source<P>>(&mut self, src: &S) {
-        refresh_prims(&mut self.prims, &self.prim_ids, src);
-        let prims = &self.prims;
         if self.mapping == Bvh2Mapping::DepthFirst {
-            bvh2_dfs(&mut self.nodes, 0, prims);
+            let run = Run {
+                prims: &mut self.prims,
+                ids: &self.prim_ids,
+            };
+            bvh2_dfs(&mut self.nodes, 0, run, 0, &Ctx { src, fresh: false });
             return;
         }
+        refresh_prims(&mut self.prims, &self.prim_ids, src);
+        let prims = &self.prims;
         // Leaves (padding slots are empty leaves and stay empty) are independent.
         self.nodes
             .par_iter_mut()
@@ -563,7 +687,7 @@ mod tests {
     /// boxes, the quantized planes, the SIMD groups, in every layout, on any pool.
     #[test]
     fn a_refit_there_and_back_is_the_original_layout_bit_for_bit() {
-        let a = soup(3000, 7);
+        let a = soup(20_000, 7);
         let b = moved(&a, 0.05);
         for builder_leaf in [1usize, 8] {
             let options = BuildOptions::default().max_leaf_size(builder_leaf);
@@ -607,7 +731,7 @@ mod tests {
     /// nodes and SIMD groups in both triangle formats.
     #[test]
     fn a_refit_to_a_scaled_scene_is_its_fresh_layout_in_every_layout() {
-        let a = soup(1500, 5);
+        let a = soup(20_000, 5);
         let b: Vec<Triangle> = a.iter().map(|t| t.scaled(2.0).unwrap()).collect();
         let (_, tree) = BuildOptions::default().build_with_tree(&a);
         for ((layout, mut l), (_, fresh)) in laid(&tree, &a).into_iter().zip(laid(&tree, &b)) {
