@@ -55,22 +55,54 @@ pub(crate) struct Frame {
     k: i32,
 }
 
-impl Frame {
-    /// The frame for primitives with these boxes (non-finite and empty ones ignored): the
-    /// identity unless every primitive is larger than `2^SAFE` or every one smaller than
-    /// `2^-SAFE` — a whole scene far from unit size. A scene that mixes sizes keeps its own
-    /// units: no one power of two serves a triangle of 1 beside one of 1e30, and scaling would
-    /// take from the small ones what it gave the large.
-    pub(crate) fn for_prims(boxes: &[Aabb]) -> Frame {
-        let (mut lo, mut hi) = (f32::INFINITY, 0.0f32);
-        let mut all = Aabb::EMPTY;
-        for b in boxes.iter().filter(|b| b.is_finite() && !b.is_empty()) {
-            let size = b.extent().max_element();
-            if size > 0.0 {
-                (lo, hi) = (lo.min(size), hi.max(size));
-            }
-            all = all.union(b);
+/// What the frame of a set of primitive boxes depends on, gathered box by box in any order
+/// (every step is an exact min, max or union, so a parallel reduction in any grouping gives
+/// the same frame as [`Frame::for_prims`] over the same boxes).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Sizes {
+    /// The smallest and the largest extent of a finite, non-empty box of positive size.
+    lo: f32,
+    hi: f32,
+    /// The union of the finite, non-empty boxes.
+    all: Aabb,
+}
+
+impl Default for Sizes {
+    fn default() -> Self {
+        Sizes {
+            lo: f32::INFINITY,
+            hi: 0.0,
+            all: Aabb::EMPTY,
         }
+    }
+}
+
+impl Sizes {
+    /// Counts one primitive's box (non-finite and empty ones change nothing).
+    #[inline]
+    pub(crate) fn add(&mut self, b: &Aabb) {
+        if !b.is_finite() || b.is_empty() {
+            return;
+        }
+        let size = b.extent().max_element();
+        if size > 0.0 {
+            (self.lo, self.hi) = (self.lo.min(size), self.hi.max(size));
+        }
+        self.all = self.all.union(b);
+    }
+
+    /// Both sets of boxes.
+    pub(crate) fn merge(self, o: Sizes) -> Sizes {
+        Sizes {
+            lo: self.lo.min(o.lo),
+            hi: self.hi.max(o.hi),
+            all: self.all.union(&o.all),
+        }
+    }
+
+    /// The frame these boxes call for (see [`Frame::for_prims`]).
+    pub(crate) fn frame(self) -> Frame {
+        let Sizes { lo, hi, all } = self;
         if hi == 0.0 {
             return Frame::default();
         }
@@ -90,6 +122,21 @@ impl Frame {
         Frame {
             k: k.clamp(-MAX_SCALED_EXPONENT, MAX_SCALED_EXPONENT),
         }
+    }
+}
+
+impl Frame {
+    /// The frame for primitives with these boxes (non-finite and empty ones ignored): the
+    /// identity unless every primitive is larger than `2^SAFE` or every one smaller than
+    /// `2^-SAFE` — a whole scene far from unit size. A scene that mixes sizes keeps its own
+    /// units: no one power of two serves a triangle of 1 beside one of 1e30, and scaling would
+    /// take from the small ones what it gave the large.
+    pub(crate) fn for_prims(boxes: &[Aabb]) -> Frame {
+        let mut sizes = Sizes::default();
+        for b in boxes {
+            sizes.add(b);
+        }
+        sizes.frame()
     }
 
     /// True when local and world coordinates are the same.

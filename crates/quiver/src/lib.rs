@@ -57,7 +57,7 @@ mod testing;
 pub mod traverse;
 pub mod world;
 
-pub use bvh::{BuildOptions, Bvh};
+pub use bvh::{BuildOptions, Bvh, RefitError};
 pub use geometry::{Aabb, Hit, PrimHit, Ray, Triangle};
 pub use isa::{Isa, ISA_ENV};
 pub use layout::{

@@ -7,7 +7,8 @@
 //! `tinybvh` feature, tinybvh's `BVH8_CPU` and `BVH4_CPU` join the single-ray rounds too
 //! (`Intersect` / `IsOccluded`), with their build time. Every engine's BVH memory is reported
 //! in bytes per triangle: quiver's `Bvh::footprint`, Embree's device memory monitor across the
-//! commit, tinybvh's node and leaf array.
+//! commit, tinybvh's node and leaf array. quiver's default layout also reports its refit time
+//! beside its build time (`Bvh::refit` to the triangles slightly moved, as by an animation).
 
 use super::{measured_threads, pool, thread_count, Result, MAX_RAYS, MAX_REPS};
 use crate::budget::{self, Estimate};
@@ -165,9 +166,31 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
             json!({"scene": scene.name, "primitives": tris.len(), "engine": engine, "kernel": kernel, "rays": rays,
                    "threads": threads, "mrays_per_s": mrays, "build_ms": build_ms, "sah_cost": sah})
         };
+        // The same triangles a little moved, for the refit (one frame of an animation).
+        let moved = super::nudged(&tris);
         // Builds at each thread count, warmed once so page faults do not count.
         for &threads in &thread_counts {
             let p = pool(Some(threads))?;
+            // quiver's default layout: the build, and beside it a refit to the moved
+            // triangles (the same tree, every box recomputed).
+            p.install(|| -> std::result::Result<(), quiver::RefitError> {
+                let options = BuildOptions::default();
+                drop(options.build(&tris));
+                let ((mut bvh, tree), ms) = time(|| options.build_with_tree(&tris));
+                let refit = super::refit_ms(&mut bvh, &tris, &moved, args.reps)?;
+                let mut r = row(
+                    "quiver",
+                    &format!("binned+{}", Layout::default().name()),
+                    "build",
+                    threads,
+                    None,
+                    Some(ms),
+                    Some(tree.sah_cost(&config)),
+                );
+                r["refit_ms"] = json!(refit);
+                rows.push(r);
+                Ok(())
+            })?;
             p.install(|| {
                 let options = BuildOptions::default().layout(Layout::Bvh2Dfs);
                 let _ = options.build(&tris);
@@ -224,6 +247,7 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
                 ));
             }
         }
+        drop(moved);
         // tinybvh builds on threads of its own (all hardware threads above 50,000 triangles),
         // which it cannot be told to limit: one build row, at that count.
         #[cfg(feature = "tinybvh")]
@@ -485,7 +509,7 @@ fn print_throughput(rows: &[Value]) {
     let s = |v: &Value| v.as_str().unwrap_or("").to_string();
     let f = |v: &Value| v.as_f64();
     out!(
-        "{:<14} {:>9} {:<7} {:<17} {:<10} {:>3} {:>9} {:>9} {:>9} {:>8}",
+        "{:<14} {:>9} {:<7} {:<17} {:<10} {:>3} {:>9} {:>9} {:>9} {:>9} {:>8}",
         "scene",
         "prims",
         "engine",
@@ -493,6 +517,7 @@ fn print_throughput(rows: &[Value]) {
         "rays",
         "thr",
         "build ms",
+        "refit ms",
         "SAH",
         "Mrays/s",
         "q/obvhs"
@@ -541,7 +566,7 @@ fn print_throughput(rows: &[Value]) {
                 .map_or("-".to_string(), |x| format!("{x:.p$}"))
         };
         out!(
-            "{:<14} {:>9} {:<7} {:<17} {:<10} {:>3} {:>9} {:>9} {:>9} {:>8}",
+            "{:<14} {:>9} {:<7} {:<17} {:<10} {:>3} {:>9} {:>9} {:>9} {:>9} {:>8}",
             short,
             r["primitives"],
             s(&r["engine"]),
@@ -549,6 +574,7 @@ fn print_throughput(rows: &[Value]) {
             s(&r["rays"]),
             r["threads"],
             num(f(&r["build_ms"]), 1),
+            num(f(&r["refit_ms"]), 1),
             num(f(&r["sah_cost"]), 2),
             num(f(&r["mrays_per_s"]), 2),
             num(ratio, 2)
@@ -562,6 +588,7 @@ fn print_throughput(rows: &[Value]) {
         outln!();
     }
     outln!("(q/obvhs: quiver throughput over obvhs's, or obvhs build time over quiver's: above 1 means quiver is faster)");
+    outln!("(refit ms: the default layout's BVH refit to the same triangles moved by a thousandth of the scene's size, the tree kept and every box recomputed; median of --reps)");
     if cfg!(feature = "embree") {
         outln!("(q/embree: the same against Embree's rtcIntersect1 / rtcOccluded1 and its default-quality build)");
     }

@@ -15,7 +15,7 @@ pub(crate) mod render;
 
 use crate::budget;
 use quiver::builders::{BuildTree, Builder};
-use quiver::{BuildOptions, Layout};
+use quiver::{BuildOptions, Bvh, Layout, Triangle};
 use quiver_scenes::accel::SceneBvh;
 use quiver_scenes::scene::{
     tessellate, Census, LoadOptions, NonFinite, Scene, SceneError, GENERATORS,
@@ -237,6 +237,48 @@ fn scene_help() -> String {
         s += &format!("  {:<8} {} (default {})\n", g.name, g.about, g.default_size);
     }
     s
+}
+
+/// `tris` slightly moved, as one frame of an animation moves a mesh: every vertex by a smooth
+/// field of a thousandth of the scene's size (a function of the position, so vertices that
+/// triangles share stay shared).
+pub(crate) fn nudged(tris: &[Triangle]) -> Vec<Triangle> {
+    use quiver::glam::Vec3A;
+    let b = tris
+        .iter()
+        .fold(quiver::Aabb::EMPTY, |b, t| b.union(&t.bounds()));
+    let size = b.extent().max_element();
+    if !(size.is_finite() && size > 0.0) {
+        return tris.to_vec();
+    }
+    let k = std::f32::consts::TAU * 4.0 / size;
+    let f =
+        |p: Vec3A| p + 1e-3 * size * Vec3A::new((k * p.y).sin(), (k * p.z).sin(), (k * p.x).sin());
+    tris.iter()
+        .map(|t| Triangle::new(f(t.v[0]), f(t.v[1]), f(t.v[2])))
+        .collect()
+}
+
+/// The median of `reps` refits of `bvh` (built over `tris`) in ms, alternately to `moved`
+/// and back to `tris` (after one untimed refit), on the current pool; the BVH ends over
+/// `tris`.
+pub(crate) fn refit_ms(
+    bvh: &mut Bvh,
+    tris: &[Triangle],
+    moved: &[Triangle],
+    reps: usize,
+) -> std::result::Result<f64, quiver::RefitError> {
+    bvh.refit(moved)?;
+    let mut times = Vec::with_capacity(reps.max(1));
+    for r in 0..reps.max(1) {
+        let to = if r % 2 == 0 { tris } else { moved };
+        let start = Instant::now();
+        bvh.refit(to)?;
+        times.push(start.elapsed().as_secs_f64() * 1e3);
+    }
+    bvh.refit(tris)?;
+    times.sort_by(f64::total_cmp);
+    Ok(times[times.len() / 2])
 }
 
 fn finite_cost(flag: &str, v: f32) -> Result<f32> {

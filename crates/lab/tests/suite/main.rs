@@ -16,6 +16,7 @@ mod mixed;
 mod obvhs;
 mod packets;
 mod predict;
+mod refit;
 mod render;
 mod scale;
 mod scenes;

@@ -25,7 +25,7 @@ fn tris(scene: &str) -> Vec<Triangle> {
 /// Three geometries (a soup, a closed sphere, a tetrahedron fractal) placed 40 times: one at
 /// the identity, the others rotated, scaled unevenly (some mirrored) and moved, with masks
 /// from a small set.
-fn setup(seed: u64) -> Setup {
+pub(crate) fn setup(seed: u64) -> Setup {
     let geometries = vec![tris("soup300"), tris("icosphere2"), tris("tetra3")];
     let mut rng = Rng::new(seed);
     let mut instances = vec![Instance::of(GeometryId(0))];

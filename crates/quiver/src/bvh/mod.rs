@@ -4,9 +4,11 @@
 
 mod nodes;
 mod options;
+mod refit;
 
 pub(crate) use nodes::{Laid, Nodes};
 pub use options::BuildOptions;
+pub use refit::RefitError;
 
 use crate::builders::{prim_bounds, BuildTree, TreeError};
 use crate::frame::Frame;
@@ -42,6 +44,9 @@ pub struct Bvh<P = Triangle> {
     nodes: Nodes<P>,
     /// Every primitive's box, in the caller's units.
     bounds: Aabb,
+    /// The primitives the BVH was built over, those the build dropped included: what a refit
+    /// must be given.
+    len: usize,
 }
 
 impl<P> Bvh<P> {
@@ -50,6 +55,7 @@ impl<P> Bvh<P> {
         Bvh {
             nodes,
             bounds: tree.nodes.first().map_or(Aabb::EMPTY, |n| n.bounds),
+            len: tree.prim_indices.len() + tree.dropped,
         }
     }
 
@@ -146,7 +152,7 @@ impl<P: Primitive> Bvh<P> {
     pub fn with_isa(self, isa: Isa) -> Self {
         Bvh {
             nodes: self.nodes.with_isa(isa),
-            bounds: self.bounds,
+            ..self
         }
     }
 

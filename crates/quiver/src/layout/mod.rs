@@ -20,6 +20,7 @@ pub(crate) mod bvh4;
 pub(crate) mod bvh8;
 pub(crate) mod collapse;
 pub(crate) mod order;
+pub(crate) mod refit;
 pub(crate) mod tri4;
 
 pub use bvh2::{Bvh2, Bvh2Mapping, Bvh2Node};

@@ -46,12 +46,17 @@
 //! assert_eq!((hit.instance, hit.t), (1, 3.0));
 //! ```
 
+mod edit;
 mod packet;
 mod query;
 
+pub use edit::WorldEdit;
+
 use crate::builders::{build, prim_bounds, BuildConfig, Builder};
 use crate::bvh::BuildOptions;
+use crate::bvh::RefitError;
 use crate::geometry::{unit_or_zero, Aabb, PrimHit, Ray, Triangle};
+use crate::isa::Isa;
 use crate::layout::{bvh2::leaf_order, Bvh8, Footprint};
 use crate::mesh::{Mesh, MeshError};
 use crate::primitive::Primitive;
@@ -242,6 +247,35 @@ pub enum WorldError {
     },
     /// More than `u32::MAX` instances or geometries.
     TooMany,
+    /// An edit named geometry `geometry`, but the world has `geometries`.
+    NoGeometry {
+        /// The geometry named.
+        geometry: u32,
+        /// How many there are.
+        geometries: usize,
+    },
+    /// An edit named instance `instance`, but the world has `instances`.
+    NoInstance {
+        /// The instance named.
+        instance: u32,
+        /// How many there are.
+        instances: usize,
+    },
+    /// An edit gave geometry `geometry` primitives of the other kind: it `holds` triangles
+    /// or the world's own primitive type.
+    GeometryKind {
+        /// The geometry.
+        geometry: u32,
+        /// What it holds: "triangles" or "primitives of the world's type".
+        holds: &'static str,
+    },
+    /// Geometry `geometry` could not be refit to the primitives given.
+    Refit {
+        /// The geometry.
+        geometry: u32,
+        /// Why.
+        error: RefitError,
+    },
 }
 
 impl fmt::Display for WorldError {
@@ -260,6 +294,24 @@ impl fmt::Display for WorldError {
             }
             WorldError::Mesh { geometry, error } => write!(f, "geometry {geometry}: {error}"),
             WorldError::TooMany => write!(f, "more than 2^32 - 1 instances or geometries"),
+            WorldError::NoGeometry {
+                geometry,
+                geometries,
+            } => write!(
+                f,
+                "geometry {geometry} does not exist: the world has {geometries}"
+            ),
+            WorldError::NoInstance {
+                instance,
+                instances,
+            } => write!(
+                f,
+                "instance {instance} does not exist: the world has {instances}"
+            ),
+            WorldError::GeometryKind { geometry, holds } => {
+                write!(f, "geometry {geometry} holds {holds}, and takes only those")
+            }
+            WorldError::Refit { geometry, error } => write!(f, "geometry {geometry}: {error}"),
         }
     }
 }
@@ -389,20 +441,12 @@ impl<P: Primitive> WorldBuilder<P> {
         let placed: Vec<Placed> = placements
             .into_iter()
             .enumerate()
-            .map(|(i, (world_to_object, identity))| {
+            .map(|(i, placement)| {
                 let inst = &self.instances[i];
-                let g = inst.geometry.0;
-                Placed {
-                    world_to_object,
-                    bounds: world_box(&inst.transform, &geometries[g as usize].bounds()),
-                    geometry: g,
-                    mask: inst.mask,
-                    instance: i as u32,
-                    identity,
-                }
+                Placed::new(i, inst, placement, &geometries[inst.geometry.0 as usize])
             })
             .collect();
-        let top = options.run(|| top_level(&placed, options));
+        let top = options.run(|| top_level(&placed, options.chosen_isa()));
         let bounds = placed.iter().fold(Aabb::EMPTY, |b, p| b.union(&p.bounds));
         Ok(World {
             geometries,
@@ -439,11 +483,16 @@ fn check_instance(
     if m.matrix3.determinant() == 0.0 {
         return bad("not invertible");
     }
-    let inverse = m.inverse();
+    let (inverse, identity) = placement(m);
     if !inverse.is_finite() {
         return bad("out of f32's range to invert (its inverse is not finite)");
     }
-    Ok((inverse, *m == Affine3A::IDENTITY))
+    Ok((inverse, identity))
+}
+
+/// A checked transform's inverse and whether it is the identity.
+fn placement(m: &Affine3A) -> (Affine3A, bool) {
+    (m.inverse(), *m == Affine3A::IDENTITY)
 }
 
 /// The world box of an object box placed by `m`: the box of its eight transformed corners.
@@ -470,18 +519,13 @@ fn world_box(m: &Affine3A, b: &Aabb) -> Aabb {
 
 /// The top-level BVH: 8-wide, one instance per leaf (an instance's test is a whole walk of
 /// its geometry, far costlier than a node's).
-fn top_level(placed: &[Placed], options: &BuildOptions<'_>) -> Bvh8<Placed> {
+fn top_level(placed: &[Placed], isa: Isa) -> Bvh8<Placed> {
     let config = BuildConfig {
         max_leaf_size: 1,
         ..BuildConfig::default()
     };
     let tree = build(&prim_bounds(placed), &config, Builder::Binned);
-    Bvh8::from_leaf_prims(
-        &tree,
-        leaf_order(&tree, placed),
-        options.chosen_isa(),
-        &config,
-    )
+    Bvh8::from_leaf_prims(&tree, leaf_order(&tree, placed), isa, &config)
 }
 
 /// An instance as the walks read it, in top-level leaf order.
@@ -500,6 +544,23 @@ pub(crate) struct Placed {
 }
 
 impl Placed {
+    /// Instance `index` (`inst`, with its checked `placement`) of `geometry`.
+    fn new<P: Primitive>(
+        index: usize,
+        inst: &Instance,
+        (world_to_object, identity): (Affine3A, bool),
+        geometry: &Geometry<P>,
+    ) -> Placed {
+        Placed {
+            world_to_object,
+            bounds: world_box(&inst.transform, &geometry.bounds()),
+            geometry: inst.geometry.0,
+            mask: inst.mask,
+            instance: index as u32,
+            identity,
+        }
+    }
+
     /// `ray` in object space, searching up to `t_max` (the same parameter as in world space).
     #[inline(always)]
     pub(crate) fn local(&self, ray: &Ray, t_max: f32) -> Ray {
