@@ -96,6 +96,20 @@ fn time<T>(f: impl FnOnce() -> T) -> (T, f64) {
     (v, t.elapsed().as_secs_f64() * 1e3)
 }
 
+/// The median time of `reps` runs of `f` (at least one), with the last run's value.
+fn median_time<T>(reps: usize, mut f: impl FnMut() -> T) -> (T, f64) {
+    let mut times = Vec::with_capacity(reps.max(1));
+    let mut last = None;
+    for _ in 0..reps.max(1) {
+        drop(last.take());
+        let (v, ms) = time(&mut f);
+        times.push(ms);
+        last = Some(v);
+    }
+    times.sort_by(f64::total_cmp);
+    (last.expect("at least one run"), times[times.len() / 2])
+}
+
 /// Runs `quiver bench`.
 pub(crate) fn run(args: BenchArgs) -> Result<()> {
     check_outputs(&[("--json", args.json.as_deref())], &args.scenes)?;
@@ -168,7 +182,8 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
         };
         // The same triangles a little moved, for the refit (one frame of an animation).
         let moved = super::nudged(&tris);
-        // Builds at each thread count, warmed once so page faults do not count.
+        // Builds at each thread count, warmed once so page faults do not count; quiver's default
+        // build and Embree's are the median of `--reps` builds.
         for &threads in &thread_counts {
             let p = pool(Some(threads))?;
             // quiver's default layout: the build, and beside it a refit to the moved
@@ -176,7 +191,8 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
             p.install(|| -> std::result::Result<(), quiver::RefitError> {
                 let options = BuildOptions::default();
                 drop(options.build(&tris));
-                let ((mut bvh, tree), ms) = time(|| options.build_with_tree(&tris));
+                let ((mut bvh, tree), ms) =
+                    median_time(args.reps, || options.build_with_tree(&tris));
                 let refit = super::refit_ms(&mut bvh, &tris, &moved, args.reps)?;
                 let mut r = row(
                     "quiver",
@@ -234,7 +250,7 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
             {
                 let device = EmbreeDevice::with_threads(threads)?;
                 drop(EmbreeScene::on_device(&device, &tris)?);
-                let (built, ms) = time(|| EmbreeScene::on_device(&device, &tris));
+                let (built, ms) = median_time(args.reps, || EmbreeScene::on_device(&device, &tris));
                 drop(built?);
                 rows.push(row(
                     "embree",
