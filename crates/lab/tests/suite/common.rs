@@ -1,7 +1,8 @@
 //! Helpers every test module shares: thread pools, builds, reference answers, small inputs.
 
 use glam::Vec3A;
-use quiver::{reference, BuildOptions, Bvh, Hit, Layout, Primitive, Ray, Triangle};
+use quiver::traverse::{ConservativeBoxes, NoFilter, NoStats, PacketMode, PacketQuery};
+use quiver::{reference, BuildOptions, Bvh, Hit, Layout, Primitive, Ray, RayQuery, Triangle};
 use rayon::prelude::*;
 
 /// The 4- and 8-wide layouts: the ones with a packet kernel.
@@ -41,4 +42,28 @@ pub fn tri(a: [f32; 3], b: [f32; 3], c: [f32; 3]) -> Triangle {
 /// The triangle (0,0,0), (1,0,0), (0,1,0).
 pub fn unit_tri() -> Triangle {
     Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y)
+}
+
+/// Packet answers of `bvh` in `mode`, no filter: closest hits and occlusion, one per ray.
+pub fn packet_answers<Q: RayQuery>(
+    bvh: &Q,
+    rays: &[Ray],
+    mode: PacketMode,
+) -> (Vec<Option<Q::Hit>>, Vec<bool>) {
+    let mut hits = vec![None; rays.len()];
+    let mut occluded = vec![false; rays.len()];
+    let q = PacketQuery::new(rays).mode(mode);
+    bvh.closest_hit_packet_with::<ConservativeBoxes, _, _>(
+        q,
+        &mut hits,
+        &mut NoStats,
+        &mut NoFilter,
+    );
+    bvh.any_hit_packet_with::<ConservativeBoxes, _, _>(
+        q,
+        &mut occluded,
+        &mut NoStats,
+        &mut NoFilter,
+    );
+    (hits, occluded)
 }

@@ -2,12 +2,13 @@
 //! `Primitive`'s documentation alone answers like brute force in every layout, instruction
 //! set and packet kernel; a tree from outside is checked, never trusted.
 
+use crate::common::packet_answers;
 use glam::Vec3A;
 use quiver::builders::{
     build, prim_bounds, BuildConfig, BuildNode, BuildTree, Builder, NodeKind, TreeError,
 };
 use quiver::intersect::Watertight;
-use quiver::traverse::{ConservativeBoxes, NoFilter, NoStats, PacketMode, PacketQuery};
+use quiver::traverse::{ConservativeBoxes, NoStats, PacketMode, PacketQuery};
 use quiver::{
     reference, Aabb, BuildOptions, Bvh, Bvh2, Bvh2Mapping, Bvh4, Bvh4Mapping, Bvh8, Hit, Isa,
     Layout, LeafFormat, PrimHit, Primitive, QBvh4, Ray, RayQuery, Triangle,
@@ -121,22 +122,8 @@ fn check_everywhere<P: Primitive>(prims: &[P], rays: &[Ray], want: &[Option<Hit>
             if bvh.isa() != isa && layout == Layout::Bvh8Dfs {
                 continue;
             }
-            let mut hits = vec![None; rays.len()];
-            let mut occluded = vec![false; rays.len()];
             for mode in [PacketMode::Always, PacketMode::Never] {
-                let q = PacketQuery::new(rays).mode(mode);
-                bvh.closest_hit_packet_with::<ConservativeBoxes, _, _>(
-                    q,
-                    &mut hits,
-                    &mut NoStats,
-                    &mut NoFilter,
-                );
-                bvh.any_hit_packet_with::<ConservativeBoxes, _, _>(
-                    q,
-                    &mut occluded,
-                    &mut NoStats,
-                    &mut NoFilter,
-                );
+                let (hits, occluded) = packet_answers(&bvh, rays, mode);
                 for (i, r) in rays.iter().enumerate() {
                     let at = || format!("{what} {layout} {isa} {mode:?} ray {i}");
                     assert_eq!(hits[i], want[i], "{} packet", at());

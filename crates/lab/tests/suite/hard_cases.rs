@@ -2,7 +2,7 @@
 //! shared edges and vertices, boundary intervals, rays on faces and planes, far-off and tiny
 //! scenes, degenerate triangles, flat scenes.
 
-use crate::common::{build, unit_tri};
+use crate::common::{build, packet_answers, unit_tri};
 use glam::Vec3A;
 use quiver::intersect::{Exact, Watertight};
 use quiver::traverse::{ConservativeBoxes, FastBoxes, NoFilter, NoStats};
@@ -441,21 +441,7 @@ fn negative_and_nan_t_min_count_as_zero() {
                 let bvh = build(prims, layout);
                 assert_eq!(bvh.any_hit(&ray), hit.is_some(), "{t_min} {layout}");
                 for mode in [PacketMode::Always, PacketMode::Never, PacketMode::Auto] {
-                    let mut hits = vec![None; rays.len()];
-                    let mut occluded = vec![false; rays.len()];
-                    let q = PacketQuery::new(&rays).mode(mode);
-                    bvh.closest_hit_packet_with::<ConservativeBoxes, _, _>(
-                        q,
-                        &mut hits,
-                        &mut NoStats,
-                        &mut NoFilter,
-                    );
-                    bvh.any_hit_packet_with::<ConservativeBoxes, _, _>(
-                        q,
-                        &mut occluded,
-                        &mut NoStats,
-                        &mut NoFilter,
-                    );
+                    let (hits, occluded) = packet_answers(&bvh, &rays, mode);
                     for (h, any) in hits.iter().zip(&occluded) {
                         assert_eq!(h.map(|h| h.t), hit, "{t_min} {layout} {mode:?}");
                         assert_eq!(*any, hit.is_some(), "{t_min} {layout} {mode:?}");

@@ -8,8 +8,9 @@
 //! the same world built afresh and the flattened scene; every refusal an error that leaves
 //! the BVH as it was.
 
+use crate::common::packet_answers;
 use glam::{Affine3A, Quat, Vec3, Vec3A};
-use quiver::traverse::{ConservativeBoxes, NoFilter, NoStats, PacketMode, PacketQuery};
+use quiver::traverse::PacketMode;
 use quiver::{
     reference, BuildOptions, Bvh, GeometryId, Hit, Instance, Isa, Layout, MeshError, Ray, RayQuery,
     RefitError, Triangle, World, WorldError,
@@ -186,30 +187,6 @@ impl Rays {
     }
 }
 
-/// Packet answers of `bvh` in `mode`: closest hits and occlusion.
-fn packets<Q: RayQuery<Hit = Hit>>(
-    bvh: &Q,
-    rays: &[Ray],
-    mode: PacketMode,
-) -> (Vec<Option<Hit>>, Vec<bool>) {
-    let mut hits = vec![None; rays.len()];
-    let mut occluded = vec![false; rays.len()];
-    let q = PacketQuery::new(rays).mode(mode);
-    bvh.closest_hit_packet_with::<ConservativeBoxes, _, _>(
-        q,
-        &mut hits,
-        &mut NoStats,
-        &mut NoFilter,
-    );
-    bvh.any_hit_packet_with::<ConservativeBoxes, _, _>(
-        q,
-        &mut occluded,
-        &mut NoStats,
-        &mut NoFilter,
-    );
-    (hits, occluded)
-}
-
 /// `refit` answers every query as `fresh` does, and the oracle's (or, in its band, the
 /// reference's) answer.
 fn check(refit: &Bvh, fresh: &Bvh, set: &Rays, what: &str) {
@@ -242,9 +219,9 @@ fn check(refit: &Bvh, fresh: &Bvh, set: &Rays, what: &str) {
             }
         });
     for mode in [PacketMode::Always, PacketMode::Auto] {
-        let (hits, occluded) = packets(refit, &set.rays, mode);
+        let (hits, occluded) = packet_answers(refit, &set.rays, mode);
         assert!(
-            (hits, occluded) == packets(fresh, &set.rays, mode),
+            (hits, occluded) == packet_answers(fresh, &set.rays, mode),
             "{what}: {mode:?} packets differ from the fresh layout's"
         );
     }
@@ -550,23 +527,8 @@ fn an_edited_world_answers_as_the_world_built_afresh_and_the_flattened_scene() {
             }
             for set in [&rays, &masked] {
                 for mode in [PacketMode::Always, PacketMode::Never] {
-                    let q = PacketQuery::new(set).mode(mode);
-                    let mut got = (vec![None; set.len()], vec![false; set.len()]);
-                    let mut want = got.clone();
-                    for (w, out) in [(&world, &mut got), (&fresh, &mut want)] {
-                        w.closest_hit_packet_with::<ConservativeBoxes, _, _>(
-                            q,
-                            &mut out.0,
-                            &mut NoStats,
-                            &mut NoFilter,
-                        );
-                        w.any_hit_packet_with::<ConservativeBoxes, _, _>(
-                            q,
-                            &mut out.1,
-                            &mut NoStats,
-                            &mut NoFilter,
-                        );
-                    }
+                    let got = packet_answers(&world, set, mode);
+                    let want = packet_answers(&fresh, set, mode);
                     assert!(
                         got == want,
                         "{layout} {isa} {mode:?}: packets differ from the fresh world's"
