@@ -1,8 +1,10 @@
 //! Where a default build's time goes, phase by phase, on any scene `quiver` can load:
 //! `cargo run --release -p quiver-scenes --example build_phases -- meshes/dragon_vrip.ply.gz`.
 //! Prints the median of 5 runs of each phase at 1 and 2 threads: primitive bounds, the binary
-//! tree (binned SAH), the layout (collapse, nodes, leaf groups, primitive copy) and the whole
-//! `Bvh::new` for comparison.
+//! tree, the layout (`Bvh::from_tree`: tree check, collapse, nodes, leaf groups, primitive
+//! copy) and the whole build (`BuildOptions::build` with that builder, so `Bvh::new` for the
+//! default) for comparison. `BUILDER=lbvh` (any builder name) picks the builder, `REPS` the
+//! number of runs.
 
 use quiver::builders::{build, prim_bounds, BuildConfig, Builder};
 use quiver::{BuildOptions, Bvh};
@@ -56,9 +58,10 @@ fn main() {
             std::env::var("BUILDER").map_or(Builder::Binned, |b| b.parse().unwrap());
         let tree = pool.install(|| build(&prim_bounds(&tris), &config, builder));
         println!(
-            "threads {threads}: tree {:016x}, SAH {:.3}",
+            "threads {threads}: tree {:016x}, SAH {:.3}, {:?}",
             fingerprint(&tree),
-            tree.sah_cost(&config)
+            tree.sah_cost(&config),
+            tree.stats()
         );
         let bvh8 = pool.install(|| {
             quiver::Bvh8::from_tree(&tree, &tris, &config, quiver::Isa::detect()).unwrap()
@@ -75,10 +78,10 @@ fn main() {
         for _ in 0..reps {
             pool.install(|| {
                 let (bounds, mb) = ms(|| prim_bounds(&tris));
-                let (tree, mt) = ms(|| build(&bounds, &config, Builder::Binned));
+                let (tree, mt) = ms(|| build(&bounds, &config, builder));
                 let (bvh, ml) = ms(|| Bvh::from_tree(&tree, &tris, &options).unwrap());
                 drop(bvh);
-                let (bvh, ma) = ms(|| Bvh::new(&tris));
+                let (bvh, ma) = ms(|| options.clone().builder(builder).build(&tris));
                 drop(bvh);
                 b.push(mb);
                 t.push(mt);
@@ -87,7 +90,7 @@ fn main() {
             });
         }
         println!(
-            "threads {threads}: bounds {:.1} ms, tree {:.1} ms, layout {:.1} ms, Bvh::new {:.1} ms",
+            "threads {threads}: bounds {:.1} ms, tree {:.1} ms, layout {:.1} ms, build {:.1} ms",
             median(b),
             median(t),
             median(l),

@@ -28,6 +28,7 @@ mod cluster;
 mod config;
 mod cost;
 mod insertion;
+mod lbvh;
 mod morton;
 mod ploc;
 mod recurse;
@@ -161,6 +162,7 @@ fn build_finite(
         Builder::Bonsai => bonsai::build(bounds, indices, config, bonsai::PLAIN),
         Builder::BonsaiP => bonsai::build(bounds, indices, config, bonsai::PRUNED),
         Builder::BonsaiP4096 => bonsai::build(bounds, indices, config, bonsai::PRUNED_4096),
+        Builder::Lbvh => lbvh::build(bounds, indices, config),
         Builder::Insertion => {
             let mut links = cluster::Links::singletons(indices, bounds);
             insertion::construct(&mut links);

@@ -152,7 +152,7 @@ pub(crate) fn build_tree<S: Splitter>(
 /// A node as the recursion writes it into its preallocated position; all zeros is "no node".
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
-struct Slot {
+pub(crate) struct Slot {
     min: [f32; 3],
     max: [f32; 3],
     /// Left child slot (inner) or first primitive (leaf).
@@ -163,10 +163,10 @@ struct Slot {
 }
 
 impl Slot {
-    const INNER: u32 = 1;
-    const LEAF: u32 = 2;
+    pub const INNER: u32 = 1;
+    pub const LEAF: u32 = 2;
 
-    fn new(bounds: &Aabb, tag: u32, a: u32, b: u32) -> Slot {
+    pub fn new(bounds: &Aabb, tag: u32, a: u32, b: u32) -> Slot {
         Slot {
             min: bounds.min.into(),
             max: bounds.max.into(),
@@ -179,7 +179,7 @@ impl Slot {
 
 /// Collects the nodes reachable from slot 0 into a gap-free preorder array. Walking the tree
 /// (rather than scanning every slot) reads only the slots that hold nodes.
-fn compact(slots: &[Slot]) -> Vec<BuildNode> {
+pub(crate) fn compact(slots: &[Slot]) -> Vec<BuildNode> {
     let mut out: Vec<BuildNode> = Vec::with_capacity(slots.len() / 2 + 1);
     // (slot, output index of the parent whose right link points here)
     let mut stack = vec![(0u32, u32::MAX)];

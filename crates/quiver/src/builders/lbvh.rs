@@ -1,0 +1,207 @@
+//! Linear BVH (Lauterbach et al. 2009; Karras 2012): the primitives sorted once along a Morton
+//! curve of their centroids, then every node split where its run of codes changes in the
+//! highest bit in which its first and last code differ. Finding a split is a binary search and
+//! nothing moves after the sort, so the tree is built down to single primitives with constant
+//! work per node: boxes are unions of the children's on the way back up, and a node becomes a
+//! leaf where the SAH prefers it (the optimal collapse of Bittner et al. 2013, bottom-up, in
+//! the same pass).
+//!
+//! The sort key is the code above the primitive's input index, so every key is distinct and
+//! the order, and the tree, are the same for any number of threads; node positions follow the
+//! 2n − 1 rule of [`super::recurse`]. The code gets what the index leaves of 64 bits (42 bits,
+//! 14 per axis, for a million primitives; at least 30), which also bounds the depth: each
+//! split below the root clears one more code bit or halves a run of equal codes, so no path
+//! is longer than 64 edges.
+//!
+//! The fast preset's builder: several times quicker than the binned SAH, with a costlier tree
+//! (the planes fall on a fixed grid, wherever the primitives are).
+
+use super::recurse::{compact, Slot};
+use super::{BuildConfig, BuildNode};
+use crate::geometry::Aabb;
+use glam::Vec3A;
+use rayon::prelude::*;
+
+/// Subtrees this small are built on the current thread.
+const TASK_CUTOFF: usize = 2048;
+
+pub(super) fn build(
+    bounds: &[Aabb],
+    idx: Vec<u32>,
+    config: &BuildConfig,
+) -> (Vec<BuildNode>, Vec<u32>) {
+    assert!(
+        bounds.len() < (u32::MAX / 2) as usize,
+        "too many primitives for 32-bit node indices"
+    );
+    let id_bits = (u32::BITS - (bounds.len().max(2) as u32 - 1).leading_zeros()).max(1);
+    let keys = sorted_keys(bounds, &idx, id_bits);
+    let order: Vec<u32> = keys
+        .par_iter()
+        .map(|&k| (k & ((1u64 << id_bits) - 1)) as u32)
+        .collect();
+    let mut slots: Vec<Slot> = bytemuck::zeroed_vec(2 * keys.len() - 1);
+    let job = Job {
+        bounds,
+        config,
+        id_bits,
+        id_mask: (1u64 << id_bits) - 1,
+    };
+    job.node(&keys, 0, 0, &mut slots);
+    (compact(&slots), order)
+}
+
+/// Each primitive's key (Morton code of its centroid, then its index), sorted.
+fn sorted_keys(bounds: &[Aabb], idx: &[u32], id_bits: u32) -> Vec<u64> {
+    let scene = idx
+        .par_chunks(16 * 1024)
+        .map(|ch| {
+            ch.iter().fold(Aabb::EMPTY, |mut c, &i| {
+                c.grow(bounds[i as usize].center());
+                c
+            })
+        })
+        .reduce(|| Aabb::EMPTY, |a, b| a.union(&b));
+    let axis_bits = ((64 - id_bits) / 3).min(21);
+    let cells = (1u64 << axis_bits) as f32;
+    let e = scene.extent();
+    // Cells per unit on each axis; an axis without extent puts everything in cell 0.
+    let scale = Vec3A::select(e.cmpgt(Vec3A::ZERO), Vec3A::splat(cells) / e, Vec3A::ZERO);
+    let top = (1u32 << axis_bits) - 1;
+    let mut keys: Vec<u64> = idx
+        .par_iter()
+        .map(|&i| {
+            let q = ((bounds[i as usize].center() - scene.min) * scale).to_array();
+            // The float-to-int cast saturates (and sends NaN to 0); the top cell is closed.
+            let cell = |x: f32| (x as u32).min(top) as u64;
+            let code = spread(cell(q[0])) << 2 | spread(cell(q[1])) << 1 | spread(cell(q[2]));
+            code << id_bits | i as u64
+        })
+        .collect();
+    keys.par_sort_unstable();
+    keys
+}
+
+/// The low 21 bits of `x` moved to every third bit (bit k to bit 3k).
+fn spread(x: u64) -> u64 {
+    let mut x = x & 0x1f_ffff;
+    x = (x | x << 32) & 0x001f_0000_0000_ffff;
+    x = (x | x << 16) & 0x001f_0000_ff00_00ff;
+    x = (x | x << 8) & 0x100f_00f0_0f00_f00f;
+    x = (x | x << 4) & 0x10c3_0c30_c30c_30c3;
+    x = (x | x << 2) & 0x1249_2492_4924_9249;
+    x
+}
+
+struct Job<'a> {
+    bounds: &'a [Aabb],
+    config: &'a BuildConfig,
+    id_bits: u32,
+    id_mask: u64,
+}
+
+impl Job<'_> {
+    /// Builds the subtree over `keys` (positions `first..` of the sorted order) into `slots`
+    /// (its 2n − 1 slots, the first at index `slot`); returns its box and SAH cost (in units
+    /// of half area).
+    fn node(&self, keys: &[u64], first: u32, slot: u32, slots: &mut [Slot]) -> (Aabb, f32) {
+        let n = keys.len();
+        let config = self.config;
+        if n == 1 {
+            let b = self.bounds[(keys[0] & self.id_mask) as usize];
+            slots[0] = Slot::new(&b, Slot::LEAF, first, 1);
+            return (b, config.intersection_cost * b.half_area());
+        }
+        let mid = self.split(keys);
+        let (left_keys, right_keys) = keys.split_at(mid);
+        let (own, rest) = slots.split_first_mut().expect("2n - 1 slots");
+        let (l_slots, r_slots) = rest.split_at_mut(2 * mid - 1);
+        let (l_slot, r_slot) = (slot + 1, slot + 2 * mid as u32);
+        let r_first = first + mid as u32;
+        let mut left = move || self.node(left_keys, first, l_slot, l_slots);
+        let mut right = move || self.node(right_keys, r_first, r_slot, r_slots);
+        let ((lb, lc), (rb, rc)) = if n >= TASK_CUTOFF {
+            rayon::join(left, right)
+        } else {
+            (left(), right())
+        };
+        let b = lb.union(&rb);
+        let area = b.half_area();
+        let inner = config.traversal_cost * area + lc + rc;
+        let leaf = config.intersection_cost * n as f32 * area;
+        if n <= config.max_leaf_size && leaf <= inner {
+            *own = Slot::new(&b, Slot::LEAF, first, n as u32);
+            (b, leaf)
+        } else {
+            *own = Slot::new(&b, Slot::INNER, l_slot, r_slot);
+            (b, inner)
+        }
+    }
+
+    /// Where `keys` (two or more, sorted) split: at the first key with the highest differing
+    /// code bit set, or in the middle of a run of equal codes.
+    fn split(&self, keys: &[u64]) -> usize {
+        let n = keys.len();
+        let differ = keys[0] ^ keys[n - 1];
+        let bit = 63 - differ.leading_zeros();
+        if bit < self.id_bits {
+            return n / 2;
+        }
+        // Every key of the run agrees above `bit`, so those with it clear come first.
+        keys.partition_point(|&k| (k >> bit) & 1 == 0)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::builders::NodeKind;
+
+    fn point(x: f32, y: f32, z: f32) -> Aabb {
+        let p = Vec3A::new(x, y, z);
+        Aabb::new(p, p)
+    }
+
+    #[test]
+    fn spread_moves_each_bit_to_three_times_its_place() {
+        for k in 0..21 {
+            assert_eq!(spread(1 << k), 1 << (3 * k), "bit {k}");
+        }
+        assert_eq!(spread(0x1f_ffff), 0x1249_2492_4924_9249);
+    }
+
+    #[test]
+    fn the_root_splits_at_the_top_morton_bit() {
+        // Centroids span 0..3 on x: the top code bit is x's upper half, so the two points
+        // below x = 1.5 go left whatever their input order.
+        let boxes = [
+            point(3.0, 0.0, 0.0),
+            point(0.0, 0.0, 0.0),
+            point(2.5, 0.0, 0.0),
+            point(1.0, 0.0, 0.0),
+        ];
+        let config = BuildConfig {
+            max_leaf_size: 1,
+            ..BuildConfig::default()
+        };
+        let (nodes, order) = build(&boxes, (0..4).collect(), &config);
+        let NodeKind::Inner { left, right } = nodes[0].kind else {
+            panic!("the root must split");
+        };
+        assert_eq!(nodes[left as usize].bounds.max.x, 1.0);
+        assert_eq!(nodes[right as usize].bounds.min.x, 2.5);
+        assert_eq!(order, vec![1, 3, 2, 0]);
+    }
+
+    #[test]
+    fn equal_codes_halve_in_index_order() {
+        let boxes = vec![point(1.0, 1.0, 1.0); 5];
+        let config = BuildConfig {
+            max_leaf_size: 1,
+            ..BuildConfig::default()
+        };
+        let (nodes, order) = build(&boxes, (0..5).collect(), &config);
+        assert_eq!(order, vec![0, 1, 2, 3, 4]);
+        assert_eq!(nodes.len(), 9);
+    }
+}
