@@ -7,8 +7,10 @@
 //! `tinybvh` feature, tinybvh's `BVH8_CPU` and `BVH4_CPU` join the single-ray rounds too
 //! (`Intersect` / `IsOccluded`), with their build time. Every engine's BVH memory is reported
 //! in bytes per triangle: quiver's `Bvh::footprint`, Embree's device memory monitor across the
-//! commit, tinybvh's node and leaf array. quiver's default layout also reports its refit time
-//! beside its build time (`Bvh::refit` to the triangles slightly moved, as by an animation).
+//! commit, tinybvh's node and leaf array. quiver's build presets (default, fast) each report their
+//! build time and SAH cost, and their trees are traced in the default layout beside the
+//! kernels; the default also reports its refit time (`Bvh::refit` to the triangles slightly
+//! moved, as by an animation).
 
 use super::{measured_threads, pool, thread_count, Result, MAX_RAYS, MAX_REPS};
 use crate::budget::{self, Estimate};
@@ -186,27 +188,31 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
         // build and Embree's are the median of `--reps` builds.
         for &threads in &thread_counts {
             let p = pool(Some(threads))?;
-            // quiver's default layout: the build, and beside it a refit to the moved
-            // triangles (the same tree, every box recomputed).
-            p.install(|| -> std::result::Result<(), quiver::RefitError> {
-                let options = BuildOptions::default();
-                drop(options.build(&tris));
-                let ((mut bvh, tree), ms) =
-                    median_time(args.reps, || options.build_with_tree(&tris));
-                let refit = super::refit_ms(&mut bvh, &tris, &moved, args.reps)?;
-                let mut r = row(
-                    "quiver",
-                    &format!("binned+{}", Layout::default().name()),
-                    "build",
-                    threads,
-                    None,
-                    Some(ms),
-                    Some(tree.sah_cost(&config)),
-                );
-                r["refit_ms"] = json!(refit);
-                rows.push(r);
-                Ok(())
-            })?;
+            // quiver's presets in the default layout: each build (median of `--reps`) and
+            // its tree's SAH cost; beside the default's, a refit to the moved triangles (the
+            // same tree, every box recomputed).
+            for (preset, options) in presets() {
+                p.install(|| -> std::result::Result<(), quiver::RefitError> {
+                    drop(options.build(&tris));
+                    let ((mut bvh, tree), ms) =
+                        median_time(args.reps, || options.build_with_tree(&tris));
+                    let mut r = row(
+                        "quiver",
+                        &format!("{}+{}", options.builder.name(), options.layout.name()),
+                        "build",
+                        threads,
+                        None,
+                        Some(ms),
+                        Some(tree.sah_cost(&config)),
+                    );
+                    r["preset"] = json!(preset);
+                    if preset == "default" {
+                        r["refit_ms"] = json!(super::refit_ms(&mut bvh, &tris, &moved, args.reps)?);
+                    }
+                    rows.push(r);
+                    Ok(())
+                })?;
+            }
             p.install(|| {
                 let options = BuildOptions::default().layout(Layout::Bvh2Dfs);
                 let _ = options.build(&tris);
@@ -299,6 +305,15 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
                 )
             })
             .collect::<std::result::Result<Vec<Bvh>, _>>()?;
+        // The other presets' trees in the default layout, traced beside the kernels.
+        let preset_bvhs: Vec<(String, Bvh)> = presets()
+            .into_iter()
+            .filter(|(name, _)| *name != "default")
+            .map(|(_, o)| {
+                let kernel = format!("{}/{}", o.layout.name(), o.builder.name());
+                (kernel, o.build(&tris))
+            })
+            .collect();
         #[cfg(feature = "tinybvh")]
         let tiny: Vec<TinyBvh> = TINY
             .iter()
@@ -395,7 +410,8 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
                 ("shadow", &shadow, true),
                 ("incoherent", &incoherent, false),
             ] {
-                let embree_at = KERNELS.len() + 1;
+                let ours = KERNELS.len() + preset_bvhs.len();
+                let embree_at = ours + 1;
                 let tiny_at = embree_at + usize::from(cfg!(feature = "embree"));
                 let n = tiny_at + tiny.len();
                 let times = p.install(|| {
@@ -416,8 +432,10 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
                             std::hint::black_box(t.count_hits(set, any));
                             return;
                         }
-                        let hits = if i < KERNELS.len() {
-                            let b = &bvhs[i];
+                        let hits = if i < ours {
+                            let b = bvhs
+                                .get(i)
+                                .unwrap_or_else(|| &preset_bvhs[i - KERNELS.len()].1);
                             count_hits(set, |r| {
                                 if any {
                                     b.any_hit(r)
@@ -445,7 +463,9 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
                     let mrays = mrays_per_s(set.len(), *t);
                     let (engine, kernel) = if i < KERNELS.len() {
                         ("quiver", KERNELS[i].name())
-                    } else if i == KERNELS.len() {
+                    } else if i < ours {
+                        ("quiver", preset_bvhs[i - KERNELS.len()].0.as_str())
+                    } else if i == ours {
                         ("obvhs", "bvh2-medium")
                     } else if i >= tiny_at {
                         ("tinybvh", tiny_name(&tiny, i - tiny_at))
@@ -475,6 +495,15 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
         args.json.as_ref(),
         &json!({"machine": machine, "rows": rows, "memory": memory_rows}),
     )
+}
+
+/// quiver's build presets, by the name the rows give them: the default build (binned SAH,
+/// `Bvh::new`) and the fast one (LBVH), both in the default layout.
+fn presets() -> Vec<(&'static str, BuildOptions<'static>)> {
+    vec![
+        ("default", BuildOptions::default()),
+        ("fast", BuildOptions::fast()),
+    ]
 }
 
 /// The name of the `k`-th tinybvh BVH built for a scene.
