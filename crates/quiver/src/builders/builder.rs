@@ -15,6 +15,7 @@ use std::fmt;
 /// assert_eq!(Builder::default(), Builder::Binned);
 /// assert_eq!("sweep".parse::<Builder>(), Ok(Builder::Sweep));
 /// assert_eq!("ploc10".parse::<Builder>(), Ok(Builder::Ploc10));
+/// assert_eq!("sbvh".parse::<Builder>(), Ok(Builder::Sbvh));
 /// ```
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum Builder {
@@ -52,11 +53,18 @@ pub enum Builder {
     /// Insertion-based construction (Bittner et al. 2015): batch 8000, 1% of nodes
     /// optimised per batch, coherence threshold 1.5. Sequential.
     Insertion,
+    /// Spatial-split BVH (Stich et al. 2009): binned object splits and, where their children
+    /// overlap, binned spatial splits that put a primitive in both children, each with the
+    /// part of it on its side; at most 1.3 references per primitive. The tree's leaves may
+    /// then name a primitive more than once (see [`super::BuildTree`]). Triangles are
+    /// clipped exactly when built through [`crate::BuildOptions`]; [`super::build`] clips
+    /// the boxes it is given.
+    Sbvh,
 }
 
 impl Builder {
     /// Every builder, in the order reports list them.
-    pub const ALL: [Builder; 15] = [
+    pub const ALL: [Builder; 16] = [
         Builder::Binned,
         Builder::Sweep,
         Builder::BinnedOpt,
@@ -72,6 +80,7 @@ impl Builder {
         Builder::BonsaiP,
         Builder::BonsaiP4096,
         Builder::Insertion,
+        Builder::Sbvh,
     ];
 
     /// The name used on the command line and in reports.
@@ -92,6 +101,7 @@ impl Builder {
             Builder::BonsaiP => "bonsai-p",
             Builder::BonsaiP4096 => "bonsai-p4096",
             Builder::Insertion => "insertion",
+            Builder::Sbvh => "sbvh",
         }
     }
 }
