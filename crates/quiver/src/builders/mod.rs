@@ -211,8 +211,11 @@ fn build_finite(
 /// better.validate(&boxes, &config).unwrap();
 /// assert!(better.sah_cost(&config) <= tree.sah_cost(&config) * 1.0001);
 /// ```
+///
+/// A tree that names a primitive in several leaves ([`Builder::Sbvh`]) is returned as it is:
+/// the optimisation moves whole primitives, and merging leaves could name one twice in a leaf.
 pub fn optimize(tree: &BuildTree, bounds: &[Aabb], config: &BuildConfig) -> BuildTree {
-    if tree.prim_indices.is_empty() {
+    if tree.prim_indices.is_empty() || tree.prim_indices.len() + tree.dropped > bounds.len() {
         return tree.clone();
     }
     let mut links = cluster::from_build_tree(&tree.nodes, &tree.prim_indices);
