@@ -18,6 +18,7 @@ mod packets;
 mod predict;
 mod refit;
 mod render;
+mod sbvh;
 mod scale;
 mod scenes;
 mod world;

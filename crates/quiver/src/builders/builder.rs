@@ -15,6 +15,7 @@ use std::fmt;
 /// assert_eq!(Builder::default(), Builder::Binned);
 /// assert_eq!("sweep".parse::<Builder>(), Ok(Builder::Sweep));
 /// assert_eq!("ploc10".parse::<Builder>(), Ok(Builder::Ploc10));
+/// assert_eq!("sbvh".parse::<Builder>(), Ok(Builder::Sbvh));
 /// ```
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum Builder {
@@ -56,11 +57,18 @@ pub enum Builder {
     /// leaves by the SAH. The fast preset ([`crate::BuildOptions::fast`]): several times
     /// quicker to build than [`Builder::Binned`], with a costlier tree.
     Lbvh,
+    /// Spatial-split BVH (Stich et al. 2009): binned object splits and, where their children
+    /// overlap, binned spatial splits that put a primitive in both children, each with the
+    /// part of it on its side; at most 1.3 references per primitive. The tree's leaves may
+    /// then name a primitive more than once (see [`super::BuildTree`]). Triangles are
+    /// clipped exactly when built through [`crate::BuildOptions`]; [`super::build`] clips
+    /// the boxes it is given.
+    Sbvh,
 }
 
 impl Builder {
     /// Every builder, in the order reports list them.
-    pub const ALL: [Builder; 16] = [
+    pub const ALL: [Builder; 17] = [
         Builder::Binned,
         Builder::Sweep,
         Builder::BinnedOpt,
@@ -77,6 +85,7 @@ impl Builder {
         Builder::BonsaiP4096,
         Builder::Insertion,
         Builder::Lbvh,
+        Builder::Sbvh,
     ];
 
     /// The name used on the command line and in reports.
@@ -98,6 +107,7 @@ impl Builder {
             Builder::BonsaiP4096 => "bonsai-p4096",
             Builder::Insertion => "insertion",
             Builder::Lbvh => "lbvh",
+            Builder::Sbvh => "sbvh",
         }
     }
 }

@@ -32,6 +32,7 @@ mod lbvh;
 mod morton;
 mod ploc;
 mod recurse;
+mod sbvh;
 mod split;
 mod sweep;
 mod tree;
@@ -44,7 +45,7 @@ pub(crate) use split::{bounds_of, median_split, widest_axis};
 pub(crate) use tree::MEDIAN_DEPTH;
 pub use tree::{BuildNode, BuildTree, NodeKind, TreeError, TreeStats, MAX_DEPTH};
 
-use crate::geometry::Aabb;
+use crate::geometry::{Aabb, Triangle};
 use crate::primitive::Primitive;
 
 /// Builds a tree over `bounds` (one box per primitive) on the current rayon thread pool.
@@ -87,6 +88,22 @@ pub fn build_with_areas(
     config: &BuildConfig,
     builder: Builder,
 ) -> BuildTree {
+    build_clipped(bounds, areas, config, builder, None)
+}
+
+/// Each primitive's triangle by input index, for the spatial splits of [`Builder::Sbvh`]
+/// (`None` for a primitive that has none: its box is clipped instead).
+pub(crate) type Triangles<'a> = &'a (dyn Fn(u32) -> Option<Triangle> + Sync);
+
+/// [`build_with_areas`], with the triangles [`Builder::Sbvh`] clips at its spatial split
+/// planes (`None`: it clips the boxes). The other builders ignore them.
+pub(crate) fn build_clipped(
+    bounds: &[Aabb],
+    areas: Option<&[f32]>,
+    config: &BuildConfig,
+    builder: Builder,
+    triangles: Option<Triangles<'_>>,
+) -> BuildTree {
     if let Err(e) = config.check() {
         panic!("BuildConfig: {e}");
     }
@@ -115,7 +132,8 @@ pub fn build_with_areas(
         };
         (vec![empty], indices)
     } else {
-        build_finite(bounds, areas, indices, config, builder)
+        let clip = triangles.map_or(sbvh::Clip::Boxes, sbvh::Clip::Triangles);
+        build_finite(bounds, areas, indices, config, builder, clip)
     };
     BuildTree {
         nodes,
@@ -126,16 +144,18 @@ pub fn build_with_areas(
 
 /// The chosen builder over the finite primitives `indices` (at least one). `areas` feeds the
 /// cost models of the top-down builders (binned and sweep); the bottom-up builders and the
-/// clustering ones minimise the plain SAH whatever `config.cost_model` says.
+/// clustering ones and the SBVH minimise the plain SAH whatever `config.cost_model` says.
 fn build_finite(
     bounds: &[Aabb],
     areas: Option<&[f32]>,
     indices: Vec<u32>,
     config: &BuildConfig,
     builder: Builder,
+    clip: sbvh::Clip<'_>,
 ) -> (Vec<BuildNode>, Vec<u32>) {
     use morton::Curve::{Extended, Morton};
     match builder {
+        Builder::Sbvh => sbvh::build(bounds, indices, config, clip),
         Builder::Binned => binned::build(bounds, areas, indices, config),
         Builder::Sweep => sweep::build(bounds, areas, indices, config),
         Builder::BinnedOpt | Builder::SweepOpt => {
@@ -193,8 +213,11 @@ fn build_finite(
 /// better.validate(&boxes, &config).unwrap();
 /// assert!(better.sah_cost(&config) <= tree.sah_cost(&config) * 1.0001);
 /// ```
+///
+/// A tree that names a primitive in several leaves ([`Builder::Sbvh`]) is returned as it is:
+/// the optimisation moves whole primitives, and merging leaves could name one twice in a leaf.
 pub fn optimize(tree: &BuildTree, bounds: &[Aabb], config: &BuildConfig) -> BuildTree {
-    if tree.prim_indices.is_empty() {
+    if tree.prim_indices.is_empty() || tree.prim_indices.len() + tree.dropped > bounds.len() {
         return tree.clone();
     }
     let mut links = cluster::from_build_tree(&tree.nodes, &tree.prim_indices);

@@ -39,7 +39,11 @@ pub struct BuildNode {
 pub struct BuildTree {
     /// Nodes in depth-first preorder.
     pub nodes: Vec<BuildNode>,
-    /// Input primitive indices in leaf order.
+    /// Input primitive indices in leaf order: a permutation of the finite primitives for
+    /// every builder but [`super::Builder::Sbvh`], whose spatial splits put a primitive in
+    /// each leaf that holds a piece of it (never twice in one leaf), up to 1.3 references per
+    /// primitive in all. A query still reports such a primitive once, by its input index;
+    /// counted statistics ([`crate::traverse::Stats`]) count each leaf's test.
     pub prim_indices: Vec<u32>,
     /// Primitives left out because their bounds were not finite.
     pub dropped: usize,
@@ -268,10 +272,14 @@ impl BuildTree {
     /// Checks that this tree can be laid out over the primitives with boxes `bounds` (one per
     /// input primitive) and traversed safely: nodes in depth-first preorder (root at 0, each
     /// left child right after its parent), no deeper than [`MAX_DEPTH`], leaves covering the
-    /// index array in order, every finite primitive named exactly once and nothing else, and
-    /// `prim_indices.len() + dropped == bounds.len()`. Boxes are not checked: the layouts
+    /// index array in order, every finite primitive named and nothing else, and the
+    /// primitives named plus `dropped` equal to `bounds.len()`. Boxes are not checked: the layouts
     /// recompute them from the primitives. What [`crate::Bvh::from_tree`] and every layout's
     /// `from_tree` check before they lay a tree out.
+    ///
+    /// A primitive may be named by several leaves (a spatial split's pieces, see
+    /// [`super::Builder::Sbvh`]) but by one leaf only once; it then counts once towards
+    /// `bounds.len()`.
     ///
     /// ```
     /// use quiver::builders::{build, BuildConfig, Builder, TreeError};
@@ -286,7 +294,19 @@ impl BuildTree {
         if self.nodes.is_empty() {
             return Err(TreeError::NoNodes);
         }
-        let named = self.prim_indices.len() as u64 + self.dropped as u64;
+        // Each primitive counts once, however many leaves name it (spatial splits); an
+        // index out of range counts as one more (it is refused below).
+        let mut seen = vec![false; bounds.len()];
+        let mut distinct = 0u64;
+        for &p in &self.prim_indices {
+            match seen.get_mut(p as usize) {
+                Some(s) => {
+                    distinct += !std::mem::replace(s, true) as u64;
+                }
+                None => distinct += 1,
+            }
+        }
+        let named = distinct + self.dropped as u64;
         if named != bounds.len() as u64 {
             return Err(TreeError::PrimCount {
                 tree: named.min(usize::MAX as u64) as usize,
@@ -362,7 +382,6 @@ impl BuildTree {
                 expected: self.prim_indices.len(),
             });
         }
-        let mut seen = vec![false; bounds.len()];
         for (k, &p) in self.prim_indices.iter().enumerate() {
             let bad = |why| {
                 Err(TreeError::PrimIndex {
@@ -374,11 +393,24 @@ impl BuildTree {
             let Some(b) = bounds.get(p as usize) else {
                 return bad("out of range");
             };
-            if std::mem::replace(&mut seen[p as usize], true) {
-                return bad("named twice");
-            }
             if !b.is_finite() {
                 return bad("not finite");
+            }
+        }
+        // Several leaves may name a primitive (a spatial split's pieces), one leaf only once.
+        let mut last_leaf = vec![u32::MAX; bounds.len()];
+        for (i, n) in self.nodes.iter().enumerate() {
+            if let NodeKind::Leaf { first, count } = n.kind {
+                let range = first as usize..first as usize + count as usize;
+                for (k, &p) in self.prim_indices[range.clone()].iter().enumerate() {
+                    if std::mem::replace(&mut last_leaf[p as usize], i as u32) == i as u32 {
+                        return Err(TreeError::PrimIndex {
+                            slot: range.start + k,
+                            prim: p,
+                            why: "named twice in one leaf",
+                        });
+                    }
+                }
             }
         }
         if let Some(p) = (0..bounds.len()).find(|&p| !seen[p] && bounds[p].is_finite()) {
@@ -406,13 +438,16 @@ impl BuildTree {
     /// Checks the invariants every build must keep, given the boxes and configuration it was
     /// built from: everything [`BuildTree::check`] checks (preorder, depth, leaf ranges,
     /// primitive references), and every node reachable exactly once from the root, every finite primitive
-    /// referenced exactly once (and no other), no leaf above `config.max_leaf_size`, every
-    /// parent box containing its children, every leaf box containing its primitives.
+    /// referenced (and no other), no leaf above `config.max_leaf_size`, every
+    /// parent box containing its children, every leaf box containing the primitives only it
+    /// names and meeting those several leaves name (the pieces of a spatial split, whose
+    /// union only the geometry can check).
     /// Returns a description of the first violation.
     pub fn validate(&self, bounds: &[Aabb], config: &BuildConfig) -> Result<(), String> {
         self.check(bounds).map_err(|e| e.to_string())?;
         let mut seen_node = vec![false; self.nodes.len()];
-        let mut seen_prim = vec![false; bounds.len()];
+        // How many leaves name each primitive, and the last of them.
+        let mut named = vec![(0u32, 0usize); bounds.len()];
         let mut refs = 0usize;
         let mut stack = vec![0usize];
         while let Some(i) = stack.pop() {
@@ -449,12 +484,15 @@ impl BuildTree {
                         let pb = bounds
                             .get(p as usize)
                             .ok_or(format!("leaf {i}: primitive {p} out of range"))?;
-                        if std::mem::replace(&mut seen_prim[p as usize], true) {
-                            return Err(format!("primitive {p} referenced twice"));
+                        let common = Aabb {
+                            min: node.bounds.min.max(pb.min),
+                            max: node.bounds.max.min(pb.max),
+                        };
+                        if common.is_empty() {
+                            return Err(format!("leaf {i} does not meet primitive {p}"));
                         }
-                        if !node.bounds.contains(pb) {
-                            return Err(format!("leaf {i} does not contain primitive {p}"));
-                        }
+                        let n = &mut named[p as usize];
+                        *n = (n.0 + 1, i);
                         refs += 1;
                     }
                 }
@@ -463,16 +501,22 @@ impl BuildTree {
         if let Some(i) = seen_node.iter().position(|&s| !s) {
             return Err(format!("node {i} unreachable"));
         }
+        let mut distinct = 0;
         for (p, b) in bounds.iter().enumerate() {
-            if b.is_finite() != seen_prim[p] {
+            let (times, leaf) = named[p];
+            if b.is_finite() != (times > 0) {
                 return Err(format!(
-                    "primitive {p} (finite: {}) referenced: {}",
+                    "primitive {p} (finite: {}) referenced {times} times",
                     b.is_finite(),
-                    seen_prim[p]
                 ));
             }
+            // Named once, it was never split: its leaf holds all of it.
+            if times == 1 && !self.nodes[leaf].bounds.contains(b) {
+                return Err(format!("leaf {leaf} does not contain primitive {p}"));
+            }
+            distinct += (times > 0) as usize;
         }
-        if refs != self.prim_indices.len() || refs + self.dropped != bounds.len() {
+        if refs != self.prim_indices.len() || distinct + self.dropped != bounds.len() {
             return Err(format!(
                 "{refs} references, {} indices, {} dropped, {} primitives",
                 self.prim_indices.len(),

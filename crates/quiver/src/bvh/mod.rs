@@ -47,15 +47,21 @@ pub struct Bvh<P = Triangle> {
     /// The primitives the BVH was built over, those the build dropped included: what a refit
     /// must be given.
     len: usize,
+    /// The primitives the tree holds (`len` less those dropped), each counted once however
+    /// many leaves hold a piece of it.
+    held: usize,
 }
 
 impl<P> Bvh<P> {
     /// A BVH over `nodes`, whose tree (in the caller's units) is `tree`.
-    fn of(nodes: Nodes<P>, tree: &BuildTree) -> Self {
+    /// A BVH over `len` input primitives (not the tree's reference count, which counts a
+    /// spatially split primitive once per leaf holding it).
+    fn of(nodes: Nodes<P>, tree: &BuildTree, len: usize) -> Self {
         Bvh {
             nodes,
             bounds: tree.nodes.first().map_or(Aabb::EMPTY, |n| n.bounds),
-            len: tree.prim_indices.len() + tree.dropped,
+            len,
+            held: len - tree.dropped,
         }
     }
 
@@ -138,7 +144,7 @@ impl<P: Primitive> Bvh<P> {
                 .lay_out(&world, leaf_order(tree, prims))
                 .framed(Frame::default()),
         });
-        Ok(Bvh::of(nodes, &world))
+        Ok(Bvh::of(nodes, &world, prims.len()))
     }
 
     /// The instruction set queries run on: the BVH's own for 8-wide nodes (all queries) and

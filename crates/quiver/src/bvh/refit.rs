@@ -221,6 +221,13 @@ impl<P: Primitive> Bvh<P> {
     /// taken after the build says how much slower it has become, and past a threshold of the
     /// renderer's choosing (1.5 is common) a rebuild pays for itself.
     ///
+    /// A tree with spatial splits ([`crate::builders::Builder::Sbvh`],
+    /// [`crate::BuildOptions::high_quality`]) holds a split primitive in several leaves,
+    /// each box bounding only its piece. A refit boxes each leaf's whole primitives: still
+    /// correct (every box contains what its leaves hold), but the splits' tightness is gone,
+    /// so such a BVH's [`Bvh::sah_cost`] rises even for primitives that did not move;
+    /// rebuilding is the way to get it back.
+    ///
     /// ```
     /// use quiver::{reference, Bvh, Ray, RayQuery, RefitError, Triangle};
     /// use glam::Vec3A;
@@ -329,14 +336,16 @@ impl<P: Primitive> Bvh<P> {
             .into_par_iter()
             .map(|c| Summary::of(c * CHUNK..n.min((c + 1) * CHUNK), boxes_of))
             .reduce(Summary::default, Summary::merge);
+        // A primitive the build split spatially is held more than once: count it once.
+        let distinct = self.held;
         let held = self.nodes.laid().prim_ids();
-        if held.len() == n {
+        if distinct == n {
             if summary.first_bad != usize::MAX {
                 return Err(RefitError::NonFinite {
                     prim: summary.first_bad,
                 });
             }
-        } else if summary.finite != held.len()
+        } else if summary.finite != distinct
             || held
                 .par_iter()
                 .with_min_len(4096)
