@@ -155,12 +155,8 @@ impl Job<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::builders::morton::tests::point;
     use crate::builders::NodeKind;
-
-    fn point(x: f32, y: f32, z: f32) -> Aabb {
-        let p = Vec3A::new(x, y, z);
-        Aabb::new(p, p)
-    }
 
     #[test]
     fn spread_moves_each_bit_to_three_times_its_place() {

@@ -165,10 +165,11 @@ impl<'a> Encoder<'a> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
 
-    fn point(x: f32, y: f32, z: f32) -> Aabb {
+    /// The box of one point, for builder tests over centroids.
+    pub(in crate::builders) fn point(x: f32, y: f32, z: f32) -> Aabb {
         let p = Vec3A::new(x, y, z);
         Aabb::new(p, p)
     }

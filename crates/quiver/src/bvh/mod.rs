@@ -53,9 +53,9 @@ pub struct Bvh<P = Triangle> {
 }
 
 impl<P> Bvh<P> {
-    /// A BVH over `nodes`, whose tree (in the caller's units) is `tree`.
-    /// A BVH over `len` input primitives (not the tree's reference count, which counts a
-    /// spatially split primitive once per leaf holding it).
+    /// A BVH over `nodes`, whose tree (in the caller's units) is `tree`, built over `len`
+    /// input primitives (not the tree's reference count, which counts a spatially split
+    /// primitive once per leaf holding it).
     fn of(nodes: Nodes<P>, tree: &BuildTree, len: usize) -> Self {
         Bvh {
             nodes,

@@ -91,8 +91,8 @@ impl BuildOptions<'static> {
     /// hits still name it once, by its index in the input). Builds take far longer than the
     /// default's (19 to 73 times in the README's measurement: the spatial pass is not yet
     /// tuned); traces were faster where triangles are long or overlap (up to 1.5 times),
-    /// and up to 13% slower on other scenes. A refit keeps the tree but boxes whole primitives, losing the
-    /// spatial splits' tightness: rebuild after large motion.
+    /// and up to 13% slower on other scenes. A refit keeps the tree but boxes whole
+    /// primitives, losing the spatial splits' tightness: rebuild after large motion.
     ///
     /// ```
     /// use quiver::{reference, BuildOptions, Ray, RayQuery, Triangle};
