@@ -412,19 +412,13 @@ impl Job<'_> {
             } else {
                 fill(refs)
             };
-            let mut right = vec![(Aabb::EMPTY, 0usize); k];
-            let mut acc = (Aabb::EMPTY, 0usize);
-            for j in (1..k).rev() {
-                acc = (acc.0.union(&bins[j].bounds), acc.1 + bins[j].exit as usize);
-                right[j] = acc;
-            }
-            let (mut lbox, mut nl) = (Aabb::EMPTY, 0usize);
-            for j in 1..k {
-                lbox = lbox.union(&bins[j - 1].bounds);
-                nl += bins[j - 1].enter as usize;
-                let (rbox, nr) = right[j];
+            let bin = |j: usize| {
+                let b = &bins[j];
+                (b.bounds, b.enter as usize, b.exit as usize)
+            };
+            planes(k, bin, |j, (lbox, nl), (rbox, nr)| {
                 if nl == 0 || nr == 0 || nl + nr - n > budget {
-                    continue;
+                    return;
                 }
                 let cost = lbox.half_area() * nl as f32 + rbox.half_area() * nr as f32;
                 if best.as_ref().is_none_or(|b| cost < b.cost) {
@@ -438,7 +432,7 @@ impl Job<'_> {
                         nr,
                     });
                 }
-            }
+            });
         }
         best
     }
@@ -594,30 +588,21 @@ fn object_split(refs: &[Ref], cent: &Aabb, k: usize) -> Option<ObjectPlane> {
         fill(refs)
     };
     let mut best: Option<(usize, usize, f32, Aabb, Aabb, usize)> = None;
-    let mut right = vec![(Aabb::EMPTY, 0usize); k];
     for axis in 0..3 {
         if scale[axis] == 0.0 {
             continue;
         }
         let row = &bins[axis * k..(axis + 1) * k];
-        let mut acc = (Aabb::EMPTY, 0usize);
-        for j in (1..k).rev() {
-            acc = (acc.0.union(&row[j].bounds), acc.1 + row[j].count as usize);
-            right[j] = acc;
-        }
-        let (mut lbox, mut nl) = (Aabb::EMPTY, 0usize);
-        for j in 1..k {
-            lbox = lbox.union(&row[j - 1].bounds);
-            nl += row[j - 1].count as usize;
-            let (rbox, nr) = right[j];
+        let bin = |j: usize| (row[j].bounds, row[j].count as usize, row[j].count as usize);
+        planes(k, bin, |j, (lbox, nl), (rbox, nr)| {
             if nl == 0 || nr == 0 {
-                continue;
+                return;
             }
             let cost = lbox.half_area() * nl as f32 + rbox.half_area() * nr as f32;
             if best.is_none_or(|b| cost < b.2) {
                 best = Some((axis, j, cost, lbox, rbox, nl));
             }
-        }
+        });
     }
     let (axis, bin, cost, lbox, rbox, nl) = best?;
     Some(ObjectPlane {
@@ -629,6 +614,31 @@ fn object_split(refs: &[Ref], cent: &Aabb, k: usize) -> Option<ObjectPlane> {
         rbox,
         nl,
     })
+}
+
+/// Every plane between bins `j - 1` and `j` of `k` (left to right), handed to `each` with
+/// the box and reference count of its left and right side. `bin(j)` gives bin `j`'s box and
+/// how many references it adds to a left side that ends at it and to a right side that starts
+/// at it: its count twice for object bins, where a reference starts and where it ends for
+/// spatial ones.
+fn planes(
+    k: usize,
+    bin: impl Fn(usize) -> (Aabb, usize, usize),
+    mut each: impl FnMut(usize, (Aabb, usize), (Aabb, usize)),
+) {
+    let mut right = vec![(Aabb::EMPTY, 0usize); k];
+    let mut acc = (Aabb::EMPTY, 0usize);
+    for j in (1..k).rev() {
+        let (b, _, r) = bin(j);
+        acc = (acc.0.union(&b), acc.1 + r);
+        right[j] = acc;
+    }
+    let mut left = (Aabb::EMPTY, 0usize);
+    for (j, &r) in right.iter().enumerate().skip(1) {
+        let (b, l, _) = bin(j - 1);
+        left = (left.0.union(&b), left.1 + l);
+        each(j, left, r);
+    }
 }
 
 /// Spatial bins of one axis: `k` equal slabs of the node's box.
