@@ -67,3 +67,14 @@ pub fn packet_answers<Q: RayQuery>(
     );
     (hits, occluded)
 }
+
+/// Every instruction set a layout has kernels for (and this CPU runs): `f` on `laid_out`
+/// switched to each.
+pub fn each_isa<P: Primitive>(laid_out: &Bvh<P>, mut f: impl FnMut(&Bvh<P>, quiver::Isa)) {
+    for isa in quiver::Isa::ALL {
+        let bvh = laid_out.clone().with_isa(isa);
+        if bvh.isa() == isa {
+            f(&bvh, isa);
+        }
+    }
+}

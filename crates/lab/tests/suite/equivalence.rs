@@ -11,11 +11,12 @@
 //! - any-hit agreeing with closest-hit, and the counting kernels giving the plain kernels'
 //!   answers, exactly.
 
+use crate::common::each_isa;
 use glam::Vec3A;
 use quiver::builders::{build, prim_bounds, BuildConfig, Builder};
 use quiver::intersect::Watertight;
 use quiver::traverse::Counters;
-use quiver::{reference, BuildOptions, Bvh, Hit, Isa, Layout, Primitive, Ray, RayQuery, Triangle};
+use quiver::{reference, BuildOptions, Bvh, Hit, Layout, Primitive, Ray, RayQuery, Triangle};
 use quiver_lab::oracle::{Answer, Oracle};
 use quiver_lab::rays;
 use quiver_scenes::Scene;
@@ -146,16 +147,6 @@ fn check<P: Primitive>(bvh: &Bvh<P>, set: &RaySet, what: &str) -> Worst {
             }
         })
         .reduce(Worst::default, Worst::max)
-}
-
-/// Every instruction set a layout has kernels for (and this CPU runs).
-fn each_isa<P: Primitive>(laid_out: &Bvh<P>, mut f: impl FnMut(&Bvh<P>, Isa)) {
-    for isa in Isa::ALL {
-        let bvh = laid_out.clone().with_isa(isa);
-        if bvh.isa() == isa {
-            f(&bvh, isa);
-        }
-    }
 }
 
 /// Prints the largest deviation seen, so the tolerances' headroom stays visible.

@@ -312,3 +312,181 @@ fn huge_scenes_build_valid_trees_with_finite_costs() {
         }
     }
 }
+
+/// One BVH over unit triangles and triangles at 1e15, 1e20, 1e30 and f32::MAX / 4 (each
+/// ahead of the origin along its own axis) and at 1e-30 (beside the origin): too spread to be
+/// scaled as a whole, so the SIMD leaf groups see the raw sizes, where the fast and the
+/// watertight arithmetic overflow (huge) or underflow (tiny). Every layout and instruction
+/// set, closest, any and counted queries, packets in both modes, answer exactly what the
+/// scalar tests answer (`quiver::reference`, which rescales), and the reference is the f64
+/// oracle's on every decidable ray; every far triangle is hit. Before far groups, the 4- and
+/// 8-wide layouts missed the far triangles.
+#[test]
+fn mixed_scales_in_one_bvh_answer_as_the_scalar_tests() {
+    use crate::common::{each_isa, packet_answers};
+    use quiver::traverse::{Counters, PacketMode};
+    use quiver::{reference, Ray};
+    let mut tris: Vec<Triangle> = (0..16)
+        .map(|i| {
+            let p = Vec3A::new((i % 4) as f32, (i / 4) as f32, 0.0) - 1.5;
+            Triangle::new(p, p + Vec3A::X * 0.8, p + Vec3A::Y * 0.8)
+        })
+        .collect();
+    // A large triangle at distance `s` along `axis` (sign `sign`), spanning about 110°.
+    let ahead = |s: f32, axis: usize, sign: f32| {
+        let at = |a: f32, b: f32, c: f32| {
+            let mut v = [0.0; 3];
+            v[axis] = sign * c * s;
+            v[(axis + 1) % 3] = a * s;
+            v[(axis + 2) % 3] = b * s;
+            Vec3A::from(v)
+        };
+        Triangle::new(at(-1.0, -1.0, 1.0), at(1.5, -1.0, 1.1), at(-1.0, 1.5, 1.2))
+    };
+    let huge = [
+        (1e15f32, 2, 1.0),
+        (1e20, 2, -1.0),
+        (1e30, 0, 1.0),
+        (f32::MAX / 4.0, 0, -1.0),
+    ];
+    let mut far: Vec<u32> = Vec::new();
+    for (s, axis, sign) in huge {
+        far.push(tris.len() as u32);
+        tris.push(ahead(s, axis, sign));
+    }
+    let tiny = 1e-30f32;
+    for k in 0..4 {
+        let p = Vec3A::new(k as f32 * 4.0 * tiny, 0.0, -0.5);
+        far.push(tris.len() as u32);
+        tris.push(Triangle::new(p, p + Vec3A::X * tiny, p + Vec3A::Y * tiny));
+    }
+    // Coherent bundles of eight toward every far triangle, then rays in every direction.
+    let mut rays: Vec<Ray> = Vec::new();
+    for (s, axis, sign) in huge {
+        for j in 0..16 {
+            let mut d = [
+                0.05 * (j % 4) as f32 - 0.1,
+                0.05 * (j / 4) as f32 - 0.1,
+                0.0,
+            ];
+            d.rotate_right(axis + 1);
+            d[axis] = sign;
+            rays.push(Ray::new(
+                Vec3A::new(0.1, 0.2, 0.3) * (j as f32) + 3.0 * s.min(1.0),
+                Vec3A::from(d),
+            ));
+        }
+    }
+    for k in 0..4 {
+        for j in 0..8 {
+            let o = Vec3A::new(
+                (k as f32 * 4.0 + 0.2 + 0.05 * j as f32) * tiny,
+                0.3 * tiny,
+                -1.0,
+            );
+            rays.push(Ray::new(o, Vec3A::Z));
+        }
+    }
+    let mut seed = 0x2545_f491_4f6c_dd1du64;
+    let mut next = || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        (seed >> 40) as f32 / (1u64 << 24) as f32 * 2.0 - 1.0
+    };
+    for _ in 0..1024 {
+        let o = Vec3A::new(next(), next(), next()) * 3.0;
+        let d = Vec3A::new(next(), next(), next());
+        rays.push(Ray::new(o, d));
+    }
+
+    let oracle = quiver_lab::oracle::Oracle::new(&tris);
+    let want: Vec<_> = rays
+        .iter()
+        .map(|r| reference::closest_hit(&tris, r))
+        .collect();
+    for (ray, w) in rays.iter().zip(&want) {
+        let answer = oracle.closest_hit(ray);
+        if answer.is_decidable() {
+            answer
+                .check(*w)
+                .unwrap_or_else(|e| panic!("reference on {ray:?}: {e}"));
+        }
+    }
+    for prim in &far {
+        assert!(
+            want.iter().flatten().any(|h| h.prim == *prim),
+            "triangle {prim} is never hit"
+        );
+    }
+    let wt: Vec<Watertight> = tris.iter().copied().map(Watertight).collect();
+    let want_wt: Vec<_> = rays
+        .iter()
+        .map(|r| reference::closest_hit(&wt, r))
+        .collect();
+    for prim in &far {
+        assert!(
+            want_wt.iter().flatten().any(|h| h.prim == *prim),
+            "watertight: {prim} never hit"
+        );
+    }
+    fn check<P: Primitive>(prims: &[P], rays: &[Ray], want: &[Option<Hit>], what: &str) {
+        let occluded: Vec<bool> = rays.iter().map(|r| reference::any_hit(prims, r)).collect();
+        for layout in Layout::ALL {
+            let laid_out = BuildOptions::default().layout(layout).build(prims);
+            each_isa(&laid_out, |bvh, isa| {
+                let at = format!("{what} {layout} {isa}");
+                for (i, ray) in rays.iter().enumerate() {
+                    assert_eq!(bvh.closest_hit(ray), want[i], "{at}: ray {i} {ray:?}");
+                    assert_eq!(bvh.any_hit(ray), occluded[i], "{at}: any, ray {i}");
+                    let mut c = Counters::default();
+                    assert_eq!(
+                        bvh.closest_hit_counted(ray, &mut c),
+                        want[i],
+                        "{at}: counted"
+                    );
+                    assert_eq!(
+                        bvh.any_hit_counted(ray, &mut c),
+                        occluded[i],
+                        "{at}: counted any"
+                    );
+                }
+                for mode in [PacketMode::Always, PacketMode::Auto] {
+                    let (hits, occ) = packet_answers(bvh, rays, mode);
+                    assert_eq!(hits, want, "{at}: packets {mode:?}");
+                    assert_eq!(occ, occluded, "{at}: packets {mode:?} any");
+                }
+            });
+        }
+    }
+    check(&tris, &rays, &want, "fast");
+    check(&wt, &rays, &want_wt, "watertight");
+
+    // Refit into far groups and out again: a BVH over unit-sized stand-ins for the far
+    // triangles, refit to the mixed scene, answers as the reference does there, and back home.
+    let home: Vec<Triangle> = (0..tris.len())
+        .map(|i| match far.iter().position(|&f| f as usize == i) {
+            Some(k) => {
+                let p = Vec3A::new(6.0 + k as f32, 0.0, 0.0);
+                Triangle::new(p, p + Vec3A::X, p + Vec3A::Y)
+            }
+            None => tris[i],
+        })
+        .collect();
+    let want_home: Vec<_> = rays
+        .iter()
+        .map(|r| reference::closest_hit(&home, r))
+        .collect();
+    for layout in crate::common::WIDE {
+        let mut bvh = BuildOptions::default().layout(layout).build(&home);
+        for (prims, want, what) in [
+            (&tris, &want, "refit far"),
+            (&home, &want_home, "refit home"),
+        ] {
+            bvh.refit(prims).expect("same count, finite");
+            for (i, ray) in rays.iter().enumerate() {
+                assert_eq!(bvh.closest_hit(ray), want[i], "{what} {layout}: ray {i}");
+            }
+        }
+    }
+}

@@ -175,6 +175,9 @@ pub struct Bvh4<P = Triangle, N = Bvh4Node> {
     /// The leaves as SIMD groups of four triangles, for primitive types with a triangle
     /// [`crate::LeafFormat`] (empty otherwise); leaf children then index these groups.
     pub(crate) tri4: Vec<Tri4>,
+    /// Some group is far ([`Tri4`]): the leaves take the path that tests such groups lane by
+    /// lane (a layout without one never looks).
+    pub(crate) far: bool,
     /// Node order.
     pub(crate) mapping: Bvh4Mapping,
     /// The kernels packet queries run on (single rays run the same 4-lane kernel on either).
@@ -244,6 +247,7 @@ impl<P: Primitive, N: Node4> Bvh4<P, N> {
             nodes,
             prims,
             prim_ids: tree.prim_indices.clone(),
+            far: tri4::any_far(&groups),
             tri4: groups,
             mapping,
             kernels: Kernels::new(isa),

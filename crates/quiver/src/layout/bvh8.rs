@@ -90,6 +90,9 @@ pub struct Bvh8<P = Triangle> {
     /// The leaves as SIMD groups of four triangles, for primitive types with a triangle
     /// [`LeafFormat`] (empty otherwise); leaf children then index these groups.
     pub(crate) tri4: Vec<Tri4>,
+    /// Some group is far ([`Tri4`]): the leaves take the path that tests such groups lane by
+    /// lane (a layout without one never looks).
+    pub(crate) far: bool,
     /// The kernels queries run on, checked against the CPU when chosen.
     pub(crate) kernels: Kernels,
     /// Every primitive's box.
@@ -140,6 +143,7 @@ impl<P: Primitive> Bvh8<P> {
             nodes,
             prims,
             prim_ids: tree.prim_indices.clone(),
+            far: tri4::any_far(&groups),
             tri4: groups,
             kernels: Kernels::new(isa),
             bounds: tree.nodes[0].bounds,

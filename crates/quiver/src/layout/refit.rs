@@ -18,10 +18,9 @@ use super::bvh2::{compact_children, Addressing, Bvh2, Bvh2Mapping, Bvh2Node};
 use super::bvh4::{Bvh4, Bvh4Mapping, Bvh4Node, Node4};
 use super::bvh8::{Bvh8, Bvh8Node};
 use super::collapse::{Child, Wide};
-use super::tri4::{groups as group_count, Tri4};
-use crate::geometry::{Aabb, Triangle};
+use super::tri4::{fill, groups as group_count, lane_triangles, Tri4};
+use crate::geometry::Aabb;
 use crate::primitive::{LeafFormat, Primitive};
-use glam::Vec3A;
 use rayon::prelude::*;
 
 /// Where a refit takes its new primitives: by input index, in the layout's own frame.
@@ -49,27 +48,6 @@ fn refresh_prims<P: Primitive, S: Source<P>>(prims: &mut [P], ids: &[u32], src: 
         .zip(ids.par_iter())
         .with_min_len(TASK_PRIMS)
         .for_each(|(p, &id)| src.refresh(id, p));
-}
-
-/// Writes triangle `t` (or, for a primitive without one, NaN: never hit) into `lane` of `g`
-/// as the leaf format stores it: what [`super::tri4::pack_leaves`] writes.
-#[inline]
-fn set_lane(g: &mut Tri4, lane: usize, t: Option<Triangle>, format: LeafFormat) {
-    let vectors: [Vec3A; 4] = match (t, format) {
-        (_, LeafFormat::Plain) => return,
-        (None, _) => [Vec3A::NAN; 4],
-        (Some(t), LeafFormat::FastTriangles) => {
-            let e1 = t.v[0] - t.v[1];
-            let e2 = t.v[2] - t.v[0];
-            [t.v[0], e1, e2, e1.cross(e2)]
-        }
-        (Some(t), LeafFormat::WatertightTriangles) => [t.v[0], t.v[1], t.v[2], Vec3A::ZERO],
-    };
-    for (row, v) in g.rows.iter_mut().zip(vectors) {
-        for a in 0..3 {
-            row[a][lane] = v[a];
-        }
-    }
 }
 
 /// How a refit reads its new primitives.
@@ -113,9 +91,7 @@ impl<'a, S> Ctx<'a, S> {
         }
         if P::LEAF_FORMAT != LeafFormat::Plain {
             for (g, four) in groups.iter_mut().zip(prims.chunks(4)) {
-                for (lane, p) in four.iter().enumerate() {
-                    set_lane(g, lane, p.triangle(), P::LEAF_FORMAT);
-                }
+                fill(g, &lane_triangles(four), P::LEAF_FORMAT);
             }
         }
         b
@@ -479,6 +455,7 @@ impl<P: Primitive> Bvh8<P> {
             true,
             src,
         );
+        self.far = super::tri4::any_far(&self.tri4);
     }
 }
 
@@ -493,6 +470,7 @@ impl<P: Primitive, N: Node4> Bvh4<P, N> {
             self.mapping == Bvh4Mapping::DepthFirst,
             src,
         );
+        self.far = super::tri4::any_far(&self.tri4);
     }
 }
 
@@ -611,6 +589,8 @@ mod tests {
     use crate::layout::bvh2::leaf_order;
     use crate::layout::Layout;
     use crate::testing::soup;
+    use crate::Triangle;
+    use glam::Vec3A;
 
     /// The new primitives straight from a slice.
     struct Slice<'a, P>(&'a [P]);

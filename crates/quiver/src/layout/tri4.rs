@@ -17,6 +17,13 @@ use glam::Vec3A;
 /// [`LeafFormat::WatertightTriangles`]: `v0`, `v1`, `v2` and zeros. An unused lane is all
 /// NaN, which every test rejects without a mask (NaN fails every comparison it must pass),
 /// with id `u32::MAX`.
+///
+/// A group holding a triangle too large or too small for the SIMD arithmetic (it could
+/// overflow or underflow f32 where the scalar tests rescale: a coordinate or edge past
+/// `2^32`, an edge below `2^-40`, a normal outside `2^-80..2^66`; a scene mixing unit sizes
+/// with 1e15 or 1e-15 holds such groups) is stored *far*: `v0`, `v1`, `v2` in both formats,
+/// row 3 all NaN with the payload `0x7fc029ca`, and the kernels test its lanes one by one
+/// with the scalar test, so every layout answers what [`Triangle::intersect`] answers.
 #[repr(C, align(16))]
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 pub struct Tri4 {
@@ -34,33 +41,76 @@ pub(crate) fn groups(count: u32) -> u32 {
     count.div_ceil(4)
 }
 
+/// Row 3's word in every lane of a far group (see [`Tri4`]): a NaN no arithmetic produces
+/// and no triangle the builders keep holds (a non-finite triangle is far itself).
+const FAR: u32 = 0x7fc0_29ca;
+
+/// Whether the SIMD tests compute exactly what the scalar tests compute for `t`: its
+/// coordinates, edges and normal (largest component of each) inside the band where their
+/// products with a ray's terms neither overflow nor underflow.
+fn in_band(t: &Triangle) -> bool {
+    let e1 = t.v[0] - t.v[1];
+    let e2 = t.v[2] - t.v[0];
+    let n = e1.cross(e2);
+    let within = |v: Vec3A, lo: f32, hi: f32| {
+        let m = v.abs().max_element();
+        m <= hi && (m >= lo || m == 0.0)
+    };
+    const fn p2(e: i32) -> f32 {
+        f32::from_bits(((127 + e) as u32) << 23)
+    }
+    t.v.iter().all(|&v| within(v, 0.0, p2(32)))
+        && within(e1, p2(-40), p2(32))
+        && within(e2, p2(-40), p2(32))
+        && within(n, p2(-80), p2(66))
+}
+
+/// Writes the rows of one group from its lanes' triangles (`None`: an unused lane or a
+/// primitive without a triangle, never hit) as `format` stores them; a far group when any
+/// triangle is outside the band (see [`Tri4`]). The ids are the caller's. What packing and
+/// refitting both write.
+pub(crate) fn fill(g: &mut Tri4, tris: &[Option<Triangle>], format: LeafFormat) {
+    g.rows = [[[f32::NAN; 4]; 3]; 4];
+    let far = tris.iter().flatten().any(|t| !in_band(t));
+    for (lane, t) in tris.iter().enumerate() {
+        let Some(t) = t else { continue };
+        let vectors: [Vec3A; 4] = match format {
+            _ if far => [t.v[0], t.v[1], t.v[2], Vec3A::NAN],
+            LeafFormat::FastTriangles => {
+                let e1 = t.v[0] - t.v[1];
+                let e2 = t.v[2] - t.v[0];
+                [t.v[0], e1, e2, e1.cross(e2)]
+            }
+            LeafFormat::WatertightTriangles => [t.v[0], t.v[1], t.v[2], Vec3A::ZERO],
+            LeafFormat::Plain => unreachable!("plain leaves are not packed"),
+        };
+        for (row, v) in g.rows.iter_mut().zip(vectors) {
+            for a in 0..3 {
+                row[a][lane] = v[a];
+            }
+        }
+    }
+    if far {
+        g.rows[3] = [[f32::from_bits(FAR); 4]; 3];
+    }
+}
+
+/// The lanes' triangles of up to four primitives, `None` for one without a triangle.
+pub(crate) fn lane_triangles<P: Primitive>(four: &[P]) -> [Option<Triangle>; 4] {
+    let mut tris = [None; 4];
+    for (t, p) in tris.iter_mut().zip(four) {
+        *t = p.triangle();
+    }
+    tris
+}
+
 /// Writes the groups of one leaf (`prims` and their input `ids`) in `format` to `out`, which
 /// holds exactly `groups(prims.len())` of them.
 fn pack<P: Primitive>(prims: &[P], ids: &[u32], format: LeafFormat, out: &mut [Tri4]) {
     for ((chunk, chunk_ids), g) in prims.chunks(4).zip(ids.chunks(4)).zip(out) {
-        *g = Tri4 {
-            rows: [[[f32::NAN; 4]; 3]; 4],
-            id: [u32::MAX; 4],
-        };
-        for (lane, (p, &id)) in chunk.iter().zip(chunk_ids).enumerate() {
-            g.id[lane] = id;
-            // A triangle type without a triangle is never hit: its lane stays NaN.
-            let Some(t) = p.triangle() else { continue };
-            let vectors: [Vec3A; 4] = match format {
-                LeafFormat::FastTriangles => {
-                    let e1 = t.v[0] - t.v[1];
-                    let e2 = t.v[2] - t.v[0];
-                    [t.v[0], e1, e2, e1.cross(e2)]
-                }
-                LeafFormat::WatertightTriangles => [t.v[0], t.v[1], t.v[2], Vec3A::ZERO],
-                LeafFormat::Plain => unreachable!("plain leaves are not packed"),
-            };
-            for (row, v) in g.rows.iter_mut().zip(vectors) {
-                for a in 0..3 {
-                    row[a][lane] = v[a];
-                }
-            }
-        }
+        g.id = [u32::MAX; 4];
+        g.id[..chunk_ids.len()].copy_from_slice(chunk_ids);
+        fill(g, &lane_triangles(chunk), format);
     }
 }
 
@@ -104,9 +154,9 @@ pub(crate) fn pack_leaves<P: Primitive, const W: usize>(
 }
 
 impl Tri4 {
-    /// Lane `lane`'s triangle as a watertight group stores it.
+    /// Lane `lane`'s triangle as a watertight or a far group stores it.
     #[inline]
-    pub(crate) fn watertight_triangle(&self, lane: usize) -> Triangle {
+    pub(crate) fn triangle(&self, lane: usize) -> Triangle {
         let v = |k: usize| {
             Vec3A::new(
                 self.rows[k][0][lane],
@@ -116,4 +166,16 @@ impl Tri4 {
         };
         Triangle::new(v(0), v(1), v(2))
     }
+
+    /// Whether the kernels test this group lane by lane with the scalar test (see [`Tri4`]).
+    #[inline(always)]
+    pub(crate) fn is_far(&self) -> bool {
+        self.rows[3][0][0].to_bits() == FAR
+    }
+}
+
+/// Whether any of `groups` is far: a layout holding one takes its leaves' slower path.
+pub(crate) fn any_far(groups: &[Tri4]) -> bool {
+    use rayon::prelude::*;
+    groups.par_iter().with_min_len(4096).any(Tri4::is_far)
 }

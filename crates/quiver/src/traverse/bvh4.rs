@@ -137,9 +137,17 @@ fn walk<N, B, S, F, const ORDERED: bool>(
     }
 }
 
-/// Closest-hit and any-hit over one 4-wide node format.
+/// Closest-hit and any-hit over one 4-wide node format, the leaves' far path compiled in or
+/// out (`FAR`: the layout's `far`; see `traverse::wide`, which picks).
 #[inline(always)]
-pub(crate) fn closest<N: WideNode, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
+pub(crate) fn closest<
+    N: WideNode,
+    B: BoxTest,
+    P: Primitive,
+    S: Stats,
+    F: Filter<Hit>,
+    const FAR: bool,
+>(
     nodes: &[N],
     leaves: &Leaves<P>,
     ray: &Ray,
@@ -148,7 +156,7 @@ pub(crate) fn closest<N: WideNode, B: BoxTest, P: Primitive, S: Stats, F: Filter
 ) -> Option<Hit> {
     let ray = &ray.raised_t_min();
     let mut best = Hit::none(ray.t_max);
-    closest_from::<N, B, P, S, F>(nodes, leaves, ray, 0, &mut best, stats, filter);
+    closest_walk::<N, B, P, S, F, FAR>(nodes, leaves, ray, 0, &mut best, stats, filter);
     best.found()
 }
 
@@ -164,24 +172,81 @@ pub(crate) fn closest_from<N: WideNode, B: BoxTest, P: Primitive, S: Stats, F: F
     stats: &mut S,
     filter: &mut F,
 ) {
+    if leaves.far {
+        *best = closest_far::<N, B, P, S, F>(nodes, leaves, ray, root, *best, stats, filter);
+        return;
+    }
+    closest_walk::<N, B, P, S, F, false>(nodes, leaves, ray, root, best, stats, filter);
+}
+
+/// [`closest_from`] over a layout holding far groups ([`crate::layout::Tri4`]), out of the
+/// fast walk's line; `best` by value, so the fast walk's never has its address taken.
+#[cold]
+#[inline(never)]
+fn closest_far<N: WideNode, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
+    nodes: &[N],
+    leaves: &Leaves<P>,
+    ray: &Ray,
+    root: usize,
+    mut best: Hit,
+    stats: &mut S,
+    filter: &mut F,
+) -> Hit {
+    closest_walk::<N, B, P, S, F, true>(nodes, leaves, ray, root, &mut best, stats, filter);
+    best
+}
+
+/// The closest-hit walk, its leaves with the far groups' path compiled in or out (`FAR`).
+#[inline(always)]
+fn closest_walk<
+    N: WideNode,
+    B: BoxTest,
+    P: Primitive,
+    S: Stats,
+    F: Filter<Hit>,
+    const FAR: bool,
+>(
+    nodes: &[N],
+    leaves: &Leaves<P>,
+    ray: &Ray,
+    root: usize,
+    best: &mut Hit,
+    stats: &mut S,
+    filter: &mut F,
+) {
     let mut prep = None;
-    walk::<N, B, S, _, true>(nodes, ray, root, best.t, stats, |range, limit, stats| {
-        let count = range.len() as u32;
-        leaves.closest(range.start, count, ray, &mut prep, best, stats, filter);
-        *limit = best.t;
-        false
-    });
+    walk::<N, B, S, _, true>(
+        nodes,
+        ray,
+        root,
+        best.t,
+        stats,
+        #[inline(always)]
+        |range, limit, stats| {
+            let count = range.len() as u32;
+            leaves.closest_as::<S, F, FAR>(range.start, count, ray, &mut prep, best, stats, filter);
+            *limit = best.t;
+            false
+        },
+    );
 }
 
 #[inline(always)]
-pub(crate) fn any<N: WideNode, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
+pub(crate) fn any<
+    N: WideNode,
+    B: BoxTest,
+    P: Primitive,
+    S: Stats,
+    F: Filter<Hit>,
+    const FAR: bool,
+>(
     nodes: &[N],
     leaves: &Leaves<P>,
     ray: &Ray,
     stats: &mut S,
     filter: &mut F,
 ) -> bool {
-    any_from::<N, B, P, S, F>(nodes, leaves, &ray.raised_t_min(), 0, stats, filter)
+    any_walk::<N, B, P, S, F, FAR>(nodes, leaves, &ray.raised_t_min(), 0, stats, filter)
 }
 
 /// Any hit in the subtree of inner node `root`.
@@ -194,18 +259,50 @@ pub(crate) fn any_from<N: WideNode, B: BoxTest, P: Primitive, S: Stats, F: Filte
     stats: &mut S,
     filter: &mut F,
 ) -> bool {
+    if leaves.far {
+        return any_far::<N, B, P, S, F>(nodes, leaves, ray, root, stats, filter);
+    }
+    any_walk::<N, B, P, S, F, false>(nodes, leaves, ray, root, stats, filter)
+}
+
+/// [`any_from`] over a layout holding far groups, out of the fast walk's line.
+#[cold]
+#[inline(never)]
+fn any_far<N: WideNode, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
+    nodes: &[N],
+    leaves: &Leaves<P>,
+    ray: &Ray,
+    root: usize,
+    stats: &mut S,
+    filter: &mut F,
+) -> bool {
+    any_walk::<N, B, P, S, F, true>(nodes, leaves, ray, root, stats, filter)
+}
+
+/// The any-hit walk, its leaves with the far groups' path compiled in or out (`FAR`).
+#[inline(always)]
+fn any_walk<N: WideNode, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>, const FAR: bool>(
+    nodes: &[N],
+    leaves: &Leaves<P>,
+    ray: &Ray,
+    root: usize,
+    stats: &mut S,
+    filter: &mut F,
+) -> bool {
     let mut prep = None;
     let mut hit = false;
-    walk::<N, B, S, _, false>(nodes, ray, root, ray.t_max, stats, |range, _, stats| {
-        hit = leaves.any(
-            range.start,
-            range.len() as u32,
-            ray,
-            &mut prep,
-            stats,
-            filter,
-        );
-        hit
-    });
+    walk::<N, B, S, _, false>(
+        nodes,
+        ray,
+        root,
+        ray.t_max,
+        stats,
+        #[inline(always)]
+        |range, _, stats| {
+            let count = range.len() as u32;
+            hit = leaves.any_as::<S, F, FAR>(range.start, count, ray, &mut prep, stats, filter);
+            hit
+        },
+    );
     hit
 }

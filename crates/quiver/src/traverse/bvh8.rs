@@ -160,6 +160,45 @@ pub(crate) fn closest_from<V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<
     stats: &mut S,
     filter: &mut F,
 ) {
+    if leaves.far {
+        *best = closest_far::<V, B, P, S, F>(cpu, nodes, leaves, ray, root, *best, stats, filter);
+        return;
+    }
+    closest_walk::<V, B, P, S, F, false>(cpu, nodes, leaves, ray, root, best, stats, filter);
+}
+
+/// [`closest_from`] over a layout holding far groups ([`crate::layout::Tri4`]), out of the
+/// fast walk's line; `best` by value, so the fast walk's never has its address taken.
+#[cold]
+#[inline(never)]
+#[allow(clippy::too_many_arguments)]
+fn closest_far<V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
+    cpu: V::Cpu,
+    nodes: &[Bvh8Node],
+    leaves: &Leaves<P>,
+    ray: &Ray,
+    root: usize,
+    mut best: Hit,
+    stats: &mut S,
+    filter: &mut F,
+) -> Hit {
+    closest_walk::<V, B, P, S, F, true>(cpu, nodes, leaves, ray, root, &mut best, stats, filter);
+    best
+}
+
+/// The closest-hit walk, its leaves with the far groups' path compiled in or out (`FAR`).
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn closest_walk<V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>, const FAR: bool>(
+    cpu: V::Cpu,
+    nodes: &[Bvh8Node],
+    leaves: &Leaves<P>,
+    ray: &Ray,
+    root: usize,
+    best: &mut Hit,
+    stats: &mut S,
+    filter: &mut F,
+) {
     // Prepared at the first leaf: many rays never reach one.
     let mut prep = None;
     let r8 = Ray8::<V>::new(cpu, ray);
@@ -171,7 +210,7 @@ pub(crate) fn closest_from<V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<
         stats,
         #[inline(always)]
         |first, count, limit, stats| {
-            leaves.closest(first, count, ray, &mut prep, best, stats, filter);
+            leaves.closest_as::<S, F, FAR>(first, count, ray, &mut prep, best, stats, filter);
             *limit = best.t;
             false
         },
@@ -181,6 +220,38 @@ pub(crate) fn closest_from<V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<
 /// Whether anything in the subtree of inner node `root` is hit.
 #[inline(always)]
 pub(crate) fn any_from<V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
+    cpu: V::Cpu,
+    nodes: &[Bvh8Node],
+    leaves: &Leaves<P>,
+    ray: &Ray,
+    root: usize,
+    stats: &mut S,
+    filter: &mut F,
+) -> bool {
+    if leaves.far {
+        return any_far::<V, B, P, S, F>(cpu, nodes, leaves, ray, root, stats, filter);
+    }
+    any_walk::<V, B, P, S, F, false>(cpu, nodes, leaves, ray, root, stats, filter)
+}
+
+/// [`any_from`] over a layout holding far groups, out of the fast walk's line.
+#[cold]
+#[inline(never)]
+fn any_far<V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
+    cpu: V::Cpu,
+    nodes: &[Bvh8Node],
+    leaves: &Leaves<P>,
+    ray: &Ray,
+    root: usize,
+    stats: &mut S,
+    filter: &mut F,
+) -> bool {
+    any_walk::<V, B, P, S, F, true>(cpu, nodes, leaves, ray, root, stats, filter)
+}
+
+/// The any-hit walk, its leaves with the far groups' path compiled in or out (`FAR`).
+#[inline(always)]
+fn any_walk<V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>, const FAR: bool>(
     cpu: V::Cpu,
     nodes: &[Bvh8Node],
     leaves: &Leaves<P>,
@@ -200,16 +271,17 @@ pub(crate) fn any_from<V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>
         stats,
         #[inline(always)]
         |first, count, _, stats| {
-            hit = leaves.any(first, count, ray, &mut prep, stats, filter);
+            hit = leaves.any_as::<S, F, FAR>(first, count, ray, &mut prep, stats, filter);
             hit
         },
     );
     hit
 }
 
-/// Closest hit over lanes of `V`.
+/// Closest hit over lanes of `V`, the leaves' far path compiled in or out (`FAR`: the
+/// layout's `far`).
 #[inline(always)]
-fn closest<V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
+fn closest<V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>, const FAR: bool>(
     cpu: V::Cpu,
     bvh: &Bvh8<P>,
     ray: &Ray,
@@ -219,13 +291,13 @@ fn closest<V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
     let ray = &ray.raised_t_min();
     let mut best = Hit::none(ray.t_max);
     let leaves = bvh.leaves();
-    closest_from::<V, B, P, S, F>(cpu, &bvh.nodes, &leaves, ray, 0, &mut best, stats, filter);
+    closest_walk::<V, B, P, S, F, FAR>(cpu, &bvh.nodes, &leaves, ray, 0, &mut best, stats, filter);
     best.found()
 }
 
-/// Any hit over lanes of `V`.
+/// Any hit over lanes of `V` (`FAR` as for [`closest`]).
 #[inline(always)]
-fn any<V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
+fn any<V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>, const FAR: bool>(
     cpu: V::Cpu,
     bvh: &Bvh8<P>,
     ray: &Ray,
@@ -233,13 +305,40 @@ fn any<V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
     filter: &mut F,
 ) -> bool {
     let ray = &ray.raised_t_min();
-    any_from::<V, B, P, S, F>(cpu, &bvh.nodes, &bvh.leaves(), ray, 0, stats, filter)
+    any_walk::<V, B, P, S, F, FAR>(cpu, &bvh.nodes, &bvh.leaves(), ray, 0, stats, filter)
 }
 
 /// The closest hit of one ray on `kernels`: the one place a single-ray 8-wide query picks
-/// its lanes.
+/// its lanes. A layout holding far groups takes its own kernels, so the others carry no
+/// trace of that path.
 #[inline]
 pub(crate) fn closest_on<B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
+    kernels: Kernels,
+    bvh: &Bvh8<P>,
+    ray: &Ray,
+    stats: &mut S,
+    filter: &mut F,
+) -> Option<Hit> {
+    if bvh.far {
+        return closest_on_far::<B, P, S, F>(kernels, bvh, ray, stats, filter);
+    }
+    closest_on_as::<B, P, S, F, false>(kernels, bvh, ray, stats, filter)
+}
+
+#[cold]
+#[inline(never)]
+fn closest_on_far<B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
+    kernels: Kernels,
+    bvh: &Bvh8<P>,
+    ray: &Ray,
+    stats: &mut S,
+    filter: &mut F,
+) -> Option<Hit> {
+    closest_on_as::<B, P, S, F, true>(kernels, bvh, ray, stats, filter)
+}
+
+#[inline(always)]
+fn closest_on_as<B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>, const FAR: bool>(
     kernels: Kernels,
     bvh: &Bvh8<P>,
     ray: &Ray,
@@ -249,8 +348,10 @@ pub(crate) fn closest_on<B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
     match kernels {
         #[cfg(target_arch = "x86_64")]
         // SAFETY: `cpu` proves the CPU has AVX2 and FMA (only detection makes one).
-        Kernels::Avx2(cpu) => unsafe { avx2::closest::<B, P, S, F>(cpu, bvh, ray, stats, filter) },
-        _ => closest::<f32x8, B, P, S, F>((), bvh, ray, stats, filter),
+        Kernels::Avx2(cpu) => unsafe {
+            avx2::closest::<B, P, S, F, FAR>(cpu, bvh, ray, stats, filter)
+        },
+        _ => closest::<f32x8, B, P, S, F, FAR>((), bvh, ray, stats, filter),
     }
 }
 
@@ -263,11 +364,37 @@ pub(crate) fn any_on<B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
     stats: &mut S,
     filter: &mut F,
 ) -> bool {
+    if bvh.far {
+        return any_on_far::<B, P, S, F>(kernels, bvh, ray, stats, filter);
+    }
+    any_on_as::<B, P, S, F, false>(kernels, bvh, ray, stats, filter)
+}
+
+#[cold]
+#[inline(never)]
+fn any_on_far<B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
+    kernels: Kernels,
+    bvh: &Bvh8<P>,
+    ray: &Ray,
+    stats: &mut S,
+    filter: &mut F,
+) -> bool {
+    any_on_as::<B, P, S, F, true>(kernels, bvh, ray, stats, filter)
+}
+
+#[inline(always)]
+fn any_on_as<B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>, const FAR: bool>(
+    kernels: Kernels,
+    bvh: &Bvh8<P>,
+    ray: &Ray,
+    stats: &mut S,
+    filter: &mut F,
+) -> bool {
     match kernels {
         #[cfg(target_arch = "x86_64")]
-        // SAFETY: as in `closest_on`.
-        Kernels::Avx2(cpu) => unsafe { avx2::any::<B, P, S, F>(cpu, bvh, ray, stats, filter) },
-        _ => any::<f32x8, B, P, S, F>((), bvh, ray, stats, filter),
+        // SAFETY: as in `closest_on_as`.
+        Kernels::Avx2(cpu) => unsafe { avx2::any::<B, P, S, F, FAR>(cpu, bvh, ray, stats, filter) },
+        _ => any::<f32x8, B, P, S, F, FAR>((), bvh, ray, stats, filter),
     }
 }
 
@@ -282,26 +409,38 @@ mod avx2 {
     /// # Safety
     /// The CPU must support AVX2 and FMA (as `cpu` proves).
     #[target_feature(enable = "avx2,fma")]
-    pub(super) unsafe fn closest<B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
+    pub(super) unsafe fn closest<
+        B: BoxTest,
+        P: Primitive,
+        S: Stats,
+        F: Filter<Hit>,
+        const FAR: bool,
+    >(
         cpu: Avx2Cpu,
         bvh: &Bvh8<P>,
         ray: &Ray,
         stats: &mut S,
         filter: &mut F,
     ) -> Option<Hit> {
-        super::closest::<Avx, B, P, S, F>(cpu, bvh, ray, stats, filter)
+        super::closest::<Avx, B, P, S, F, FAR>(cpu, bvh, ray, stats, filter)
     }
 
     /// # Safety
     /// The CPU must support AVX2 and FMA (as `cpu` proves).
     #[target_feature(enable = "avx2,fma")]
-    pub(super) unsafe fn any<B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
+    pub(super) unsafe fn any<
+        B: BoxTest,
+        P: Primitive,
+        S: Stats,
+        F: Filter<Hit>,
+        const FAR: bool,
+    >(
         cpu: Avx2Cpu,
         bvh: &Bvh8<P>,
         ray: &Ray,
         stats: &mut S,
         filter: &mut F,
     ) -> bool {
-        super::any::<Avx, B, P, S, F>(cpu, bvh, ray, stats, filter)
+        super::any::<Avx, B, P, S, F, FAR>(cpu, bvh, ray, stats, filter)
     }
 }

@@ -2,7 +2,7 @@
 //! [`LeafFormat`], chosen by a compile-time constant, so a leaf is a primitive range (plain
 //! types) or a range of [`Tri4`] groups (triangle formats), never a run-time check.
 
-use super::tri4::{any, closest, Ray4Tri};
+use super::tri4::{any, any_far, closest, closest_far, Ray4Tri};
 use super::{Filter, Stats};
 use crate::geometry::{Hit, Ray};
 use crate::layout::{Bvh4, Bvh8, Node4, Tri4};
@@ -16,6 +16,8 @@ pub(crate) struct Leaves<'a, P> {
     pub prims: &'a [P],
     pub ids: &'a [u32],
     pub tri4: &'a [Tri4],
+    /// Some group is far ([`Tri4`]): leaves go through the groups' lane-by-lane path.
+    pub far: bool,
 }
 
 impl<P: Primitive> Leaves<'_, P> {
@@ -45,10 +47,34 @@ impl<P: Primitive> Leaves<'_, P> {
     }
 
     /// Closest hit in one leaf, improving `best`; `prep` holds the ray's group terms once the
-    /// first leaf made them. Returns true when `best` changed.
+    /// first leaf made them. Returns true when `best` changed. Checks for far groups at run
+    /// time: for callers outside a walk; a walk picks [`Leaves::closest_as`] once.
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
     pub fn closest<S: Stats, F: Filter<Hit>>(
+        &self,
+        first: usize,
+        count: u32,
+        ray: &Ray,
+        prep: &mut Option<Ray4Tri>,
+        best: &mut Hit,
+        stats: &mut S,
+        filter: &mut F,
+    ) -> bool {
+        if P::LEAF_FORMAT != LeafFormat::Plain && self.far {
+            let groups = self.groups(first, count);
+            let (found, b) = closest_far(groups, count, ray, P::LEAF_FORMAT, *best, stats, filter);
+            *best = b;
+            return found;
+        }
+        self.closest_as::<S, F, false>(first, count, ray, prep, best, stats, filter)
+    }
+
+    /// [`Leaves::closest`] with the far groups' path compiled in (`FAR`) or out: only for a
+    /// layout whose `far` is `FAR`, or false.
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    pub fn closest_as<S: Stats, F: Filter<Hit>, const FAR: bool>(
         &self,
         first: usize,
         count: u32,
@@ -72,7 +98,7 @@ impl<P: Primitive> Leaves<'_, P> {
             }
             format => {
                 let r = prep.get_or_insert_with(|| Ray4Tri::new(ray, format));
-                closest(
+                closest::<S, F, FAR>(
                     self.groups(first, count),
                     count,
                     ray,
@@ -86,9 +112,29 @@ impl<P: Primitive> Leaves<'_, P> {
         }
     }
 
-    /// Whether anything in one leaf is hit within the ray's interval.
+    /// Whether anything in one leaf is hit within the ray's interval. Checks for far groups
+    /// at run time, as [`Leaves::closest`] does.
     #[inline(always)]
     pub fn any<S: Stats, F: Filter<Hit>>(
+        &self,
+        first: usize,
+        count: u32,
+        ray: &Ray,
+        prep: &mut Option<Ray4Tri>,
+        stats: &mut S,
+        filter: &mut F,
+    ) -> bool {
+        if P::LEAF_FORMAT != LeafFormat::Plain && self.far {
+            let groups = self.groups(first, count);
+            return any_far(groups, count, ray, P::LEAF_FORMAT, stats, filter);
+        }
+        self.any_as::<S, F, false>(first, count, ray, prep, stats, filter)
+    }
+
+    /// [`Leaves::any`] with the far groups' path compiled in (`FAR`) or out, as for
+    /// [`Leaves::closest_as`].
+    #[inline(always)]
+    pub fn any_as<S: Stats, F: Filter<Hit>, const FAR: bool>(
         &self,
         first: usize,
         count: u32,
@@ -110,7 +156,7 @@ impl<P: Primitive> Leaves<'_, P> {
             }
             format => {
                 let r = prep.get_or_insert_with(|| Ray4Tri::new(ray, format));
-                any(
+                any::<S, F, FAR>(
                     self.groups(first, count),
                     count,
                     ray,
@@ -132,6 +178,7 @@ impl<P: Primitive, N: Node4> Bvh4<P, N> {
             prims: &self.prims,
             ids: &self.prim_ids,
             tri4: &self.tri4,
+            far: self.far,
         }
     }
 }
@@ -144,6 +191,7 @@ impl<P: Primitive> Bvh8<P> {
             prims: &self.prims,
             ids: &self.prim_ids,
             tri4: &self.tri4,
+            far: self.far,
         }
     }
 }

@@ -114,9 +114,10 @@ fn watertight4(g: &Tri4, r: &Ray4Tri, t_max: f32) -> (u32, u32, [f32; 4], [f32; 
     )
 }
 
-/// Hits of one group in `format` within `[t_min, t_max]`: `(lane, hit)` for each.
+/// Hits of one group in `format` within `[t_min, t_max]`: `(lane, hit)` for each. `FAR`:
+/// the layout holds far groups ([`Tri4`]), which are tested lane by lane.
 #[inline(always)]
-pub(crate) fn group_hits(
+pub(crate) fn group_hits<const FAR: bool>(
     g: &Tri4,
     r: &Ray4Tri,
     ray: &Ray,
@@ -124,6 +125,14 @@ pub(crate) fn group_hits(
     format: LeafFormat,
     mut hit: impl FnMut(usize, PrimHit),
 ) {
+    if FAR && g.is_far() {
+        for (l, h) in far_hits(g, ray, t_max, format).into_iter().enumerate() {
+            if let Some(h) = h {
+                hit(l, h);
+            }
+        }
+        return;
+    }
     // The fast test has no edge lanes; `format` is a constant here, so that loop compiles away.
     let (ok, edge, t, u, v) = if format == LeafFormat::WatertightTriangles {
         watertight4(g, r, t_max)
@@ -143,17 +152,71 @@ pub(crate) fn group_hits(
     }
     for l in bits(edge) {
         let limited = Ray { t_max, ..*ray };
-        if let Some(h) = Watertight(g.watertight_triangle(l)).intersect(&limited) {
+        if let Some(h) = Watertight(g.triangle(l)).intersect(&limited) {
             hit(l, h);
         }
     }
 }
 
+/// A far group's hits ([`Tri4`]): each lane by the scalar test of `format`, which rescales
+/// what would leave f32's range.
+#[cold]
+#[inline(never)]
+pub(crate) fn far_hits(
+    g: &Tri4,
+    ray: &Ray,
+    t_max: f32,
+    format: LeafFormat,
+) -> [Option<PrimHit>; 4] {
+    let ray = Ray { t_max, ..*ray };
+    std::array::from_fn(|l| {
+        let t = g.triangle(l);
+        match format {
+            LeafFormat::WatertightTriangles => Watertight(t).intersect(&ray),
+            _ => t.intersect(&ray),
+        }
+    })
+}
+
+/// [`closest`] for a layout holding far groups, out of the fast path's line: from `best`, the
+/// new best and whether it changed. By value, and with the ray's group terms made here, so
+/// the fast path's search state never has its address taken (which would keep it in memory).
+#[cold]
+#[inline(never)]
+pub(crate) fn closest_far<S: Stats, F: Filter<Hit>>(
+    groups: &[Tri4],
+    count: u32,
+    ray: &Ray,
+    format: LeafFormat,
+    mut best: Hit,
+    stats: &mut S,
+    filter: &mut F,
+) -> (bool, Hit) {
+    let r = Ray4Tri::new(ray, format);
+    let found = closest::<S, F, true>(groups, count, ray, &r, format, &mut best, stats, filter);
+    (found, best)
+}
+
+/// [`any`] for a layout holding far groups, out of the fast path's line.
+#[cold]
+#[inline(never)]
+pub(crate) fn any_far<S: Stats, F: Filter<Hit>>(
+    groups: &[Tri4],
+    count: u32,
+    ray: &Ray,
+    format: LeafFormat,
+    stats: &mut S,
+    filter: &mut F,
+) -> bool {
+    let r = Ray4Tri::new(ray, format);
+    any::<S, F, true>(groups, count, ray, &r, format, stats, filter)
+}
+
 /// Closest hit among a leaf's groups, improving `best`; `count` triangles in the leaf.
-/// Returns true when `best` changed.
+/// Returns true when `best` changed. `FAR`: as for [`group_hits`].
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-pub(crate) fn closest<S: Stats, F: Filter<Hit>>(
+pub(crate) fn closest<S: Stats, F: Filter<Hit>, const FAR: bool>(
     groups: &[Tri4],
     count: u32,
     ray: &Ray,
@@ -166,7 +229,7 @@ pub(crate) fn closest<S: Stats, F: Filter<Hit>>(
     stats.prims(count);
     let mut found = false;
     for g in groups {
-        group_hits(g, r, ray, best.t, format, |l, h| {
+        group_hits::<FAR>(g, r, ray, best.t, format, |l, h| {
             found |= offer(best, g.id[l], h, filter)
         });
     }
@@ -177,9 +240,9 @@ pub(crate) fn closest<S: Stats, F: Filter<Hit>>(
 }
 
 /// Whether anything in a leaf's groups is hit (and accepted by `filter`) within the ray's
-/// interval.
+/// interval. `FAR`: as for [`group_hits`].
 #[inline(always)]
-pub(crate) fn any<S: Stats, F: Filter<Hit>>(
+pub(crate) fn any<S: Stats, F: Filter<Hit>, const FAR: bool>(
     groups: &[Tri4],
     count: u32,
     ray: &Ray,
@@ -190,7 +253,7 @@ pub(crate) fn any<S: Stats, F: Filter<Hit>>(
 ) -> bool {
     for (i, g) in groups.iter().enumerate() {
         let mut hit = false;
-        group_hits(g, r, ray, ray.t_max, format, |l, h| {
+        group_hits::<FAR>(g, r, ray, ray.t_max, format, |l, h| {
             hit = hit || accepts(g.id[l], h, filter)
         });
         if hit {

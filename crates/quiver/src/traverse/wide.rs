@@ -19,7 +19,10 @@ impl<P: Primitive, N: Node4> RayQuery for Bvh4<P, N> {
         stats: &mut S,
         filter: &mut F,
     ) -> Option<Hit> {
-        bvh4::closest::<N, B, P, S, F>(&self.nodes, &self.leaves(), ray, stats, filter)
+        if self.far {
+            return closest4_far::<N, B, P, S, F>(self, ray, stats, filter);
+        }
+        closest4::<N, B, P, S, F>(self, ray, stats, filter)
     }
 
     fn any_hit_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
@@ -28,7 +31,10 @@ impl<P: Primitive, N: Node4> RayQuery for Bvh4<P, N> {
         stats: &mut S,
         filter: &mut F,
     ) -> bool {
-        bvh4::any::<N, B, P, S, F>(&self.nodes, &self.leaves(), ray, stats, filter)
+        if self.far {
+            return any4_far::<N, B, P, S, F>(self, ray, stats, filter);
+        }
+        any4::<N, B, P, S, F>(self, ray, stats, filter)
     }
 
     fn closest_hit_packet_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
@@ -128,4 +134,51 @@ impl<P: Primitive> RayQuery for Bvh8<P> {
             filter,
         )
     }
+}
+
+/// The 4-wide walks over a layout without far groups, in functions of their own: with the far
+/// path's call beside it, the inlined walk kept its SIMD state across that call (5% more
+/// instructions on teapot12's closest-hit rays under callgrind).
+#[inline(never)]
+fn closest4<N: Node4, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
+    bvh: &Bvh4<P, N>,
+    ray: &Ray,
+    stats: &mut S,
+    filter: &mut F,
+) -> Option<Hit> {
+    bvh4::closest::<N, B, P, S, F, false>(&bvh.nodes, &bvh.leaves(), ray, stats, filter)
+}
+
+#[inline(never)]
+fn any4<N: Node4, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
+    bvh: &Bvh4<P, N>,
+    ray: &Ray,
+    stats: &mut S,
+    filter: &mut F,
+) -> bool {
+    bvh4::any::<N, B, P, S, F, false>(&bvh.nodes, &bvh.leaves(), ray, stats, filter)
+}
+
+/// The 4-wide walks over a layout holding far groups ([`crate::layout::Tri4`]): their own
+/// functions, so the other layouts' walks carry no trace of that path.
+#[cold]
+#[inline(never)]
+fn closest4_far<N: Node4, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
+    bvh: &Bvh4<P, N>,
+    ray: &Ray,
+    stats: &mut S,
+    filter: &mut F,
+) -> Option<Hit> {
+    bvh4::closest::<N, B, P, S, F, true>(&bvh.nodes, &bvh.leaves(), ray, stats, filter)
+}
+
+#[cold]
+#[inline(never)]
+fn any4_far<N: Node4, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
+    bvh: &Bvh4<P, N>,
+    ray: &Ray,
+    stats: &mut S,
+    filter: &mut F,
+) -> bool {
+    bvh4::any::<N, B, P, S, F, true>(&bvh.nodes, &bvh.leaves(), ray, stats, filter)
 }

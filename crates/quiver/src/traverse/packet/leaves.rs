@@ -10,7 +10,7 @@ use crate::primitive::{LeafFormat, PacketLeaf, PacketRays, Primitive};
 use crate::traverse::lane8::F8;
 use crate::traverse::leaves::Leaves;
 use crate::traverse::simd::bits;
-use crate::traverse::tri4::{group_hits, Ray4Tri};
+use crate::traverse::tri4::{far_hits, group_hits, Ray4Tri};
 use std::ops::Range;
 
 /// Runs the leaf `range` (primitives, or groups holding `range.len()` triangles) for the
@@ -38,13 +38,29 @@ pub(super) fn test_leaf<V: F8, P: Primitive, F>(
     };
     match P::LEAF_FORMAT {
         LeafFormat::Plain => P::intersect_packet(&leaves.prims[range], &mut leaf),
-        format => groups_packet::<V, F>(
-            cpu,
-            leaves.groups(range.start, range.len() as u32),
-            format,
-            &mut leaf,
-        ),
+        format => {
+            let groups = leaves.groups(range.start, range.len() as u32);
+            if leaves.far {
+                groups_packet_far::<V, F>(cpu, groups, format, &mut leaf);
+            } else {
+                groups_packet::<V, F, false>(cpu, groups, format, &mut leaf);
+            }
+        }
     }
+}
+
+/// [`groups_packet`] for a layout holding far groups ([`Tri4`]), out of the fast path's line.
+#[cold]
+#[inline(never)]
+fn groups_packet_far<V: F8, F>(
+    cpu: V::Cpu,
+    groups: &[Tri4],
+    format: LeafFormat,
+    rays: &mut PacketLeaf<'_, F>,
+) where
+    F: FnMut(usize, u32, PrimHit) -> Option<f32>,
+{
+    groups_packet::<V, F, true>(cpu, groups, format, rays)
 }
 
 /// One triangle's test over the live rays of a leaf, eight at a time: `test(packet, k)` gives
@@ -83,9 +99,10 @@ fn chunks_packet<V: F8, F>(
 /// A leaf of SIMD groups for a packet. Fast groups: triangle by triangle, eight rays at a
 /// time in lanes of `V` ([`group_lane8`]). Watertight groups: ray by ray through the single-ray
 /// group test (four triangles per SIMD test), whose shear depends on the ray's largest
-/// direction axis, which eight rays need not share.
+/// direction axis, which eight rays need not share. `FAR`: the layout holds far groups, which
+/// every live ray tests lane by lane with the scalar test.
 #[inline(always)]
-fn groups_packet<V: F8, F>(
+fn groups_packet<V: F8, F, const FAR: bool>(
     cpu: V::Cpu,
     groups: &[Tri4],
     format: LeafFormat,
@@ -107,7 +124,7 @@ fn groups_packet<V: F8, F>(
                     t_max: limit,
                     ..ray
                 };
-                group_hits(
+                group_hits::<FAR>(
                     g,
                     &r,
                     &ray,
@@ -126,6 +143,20 @@ fn groups_packet<V: F8, F>(
         return;
     }
     for g in groups {
+        if FAR && g.is_far() {
+            for i in bits(rays.live) {
+                if rays.live >> i & 1 == 0 {
+                    continue;
+                }
+                let ray = rays.ray(i);
+                for (l, h) in far_hits(g, &ray, ray.t_max, format).into_iter().enumerate() {
+                    if let Some(h) = h {
+                        rays.report_id(i, g.id[l], h);
+                    }
+                }
+            }
+            continue;
+        }
         for (l, &id) in g.id.iter().enumerate() {
             if id == u32::MAX || rays.live == 0 {
                 continue;
