@@ -332,7 +332,8 @@ fn mixed_scales_in_one_bvh_answer_as_the_scalar_tests() {
             Triangle::new(p, p + Vec3A::X * 0.8, p + Vec3A::Y * 0.8)
         })
         .collect();
-    // A large triangle at distance `s` along `axis` (sign `sign`), spanning about 110°.
+    // A large triangle at distance `s` along `axis` (sign `sign`), spanning about 110°; at
+    // s = f32::MAX / 4 its coordinates reach 2s, its extent 3s: finite, their sum is not.
     let ahead = |s: f32, axis: usize, sign: f32| {
         let at = |a: f32, b: f32, c: f32| {
             let mut v = [0.0; 3];
@@ -341,7 +342,7 @@ fn mixed_scales_in_one_bvh_answer_as_the_scalar_tests() {
             v[(axis + 2) % 3] = b * s;
             Vec3A::from(v)
         };
-        Triangle::new(at(-1.0, -1.0, 1.0), at(1.5, -1.0, 1.1), at(-1.0, 1.5, 1.2))
+        Triangle::new(at(-1.0, -1.0, 1.0), at(2.0, -1.0, 1.1), at(-1.0, 2.0, 1.2))
     };
     let huge = [
         (1e15f32, 2, 1.0),
@@ -461,6 +462,28 @@ fn mixed_scales_in_one_bvh_answer_as_the_scalar_tests() {
     }
     check(&tris, &rays, &want, "fast");
     check(&wt, &rays, &want_wt, "watertight");
+
+    // The same triangles as one geometry of a world, placed as they are: the world answers
+    // what the reference answers. Before world boxes were padded in halves, the f32::MAX / 4
+    // triangle's box overflowed to infinity and the world dropped the whole instance.
+    for layout in Layout::ALL {
+        let mut b = quiver::World::builder();
+        let g = b.triangles(tris.clone());
+        b.instance(quiver::Instance::of(g));
+        let world = b
+            .build(&BuildOptions::default().layout(layout))
+            .expect("a world");
+        for (i, ray) in rays.iter().enumerate() {
+            let got = world.closest_hit(ray).map(|h| (h.prim, h.t, h.u, h.v));
+            let w = want[i].map(|h| (h.prim, h.t, h.u, h.v));
+            assert_eq!(got, w, "world {layout}: ray {i}");
+            assert_eq!(
+                world.any_hit(ray),
+                want[i].is_some(),
+                "world {layout}: any, ray {i}"
+            );
+        }
+    }
 
     // Refit into far groups and out again: a BVH over unit-sized stand-ins for the far
     // triangles, refit to the mixed scene, answers as the reference does there, and back home.

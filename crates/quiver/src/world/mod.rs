@@ -511,10 +511,13 @@ fn world_box(m: &Affine3A, b: &Aabb) -> Aabb {
     }
     // The walk meets the geometry through the inverse transform, the box went through the
     // forward one: widened by 2^-20 of its coordinates' size, rounding in either cannot cull
-    // a hit the object-space walk would find.
-    let size = out.min.abs().max(out.max.abs()) + (out.max - out.min);
-    let pad = size * (1.0 / (1u32 << 20) as f32);
-    Aabb::new(out.min - pad, out.max + pad)
+    // a hit the object-space walk would find. In halves, and clamped to the finite range, so
+    // a box reaching toward f32::MAX stays finite (an infinite box would drop the instance):
+    // every point the walk can meet is finite, so the clamped box still holds it.
+    let half = out.min.abs().max(out.max.abs()) * 0.5 + (out.max * 0.5 - out.min * 0.5);
+    let pad = half * (1.0 / (1u32 << 19) as f32);
+    let finite = |v: Vec3A| v.clamp(Vec3A::splat(f32::MIN), Vec3A::splat(f32::MAX));
+    Aabb::new(finite(out.min - pad), finite(out.max + pad))
 }
 
 /// The top-level BVH: 8-wide, one instance per leaf (an instance's test is a whole walk of
