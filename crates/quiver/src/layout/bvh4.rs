@@ -247,7 +247,7 @@ impl<P: Primitive, N: Node4> Bvh4<P, N> {
             nodes,
             prims,
             prim_ids: tree.prim_indices.clone(),
-            far: tri4::any_far(&groups),
+            far: tri4::holds_far(&groups),
             tri4: groups,
             mapping,
             kernels: Kernels::new(isa),

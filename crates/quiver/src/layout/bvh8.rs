@@ -143,7 +143,7 @@ impl<P: Primitive> Bvh8<P> {
             nodes,
             prims,
             prim_ids: tree.prim_indices.clone(),
-            far: tri4::any_far(&groups),
+            far: tri4::holds_far(&groups),
             tri4: groups,
             kernels: Kernels::new(isa),
             bounds: tree.nodes[0].bounds,

@@ -455,7 +455,7 @@ impl<P: Primitive> Bvh8<P> {
             true,
             src,
         );
-        self.far = super::tri4::any_far(&self.tri4);
+        self.far = super::tri4::holds_far(&self.tri4);
     }
 }
 
@@ -470,7 +470,7 @@ impl<P: Primitive, N: Node4> Bvh4<P, N> {
             self.mapping == Bvh4Mapping::DepthFirst,
             src,
         );
-        self.far = super::tri4::any_far(&self.tri4);
+        self.far = super::tri4::holds_far(&self.tri4);
     }
 }
 

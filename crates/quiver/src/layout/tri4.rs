@@ -175,7 +175,7 @@ impl Tri4 {
 }
 
 /// Whether any of `groups` is far: a layout holding one takes its leaves' slower path.
-pub(crate) fn any_far(groups: &[Tri4]) -> bool {
+pub(crate) fn holds_far(groups: &[Tri4]) -> bool {
     use rayon::prelude::*;
     groups.par_iter().with_min_len(4096).any(Tri4::is_far)
 }
