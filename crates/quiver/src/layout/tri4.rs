@@ -3,7 +3,7 @@
 //! laid out ([`crate::LeafFormat`]).
 
 use super::collapse::{Child, Wide};
-use crate::geometry::Triangle;
+use crate::geometry::{pow2, Triangle};
 use crate::primitive::{LeafFormat, Primitive};
 use bytemuck::{Pod, Zeroable};
 
@@ -45,42 +45,45 @@ pub(crate) fn groups(count: u32) -> u32 {
 /// and no triangle the builders keep holds (a non-finite triangle is far itself).
 const FAR: u32 = 0x7fc0_29ca;
 
-/// Whether the SIMD tests compute exactly what the scalar tests compute for `t`: its
-/// coordinates, edges and normal (largest component of each) inside the band where their
-/// products with a ray's terms neither overflow nor underflow.
-fn in_band(t: &Triangle) -> bool {
+/// A triangle's fast-test terms: `v0`, `e1 = v0 - v1`, `e2 = v2 - v0`, `n = e1 × e2`, with
+/// the same glam arithmetic as [`Triangle::intersect`].
+fn fast_terms(t: &Triangle) -> [Vec3A; 4] {
     let e1 = t.v[0] - t.v[1];
     let e2 = t.v[2] - t.v[0];
-    let n = e1.cross(e2);
+    [t.v[0], e1, e2, e1.cross(e2)]
+}
+
+/// Whether the SIMD tests compute exactly what the scalar tests compute for `t`, whose
+/// [`fast_terms`] are `[_, e1, e2, n]`: its coordinates, edges and normal (largest component
+/// of each) inside the band where their products with a ray's terms neither overflow nor
+/// underflow.
+fn in_band(t: &Triangle, [_, e1, e2, n]: &[Vec3A; 4]) -> bool {
     let within = |v: Vec3A, lo: f32, hi: f32| {
         let m = v.abs().max_element();
         m <= hi && (m >= lo || m == 0.0)
     };
-    const fn p2(e: i32) -> f32 {
-        f32::from_bits(((127 + e) as u32) << 23)
-    }
-    t.v.iter().all(|&v| within(v, 0.0, p2(32)))
-        && within(e1, p2(-40), p2(32))
-        && within(e2, p2(-40), p2(32))
-        && within(n, p2(-80), p2(66))
+    t.v.iter().all(|&v| within(v, 0.0, pow2(32)))
+        && within(*e1, pow2(-40), pow2(32))
+        && within(*e2, pow2(-40), pow2(32))
+        && within(*n, pow2(-80), pow2(66))
 }
 
 /// Writes the rows of one group from its lanes' triangles (`None`: an unused lane or a
 /// primitive without a triangle, never hit) as `format` stores them; a far group when any
 /// triangle is outside the band (see [`Tri4`]). The ids are the caller's. What packing and
 /// refitting both write.
-pub(crate) fn fill(g: &mut Tri4, tris: &[Option<Triangle>], format: LeafFormat) {
+pub(crate) fn fill(g: &mut Tri4, tris: &[Option<Triangle>; 4], format: LeafFormat) {
+    let fast = tris.map(|t| t.map(|t| fast_terms(&t)));
+    let far = tris
+        .iter()
+        .zip(&fast)
+        .any(|pair| matches!(pair, (Some(t), Some(f)) if !in_band(t, f)));
     g.rows = [[[f32::NAN; 4]; 3]; 4];
-    let far = tris.iter().flatten().any(|t| !in_band(t));
-    for (lane, t) in tris.iter().enumerate() {
-        let Some(t) = t else { continue };
+    for (lane, (t, f)) in tris.iter().zip(fast).enumerate() {
+        let (Some(t), Some(f)) = (t, f) else { continue };
         let vectors: [Vec3A; 4] = match format {
             _ if far => [t.v[0], t.v[1], t.v[2], Vec3A::NAN],
-            LeafFormat::FastTriangles => {
-                let e1 = t.v[0] - t.v[1];
-                let e2 = t.v[2] - t.v[0];
-                [t.v[0], e1, e2, e1.cross(e2)]
-            }
+            LeafFormat::FastTriangles => f,
             LeafFormat::WatertightTriangles => [t.v[0], t.v[1], t.v[2], Vec3A::ZERO],
             LeafFormat::Plain => unreachable!("plain leaves are not packed"),
         };

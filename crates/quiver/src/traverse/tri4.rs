@@ -162,12 +162,7 @@ pub(crate) fn group_hits<const FAR: bool>(
 /// what would leave f32's range.
 #[cold]
 #[inline(never)]
-pub(crate) fn far_hits(
-    g: &Tri4,
-    ray: &Ray,
-    t_max: f32,
-    format: LeafFormat,
-) -> [Option<PrimHit>; 4] {
+fn far_hits(g: &Tri4, ray: &Ray, t_max: f32, format: LeafFormat) -> [Option<PrimHit>; 4] {
     let ray = Ray { t_max, ..*ray };
     std::array::from_fn(|l| {
         let t = g.triangle(l);

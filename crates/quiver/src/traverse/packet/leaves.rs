@@ -10,7 +10,7 @@ use crate::primitive::{LeafFormat, PacketLeaf, PacketRays, Primitive};
 use crate::traverse::lane8::F8;
 use crate::traverse::leaves::Leaves;
 use crate::traverse::simd::bits;
-use crate::traverse::tri4::{far_hits, group_hits, Ray4Tri};
+use crate::traverse::tri4::{group_hits, Ray4Tri};
 use std::ops::Range;
 
 /// Runs the leaf `range` (primitives, or groups holding `range.len()` triangles) for the
@@ -118,26 +118,7 @@ fn groups_packet<V: F8, F, const FAR: bool>(
                 if rays.live >> i & 1 == 0 {
                     break;
                 }
-                let limit = rays.packet.limit(i);
-                let mut found = [None; 4];
-                let ray = Ray {
-                    t_max: limit,
-                    ..ray
-                };
-                group_hits::<FAR>(
-                    g,
-                    &r,
-                    &ray,
-                    limit,
-                    format,
-                    #[inline(always)]
-                    |l, h| found[l] = Some(h),
-                );
-                for (l, h) in found.into_iter().enumerate() {
-                    if let Some(h) = h {
-                        rays.report_id(i, g.id[l], h);
-                    }
-                }
+                group_for_ray::<F, FAR>(g, i, &ray, &r, format, rays);
             }
         }
         return;
@@ -149,11 +130,7 @@ fn groups_packet<V: F8, F, const FAR: bool>(
                     continue;
                 }
                 let ray = rays.ray(i);
-                for (l, h) in far_hits(g, &ray, ray.t_max, format).into_iter().enumerate() {
-                    if let Some(h) = h {
-                        rays.report_id(i, g.id[l], h);
-                    }
-                }
+                group_for_ray::<F, true>(g, i, &ray, &Ray4Tri::new(&ray, format), format, rays);
             }
             continue;
         }
@@ -167,6 +144,41 @@ fn groups_packet<V: F8, F, const FAR: bool>(
                 #[inline(always)]
                 |pk, k| group_lane8::<V>(cpu, g, l, pk, k),
             );
+        }
+    }
+}
+
+/// One group for packet ray `i` (`ray`, its group terms `r`) through the single-ray group
+/// test, which takes a far group lane by lane when `FAR`; the hits reported as the lanes' ids.
+#[inline(always)]
+fn group_for_ray<F, const FAR: bool>(
+    g: &Tri4,
+    i: usize,
+    ray: &Ray,
+    r: &Ray4Tri,
+    format: LeafFormat,
+    rays: &mut PacketLeaf<'_, F>,
+) where
+    F: FnMut(usize, u32, PrimHit) -> Option<f32>,
+{
+    let limit = rays.packet.limit(i);
+    let ray = Ray {
+        t_max: limit,
+        ..*ray
+    };
+    let mut found = [None; 4];
+    group_hits::<FAR>(
+        g,
+        r,
+        &ray,
+        limit,
+        format,
+        #[inline(always)]
+        |l, h| found[l] = Some(h),
+    );
+    for (l, h) in found.into_iter().enumerate() {
+        if let Some(h) = h {
+            rays.report_id(i, g.id[l], h);
         }
     }
 }
