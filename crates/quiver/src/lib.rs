@@ -64,7 +64,7 @@ pub use layout::{
     Bvh2, Bvh2Mapping, Bvh2Node, Bvh4, Bvh4Mapping, Bvh4Node, Bvh8, Bvh8Node, Footprint, Layout,
     Node4, QBvh4, QBvh4Node, Tri4,
 };
-pub use mesh::MeshError;
+pub use mesh::{MeshError, Positions};
 pub use primitive::{LeafFormat, Primitive};
 pub use traverse::{reference, RayQuery};
 pub use world::{Geometry, GeometryId, Instance, World, WorldBuilder, WorldError, WorldHit};

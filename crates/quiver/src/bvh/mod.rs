@@ -15,7 +15,7 @@ use crate::frame::Frame;
 use crate::geometry::{Aabb, Hit, Ray, Triangle};
 use crate::isa::Isa;
 use crate::layout::{bvh2::leaf_order, Footprint};
-use crate::mesh::MeshError;
+use crate::mesh::{MeshError, Positions};
 use crate::primitive::Primitive;
 use crate::traverse::{BoxTest, Filter, PacketQuery, RayQuery, Stats};
 use options::frame_prims;
@@ -171,12 +171,17 @@ impl<P: Primitive> Bvh<P> {
 impl Bvh {
     /// Builds over an indexed triangle mesh with the default [`BuildOptions`]: triangle `i`
     /// has corners `positions[indices[i][0]]`, `…[1]]`, `…[2]]`, and hits report `i`. The
-    /// buffers are read in place; the BVH keeps its own copy of the triangles in leaf order.
+    /// buffers are read in place: packed `[f32; 3]` positions as they are, positions inside
+    /// an interleaved vertex buffer through [`Positions::strided`] or
+    /// [`Positions::of_vertices`], never copied first.
     ///
     /// # Errors
     /// [`MeshError`] when an index names no vertex, or there are more than `u32::MAX`
     /// triangles.
-    pub fn from_mesh(positions: &[[f32; 3]], indices: &[[u32; 3]]) -> Result<Self, MeshError> {
+    pub fn from_mesh<'v>(
+        positions: impl Into<Positions<'v>>,
+        indices: &[[u32; 3]],
+    ) -> Result<Self, MeshError> {
         BuildOptions::default().build_mesh(positions, indices)
     }
 }

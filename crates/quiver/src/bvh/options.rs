@@ -8,7 +8,7 @@ use crate::frame::Frame;
 use crate::isa::Isa;
 use crate::layout::bvh2::leaf_order;
 use crate::layout::Layout;
-use crate::mesh::{Mesh, MeshError};
+use crate::mesh::{Mesh, MeshError, Positions};
 use crate::primitive::{LeafFormat, Primitive};
 use rayon::ThreadPool;
 
@@ -236,9 +236,9 @@ impl<'p> BuildOptions<'p> {
     ///
     /// # Panics
     /// As [`BuildOptions::build`].
-    pub fn build_mesh(
+    pub fn build_mesh<'v>(
         &self,
-        positions: &[[f32; 3]],
+        positions: impl Into<Positions<'v>>,
         indices: &[[u32; 3]],
     ) -> Result<Bvh, MeshError> {
         Ok(self.build_mesh_with_tree(positions, indices)?.0)
@@ -251,12 +251,12 @@ impl<'p> BuildOptions<'p> {
     ///
     /// # Panics
     /// As [`BuildOptions::build`].
-    pub fn build_mesh_with_tree(
+    pub fn build_mesh_with_tree<'v>(
         &self,
-        positions: &[[f32; 3]],
+        positions: impl Into<Positions<'v>>,
         indices: &[[u32; 3]],
     ) -> Result<(Bvh, BuildTree), MeshError> {
-        let mesh = Mesh::new(positions, indices)?;
+        let mesh = Mesh::new(positions.into(), indices)?;
         Ok(self.run(|| {
             use rayon::prelude::*;
             let bounds = mesh.bounds();

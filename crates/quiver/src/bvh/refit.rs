@@ -8,7 +8,7 @@ use crate::frame::{Frame, Sizes};
 use crate::geometry::{Aabb, Triangle};
 use crate::layout::refit::Source;
 use crate::layout::{Bvh2, Bvh2Mapping};
-use crate::mesh::{Mesh, MeshError};
+use crate::mesh::{Mesh, MeshError, Positions};
 use crate::predict::Pieces;
 use crate::primitive::Primitive;
 use rayon::prelude::*;
@@ -409,9 +409,9 @@ impl Bvh<Triangle> {
     ///
     /// # Errors
     /// As [`Bvh::refit`], and [`RefitError::Mesh`] when an index names no vertex.
-    pub fn refit_mesh(
+    pub fn refit_mesh<'v>(
         &mut self,
-        positions: &[[f32; 3]],
+        positions: impl Into<Positions<'v>>,
         indices: &[[u32; 3]],
     ) -> Result<(), RefitError> {
         if indices.len() != self.len {
@@ -420,7 +420,7 @@ impl Bvh<Triangle> {
                 given: indices.len(),
             });
         }
-        let mesh = Mesh::new(positions, indices)?;
+        let mesh = Mesh::new(positions.into(), indices)?;
         self.refit_by(indices.len(), |i| mesh.triangle(i))
     }
 }

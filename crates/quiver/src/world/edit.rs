@@ -6,7 +6,7 @@ use super::{check_instance, placement, top_level, world_box, Geometry, GeometryI
 use super::{World, WorldError};
 use crate::geometry::{Aabb, Triangle};
 use crate::layout::refit::Source;
-use crate::mesh::Mesh;
+use crate::mesh::{Mesh, Positions};
 use crate::primitive::Primitive;
 use glam::Affine3A;
 use rayon::prelude::*;
@@ -122,12 +122,13 @@ impl<P: Primitive> WorldEdit<'_, P> {
     /// # Errors
     /// As [`WorldEdit::triangles`]; a bad index is a [`WorldError::Refit`] naming the mesh
     /// error.
-    pub fn mesh(
+    pub fn mesh<'v>(
         &mut self,
         geometry: GeometryId,
-        positions: &[[f32; 3]],
+        positions: impl Into<Positions<'v>>,
         indices: &[[u32; 3]],
     ) -> Result<(), WorldError> {
+        let positions = positions.into();
         let done = match self.geometry(geometry)? {
             Geometry::Triangles(bvh, kept) => {
                 bvh.refit_mesh(positions, indices)

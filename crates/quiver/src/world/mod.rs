@@ -58,7 +58,7 @@ use crate::bvh::RefitError;
 use crate::geometry::{unit_or_zero, Aabb, PrimHit, Ray, Triangle};
 use crate::isa::Isa;
 use crate::layout::{bvh2::leaf_order, Bvh8, Footprint};
-use crate::mesh::{Mesh, MeshError};
+use crate::mesh::{Mesh, MeshError, Positions};
 use crate::primitive::Primitive;
 use crate::Bvh;
 use glam::{Affine3A, Mat3A, Vec3A};
@@ -366,13 +366,13 @@ impl<P: Primitive> WorldBuilder<P> {
     ///
     /// # Errors
     /// [`MeshError`] when an index names no vertex.
-    pub fn mesh(
+    pub fn mesh<'v>(
         &mut self,
-        positions: &[[f32; 3]],
+        positions: impl Into<Positions<'v>>,
         indices: &[[u32; 3]],
     ) -> Result<GeometryId, MeshError> {
         let id = GeometryId(self.sources.len() as u32);
-        match Mesh::new(positions, indices) {
+        match Mesh::new(positions.into(), indices) {
             Ok(mesh) => {
                 let tris = (0..indices.len() as u32)
                     .map(|i| mesh.triangle(i))
