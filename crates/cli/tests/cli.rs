@@ -180,6 +180,13 @@ fn bench_and_packets_measure_the_thread_counts_asked_for() {
             assert_eq!(bvh8["node_bytes"], 256, "{bvh8}");
             assert_eq!(bvh8["node_bytes_per_tri"], 64.0, "{bvh8}");
             assert!(bvh8["bytes"].as_u64().unwrap() >= 256 + 4 * 36, "{bvh8}");
+            // It keeps what the walk reads (nodes, SIMD groups) and the four input indices
+            // in leaf order a refit reads, no second copy of the triangles.
+            assert_eq!(
+                bvh8["kept_bytes"].as_u64().unwrap(),
+                bvh8["bytes"].as_u64().unwrap() + 4 * 4,
+                "{bvh8}"
+            );
         }
         if line.starts_with("packets") {
             // Patch mode adds the first-bounce mirror rays of every eye hit.

@@ -321,16 +321,28 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
             .collect();
         #[cfg(not(feature = "tinybvh"))]
         let tiny: Vec<()> = Vec::new();
-        // Memory per triangle: quiver's node array and everything its walk reads.
+        // Memory per triangle: quiver's node array, everything its walk reads and everything
+        // it keeps; a peer's one figure is all it allocates, so its kept is the same.
         let per_tri = |b: usize| b as f64 / tris.len().max(1) as f64;
-        let memory = |engine: &str, kernel: &str, nodes: Option<usize>, bytes: usize| {
+        let memory = |engine: &str,
+                      kernel: &str,
+                      nodes: Option<usize>,
+                      bytes: usize,
+                      kept: usize| {
             json!({"scene": scene.name, "primitives": tris.len(), "engine": engine, "kernel": kernel,
                    "bytes": bytes, "bytes_per_tri": per_tri(bytes),
+                   "kept_bytes": kept, "kept_bytes_per_tri": per_tri(kept),
                    "node_bytes": nodes, "node_bytes_per_tri": nodes.map(per_tri)})
         };
         for (l, b) in KERNELS.iter().zip(&bvhs) {
             let f = b.footprint();
-            memory_rows.push(memory("quiver", l.name(), Some(f.node_bytes), f.bytes));
+            memory_rows.push(memory(
+                "quiver",
+                l.name(),
+                Some(f.node_bytes),
+                f.bytes,
+                f.kept,
+            ));
         }
         let obvh = build_bvh2_from_tris(
             &ot,
@@ -340,10 +352,17 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
         #[cfg(feature = "embree")]
         let embree = EmbreeScene::new(&tris)?;
         #[cfg(feature = "embree")]
-        memory_rows.push(memory("embree", "bvh-medium", None, embree.bvh_bytes()));
+        memory_rows.push(memory(
+            "embree",
+            "bvh-medium",
+            None,
+            embree.bvh_bytes(),
+            embree.bvh_bytes(),
+        ));
         #[cfg(feature = "tinybvh")]
         for t in &tiny {
-            memory_rows.push(memory("tinybvh", t.layout().name(), None, t.bytes().0));
+            let bytes = t.bytes().0;
+            memory_rows.push(memory("tinybvh", t.layout().name(), None, bytes, bytes));
         }
         let eye = rays::camera_rays(&scene.camera, 256);
         let light = scene
@@ -521,33 +540,35 @@ fn tiny_name(_: &[()], k: usize) -> &'static str {
 fn print_memory(rows: &[Value]) {
     outln!();
     outln!(
-        "{:<14} {:>9} {:<7} {:<17} {:>12} {:>12} {:>13}",
+        "{:<14} {:>9} {:<7} {:<17} {:>12} {:>12} {:>12} {:>13}",
         "scene",
         "prims",
         "engine",
         "kernel",
         "nodes B/tri",
         "all B/tri",
-        "all MB"
+        "kept B/tri",
+        "kept MB"
     );
     let num = |v: &Value, p: usize| v.as_f64().map_or("-".to_string(), |x| format!("{x:.p$}"));
     for r in rows {
         let name = r["scene"].as_str().unwrap_or("");
         let short = name.rsplit('/').next().unwrap_or(name);
         outln!(
-            "{:<14} {:>9} {:<7} {:<17} {:>12} {:>12} {:>13}",
+            "{:<14} {:>9} {:<7} {:<17} {:>12} {:>12} {:>12} {:>13}",
             short,
             r["primitives"],
             r["engine"].as_str().unwrap_or(""),
             r["kernel"].as_str().unwrap_or(""),
             num(&r["node_bytes_per_tri"], 1),
             num(&r["bytes_per_tri"], 1),
-            r["bytes"]
+            num(&r["kept_bytes_per_tri"], 1),
+            r["kept_bytes"]
                 .as_f64()
                 .map_or("-".into(), |b| format!("{:.1}", b / 1e6))
         );
     }
-    outln!("(nodes: quiver's node array; all: what the walk reads, nodes and leaf triangles: quiver's Bvh::footprint, Embree's allocations across rtcCommitScene by its memory monitor, tinybvh's interleaved node and leaf blocks)");
+    outln!("(nodes: quiver's node array; all: what the walk reads, nodes and leaf triangles: quiver's Bvh::footprint, Embree's allocations across rtcCommitScene by its memory monitor, tinybvh's interleaved node and leaf blocks; kept: everything the BVH holds, quiver's Footprint::kept (for a peer its one figure))");
 }
 
 fn print_throughput(rows: &[Value]) {

@@ -229,6 +229,7 @@ impl<P: Primitive, N: Node4> Bvh4<P, N> {
     ) -> Self {
         let mut wide = collapse(tree);
         let groups = tri4::pack_leaves(&mut wide, &prims, &tree.prim_indices);
+        let prims = tri4::plain_only(prims);
         let (slots, pos) = arrange(&wide, mapping, std::mem::size_of::<N>());
         let nodes = slots
             .iter()
@@ -255,14 +256,19 @@ impl<P: Primitive, N: Node4> Bvh4<P, N> {
         }
     }
 
-    /// What the nodes and the leaf data the kernels read occupy (the SIMD groups, where the
-    /// leaves have them).
+    /// What the nodes and the leaf data the kernels read occupy (the SIMD groups, where
+    /// the leaves have them), and everything the layout keeps.
     pub fn footprint(&self) -> Footprint {
-        if self.tri4.is_empty() {
+        let mut f = if self.tri4.is_empty() {
             Footprint::of(&self.nodes, &self.prims, &self.prim_ids)
         } else {
             Footprint::of(&self.nodes, &self.tri4, &[])
-        }
+        };
+        f.kept = f.node_bytes
+            + std::mem::size_of_val(&self.prims[..])
+            + std::mem::size_of_val(&self.prim_ids[..])
+            + std::mem::size_of_val(&self.tri4[..]);
+        f
     }
 
     /// The nodes, root first, in the order of [`Bvh4::mapping`].
@@ -275,12 +281,15 @@ impl<P: Primitive, N: Node4> Bvh4<P, N> {
         bytemuck::cast_slice(&self.nodes)
     }
 
-    /// The primitives in leaf order.
+    /// The primitives in leaf order, for plain leaf formats. Empty for triangle formats
+    /// ([`LeafFormat`]): their leaves are only the SIMD [`groups`](Bvh4::groups), which hold
+    /// each triangle and its input index, so the layout keeps no second copy; the primitive
+    /// at leaf position `k` is the input's `prim_ids()[k]`.
     pub fn prims(&self) -> &[P] {
         &self.prims
     }
 
-    /// For each entry of [`Bvh4::prims`], its index in the input (what hits report).
+    /// For each primitive in leaf order, its index in the input (what hits report).
     pub fn prim_ids(&self) -> &[u32] {
         &self.prim_ids
     }

@@ -138,6 +138,7 @@ impl<P: Primitive> Bvh8<P> {
         let max_leaf = config.max_leaf_size.min((Bvh8Node::LEAF - 1) as usize);
         let mut wide = collapse_sah::<8>(tree, max_leaf, config.traversal_cost, leaf_cost);
         let groups = tri4::pack_leaves(&mut wide, &prims, &tree.prim_indices);
+        let prims = tri4::plain_only(prims);
         let nodes = wide.par_iter().map(Bvh8Node::encode).collect();
         Bvh8 {
             nodes,
@@ -162,13 +163,18 @@ impl<P: Primitive> Bvh8<P> {
     }
 
     /// What the nodes and the leaf data the kernels read occupy (the SIMD groups, where
-    /// the leaves have them).
+    /// the leaves have them), and everything the layout keeps.
     pub fn footprint(&self) -> Footprint {
-        if self.tri4.is_empty() {
+        let mut f = if self.tri4.is_empty() {
             Footprint::of(&self.nodes, &self.prims, &self.prim_ids)
         } else {
             Footprint::of(&self.nodes, &self.tri4, &[])
-        }
+        };
+        f.kept = f.node_bytes
+            + std::mem::size_of_val(&self.prims[..])
+            + std::mem::size_of_val(&self.prim_ids[..])
+            + std::mem::size_of_val(&self.tri4[..]);
+        f
     }
 
     /// The nodes in depth-first order, root first.
@@ -181,12 +187,15 @@ impl<P: Primitive> Bvh8<P> {
         bytemuck::cast_slice(&self.nodes)
     }
 
-    /// The primitives in leaf order.
+    /// The primitives in leaf order, for plain leaf formats. Empty for triangle formats
+    /// ([`LeafFormat`]): their leaves are only the SIMD [`groups`](Bvh8::groups), which hold
+    /// each triangle and its input index, so the layout keeps no second copy; the primitive
+    /// at leaf position `k` is the input's `prim_ids()[k]`.
     pub fn prims(&self) -> &[P] {
         &self.prims
     }
 
-    /// For each entry of [`Bvh8::prims`], its index in the input (what hits report).
+    /// For each primitive in leaf order, its index in the input (what hits report).
     pub fn prim_ids(&self) -> &[u32] {
         &self.prim_ids
     }

@@ -150,15 +150,70 @@ pub struct Footprint {
     pub node_bytes: usize,
     /// Bytes of node and leaf data the traversal reads: nodes, primitives, primitive ids.
     pub bytes: usize,
+    /// Bytes of everything the layout keeps: what the traversal reads and what only a
+    /// refit reads (the leaf order's input indices, where the SIMD groups hold them too).
+    pub kept: usize,
 }
 
 impl Footprint {
     pub(crate) fn of<N, P>(nodes: &[N], prims: &[P], ids: &[u32]) -> Footprint {
         let node_bytes = std::mem::size_of_val(nodes);
+        let bytes = node_bytes + std::mem::size_of_val(prims) + std::mem::size_of_val(ids);
         Footprint {
             nodes: nodes.len(),
             node_bytes,
-            bytes: node_bytes + std::mem::size_of_val(prims) + std::mem::size_of_val(ids),
+            bytes,
+            kept: bytes,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{Bvh2, Bvh2Mapping, Bvh4, Bvh4Mapping, Bvh8, Footprint, QBvh4, Tri4};
+    use crate::bvh::BuildOptions;
+    use crate::intersect::Watertight;
+    use crate::testing::soup;
+    use crate::{Isa, Primitive};
+    use std::mem::size_of;
+
+    /// One layout's footprint against the formats' sizes: `copy` primitives kept in leaf
+    /// order, `groups` SIMD groups, one input index per primitive.
+    fn check<P>(f: Footprint, n: usize, copy: usize, groups: usize, what: &str) {
+        let groups = groups * size_of::<Tri4>();
+        let (ids, prims) = (4 * n, copy * size_of::<P>());
+        assert_eq!(f.kept, f.node_bytes + groups + ids + prims, "{what}");
+        let read = if groups > 0 { groups } else { ids + prims };
+        assert_eq!(f.bytes, f.node_bytes + read, "{what}");
+    }
+
+    /// A wide layout over a triangle format keeps its nodes, its SIMD groups and one input
+    /// index per triangle, no copy of the triangles; a binary one keeps its leaf-order
+    /// primitives and ids beside its nodes.
+    fn keeps<P: Primitive>(prims: &[P]) {
+        let n = prims.len();
+        let (_, tree) = BuildOptions::default().build_with_tree(prims);
+        let config = Default::default();
+        let isa = Isa::detect();
+        let b2 = Bvh2::from_tree(&tree, prims, Bvh2Mapping::DepthFirst).unwrap();
+        assert_eq!(b2.prims().len(), n);
+        check::<P>(b2.footprint(), n, n, 0, "bvh2");
+        let b4: Bvh4<P> = Bvh4::from_tree(&tree, prims, Bvh4Mapping::DepthFirst, isa).unwrap();
+        assert!(b4.prims().is_empty() && !b4.groups().is_empty());
+        check::<P>(b4.footprint(), n, 0, b4.groups().len(), "bvh4");
+        let q4: QBvh4<P> = QBvh4::from_tree(&tree, prims, Bvh4Mapping::DepthFirst, isa).unwrap();
+        assert!(q4.prims().is_empty());
+        check::<P>(q4.footprint(), n, 0, q4.groups().len(), "qbvh4");
+        let b8: Bvh8<P> = Bvh8::from_tree(&tree, prims, &config, isa).unwrap();
+        assert!(b8.prims().is_empty());
+        check::<P>(b8.footprint(), n, 0, b8.groups().len(), "bvh8");
+    }
+
+    #[test]
+    fn wide_triangle_layouts_keep_no_copy_of_the_triangles() {
+        let tris = soup(500, 7);
+        keeps(&tris);
+        let watertight: Vec<Watertight> = tris.iter().map(|&t| Watertight(t)).collect();
+        keeps(&watertight);
     }
 }

@@ -1,8 +1,9 @@
 //! Refitting a laid-out BVH in place: the same tree and node order over primitives that moved.
 //!
-//! The primitives come from a [`Source`] by their input index. Every layout refreshes its
-//! leaf-order copy of the primitives, repacks its SIMD triangle groups ([`Tri4`]) lane by lane
-//! (each lane names its input index), and recomputes every box bottom-up: a leaf's box is the
+//! The primitives come from a [`Source`] by their input index. A layout with plain leaves
+//! refreshes its leaf-order copy of the primitives; a wide layout over a triangle format,
+//! which keeps no copy, repacks its SIMD triangle groups ([`Tri4`]) lane by lane straight from
+//! the source (each lane names its input index); every layout recomputes every box bottom-up: a leaf's box is the
 //! union of its primitives' boxes, an inner node's the union of its children's, exactly as a
 //! fresh layout of the build tree over the new primitives computes them (unions are exact, so
 //! the grouping does not matter). Quantized nodes are encoded again from the exact boxes.
@@ -18,7 +19,7 @@ use super::bvh2::{compact_children, Addressing, Bvh2, Bvh2Mapping, Bvh2Node};
 use super::bvh4::{Bvh4, Bvh4Mapping, Bvh4Node, Node4};
 use super::bvh8::{Bvh8, Bvh8Node};
 use super::collapse::{Child, Wide};
-use super::tri4::{fill, groups as group_count, lane_triangles, Tri4};
+use super::tri4::{fill, groups as group_count, Tri4};
 use crate::geometry::Aabb;
 use crate::primitive::{LeafFormat, Primitive};
 use rayon::prelude::*;
@@ -74,25 +75,33 @@ impl<'a, S> Ctx<'a, S> {
         }
     }
 
-    /// One leaf: its primitives of the leaf-order copy (`prims`, input indices `ids`)
-    /// refreshed, its SIMD `groups` (for a triangle leaf format) repacked from them, and its
-    /// box: the union of theirs.
+    /// One leaf of input indices `ids`: the primitives of the leaf-order copy (`prims`)
+    /// refreshed where the layout keeps one, else (a wide layout over a triangle format) its
+    /// SIMD `groups` repacked straight from the source; and its box, the union of the
+    /// primitives'.
     #[inline]
     fn leaf<P: Primitive>(&self, prims: &mut [P], ids: &[u32], groups: &mut [Tri4]) -> Aabb
     where
         S: Source<P>,
     {
         let mut b = Aabb::EMPTY;
+        if prims.len() != ids.len() {
+            for (g, four) in groups.iter_mut().zip(ids.chunks(4)) {
+                let mut tris = [None; 4];
+                for (t, &id) in tris.iter_mut().zip(four) {
+                    let p = self.src.get(id);
+                    b = b.union(&p.bounds());
+                    *t = p.triangle();
+                }
+                fill(g, &tris, P::LEAF_FORMAT);
+            }
+            return b;
+        }
         for (p, &id) in prims.iter_mut().zip(ids) {
             if !self.fresh {
                 self.src.refresh(id, p);
             }
             b = b.union(&p.bounds());
-        }
-        if P::LEAF_FORMAT != LeafFormat::Plain {
-            for (g, four) in groups.iter_mut().zip(prims.chunks(4)) {
-                fill(g, &lane_triangles(four), P::LEAF_FORMAT);
-            }
         }
         b
     }
@@ -217,9 +226,16 @@ struct Run<'a, P> {
 }
 
 impl<'a, P> Run<'a, P> {
-    /// The first `count` primitives, for a leaf or a subtree; the rest stay.
+    /// The first `count` primitives, for a leaf or a subtree; the rest stay. A wide layout
+    /// over a triangle format keeps no leaf-order copy (`tri4::plain_only`): its run holds
+    /// ids only, and only they split.
     fn take(&mut self, count: usize) -> Run<'a, P> {
-        let (prims, rest) = std::mem::take(&mut self.prims).split_at_mut(count);
+        let copy = if self.prims.len() == self.ids.len() {
+            count
+        } else {
+            0
+        };
+        let (prims, rest) = std::mem::take(&mut self.prims).split_at_mut(copy);
         let (ids, rest_ids) = self.ids.split_at(count);
         (self.prims, self.ids) = (rest, rest_ids);
         Run { prims, ids }

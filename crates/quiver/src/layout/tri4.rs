@@ -117,6 +117,16 @@ fn pack<P: Primitive>(prims: &[P], ids: &[u32], format: LeafFormat, out: &mut [T
     }
 }
 
+/// The leaf-order primitives a wide layout keeps: all of them for a plain leaf format, none
+/// for a triangle format, whose SIMD groups hold every triangle (and far groups its exact
+/// corners), so nothing reads a second copy; a refit takes the new ones from its source.
+pub(crate) fn plain_only<P: Primitive>(prims: Vec<P>) -> Vec<P> {
+    match P::LEAF_FORMAT {
+        LeafFormat::Plain => prims,
+        _ => Vec::new(),
+    }
+}
+
 /// For primitive types with a triangle [`LeafFormat`]: packs every leaf of the collapsed tree
 /// into groups and points the leaf at its first group instead of its first primitive. Plain
 /// formats keep their leaves and get no groups. The groups are numbered in one pass over the

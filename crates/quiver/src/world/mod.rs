@@ -205,6 +205,7 @@ impl<P: Primitive> Geometry<P> {
         };
         Footprint {
             bytes: f.bytes + kept,
+            kept: f.kept + kept,
             ..f
         }
     }
@@ -673,6 +674,7 @@ impl<P: Primitive> World<P> {
                 nodes: top.nodes,
                 node_bytes: top.node_bytes,
                 bytes: top.bytes + instances,
+                kept: top.kept + instances,
             },
             |f, g| {
                 let g = g.footprint();
@@ -680,6 +682,7 @@ impl<P: Primitive> World<P> {
                     nodes: f.nodes + g.nodes,
                     node_bytes: f.node_bytes + g.node_bytes,
                     bytes: f.bytes + g.bytes,
+                    kept: f.kept + g.kept,
                 }
             },
         )
