@@ -118,6 +118,8 @@ pub(crate) fn run(args: BuildArgs) -> Result<()> {
         "node_bytes": footprint.node_bytes,
         "node_bytes_per_prim": footprint.node_bytes as f64 / prims,
         "bytes_per_prim": footprint.bytes as f64 / prims,
+        "kept_bytes": footprint.kept,
+        "kept_bytes_per_prim": footprint.kept as f64 / prims,
     });
     print_table(&report);
     write_json(args.json.as_ref(), &report)

@@ -142,7 +142,7 @@ impl Summary {
 }
 
 impl<P: Primitive> Laid<P> {
-    /// For each primitive of the leaf-order copy, its index in the input.
+    /// For each primitive in leaf order, its index in the input.
     fn prim_ids(&self) -> &[u32] {
         match self {
             Laid::Bvh2(b) => b.prim_ids(),
@@ -203,8 +203,8 @@ impl<P: Primitive> Bvh<P> {
     /// (as many as it was built over, those the build dropped included). The tree stays as
     /// it was built; every box is recomputed bottom-up, in parallel over subtrees on the
     /// current rayon pool (call it inside [`rayon::ThreadPool::install`] for another), in
-    /// place: the nodes, the leaf-order copy of the primitives, the SIMD triangle groups and
-    /// quantized planes are rewritten, none of those arrays reallocated. Queries then answer
+    /// place: the nodes, the leaf-order copy of the primitives (plain leaves), the SIMD
+    /// triangle groups and quantized planes are rewritten, none of those arrays reallocated. Queries then answer
     /// exactly as a fresh layout of the same build tree over `prims` ([`Bvh::from_tree`])
     /// does, and the BVH takes the frame `prims` call for, as that layout would (a scene
     /// moved far from unit size is scaled by a power of two, one brought back is not). A

@@ -439,9 +439,10 @@ fn run_tasks<const W: usize, N: WideNode<W>, P: Primitive, S: Source<P>>(
 }
 
 /// The shared steps of the wide layouts; returns the root's box. Depth-first layouts refresh
-/// the leaf-order copy leaf by leaf inside their parallel tasks (one read of each new
-/// primitive serves its copy, its SIMD lanes and its leaf's box); the other mappings refresh
-/// it in parallel first, then walk the tree once.
+/// the leaf-order copy (plain leaves) or repack the SIMD groups (triangle formats, no copy)
+/// leaf by leaf inside their parallel tasks (one read of each new primitive serves its copy
+/// or its lane, and its leaf's box); the other mappings refresh a copy in parallel first,
+/// then walk the tree once.
 fn refit_wide<const W: usize, N: WideNode<W>, P: Primitive, S: Source<P>>(
     nodes: &mut [N],
     prims: &mut [P],
