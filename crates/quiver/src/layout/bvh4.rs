@@ -282,7 +282,7 @@ impl<P: Primitive, N: Node4> Bvh4<P, N> {
     }
 
     /// The primitives in leaf order, for plain leaf formats. Empty for triangle formats
-    /// ([`LeafFormat`]): their leaves are only the SIMD [`groups`](Bvh4::groups), which hold
+    /// ([`LeafFormat`](crate::LeafFormat)): their leaves are only the SIMD [`groups`](Bvh4::groups), which hold
     /// each triangle and its input index, so the layout keeps no second copy; the primitive
     /// at leaf position `k` is the input's `prim_ids()[k]`.
     pub fn prims(&self) -> &[P] {
