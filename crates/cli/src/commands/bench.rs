@@ -294,14 +294,22 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
         }
         bar.inc(1);
         bar.set_message(format!("{name}: tracing"));
-        let tree = build(&prim_bounds(&tris), &config, Builder::Binned);
+        // Each layout traces the tree its own default build makes: the SAH counts a wide
+        // layout's leaves by their SIMD groups of four, a binary one's by the triangle.
+        let boxes = prim_bounds(&tris);
+        let grouped = |g: usize| BuildConfig {
+            leaf_group: g,
+            ..config.clone()
+        };
+        let [one, four] = [1, 4].map(|g| build(&boxes, &grouped(g), Builder::Binned));
         let bvhs = KERNELS
             .iter()
             .map(|&l| {
+                let g = l.leaf_group();
                 Bvh::from_tree(
-                    &tree,
+                    if g == 1 { &one } else { &four },
                     &tris,
-                    &BuildOptions::default().config(config.clone()).layout(l),
+                    &BuildOptions::default().config(grouped(g)).layout(l),
                 )
             })
             .collect::<std::result::Result<Vec<Bvh>, _>>()?;

@@ -384,3 +384,91 @@ fn optimisation_never_raises_the_cost() {
         }
     }
 }
+
+/// The splits of `tree` a leaf could have replaced (subtrees within `max_leaf_size`), each
+/// checked to pay under `config`'s count of tests: `c_T + c_I·Σ (A_child / A)·tests(child)`
+/// below `c_I·tests(n)`, computed here in f64 from the tree's boxes (the builders score in
+/// f32, hence the relative slack of 1e-5). Returns how many there are.
+fn optional_splits_that_pay(tree: &BuildTree, config: &BuildConfig, what: &str) -> usize {
+    let nodes = &tree.nodes;
+    let mut count = vec![0usize; nodes.len()];
+    for i in (0..nodes.len()).rev() {
+        count[i] = match nodes[i].kind {
+            NodeKind::Leaf { count, .. } => count as usize,
+            NodeKind::Inner { left, right } => count[left as usize] + count[right as usize],
+        };
+    }
+    let tests = |n: usize| config.tests(n) as f64;
+    let (ct, ci) = (
+        config.traversal_cost as f64,
+        config.intersection_cost as f64,
+    );
+    let mut optional = 0;
+    for (i, node) in nodes.iter().enumerate() {
+        let NodeKind::Inner { left, right } = node.kind else {
+            continue;
+        };
+        let n = count[i];
+        if n > config.max_leaf_size {
+            continue;
+        }
+        optional += 1;
+        let area = node.bounds.half_area_f64();
+        let child =
+            |c: u32| nodes[c as usize].bounds.half_area_f64() / area * tests(count[c as usize]);
+        let split = ct + ci * (child(left) + child(right));
+        let leaf = ci * tests(n);
+        assert!(
+            split < leaf * (1.0 + 1e-5),
+            "{what}: node {i} of {n} split at cost {split} over a leaf's {leaf}"
+        );
+    }
+    optional
+}
+
+/// With the leaves counted in SIMD groups of four, a node within the leaf size is split
+/// only where the group tests it saves pay for the extra box test: on a random soup the
+/// grouped builds keep far fewer such splits than the builds counting single triangles, and
+/// every split they keep pays under their own count. The default BVH over triangles (8-wide)
+/// builds with the groups, the binary layout without them.
+#[test]
+fn leaves_counted_in_groups_split_only_where_the_group_cost_pays() {
+    let tris = Scene::load("soup3000").unwrap().triangles();
+    let bounds = prim_bounds(&tris);
+    let single = BuildConfig {
+        leaf_group: 1,
+        ..BuildConfig::default()
+    };
+    let grouped = BuildConfig {
+        leaf_group: 4,
+        ..BuildConfig::default()
+    };
+    assert_eq!(grouped.tests(5), 2.0 * quiver::builders::GROUP_TEST_COST);
+    for builder in [Builder::Binned, Builder::Sweep] {
+        let one = build(&bounds, &single, builder);
+        let four = build(&bounds, &grouped, builder);
+        four.validate(&bounds, &grouped)
+            .unwrap_or_else(|e| panic!("{builder}: {e}"));
+        let (s1, s4) = (
+            optional_splits_that_pay(&one, &single, &format!("{builder} single")),
+            optional_splits_that_pay(&four, &grouped, &format!("{builder} grouped")),
+        );
+        println!("{builder}: optional splits single {s1}, grouped {s4}");
+        assert!(s4 * 4 < s1, "{builder}: grouped {s4} vs single {s1}");
+        assert!(
+            four.stats().leaves < one.stats().leaves,
+            "{builder}: leaves {} vs {}",
+            four.stats().leaves,
+            one.stats().leaves
+        );
+    }
+    let leaves = |layout| {
+        quiver::BuildOptions::default()
+            .layout(layout)
+            .build_with_tree(&tris)
+            .1
+            .stats()
+            .leaves
+    };
+    assert!(leaves(quiver::Layout::Bvh8Dfs) < leaves(quiver::Layout::Bvh2Dfs));
+}

@@ -132,7 +132,8 @@ fn bin_prims(refs: &[Ref], map: &Mapper, bins: &mut [Bin]) -> [u64; 3] {
 /// Bins per axis up to which a node's bins live on the stack (the default is 16).
 const STACK_BINS: usize = 16;
 
-/// The cheapest plane: axis, first bin of the right side, and Σ area·count of both sides.
+/// The cheapest plane: axis, first bin of the right side, and Σ area·tests of both sides
+/// ([`BuildConfig::tests`]).
 struct Plane {
     axis: usize,
     bin: usize,
@@ -145,18 +146,26 @@ struct Plane {
 /// plane's and it could never win (ties go to the first plane). Small nodes, most of whose
 /// bins are empty, are the bulk of a build, and this makes their sweep cost their primitive
 /// count instead of the bin count.
-fn best_plane(bins: &[Bin], occupied: [u64; 3], k: usize, map: &Mapper) -> Option<Plane> {
+fn best_plane(
+    config: &BuildConfig,
+    bins: &[Bin],
+    occupied: [u64; 3],
+    k: usize,
+    map: &Mapper,
+) -> Option<Plane> {
     // Zeroing sweep buffers for 1024 bins cost more than the whole sweep of a small node.
     if k <= STACK_BINS {
         let (mut cost, mut used) = ([0.0; STACK_BINS], [0; STACK_BINS]);
-        best_plane_in(bins, occupied, k, map, &mut cost, &mut used)
+        best_plane_in(config, bins, occupied, k, map, &mut cost, &mut used)
     } else {
-        best_plane_in(bins, occupied, k, map, &mut vec![0.0; k], &mut vec![0; k])
+        let (mut cost, mut used) = (vec![0.0; k], vec![0; k]);
+        best_plane_in(config, bins, occupied, k, map, &mut cost, &mut used)
     }
 }
 
 /// [`best_plane`] with buffers of at least `k` entries.
 fn best_plane_in(
+    config: &BuildConfig,
     bins: &[Bin],
     occupied: [u64; 3],
     k: usize,
@@ -188,12 +197,12 @@ fn best_plane_in(
         let mut acc = Bin::EMPTY;
         for j in (1..m).rev() {
             acc = acc.merge(&bins[used[j] as usize]);
-            right_cost[j] = acc.bounds.half_area() * acc.count as f32;
+            right_cost[j] = acc.bounds.half_area() * config.tests(acc.count as usize);
         }
         let mut left = Bin::EMPTY;
         for j in 1..m {
             left = left.merge(&bins[used[j - 1] as usize]);
-            let w = left.bounds.half_area() * left.count as f32 + right_cost[j];
+            let w = left.bounds.half_area() * config.tests(left.count as usize) + right_cost[j];
             if best.as_ref().is_none_or(|p| w < p.weighted) {
                 best = Some(Plane {
                     axis,
@@ -326,7 +335,7 @@ impl Splitter for Binned {
             &heap
         };
         let plane = match ctx.areas {
-            None => best_plane(bins, occupied, k, &map)?,
+            None => best_plane(ctx.config, bins, occupied, k, &map)?,
             Some(areas) => {
                 let sums = bin_areas(areas, refs, &map, horizontal);
                 best_plane_model(ctx.config, bins, &sums, k, &map, node.half_area())?

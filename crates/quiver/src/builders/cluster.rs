@@ -182,13 +182,13 @@ impl Links {
             match self.kids(x) {
                 None => {
                     count[i] = self.unit_prims(x).len();
-                    cost[i] = ci * area(x) * count[i] as f64;
+                    cost[i] = ci * area(x) * config.tests(count[i]) as f64;
                     leaf[i] = true;
                 }
                 Some([l, r]) => {
                     count[i] = count[l as usize] + count[r as usize];
                     let split = ct * area(x) + cost[l as usize] + cost[r as usize];
-                    let as_leaf = ci * area(x) * count[i] as f64;
+                    let as_leaf = ci * area(x) * config.tests(count[i]) as f64;
                     leaf[i] = count[i] <= config.max_leaf_size && as_leaf <= split;
                     cost[i] = if leaf[i] { as_leaf } else { split };
                 }

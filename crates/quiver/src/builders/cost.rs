@@ -97,21 +97,21 @@ impl Side {
 
 /// A candidate split's score under `config.cost_model`, lower is better, and its weighted
 /// child cost for the leaf test ([`split_beats_leaf`]): `(score, weighted)`. For the SAH
-/// both are `Σ half area · count`.
+/// both are `Σ half area · tests` ([`BuildConfig::tests`]: the count, or the leaf's groups).
 pub(crate) fn model_score(
     config: &BuildConfig,
     parent_area: f32,
     l: &Side,
     r: &Side,
 ) -> (f32, f32) {
-    let sah = l.half_area * l.count as f32 + r.half_area * r.count as f32;
+    let (nl, nr) = (config.tests(l.count), config.tests(r.count));
+    let sah = l.half_area * nl + r.half_area * nr;
     match config.cost_model {
         CostModel::Sah => (sah, sah),
         CostModel::Rtsah => {
             // p_L↔R · A_P, and the tests each side's primitives are spared by the other.
             let both = (l.half_area + r.half_area - parent_area).max(0.0);
-            let spared =
-                0.5 * both * (r.hit_chance() * l.count as f32 + l.hit_chance() * r.count as f32);
+            let spared = 0.5 * both * (r.hit_chance() * nl + l.hit_chance() * nr);
             (sah - spared, sah - spared)
         }
         CostModel::Srdh => {
@@ -127,8 +127,8 @@ pub(crate) fn model_score(
                     1.0
                 }
             };
-            let gain = (p(l) * l.hit_chance() * (c + p(r) * r.count as f32))
-                .max(p(r) * r.hit_chance() * (c + p(l) * l.count as f32));
+            let gain = (p(l) * l.hit_chance() * (c + p(r) * nr))
+                .max(p(r) * r.hit_chance() * (c + p(l) * nl));
             (-gain, sah)
         }
     }
@@ -142,7 +142,7 @@ pub(crate) fn split_beats_leaf(
     weighted: f32,
     n: usize,
 ) -> bool {
-    split_cost(config, parent_area, weighted, n) < config.intersection_cost * n as f32
+    split_cost(config, parent_area, weighted, n) < config.intersection_cost * config.tests(n)
 }
 
 /// `c_T + c_I * weighted / A_P`; a zero-area parent (every primitive at one point) makes each
@@ -151,7 +151,7 @@ fn split_cost(config: &BuildConfig, parent_area: f32, weighted: f32, n: usize) -
     let ratio = if parent_area > 0.0 {
         weighted / parent_area
     } else {
-        n as f32
+        config.tests(n)
     };
     config.traversal_cost + config.intersection_cost * ratio
 }

@@ -110,7 +110,10 @@ impl Job<'_> {
         if n == 1 {
             let b = self.bounds[(keys[0] & self.id_mask) as usize];
             slots[0] = Slot::new(&b, Slot::LEAF, first, 1);
-            return (b, config.intersection_cost * b.half_area());
+            return (
+                b,
+                config.intersection_cost * config.tests(1) * b.half_area(),
+            );
         }
         let mid = self.split(keys);
         let (left_keys, right_keys) = keys.split_at(mid);
@@ -128,7 +131,7 @@ impl Job<'_> {
         let b = lb.union(&rb);
         let area = b.half_area();
         let inner = config.traversal_cost * area + lc + rc;
-        let leaf = config.intersection_cost * n as f32 * area;
+        let leaf = config.intersection_cost * config.tests(n) * area;
         if n <= config.max_leaf_size && leaf <= inner {
             *own = Slot::new(&b, Slot::LEAF, first, n as u32);
             (b, leaf)

@@ -38,7 +38,7 @@ mod sweep;
 mod tree;
 
 pub use builder::Builder;
-pub use config::BuildConfig;
+pub use config::{BuildConfig, GROUP_TEST_COST};
 pub use cost::CostModel;
 pub(crate) use cost::{model_score, split_beats_leaf, Side};
 pub(crate) use split::{bounds_of, median_split, widest_axis};

@@ -326,7 +326,7 @@ impl Job<'_> {
     fn split(&self, refs: &[Ref], node: &Aabb, budget: usize) -> Option<Children> {
         let n = refs.len();
         let cent = centroids(refs);
-        let object = object_split(refs, &cent, self.config.bins);
+        let object = object_split(self.config, refs, &cent);
         let overlapping = object.as_ref().is_none_or(|o| {
             let common = intersect(&o.lbox, &o.rbox);
             !common.is_empty() && common.half_area() > self.min_overlap
@@ -369,7 +369,7 @@ impl Job<'_> {
     /// The best spatial split of `refs` over `node` that duplicates at most `budget`
     /// references.
     fn spatial_split(&self, refs: &[Ref], node: &Aabb, budget: usize) -> Option<SpatialPlane> {
-        let k = SPATIAL_BINS;
+        let (k, tests) = (SPATIAL_BINS, |n| self.config.tests(n));
         let ext = node.extent();
         let n = refs.len();
         let mut best: Option<SpatialPlane> = None;
@@ -420,7 +420,7 @@ impl Job<'_> {
                 if nl == 0 || nr == 0 || nl + nr - n > budget {
                     return;
                 }
-                let cost = lbox.half_area() * nl as f32 + rbox.half_area() * nr as f32;
+                let cost = lbox.half_area() * tests(nl) + rbox.half_area() * tests(nr);
                 if best.as_ref().is_none_or(|b| cost < b.cost) {
                     best = Some(SpatialPlane {
                         grid,
@@ -541,9 +541,10 @@ struct ObjectPlane {
     nl: usize,
 }
 
-/// The cheapest binned object split of `refs` (centroid box `cent`, `k` bins per axis), or
-/// `None` when every centroid is in one place.
-fn object_split(refs: &[Ref], cent: &Aabb, k: usize) -> Option<ObjectPlane> {
+/// The cheapest binned object split of `refs` (centroid box `cent`, `config.bins` bins per
+/// axis), or `None` when every centroid is in one place.
+fn object_split(config: &BuildConfig, refs: &[Ref], cent: &Aabb) -> Option<ObjectPlane> {
+    let (k, tests) = (config.bins, |n| config.tests(n));
     let e = cent.extent();
     let scale = Vec3A::select(
         e.cmpgt(Vec3A::ZERO),
@@ -598,7 +599,7 @@ fn object_split(refs: &[Ref], cent: &Aabb, k: usize) -> Option<ObjectPlane> {
             if nl == 0 || nr == 0 {
                 return;
             }
-            let cost = lbox.half_area() * nl as f32 + rbox.half_area() * nr as f32;
+            let cost = lbox.half_area() * tests(nl) + rbox.half_area() * tests(nr);
             if best.is_none_or(|b| cost < b.2) {
                 best = Some((axis, j, cost, lbox, rbox, nl));
             }

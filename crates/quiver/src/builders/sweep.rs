@@ -41,7 +41,7 @@ impl Splitter for Sweep {
             let mut acc_area = 0f32;
             for j in (1..n).rev() {
                 acc = acc.union(&scratch[j].bounds());
-                right_area[j] = acc.half_area() * (n - j) as f32;
+                right_area[j] = acc.half_area() * ctx.config.tests(n - j);
                 if let Some(areas) = ctx.areas {
                     acc_area += areas[scratch[j].id() as usize];
                     right_side[j] = (acc.half_area(), acc_area);
@@ -71,7 +71,7 @@ impl Splitter for Sweep {
                     };
                     model_score(ctx.config, node.half_area(), &l, &r)
                 } else {
-                    let w = left.half_area() * j as f32 + right_area[j];
+                    let w = left.half_area() * ctx.config.tests(j) + right_area[j];
                     (w, w)
                 };
                 if best.is_none_or(|(bs, _, _, _)| score < bs) {

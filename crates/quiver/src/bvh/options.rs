@@ -10,6 +10,7 @@ use crate::layout::bvh2::leaf_order;
 use crate::layout::Layout;
 use crate::mesh::{Mesh, MeshError, Positions};
 use crate::primitive::{LeafFormat, Primitive};
+use crate::Triangle;
 use rayon::ThreadPool;
 
 /// How to build a [`Bvh`]: which builder, which layout, the build settings and the thread
@@ -218,7 +219,7 @@ impl<'p> BuildOptions<'p> {
             let tree = build_clipped(
                 &frame.boxes(&bounds),
                 self.areas(in_frame).as_deref(),
-                &self.effective_config(),
+                &self.effective_config::<P>(),
                 self.builder,
                 Some(&tri),
             );
@@ -276,7 +277,7 @@ impl<'p> BuildOptions<'p> {
             let tree = build_clipped(
                 &frame.boxes(&bounds),
                 areas.as_deref(),
-                &self.effective_config(),
+                &self.effective_config::<Triangle>(),
                 self.builder,
                 Some(&tri),
             );
@@ -295,10 +296,18 @@ impl<'p> BuildOptions<'p> {
             .then(|| prims.par_iter().map(|p| p.surface_area()).collect())
     }
 
-    /// The settings the build runs with: the quantized layout stores leaf sizes in 16 bits,
-    /// so its leaves are capped at 65535 primitives.
-    pub(crate) fn effective_config(&self) -> BuildConfig {
+    /// The settings the build runs with over primitives `P`: a `leaf_group` of 0 becomes the
+    /// layout's ([`Layout::leaf_group`], 1 for plain primitives), so the SAH counts the
+    /// tests the leaves will make; the quantized layout stores leaf sizes in 16 bits, so its
+    /// leaves are capped at 65535 primitives.
+    pub(crate) fn effective_config<P: Primitive>(&self) -> BuildConfig {
         let mut config = self.config.clone();
+        if config.leaf_group == 0 {
+            config.leaf_group = match P::LEAF_FORMAT {
+                LeafFormat::Plain => 1,
+                _ => self.layout.leaf_group(),
+            };
+        }
         if self.layout == Layout::Bvh4Quant {
             config.max_leaf_size = config.max_leaf_size.min(u16::MAX as usize);
         }
@@ -312,7 +321,7 @@ impl<'p> BuildOptions<'p> {
             tree,
             prims,
             self.chosen_isa(),
-            &self.effective_config(),
+            &self.effective_config::<P>(),
         )
     }
 

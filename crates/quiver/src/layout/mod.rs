@@ -87,6 +87,22 @@ impl Layout {
         Layout::Bvh8Dfs,
     ];
 
+    /// Triangles a leaf of this layout tests at once, for primitives with a triangle
+    /// [`crate::LeafFormat`]: 4 for the wide layouts, whose leaves are SIMD groups of four,
+    /// 1 for the binary ones. Plain primitives are tested one by one in every layout.
+    ///
+    /// ```
+    /// use quiver::layout::Layout;
+    /// assert_eq!(Layout::Bvh8Dfs.leaf_group(), 4);
+    /// assert_eq!(Layout::Bvh2Dfs.leaf_group(), 1);
+    /// ```
+    pub fn leaf_group(self) -> usize {
+        match self {
+            Layout::Bvh4Dfs | Layout::Bvh4Subtree | Layout::Bvh4Quant | Layout::Bvh8Dfs => 4,
+            _ => 1,
+        }
+    }
+
     /// The command-line and report name.
     pub fn name(self) -> &'static str {
         match self {
