@@ -53,7 +53,11 @@ fn main() {
             .build()
             .unwrap();
         let options = BuildOptions::default().thread_pool(&pool);
-        let config = BuildConfig::default();
+        // The default build counts leaves in the default layout's groups of four.
+        let config = BuildConfig {
+            leaf_group: 4,
+            ..BuildConfig::default()
+        };
         let builder: Builder =
             std::env::var("BUILDER").map_or(Builder::Binned, |b| b.parse().unwrap());
         let tree = pool.install(|| build(&prim_bounds(&tris), &config, builder));
