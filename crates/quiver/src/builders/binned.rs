@@ -108,8 +108,38 @@ fn truncate(f: Vec3A) -> UVec3 {
 
 /// Bins `refs` into `bins` (three rows of `k`, one per axis). Returns which bins are
 /// occupied on each axis as bit masks (bin `j` is bit `j`; only meaningful for `k <= 64`).
+///
+/// Neighbouring references mostly fall into the same bins, so binning them one after the
+/// other makes each bin update wait for the last one's store. Large runs therefore alternate
+/// between two sets of bins, merged at the end: two independent chains, and the same bins
+/// (unions and counts do not depend on the order).
 fn bin_prims(refs: &[Ref], map: &Mapper, bins: &mut [Bin]) -> [u64; 3] {
     let k = map.last.x as usize + 1;
+    if refs.len() < PAIRED_BINNING || k > STACK_BINS {
+        return bin_into(refs.iter(), map, bins, k);
+    }
+    let mut odd = [Bin::EMPTY; 3 * STACK_BINS];
+    let odd = &mut odd[..3 * k];
+    let mut occupied = bin_into(refs.iter().step_by(2), map, bins, k);
+    let o = bin_into(refs.iter().skip(1).step_by(2), map, odd, k);
+    for (a, b) in bins.iter_mut().zip(odd.iter()) {
+        *a = a.merge(b);
+    }
+    (0..3).for_each(|a| occupied[a] |= o[a]);
+    occupied
+}
+
+/// References from which [`bin_prims`] bins with two sets.
+const PAIRED_BINNING: usize = 64;
+
+/// Bins every reference of `refs` into `bins` (three rows of `k`).
+#[inline(always)]
+fn bin_into<'a>(
+    refs: impl Iterator<Item = &'a Ref>,
+    map: &Mapper,
+    bins: &mut [Bin],
+    k: usize,
+) -> [u64; 3] {
     let (x, rest) = bins.split_at_mut(k);
     let (y, z) = rest.split_at_mut(k);
     let mut occupied = [0u64; 3];
