@@ -7,7 +7,9 @@ use crate::builders::{BuildConfig, BuildTree};
 use crate::frame::{Back, Frame};
 use crate::geometry::{Aabb, Hit, Ray};
 use crate::isa::Isa;
-use crate::layout::{Bvh2, Bvh2Mapping, Bvh4, Bvh4Mapping, Bvh8, Footprint, Layout, QBvh4};
+use crate::layout::{
+    Bvh2, Bvh2Mapping, Bvh4, Bvh4Mapping, Bvh8, Footprint, Layout, LeafPrims, QBvh4,
+};
 use crate::primitive::Primitive;
 use crate::traverse::{BoxTest, Filter, PacketQuery, RayQuery, Stats};
 
@@ -113,12 +115,12 @@ impl<P: Primitive> Nodes<P> {
     }
 }
 
-/// Lays out a checked `tree` as `layout`, with `prims` already in the tree's leaf order: the
-/// one place a layout name becomes nodes.
+/// Lays out a checked `tree` as `layout` over `prims` (in the tree's leaf order, or read
+/// through it): the one place a layout name becomes nodes.
 pub(crate) fn lay_out<P: Primitive>(
     layout: Layout,
     tree: &BuildTree,
-    prims: Vec<P>,
+    prims: LeafPrims<P>,
     isa: Isa,
     config: &BuildConfig,
 ) -> Laid<P> {
@@ -156,7 +158,11 @@ pub(crate) fn lay_out<P: Primitive>(
         }
         Layout::Bvh8Dfs => return Laid::Bvh8(Bvh8::from_leaf_prims(tree, prims, isa, config)),
     };
-    Laid::Bvh2(Bvh2::from_leaf_prims(tree, prims, bvh2))
+    Laid::Bvh2(Bvh2::from_leaf_prims(
+        tree,
+        prims.into_ordered(&tree.prim_indices),
+        bvh2,
+    ))
 }
 
 impl<P: Primitive> RayQuery for Laid<P> {

@@ -6,8 +6,7 @@ use super::Bvh;
 use crate::builders::{build_clipped, prim_bounds, BuildConfig, BuildTree, Builder, CostModel};
 use crate::frame::Frame;
 use crate::isa::Isa;
-use crate::layout::bvh2::leaf_order;
-use crate::layout::Layout;
+use crate::layout::{Layout, LeafPrims};
 use crate::mesh::{Mesh, MeshError, Positions};
 use crate::primitive::{LeafFormat, Primitive};
 use crate::Triangle;
@@ -223,7 +222,8 @@ impl<'p> BuildOptions<'p> {
                 self.builder,
                 Some(&tri),
             );
-            let nodes = self.lay_out(&tree, leaf_order(&tree, in_frame));
+            let input = |i: u32| in_frame[i as usize].clone();
+            let nodes = self.lay_out(&tree, LeafPrims::Input(&input));
             let tree = frame.world_tree(tree, &bounds);
             (Bvh::of(nodes.framed(frame), &tree, prims.len()), tree)
         })
@@ -281,8 +281,7 @@ impl<'p> BuildOptions<'p> {
                 self.builder,
                 Some(&tri),
             );
-            let leaf_tris = tree.prim_indices.par_iter().map(|&i| framed(i)).collect();
-            let nodes = self.lay_out(&tree, leaf_tris);
+            let nodes = self.lay_out(&tree, LeafPrims::Input(&framed));
             let tree = frame.world_tree(tree, &bounds);
             (Bvh::of(nodes.framed(frame), &tree, indices.len()), tree)
         }))
@@ -314,12 +313,16 @@ impl<'p> BuildOptions<'p> {
         config
     }
 
-    /// Lays out a checked tree over `prims` in its leaf order.
-    pub(crate) fn lay_out<P: Primitive>(&self, tree: &BuildTree, prims: Vec<P>) -> Laid<P> {
+    /// Lays out a checked tree over `prims` (in its leaf order, or read through it).
+    pub(crate) fn lay_out<'i, P: Primitive + 'i>(
+        &self,
+        tree: &BuildTree,
+        prims: impl Into<LeafPrims<'i, P>>,
+    ) -> Laid<P> {
         lay_out(
             self.layout,
             tree,
-            prims,
+            prims.into(),
             self.chosen_isa(),
             &self.effective_config::<P>(),
         )

@@ -5,7 +5,7 @@
 use super::collapse::{self, collapse, Child};
 use super::order::{self, Shape, HOLE};
 use super::tri4::{self, Tri4};
-use super::Footprint;
+use super::{Footprint, LeafPrims};
 use crate::builders::{BuildTree, TreeError};
 use crate::geometry::{Aabb, Triangle};
 use crate::isa::{Isa, Kernels};
@@ -206,7 +206,7 @@ impl<P: Primitive, N: Node4> Bvh4<P, N> {
     ) -> Result<Self, TreeError> {
         let (tree, prims) = super::checked(tree, prims)?;
         tree.check_leaf_size(N::MAX_LEAF)?;
-        Ok(Self::from_leaf_prims(&tree, prims, mapping, isa))
+        Ok(Self::from_leaf_prims(&tree, prims.into(), mapping, isa))
     }
 
     /// The same BVH with packet queries on `isa` (or [`Isa::Portable`] where unsupported).
@@ -223,13 +223,13 @@ impl<P: Primitive, N: Node4> Bvh4<P, N> {
     /// Lays out a checked tree with the primitives already in its leaf order.
     pub(crate) fn from_leaf_prims(
         tree: &BuildTree,
-        prims: Vec<P>,
+        prims: LeafPrims<P>,
         mapping: Bvh4Mapping,
         isa: Isa,
     ) -> Self {
         let mut wide = collapse(tree);
         let groups = tri4::pack_leaves(&mut wide, &prims, &tree.prim_indices);
-        let prims = tri4::plain_only(prims);
+        let prims = tri4::plain_only(prims, &tree.prim_indices);
         let (slots, pos) = arrange(&wide, mapping, std::mem::size_of::<N>());
         let nodes = slots
             .iter()

@@ -3,7 +3,7 @@
 
 use super::collapse::{collapse_sah, Wide};
 use super::tri4::{self, Tri4};
-use super::Footprint;
+use super::{Footprint, LeafPrims};
 use crate::builders::{BuildConfig, BuildTree, TreeError};
 use crate::geometry::Aabb;
 use crate::geometry::Triangle;
@@ -116,13 +116,13 @@ impl<P: Primitive> Bvh8<P> {
     ) -> Result<Self, TreeError> {
         let (tree, prims) = super::checked(tree, prims)?;
         tree.check_leaf_size(Bvh8Node::LEAF - 1)?;
-        Ok(Self::from_leaf_prims(&tree, prims, isa, config))
+        Ok(Self::from_leaf_prims(&tree, prims.into(), isa, config))
     }
 
     /// Lays out a checked tree with the primitives already in its leaf order.
     pub(crate) fn from_leaf_prims(
         tree: &BuildTree,
-        prims: Vec<P>,
+        prims: LeafPrims<P>,
         isa: Isa,
         config: &BuildConfig,
     ) -> Self {
@@ -138,7 +138,7 @@ impl<P: Primitive> Bvh8<P> {
         let max_leaf = config.max_leaf_size.min((Bvh8Node::LEAF - 1) as usize);
         let mut wide = collapse_sah::<8>(tree, max_leaf, config.traversal_cost, leaf_cost);
         let groups = tri4::pack_leaves(&mut wide, &prims, &tree.prim_indices);
-        let prims = tri4::plain_only(prims);
+        let prims = tri4::plain_only(prims, &tree.prim_indices);
         let nodes = wide.par_iter().map(Bvh8Node::encode).collect();
         Bvh8 {
             nodes,

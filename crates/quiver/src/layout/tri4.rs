@@ -3,6 +3,7 @@
 //! laid out ([`crate::LeafFormat`]).
 
 use super::collapse::{Child, Wide};
+use super::LeafPrims;
 use crate::geometry::{pow2, Triangle};
 use crate::primitive::{LeafFormat, Primitive};
 use bytemuck::{Pod, Zeroable};
@@ -98,31 +99,33 @@ pub(crate) fn fill(g: &mut Tri4, tris: &[Option<Triangle>; 4], format: LeafForma
     }
 }
 
-/// The lanes' triangles of up to four primitives, `None` for one without a triangle.
-pub(crate) fn lane_triangles<P: Primitive>(four: &[P]) -> [Option<Triangle>; 4] {
-    let mut tris = [None; 4];
-    for (t, p) in tris.iter_mut().zip(four) {
-        *t = p.triangle();
-    }
-    tris
-}
-
-/// Writes the groups of one leaf (`prims` and their input `ids`) in `format` to `out`, which
-/// holds exactly `groups(prims.len())` of them.
-fn pack<P: Primitive>(prims: &[P], ids: &[u32], format: LeafFormat, out: &mut [Tri4]) {
-    for ((chunk, chunk_ids), g) in prims.chunks(4).zip(ids.chunks(4)).zip(out) {
+/// Writes the groups of the leaf over leaf positions `range` (`ids`: every position's input
+/// index) in `format` to `out`, which holds exactly `groups(range.len())` of them.
+fn pack<P: Primitive>(
+    prims: &LeafPrims<P>,
+    ids: &[u32],
+    range: std::ops::Range<usize>,
+    format: LeafFormat,
+    out: &mut [Tri4],
+) {
+    for (start, g) in range.clone().step_by(4).zip(out) {
+        let four = start..(start + 4).min(range.end);
         g.id = [u32::MAX; 4];
-        g.id[..chunk_ids.len()].copy_from_slice(chunk_ids);
-        fill(g, &lane_triangles(chunk), format);
+        g.id[..four.len()].copy_from_slice(&ids[four.clone()]);
+        let mut tris = [None; 4];
+        for (t, j) in tris.iter_mut().zip(four) {
+            *t = prims.at(ids, j).triangle();
+        }
+        fill(g, &tris, format);
     }
 }
 
 /// The leaf-order primitives a wide layout keeps: all of them for a plain leaf format, none
 /// for a triangle format, whose SIMD groups hold every triangle (and far groups its exact
 /// corners), so nothing reads a second copy; a refit takes the new ones from its source.
-pub(crate) fn plain_only<P: Primitive>(prims: Vec<P>) -> Vec<P> {
+pub(crate) fn plain_only<P: Primitive>(prims: LeafPrims<P>, ids: &[u32]) -> Vec<P> {
     match P::LEAF_FORMAT {
-        LeafFormat::Plain => prims,
+        LeafFormat::Plain => prims.into_ordered(ids),
         _ => Vec::new(),
     }
 }
@@ -133,7 +136,7 @@ pub(crate) fn plain_only<P: Primitive>(prims: Vec<P>) -> Vec<P> {
 /// nodes, then filled by all threads, each leaf into its own range.
 pub(crate) fn pack_leaves<P: Primitive, const W: usize>(
     wide: &mut [Wide<W>],
-    prims: &[P],
+    prims: &LeafPrims<P>,
     ids: &[u32],
 ) -> Vec<Tri4> {
     use rayon::prelude::*;
@@ -162,7 +165,7 @@ pub(crate) fn pack_leaves<P: Primitive, const W: usize>(
     }
     jobs.into_par_iter()
         .with_min_len(256)
-        .for_each(|(range, mine)| pack(&prims[range.clone()], &ids[range], P::LEAF_FORMAT, mine));
+        .for_each(|(range, mine)| pack(prims, ids, range, P::LEAF_FORMAT, mine));
     out
 }
 

@@ -529,7 +529,7 @@ fn top_level(placed: &[Placed], isa: Isa) -> Bvh8<Placed> {
         ..BuildConfig::default()
     };
     let tree = build(&prim_bounds(placed), &config, Builder::Binned);
-    Bvh8::from_leaf_prims(&tree, leaf_order(&tree, placed), isa, &config)
+    Bvh8::from_leaf_prims(&tree, leaf_order(&tree, placed).into(), isa, &config)
 }
 
 /// An instance as the walks read it, in top-level leaf order.
