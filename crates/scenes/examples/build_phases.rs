@@ -53,9 +53,9 @@ fn main() {
             .build()
             .unwrap();
         let options = BuildOptions::default().thread_pool(&pool);
-        // The default build counts leaves in the default layout's groups of four.
+        // The default build counts leaves in the default layout's groups.
         let config = BuildConfig {
-            leaf_group: 4,
+            leaf_group: quiver::Layout::default().leaf_group(),
             ..BuildConfig::default()
         };
         let builder: Builder =

@@ -146,8 +146,6 @@ impl FromStr for Layout {
     }
 }
 
-/// `tree` checked against `prims` ([`BuildTree::check`]) with its boxes recomputed from them,
-/// and the primitives in its leaf order: what every layout's `from_tree` lays out.
 /// A layout's primitives: already in the tree's leaf order, or read from the input order
 /// through the tree's leaf order. The wide layouts over a triangle format read each
 /// primitive once, into their SIMD groups, and keep none, so the build gives them the input
@@ -186,6 +184,8 @@ impl<P> From<Vec<P>> for LeafPrims<'_, P> {
     }
 }
 
+/// `tree` checked against `prims` ([`BuildTree::check`]) with its boxes recomputed from them,
+/// and the primitives in its leaf order: what every layout's `from_tree` lays out.
 pub(crate) fn checked<P: Primitive>(
     tree: &BuildTree,
     prims: &[P],
