@@ -20,7 +20,7 @@ pub(crate) const CHUNK: usize = 16 * 1024;
 /// in the otherwise unused fourth lane of the lower corner. Splitting moves these 32-byte
 /// records through two buffers, so binning and partitioning read memory in order instead of
 /// gathering each primitive's box and centroid through an index.
-#[derive(Clone, Copy)]
+#[derive(Clone, Copy, bytemuck::Zeroable)]
 #[repr(C)]
 pub(crate) struct Ref {
     lo: Vec4,
@@ -138,28 +138,98 @@ pub(crate) fn build_tree<S: Splitter>(
         || (Aabb::EMPTY, Aabb::EMPTY),
         |a, b| (a.0.union(&b.0), a.1.union(&b.1)),
     );
-    let mut spare = refs.clone();
+    // Every node writes its part of the spare buffer before reading it: zeroed pages from
+    // the OS, not a copy of `refs`.
+    let mut spare: Vec<Ref> = bytemuck::zeroed_vec(refs.len());
     let mut order = idx;
-    // A subtree over n primitives has at most 2n - 1 nodes. Giving each subtree exactly that
-    // many slots fixes every node's position by the input alone, so parallel tasks write
-    // disjoint ranges and the result cannot depend on scheduling.
-    // Zeroed memory comes from the OS lazily, so the slots a tree never uses cost nothing.
-    let mut slots: Vec<Slot> = bytemuck::zeroed_vec(2 * order.len() - 1);
     let job = Job {
         splitter,
         ctx: &ctx,
     };
-    let at = Place {
-        slots: &mut slots,
+    let piece = job.node(Work {
+        refs: &mut refs,
+        spare: &mut spare,
         order: &mut order,
-        slot: 0,
         first: 0,
-    };
-    job.node(&mut refs, &mut spare, at, node, cent, 0);
-    (compact(&slots), order)
+        bounds: node,
+        centroids: cent,
+        depth: 0,
+    });
+    let mut nodes = Vec::with_capacity(piece.len());
+    piece.flatten(&mut nodes);
+    (nodes, order)
 }
 
-/// A node as the recursion writes it into its preallocated position; all zeros is "no node".
+/// A subtree as the recursion returns it. Each task below [`TASK_CUTOFF`] writes its nodes
+/// densely into a vector of its own, and the joins above them are kept apart until one pass
+/// lays all of it out in preorder; the result depends on the input alone, however the tasks
+/// ran. (Writing every node into a preassigned position of a 2n - 1 slot array, as the
+/// linear builder does, touched a fresh page of that array for nearly every few nodes.)
+enum Piece {
+    /// Nodes in preorder, child links counted from the first of them.
+    Nodes(Vec<BuildNode>),
+    /// An inner node whose children were built as tasks of their own.
+    Join {
+        bounds: Aabb,
+        left: Box<Piece>,
+        right: Box<Piece>,
+        len: usize,
+    },
+}
+
+impl Piece {
+    fn len(&self) -> usize {
+        match self {
+            Piece::Nodes(v) => v.len(),
+            Piece::Join { len, .. } => *len,
+        }
+    }
+
+    fn join(bounds: Aabb, left: Piece, right: Piece) -> Piece {
+        Piece::Join {
+            len: 1 + left.len() + right.len(),
+            bounds,
+            left: Box::new(left),
+            right: Box::new(right),
+        }
+    }
+
+    /// Appends the subtree to `out` in preorder, its links shifted to their place there.
+    fn flatten(self, out: &mut Vec<BuildNode>) {
+        match self {
+            Piece::Nodes(v) => {
+                let base = out.len() as u32;
+                out.extend(v.into_iter().map(|mut n| {
+                    if let NodeKind::Inner { left, right } = &mut n.kind {
+                        *left += base;
+                        *right += base;
+                    }
+                    n
+                }));
+            }
+            Piece::Join {
+                bounds,
+                left,
+                right,
+                ..
+            } => {
+                let me = out.len();
+                out.push(BuildNode {
+                    bounds,
+                    kind: NodeKind::Inner {
+                        left: me as u32 + 1,
+                        right: (me + 1 + left.len()) as u32,
+                    },
+                });
+                left.flatten(out);
+                right.flatten(out);
+            }
+        }
+    }
+}
+
+/// A node as the linear builder writes it into its preallocated position; all zeros is "no
+/// node".
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
 pub(crate) struct Slot {
@@ -226,92 +296,129 @@ struct Job<'a, S> {
     ctx: &'a Ctx<'a>,
 }
 
-/// Where a subtree's output goes: its node slots and its run of the leaf order.
-struct Place<'a> {
-    slots: &'a mut [Slot],
-    order: &'a mut [u32],
-    /// The subtree root's slot index (the first of `slots`).
-    slot: u32,
-    /// The subtree's first position in the leaf order (the first of `order`).
+/// One node's share of the build: its references (with `spare` of equal length to partition
+/// into), its run of the leaf order (positions `first..`), its bounds and centroid bounds.
+struct Work<'r> {
+    refs: &'r mut [Ref],
+    spare: &'r mut [Ref],
+    order: &'r mut [u32],
     first: u32,
+    bounds: Aabb,
+    centroids: Aabb,
+    depth: usize,
+}
+
+impl<'r> Work<'r> {
+    /// The two children's shares after `split`.
+    fn halves(self, split: Partition) -> (Work<'r>, Work<'r>) {
+        let nl = split.left_len;
+        let (data, other) = if split.moved {
+            (self.spare, self.refs)
+        } else {
+            (self.refs, self.spare)
+        };
+        let (l_refs, r_refs) = data.split_at_mut(nl);
+        let (l_spare, r_spare) = other.split_at_mut(nl);
+        let (l_order, r_order) = self.order.split_at_mut(nl);
+        let side = |refs, spare, order, first, (bounds, centroids)| Work {
+            refs,
+            spare,
+            order,
+            first,
+            bounds,
+            centroids,
+            depth: self.depth + 1,
+        };
+        (
+            side(l_refs, l_spare, l_order, self.first, split.left),
+            side(
+                r_refs,
+                r_spare,
+                r_order,
+                self.first + nl as u32,
+                split.right,
+            ),
+        )
+    }
 }
 
 impl<S: Splitter> Job<'_, S> {
-    /// Builds the subtree over `refs` (with `spare` of equal length to partition into).
-    fn node(
-        &self,
-        refs: &mut [Ref],
-        spare: &mut [Ref],
-        at: Place,
-        bounds: Aabb,
-        centroids: Aabb,
-        depth: usize,
-    ) {
-        let n = refs.len();
-        let config = self.ctx.config;
-        let split = if n == 1 {
-            None
-        } else if depth < MEDIAN_DEPTH {
+    /// Builds the subtree of `w`, its large children as tasks of their own.
+    fn node(&self, mut w: Work) -> Piece {
+        let n = w.refs.len();
+        if n < TASK_CUTOFF {
+            let mut nodes = Vec::with_capacity(2 * n - 1);
+            self.serial(w, &mut nodes);
+            return Piece::Nodes(nodes);
+        }
+        let split = match self.split_or_leaf(&mut w) {
+            Ok(s) => s,
+            Err(leaf) => return Piece::Nodes(vec![leaf]),
+        };
+        let bounds = w.bounds;
+        let (l, r) = w.halves(split);
+        let (left, right) = rayon::join(|| self.node(l), || self.node(r));
+        Piece::join(bounds, left, right)
+    }
+
+    /// [`Job::node`] on this thread, appending the subtree's nodes to `out` in preorder.
+    fn serial(&self, mut w: Work, out: &mut Vec<BuildNode>) {
+        let split = match self.split_or_leaf(&mut w) {
+            Ok(s) => s,
+            Err(leaf) => return out.push(leaf),
+        };
+        let me = out.len();
+        out.push(BuildNode {
+            bounds: w.bounds,
+            kind: NodeKind::Inner {
+                left: me as u32 + 1,
+                right: 0,
+            },
+        });
+        let (l, r) = w.halves(split);
+        self.serial(l, out);
+        let right = out.len() as u32;
+        if let NodeKind::Inner { right: at, .. } = &mut out[me].kind {
+            *at = right;
+        }
+        self.serial(r, out);
+    }
+
+    /// The node's split, or (having written its primitives to the leaf order) its leaf.
+    fn split_or_leaf(&self, w: &mut Work) -> Result<Partition, BuildNode> {
+        let n = w.refs.len();
+        let split = if n > 1 && w.depth < MEDIAN_DEPTH {
             self.splitter
-                .split(self.ctx, refs, spare, &bounds, &centroids)
+                .split(self.ctx, w.refs, w.spare, &w.bounds, &w.centroids)
         } else {
             None
         };
         let split = match split {
             Some(s) => s,
-            None if n <= config.max_leaf_size => {
-                at.slots[0] = Slot::new(&bounds, Slot::LEAF, at.first, n as u32);
-                for (o, r) in at.order.iter_mut().zip(refs.iter()) {
+            None if n <= self.ctx.config.max_leaf_size => {
+                for (o, r) in w.order.iter_mut().zip(w.refs.iter()) {
                     *o = r.id();
                 }
-                return;
+                return Err(BuildNode {
+                    bounds: w.bounds,
+                    kind: NodeKind::Leaf {
+                        first: w.first,
+                        count: n as u32,
+                    },
+                });
             }
             None => {
-                let nl = median_split(refs, &centroids);
+                let nl = median_split(w.refs, &w.centroids);
                 Partition {
                     left_len: nl,
-                    left: refs_bounds(&refs[..nl]),
-                    right: refs_bounds(&refs[nl..]),
+                    left: refs_bounds(&w.refs[..nl]),
+                    right: refs_bounds(&w.refs[nl..]),
                     moved: false,
                 }
             }
         };
-        let nl = split.left_len;
-        debug_assert!(nl > 0 && nl < n);
-        let left_slot = at.slot + 1;
-        let right_slot = at.slot + 2 * nl as u32;
-        at.slots[0] = Slot::new(&bounds, Slot::INNER, left_slot, right_slot);
-        let (data, other) = if split.moved {
-            (spare, refs)
-        } else {
-            (refs, spare)
-        };
-        let (l_refs, r_refs) = data.split_at_mut(nl);
-        let (l_other, r_other) = other.split_at_mut(nl);
-        let (l_slots, r_slots) = at.slots[1..].split_at_mut(2 * nl - 1);
-        let (l_order, r_order) = at.order.split_at_mut(nl);
-        let left = Place {
-            slots: l_slots,
-            order: l_order,
-            slot: left_slot,
-            first: at.first,
-        };
-        let right = Place {
-            slots: r_slots,
-            order: r_order,
-            slot: right_slot,
-            first: at.first + nl as u32,
-        };
-        let (lb, rb) = (split.left, split.right);
-        let depth = depth + 1;
-        let left = || self.node(l_refs, l_other, left, lb.0, lb.1, depth);
-        let right = || self.node(r_refs, r_other, right, rb.0, rb.1, depth);
-        if n >= TASK_CUTOFF {
-            rayon::join(left, right);
-        } else {
-            left();
-            right();
-        }
+        debug_assert!(split.left_len > 0 && split.left_len < n);
+        Ok(split)
     }
 }
 
