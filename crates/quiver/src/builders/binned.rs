@@ -6,7 +6,7 @@ use super::recurse::{
     build_tree, par_partition_into, partition_into, take_split, Ctx, Partition, Ref, Splitter,
     CHUNK,
 };
-use super::{model_score, BuildConfig, BuildNode, Side};
+use super::{model_score, split_beats_leaf, BuildConfig, BuildNode, Side};
 use crate::geometry::Aabb;
 use glam::{UVec3, Vec3A};
 use rayon::prelude::*;
@@ -322,6 +322,30 @@ fn best_plane_model(
     best.map(|(_, p)| p)
 }
 
+/// True when no plane can split `refs` more cheaply than a leaf under the SAH, so that
+/// binning them would end in a leaf anyway: most of a build's nodes are a few primitives of a
+/// dense mesh, and this leaves their bins untouched.
+///
+/// Each side of a split holds at least one primitive, and its box contains that primitive's
+/// box, so any plane's weighted cost is at least `tests(1)` times the sum of the largest and
+/// the smallest primitive's half area. Every step of the sweep's cost (`half_area`, the
+/// products, the sum, the split cost) rounds monotonically, so the rounded bound is below
+/// every rounded plane cost, and a bound that does not beat the leaf means no plane does: the
+/// tree is the one the full sweep builds.
+fn leaf_must_win(config: &BuildConfig, node: &Aabb, refs: &[Ref]) -> bool {
+    let n = refs.len();
+    if n > config.max_leaf_size {
+        return false;
+    }
+    let (mut lo, mut hi) = (f32::INFINITY, 0f32);
+    for r in refs {
+        let a = r.bounds().half_area();
+        (lo, hi) = (lo.min(a), hi.max(a));
+    }
+    let one = config.tests(1);
+    !split_beats_leaf(config, node.half_area(), hi * one + lo * one, n)
+}
+
 impl Splitter for Binned {
     fn split(
         &self,
@@ -331,6 +355,9 @@ impl Splitter for Binned {
         node: &Aabb,
         centroids: &Aabb,
     ) -> Option<Partition> {
+        if ctx.areas.is_none() && leaf_must_win(ctx.config, node, refs) {
+            return None;
+        }
         let k = ctx.config.bins;
         let map = Mapper::new(centroids, k);
         let horizontal = refs.len() >= ctx.config.horizontal_threshold;
