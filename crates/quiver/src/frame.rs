@@ -132,11 +132,40 @@ impl Frame {
     /// units: no one power of two serves a triangle of 1 beside one of 1e30, and scaling would
     /// take from the small ones what it gave the large.
     pub(crate) fn for_prims(boxes: &[Aabb]) -> Frame {
-        let mut sizes = Sizes::default();
-        for b in boxes {
-            sizes.add(b);
-        }
-        sizes.frame()
+        use rayon::prelude::*;
+        let sizes = |ch: &[Aabb]| {
+            let mut s = Sizes::default();
+            ch.iter().for_each(|b| s.add(b));
+            s
+        };
+        boxes
+            .par_chunks(16 * 1024)
+            .map(sizes)
+            .reduce(Sizes::default, Sizes::merge)
+            .frame()
+    }
+
+    /// The boxes of `n` primitives (`bound(i)` for each) and the frame they call for, as
+    /// [`Frame::for_prims`] would choose it, in one parallel pass: a second pass over a
+    /// million boxes only to size them cost as much as computing them.
+    pub(crate) fn bounds(n: usize, bound: impl Fn(usize) -> Aabb + Sync) -> (Vec<Aabb>, Frame) {
+        use rayon::prelude::*;
+        const CHUNK: usize = 16 * 1024;
+        // Zeroed memory comes from the OS untouched, so the pass below is the only write.
+        let mut boxes: Vec<Aabb> = bytemuck::zeroed_vec(n);
+        let sizes = boxes
+            .par_chunks_mut(CHUNK)
+            .enumerate()
+            .map(|(c, out)| {
+                let mut s = Sizes::default();
+                for (j, b) in out.iter_mut().enumerate() {
+                    *b = bound(c * CHUNK + j);
+                    s.add(b);
+                }
+                s
+            })
+            .reduce(Sizes::default, Sizes::merge);
+        (boxes, sizes.frame())
     }
 
     /// True when local and world coordinates are the same.

@@ -117,7 +117,7 @@ impl Ray {
 /// b.grow(Vec3A::new(1.0, 2.0, 3.0));
 /// assert_eq!(b.half_area(), 1.0 * 2.0 + 2.0 * 3.0 + 3.0 * 1.0);
 /// ```
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Zeroable)]
 pub struct Aabb {
     /// Lower corner.
     pub min: Vec3A,

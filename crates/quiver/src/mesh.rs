@@ -241,15 +241,10 @@ impl<'a> Mesh<'a> {
         Triangle::new(a, b, c)
     }
 
-    /// One box per triangle, in parallel; NaN boxes for non-finite triangles, as
-    /// [`crate::builders::prim_bounds`] gives.
-    pub fn bounds(&self) -> Vec<Aabb> {
-        use crate::primitive::Primitive;
-        use rayon::prelude::*;
-        (0..self.indices.len() as u32)
-            .into_par_iter()
-            .map(|i| Primitive::bounds(&self.triangle(i)))
-            .collect()
+    /// One box per triangle, in parallel (NaN boxes for non-finite triangles, as
+    /// [`crate::builders::prim_bounds`] gives), and the frame the build takes them in.
+    pub fn bounds(&self) -> (Vec<Aabb>, crate::frame::Frame) {
+        crate::frame::Frame::bounds(self.indices.len(), |i| self.triangle(i as u32).bounds())
     }
 }
 
@@ -292,7 +287,7 @@ mod tests {
             m.triangle(0).v,
             [Vec3A::new(0.0, 2.0, 0.0), Vec3A::ZERO, Vec3A::X]
         );
-        let b = m.bounds();
+        let b = m.bounds().0;
         assert_eq!(b[0], Aabb::new(Vec3A::ZERO, Vec3A::new(1.0, 2.0, 0.0)));
         assert!(
             !b[1].is_finite(),

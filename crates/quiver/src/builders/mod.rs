@@ -110,9 +110,13 @@ pub(crate) fn build_clipped(
     if let Some(a) = areas {
         assert_eq!(a.len(), bounds.len(), "one surface area per primitive");
     }
-    let indices: Vec<u32> = (0..bounds.len() as u32)
-        .filter(|&i| bounds[i as usize].is_finite())
-        .collect();
+    let indices: Vec<u32> = {
+        use rayon::prelude::*;
+        (0..bounds.len() as u32)
+            .into_par_iter()
+            .filter(|&i| bounds[i as usize].is_finite())
+            .collect()
+    };
     let dropped = bounds.len() - indices.len();
     // The SAH never reads areas; the other models get the given ones or the boxes' stand-in.
     let proxy: Vec<f32>;

@@ -3,7 +3,7 @@
 
 use super::nodes::{lay_out, Laid};
 use super::Bvh;
-use crate::builders::{build_clipped, prim_bounds, BuildConfig, BuildTree, Builder, CostModel};
+use crate::builders::{build_clipped, BuildConfig, BuildTree, Builder, CostModel};
 use crate::frame::Frame;
 use crate::isa::Isa;
 use crate::layout::{Layout, LeafPrims};
@@ -200,8 +200,7 @@ impl<'p> BuildOptions<'p> {
     /// As [`BuildOptions::build`].
     pub fn build_with_tree<P: Primitive>(&self, prims: &[P]) -> (Bvh<P>, BuildTree) {
         self.run(|| {
-            let bounds = prim_bounds(prims);
-            let frame = Frame::for_prims(&bounds);
+            let (bounds, frame) = Frame::bounds(prims.len(), |i| prims[i].bounds());
             let local = frame_prims(frame, prims);
             // A type that cannot be scaled stays in its own units.
             let frame = if local.is_some() {
@@ -260,8 +259,7 @@ impl<'p> BuildOptions<'p> {
         let mesh = Mesh::new(positions.into(), indices)?;
         Ok(self.run(|| {
             use rayon::prelude::*;
-            let bounds = mesh.bounds();
-            let frame = Frame::for_prims(&bounds);
+            let (bounds, frame) = mesh.bounds();
             let framed = |i: u32| match frame.is_identity() {
                 true => mesh.triangle(i),
                 false => frame.prim(&mesh.triangle(i)).expect("triangles scale"),
