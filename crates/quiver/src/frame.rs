@@ -81,7 +81,15 @@ impl Sizes {
     /// Counts one primitive's box (non-finite and empty ones change nothing).
     #[inline]
     pub(crate) fn add(&mut self, b: &Aabb) {
-        if !b.is_finite() || b.is_empty() {
+        if b.is_finite() {
+            self.add_finite(b);
+        }
+    }
+
+    /// [`Sizes::add`] for a box known to be finite.
+    #[inline]
+    pub(crate) fn add_finite(&mut self, b: &Aabb) {
+        if b.is_empty() {
             return;
         }
         let size = b.extent().max_element();

@@ -157,7 +157,8 @@ impl Aabb {
     /// True when both corners are finite (no NaN, no infinity).
     #[inline]
     pub fn is_finite(&self) -> bool {
-        self.min.is_finite() && self.max.is_finite()
+        // One vector test per corner and no branch: refits and builds ask it of every box.
+        (self.min.is_finite_mask() & self.max.is_finite_mask()).all()
     }
 
     /// True when the box contains no point.

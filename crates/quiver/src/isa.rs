@@ -166,3 +166,25 @@ fn avx2_supported() -> bool {
 fn avx2_supported() -> bool {
     false
 }
+
+/// Asks the CPU to start loading the cache line that holds `x` (and, with `lines` 2, the
+/// next one too), so that a gather's memory latency overlaps the work before the load; a
+/// no-op off x86-64.
+#[inline(always)]
+pub(crate) fn prefetch<T>(x: &T, lines: usize) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        let p = (x as *const T).cast::<i8>();
+        for l in 0..lines {
+            // SAFETY: SSE is part of every x86-64 CPU. A prefetch is a hint: it reads nothing
+            // into the program and faults on nothing, whatever the address (the second line
+            // may lie past `x`; `wrapping_add` keeps that pointer arithmetic defined).
+            unsafe {
+                use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+                _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(64 * l));
+            }
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = (x, lines);
+}

@@ -221,8 +221,7 @@ impl<'p> BuildOptions<'p> {
                 self.builder,
                 Some(&tri),
             );
-            let input = |i: u32| in_frame[i as usize].clone();
-            let nodes = self.lay_out(&tree, LeafPrims::Input(&input));
+            let nodes = self.lay_out(&tree, LeafPrims::Slice(in_frame));
             let tree = frame.world_tree(tree, &bounds);
             (Bvh::of(nodes.framed(frame), &tree, prims.len()), tree)
         })

@@ -73,13 +73,22 @@ impl From<MeshError> for RefitError {
     }
 }
 
-/// The new input as a refit reads it: primitive `i` from `get`, brought into `frame`.
-struct Input<G> {
+/// The new input as a refit reads it: primitive `i` from `get`, brought into `frame`;
+/// `slice`, where the input is one, to prefetch from.
+struct Input<'s, P, G> {
     get: G,
     frame: Frame,
+    slice: Option<&'s [P]>,
 }
 
-impl<P: Primitive, G: Fn(u32) -> P + Sync> Source<P> for Input<G> {
+impl<P: Primitive, G: Fn(u32) -> P + Sync> Source<P> for Input<'_, P, G> {
+    #[inline]
+    fn prefetch(&self, id: u32) {
+        if let Some(p) = self.slice.and_then(|s| s.get(id as usize)) {
+            crate::isa::prefetch(p, 1);
+        }
+    }
+
     #[inline]
     fn get(&self, id: u32) -> P {
         let p = (self.get)(id);
@@ -123,10 +132,10 @@ impl Summary {
             if b.is_finite() {
                 s.finite += 1;
                 s.all = s.all.union(&b);
+                s.sizes.add_finite(&b);
             } else {
                 s.first_bad = s.first_bad.min(i);
             }
-            s.sizes.add(&b);
         }
         s
     }
@@ -285,7 +294,7 @@ impl<P: Primitive> Bvh<P> {
     /// refit cannot); [`RefitError::NotInTree`] for a primitive the build dropped (non-finite
     /// then) that is finite now. Nothing is changed then.
     pub fn refit(&mut self, prims: &[P]) -> Result<(), RefitError> {
-        self.refit_by(prims.len(), |i| prims[i as usize].clone())
+        self.refit_by(prims.len(), Some(prims), |i| prims[i as usize].clone())
     }
 
     /// The SAH cost of the laid-out nodes, with unit costs: `Σ A(inner)/A(root) + Σ
@@ -322,8 +331,14 @@ impl<P: Primitive> Bvh<P> {
         cost
     }
 
-    /// The refit over `n` primitives, primitive `i` being `get(i)`.
-    fn refit_by<G: Fn(u32) -> P + Sync>(&mut self, n: usize, get: G) -> Result<(), RefitError> {
+    /// The refit over `n` primitives, primitive `i` being `get(i)` (`slice[i]`, where they
+    /// are a slice).
+    fn refit_by<G: Fn(u32) -> P + Sync>(
+        &mut self,
+        n: usize,
+        slice: Option<&[P]>,
+        get: G,
+    ) -> Result<(), RefitError> {
         if n != self.len {
             return Err(RefitError::Count {
                 expected: self.len,
@@ -380,7 +395,9 @@ impl<P: Primitive> Bvh<P> {
         {
             frame = Frame::default();
         }
-        self.nodes.reframed(frame).refit(&Input { get, frame });
+        self.nodes
+            .reframed(frame)
+            .refit(&Input { get, frame, slice });
         self.bounds = summary.all;
         Ok(())
     }
@@ -422,6 +439,6 @@ impl Bvh<Triangle> {
             });
         }
         let mesh = Mesh::new(positions.into(), indices)?;
-        self.refit_by(indices.len(), |i| mesh.triangle(i))
+        self.refit_by(indices.len(), None, |i| mesh.triangle(i))
     }
 }

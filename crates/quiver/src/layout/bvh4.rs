@@ -228,7 +228,7 @@ impl<P: Primitive, N: Node4> Bvh4<P, N> {
         isa: Isa,
     ) -> Self {
         let mut wide = collapse(tree);
-        let groups = tri4::pack_leaves(&mut wide, &prims, &tree.prim_indices);
+        let (groups, far) = tri4::pack_leaves(&mut wide, &prims, &tree.prim_indices);
         let prims = tri4::plain_only(prims, &tree.prim_indices);
         let (slots, pos) = arrange(&wide, mapping, std::mem::size_of::<N>());
         let nodes = slots
@@ -248,7 +248,7 @@ impl<P: Primitive, N: Node4> Bvh4<P, N> {
             nodes,
             prims,
             prim_ids: tree.prim_indices.clone(),
-            far: tri4::holds_far(&groups),
+            far,
             tri4: groups,
             mapping,
             kernels: Kernels::new(isa),

@@ -137,14 +137,14 @@ impl<P: Primitive> Bvh8<P> {
         // Merged leaves stay below the flag bit whatever `max_leaf_size` says.
         let max_leaf = config.max_leaf_size.min((Bvh8Node::LEAF - 1) as usize);
         let mut wide = collapse_sah::<8>(tree, max_leaf, config.traversal_cost, leaf_cost);
-        let groups = tri4::pack_leaves(&mut wide, &prims, &tree.prim_indices);
+        let (groups, far) = tri4::pack_leaves(&mut wide, &prims, &tree.prim_indices);
         let prims = tri4::plain_only(prims, &tree.prim_indices);
         let nodes = wide.par_iter().map(Bvh8Node::encode).collect();
         Bvh8 {
             nodes,
             prims,
             prim_ids: tree.prim_indices.clone(),
-            far: tri4::holds_far(&groups),
+            far,
             tri4: groups,
             kernels: Kernels::new(isa),
             bounds: tree.nodes[0].bounds,

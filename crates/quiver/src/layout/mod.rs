@@ -156,6 +156,9 @@ pub(crate) enum LeafPrims<'a, P> {
     Ordered(Vec<P>),
     /// The primitive of each input index.
     Input(&'a (dyn Fn(u32) -> P + Sync)),
+    /// The input itself, by input index: read in leaf order, out of its own, so a layout
+    /// prefetches the primitives ahead of the one it packs.
+    Slice(&'a [P]),
 }
 
 impl<P: Primitive> LeafPrims<'_, P> {
@@ -165,6 +168,18 @@ impl<P: Primitive> LeafPrims<'_, P> {
         match self {
             LeafPrims::Ordered(v) => v[j].clone(),
             LeafPrims::Input(f) => f(ids[j]),
+            LeafPrims::Slice(s) => s[ids[j] as usize].clone(),
+        }
+    }
+
+    /// Starts loading the primitive at leaf position `j`, if there is one and the
+    /// primitives are in memory the layout can see.
+    #[inline(always)]
+    pub fn prefetch(&self, ids: &[u32], j: usize) {
+        if let LeafPrims::Slice(s) = self {
+            if let Some(p) = ids.get(j).and_then(|&i| s.get(i as usize)) {
+                crate::isa::prefetch(p, 1);
+            }
         }
     }
 
@@ -174,6 +189,7 @@ impl<P: Primitive> LeafPrims<'_, P> {
         match self {
             LeafPrims::Ordered(v) => v,
             LeafPrims::Input(f) => ids.par_iter().map(|&i| f(i)).collect(),
+            LeafPrims::Slice(s) => ids.par_iter().map(|&i| s[i as usize].clone()).collect(),
         }
     }
 }

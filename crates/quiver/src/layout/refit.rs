@@ -23,6 +23,7 @@ use super::tri4::{fill, groups as group_count, Tri4};
 use crate::geometry::Aabb;
 use crate::primitive::{LeafFormat, Primitive};
 use rayon::prelude::*;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 /// Where a refit takes its new primitives: by input index, in the layout's own frame.
 pub(crate) trait Source<P>: Sync {
@@ -34,6 +35,10 @@ pub(crate) trait Source<P>: Sync {
     fn refresh(&self, id: u32, p: &mut P) {
         *p = self.get(id);
     }
+
+    /// Starts loading primitive `id`, where the source knows its address.
+    #[inline]
+    fn prefetch(&self, _id: u32) {}
 }
 
 /// A subtree of at most this many nodes is refit by one task, without further splitting.
@@ -56,6 +61,8 @@ struct Ctx<'a, S> {
     src: &'a S,
     /// The leaf-order copy was refreshed beforehand (in parallel): leaves only read it.
     fresh: bool,
+    /// Set once any group is repacked far ([`Tri4`]), so no pass over the groups must ask.
+    far: &'a AtomicBool,
 }
 
 impl<'a, S> Ctx<'a, S> {
@@ -68,10 +75,18 @@ impl<'a, S> Ctx<'a, S> {
             for (p, &id) in run.prims.iter_mut().zip(run.ids) {
                 cx.src.refresh(id, p);
             }
+            if run.prims.len() != run.ids.len() {
+                // No copy to refresh: the leaves read the source, so start every load now
+                // (a task's primitives fit in L2; one by one, each read waited for memory).
+                for &id in run.ids {
+                    cx.src.prefetch(id);
+                }
+            }
         }
         Ctx {
             src: cx.src,
             fresh: true,
+            far: cx.far,
         }
     }
 
@@ -93,7 +108,9 @@ impl<'a, S> Ctx<'a, S> {
                     b = b.union(&p.bounds());
                     *t = p.triangle();
                 }
-                fill(g, &tris, P::LEAF_FORMAT);
+                if fill(g, &tris, P::LEAF_FORMAT) {
+                    self.far.store(true, Ordering::Relaxed);
+                }
             }
             return b;
         }
@@ -442,7 +459,7 @@ fn run_tasks<const W: usize, N: WideNode<W>, P: Primitive, S: Source<P>>(
 /// the leaf-order copy (plain leaves) or repack the SIMD groups (triangle formats, no copy)
 /// leaf by leaf inside their parallel tasks (one read of each new primitive serves its copy
 /// or its lane, and its leaf's box); the other mappings refresh a copy in parallel first,
-/// then walk the tree once.
+/// then walk the tree once. Also returns whether any SIMD group is far now.
 fn refit_wide<const W: usize, N: WideNode<W>, P: Primitive, S: Source<P>>(
     nodes: &mut [N],
     prims: &mut [P],
@@ -450,21 +467,31 @@ fn refit_wide<const W: usize, N: WideNode<W>, P: Primitive, S: Source<P>>(
     groups: &mut [Tri4],
     depth_first: bool,
     src: &S,
-) -> Aabb {
-    if depth_first {
-        let cx = Ctx { src, fresh: false };
+) -> (Aabb, bool) {
+    let far = AtomicBool::new(false);
+    let root = if depth_first {
+        let cx = Ctx {
+            src,
+            fresh: false,
+            far: &far,
+        };
         wide_dfs(nodes, 0, groups, 0, Run { prims, ids }, &cx)
     } else {
         refresh_prims(prims, ids, src);
-        let cx = Ctx { src, fresh: true };
+        let cx = Ctx {
+            src,
+            fresh: true,
+            far: &far,
+        };
         wide_seq(nodes, 0, groups, 0, &mut Run { prims, ids }, 0, &cx)
-    }
+    };
+    (root, far.into_inner())
 }
 
 impl<P: Primitive> Bvh8<P> {
     /// Refits in place from `src` (see the [module](self) docs).
     pub(crate) fn refit<S: Source<P>>(&mut self, src: &S) {
-        self.bounds = refit_wide::<8, _, _, _>(
+        (self.bounds, self.far) = refit_wide::<8, _, _, _>(
             &mut self.nodes,
             &mut self.prims,
             &self.prim_ids,
@@ -472,14 +499,13 @@ impl<P: Primitive> Bvh8<P> {
             true,
             src,
         );
-        self.far = super::tri4::holds_far(&self.tri4);
     }
 }
 
 impl<P: Primitive, N: Node4> Bvh4<P, N> {
     /// Refits in place from `src`, quantized nodes encoded again (see the [module](self) docs).
     pub(crate) fn refit<S: Source<P>>(&mut self, src: &S) {
-        self.bounds = refit_wide::<4, _, _, _>(
+        (self.bounds, self.far) = refit_wide::<4, _, _, _>(
             &mut self.nodes,
             &mut self.prims,
             &self.prim_ids,
@@ -487,7 +513,6 @@ impl<P: Primitive, N: Node4> Bvh4<P, N> {
             self.mapping == Bvh4Mapping::DepthFirst,
             src,
         );
-        self.far = super::tri4::holds_far(&self.tri4);
     }
 }
 
@@ -580,7 +605,14 @@ impl<P: Primitive> Bvh2<P> {
                 prims: &mut self.prims,
                 ids: &self.prim_ids,
             };
-            bvh2_dfs(&mut self.nodes, 0, run, 0, &Ctx { src, fresh: false });
+            // Binary layouts keep plain leaves: no groups, nothing far.
+            let far = AtomicBool::new(false);
+            let cx = Ctx {
+                src,
+                fresh: false,
+                far: &far,
+            };
+            bvh2_dfs(&mut self.nodes, 0, run, 0, &cx);
             return;
         }
         refresh_prims(&mut self.prims, &self.prim_ids, src);

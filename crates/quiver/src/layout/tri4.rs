@@ -8,7 +8,7 @@ use crate::geometry::{pow2, Triangle};
 use crate::primitive::{LeafFormat, Primitive};
 use bytemuck::{Pod, Zeroable};
 
-use glam::Vec3A;
+use glam::{Mat4, Vec3A, Vec4};
 
 /// Four triangles, one per SIMD lane: 208 bytes.
 ///
@@ -54,70 +54,106 @@ fn fast_terms(t: &Triangle) -> [Vec3A; 4] {
     [t.v[0], e1, e2, e1.cross(e2)]
 }
 
-/// Whether the SIMD tests compute exactly what the scalar tests compute for `t`, whose
-/// [`fast_terms`] are `[_, e1, e2, n]`: its coordinates, edges and normal (largest component
-/// of each) inside the band where their products with a ray's terms neither overflow nor
-/// underflow.
-fn in_band(t: &Triangle, [_, e1, e2, n]: &[Vec3A; 4]) -> bool {
-    let within = |v: Vec3A, lo: f32, hi: f32| {
-        let m = v.abs().max_element();
-        m <= hi && (m >= lo || m == 0.0)
+/// The lanes of a group (bit `i`: lane `i`) whose triangles are outside the band where the
+/// SIMD tests compute exactly what the scalar tests compute: a coordinate or edge past
+/// `2^32`, an edge below `2^-40` (unless zero), a normal outside `2^-80..2^66` (unless zero).
+/// `corners` holds each lane's largest coordinate magnitude, `[e1, e2, n]` the lanes' fast
+/// terms as rows. Every triangle packed is finite, and `n` is finite wherever both edges are
+/// inside the band, so the lanes' maxima here are the scalar test's maxima.
+fn out_of_band(corners: Vec4, [e1, e2, n]: [&[[f32; 4]; 3]; 3]) -> u32 {
+    let largest = |r: &[[f32; 4]; 3]| {
+        let [x, y, z] = r.map(|row| Vec4::from_array(row).abs());
+        x.max(y).max(z)
     };
-    t.v.iter().all(|&v| within(v, 0.0, pow2(32)))
-        && within(*e1, pow2(-40), pow2(32))
-        && within(*e2, pow2(-40), pow2(32))
-        && within(*n, pow2(-80), pow2(66))
+    let within = |m: Vec4, lo: f32, hi: f32| {
+        m.cmple(Vec4::splat(hi)) & (m.cmpge(Vec4::splat(lo)) | m.cmpeq(Vec4::ZERO))
+    };
+    let ok = corners.cmple(Vec4::splat(pow2(32)))
+        & within(largest(e1), pow2(-40), pow2(32))
+        & within(largest(e2), pow2(-40), pow2(32))
+        & within(largest(n), pow2(-80), pow2(66));
+    !ok.bitmask() & 0xf
+}
+
+/// Four lanes' vectors as rows: `rows[k][a][lane]` is component `a` of `lanes[lane][k]`.
+#[inline(always)]
+fn transpose(lanes: &[[Vec3A; 4]; 4]) -> [[[f32; 4]; 3]; 4] {
+    std::array::from_fn(|k| {
+        let m = Mat4::from_cols(
+            lanes[0][k].extend(0.0),
+            lanes[1][k].extend(0.0),
+            lanes[2][k].extend(0.0),
+            lanes[3][k].extend(0.0),
+        )
+        .transpose();
+        [
+            m.x_axis.to_array(),
+            m.y_axis.to_array(),
+            m.z_axis.to_array(),
+        ]
+    })
 }
 
 /// Writes the rows of one group from its lanes' triangles (`None`: an unused lane or a
 /// primitive without a triangle, never hit) as `format` stores them; a far group when any
 /// triangle is outside the band (see [`Tri4`]). The ids are the caller's. What packing and
-/// refitting both write.
-pub(crate) fn fill(g: &mut Tri4, tris: &[Option<Triangle>; 4], format: LeafFormat) {
-    let fast = tris.map(|t| t.map(|t| fast_terms(&t)));
-    let far = tris
-        .iter()
-        .zip(&fast)
-        .any(|pair| matches!(pair, (Some(t), Some(f)) if !in_band(t, f)));
-    g.rows = [[[f32::NAN; 4]; 3]; 4];
-    for (lane, (t, f)) in tris.iter().zip(fast).enumerate() {
-        let (Some(t), Some(f)) = (t, f) else { continue };
-        let vectors: [Vec3A; 4] = match format {
-            _ if far => [t.v[0], t.v[1], t.v[2], Vec3A::NAN],
-            LeafFormat::FastTriangles => f,
-            LeafFormat::WatertightTriangles => [t.v[0], t.v[1], t.v[2], Vec3A::ZERO],
-            LeafFormat::Plain => unreachable!("plain leaves are not packed"),
-        };
-        for (row, v) in g.rows.iter_mut().zip(vectors) {
-            for a in 0..3 {
-                row[a][lane] = v[a];
-            }
+/// refitting both write; returns whether the group is far.
+pub(crate) fn fill(g: &mut Tri4, tris: &[Option<Triangle>; 4], format: LeafFormat) -> bool {
+    const UNUSED: [Vec3A; 4] = [Vec3A::NAN; 4];
+    let fast = transpose(&tris.map(|t| t.map_or(UNUSED, |t| fast_terms(&t))));
+    let mut corners = [0.0f32; 4];
+    let mut used = 0u32;
+    for (lane, t) in tris.iter().enumerate() {
+        if let Some(t) = t {
+            used |= 1 << lane;
+            let [a, b, c] = t.v.map(Vec3A::abs);
+            corners[lane] = a.max(b).max(c).max_element();
         }
     }
+    let far = out_of_band(Vec4::from_array(corners), [&fast[1], &fast[2], &fast[3]]) & used != 0;
+    g.rows = match format {
+        _ if far => {
+            transpose(&tris.map(|t| t.map_or(UNUSED, |t| [t.v[0], t.v[1], t.v[2], Vec3A::NAN])))
+        }
+        LeafFormat::FastTriangles => fast,
+        LeafFormat::WatertightTriangles => {
+            transpose(&tris.map(|t| t.map_or(UNUSED, |t| [t.v[0], t.v[1], t.v[2], Vec3A::ZERO])))
+        }
+        LeafFormat::Plain => unreachable!("plain leaves are not packed"),
+    };
     if far {
         g.rows[3] = [[f32::from_bits(FAR); 4]; 3];
     }
+    far
 }
 
+/// How many leaf positions ahead packing prefetches its primitives: enough loads in flight
+/// to hide most of a gather's latency.
+const PREFETCH: usize = 16;
+
 /// Writes the groups of the leaf over leaf positions `range` (`ids`: every position's input
-/// index) in `format` to `out`, which holds exactly `groups(range.len())` of them.
+/// index) in `format` to `out`, which holds exactly `groups(range.len())` of them; returns
+/// whether any of them is far.
 fn pack<P: Primitive>(
     prims: &LeafPrims<P>,
     ids: &[u32],
     range: std::ops::Range<usize>,
     format: LeafFormat,
     out: &mut [Tri4],
-) {
+) -> bool {
+    let mut far = false;
     for (start, g) in range.clone().step_by(4).zip(out) {
         let four = start..(start + 4).min(range.end);
         g.id = [u32::MAX; 4];
         g.id[..four.len()].copy_from_slice(&ids[four.clone()]);
         let mut tris = [None; 4];
         for (t, j) in tris.iter_mut().zip(four) {
+            prims.prefetch(ids, j + PREFETCH);
             *t = prims.at(ids, j).triangle();
         }
-        fill(g, &tris, format);
+        far |= fill(g, &tris, format);
     }
+    far
 }
 
 /// The leaf-order primitives a wide layout keeps: all of them for a plain leaf format, none
@@ -133,15 +169,16 @@ pub(crate) fn plain_only<P: Primitive>(prims: LeafPrims<P>, ids: &[u32]) -> Vec<
 /// For primitive types with a triangle [`LeafFormat`]: packs every leaf of the collapsed tree
 /// into groups and points the leaf at its first group instead of its first primitive. Plain
 /// formats keep their leaves and get no groups. The groups are numbered in one pass over the
-/// nodes, then filled by all threads, each leaf into its own range.
+/// nodes, then filled by all threads, each leaf into its own range. Also returns whether any
+/// group is far (see [`Tri4`]).
 pub(crate) fn pack_leaves<P: Primitive, const W: usize>(
     wide: &mut [Wide<W>],
     prims: &LeafPrims<P>,
     ids: &[u32],
-) -> Vec<Tri4> {
+) -> (Vec<Tri4>, bool) {
     use rayon::prelude::*;
     if P::LEAF_FORMAT == LeafFormat::Plain {
-        return Vec::new();
+        return (Vec::new(), false);
     }
     // (first primitive, count) of each leaf, in the order its groups are stored.
     let mut leaves = Vec::new();
@@ -163,10 +200,12 @@ pub(crate) fn pack_leaves<P: Primitive, const W: usize>(
         rest = tail;
         jobs.push((first..first + count, mine));
     }
-    jobs.into_par_iter()
+    let far = jobs
+        .into_par_iter()
         .with_min_len(256)
-        .for_each(|(range, mine)| pack(prims, ids, range, P::LEAF_FORMAT, mine));
-    out
+        .map(|(range, mine)| pack(prims, ids, range, P::LEAF_FORMAT, mine))
+        .reduce(|| false, |a, b| a | b);
+    (out, far)
 }
 
 impl Tri4 {
@@ -188,10 +227,4 @@ impl Tri4 {
     pub(crate) fn is_far(&self) -> bool {
         self.rows[3][0][0].to_bits() == FAR
     }
-}
-
-/// Whether any of `groups` is far: a layout holding one takes its leaves' slower path.
-pub(crate) fn holds_far(groups: &[Tri4]) -> bool {
-    use rayon::prelude::*;
-    groups.par_iter().with_min_len(4096).any(Tri4::is_far)
 }

@@ -28,14 +28,7 @@ impl<P: Primitive> Leaves<'_, P> {
         #[cfg(target_arch = "x86_64")]
         if P::LEAF_FORMAT != LeafFormat::Plain {
             if let Some(g) = self.tri4.get(first) {
-                let p = (g as *const Tri4).cast::<i8>();
-                // SAFETY: SSE is part of every x86-64 CPU; a prefetch reads nothing and
-                // faults on nothing, and `p` points into the group.
-                unsafe {
-                    use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-                    _mm_prefetch::<_MM_HINT_T0>(p);
-                    _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(64));
-                }
+                crate::isa::prefetch(g, 2);
             }
         }
     }
