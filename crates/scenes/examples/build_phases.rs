@@ -3,8 +3,8 @@
 //! Prints the median of 5 runs of each phase at 1 and 2 threads: primitive bounds, the binary
 //! tree, the layout (`Bvh::from_tree`: tree check, collapse, nodes, leaf groups, primitive
 //! copy) and the whole build (`BuildOptions::build` with that builder, so `Bvh::new` for the
-//! default) for comparison. `BUILDER=lbvh` (any builder name) picks the builder, `REPS` the
-//! number of runs.
+//! default) for comparison, and a refit of that build to the same triangles (`Bvh::refit`).
+//! `BUILDER=lbvh` (any builder name) picks the builder, `REPS` the number of runs.
 
 use quiver::builders::{build, prim_bounds, BuildConfig, Builder};
 use quiver::{BuildOptions, Bvh};
@@ -77,7 +77,7 @@ fn main() {
             "threads {threads}: bvh8 {:016x}",
             std::hash::Hasher::finish(&h)
         );
-        let (mut b, mut t, mut l, mut all) = (vec![], vec![], vec![], vec![]);
+        let (mut b, mut t, mut l, mut all, mut r) = (vec![], vec![], vec![], vec![], vec![]);
         let reps: usize = std::env::var("REPS").map_or(5, |r| r.parse().unwrap());
         for _ in 0..reps {
             pool.install(|| {
@@ -85,8 +85,11 @@ fn main() {
                 let (tree, mt) = ms(|| build(&bounds, &config, builder));
                 let (bvh, ml) = ms(|| Bvh::from_tree(&tree, &tris, &options).unwrap());
                 drop(bvh);
-                let (bvh, ma) = ms(|| options.clone().builder(builder).build(&tris));
+                let (mut bvh, ma) = ms(|| options.clone().builder(builder).build(&tris));
+                let (refit, mr) = ms(|| bvh.refit(&tris));
+                refit.unwrap();
                 drop(bvh);
+                r.push(mr);
                 b.push(mb);
                 t.push(mt);
                 l.push(ml);
@@ -94,11 +97,12 @@ fn main() {
             });
         }
         println!(
-            "threads {threads}: bounds {:.1} ms, tree {:.1} ms, layout {:.1} ms, build {:.1} ms",
+            "threads {threads}: bounds {:.1} ms, tree {:.1} ms, layout {:.1} ms, build {:.1} ms, refit {:.1} ms",
             median(b),
             median(t),
             median(l),
-            median(all)
+            median(all),
+            median(r)
         );
     }
 }
