@@ -345,7 +345,12 @@ impl<P: Primitive> Bvh<P> {
                 given: n,
             });
         }
-        let boxes_of = |i: usize| get(i as u32).bounds();
+        let boxes_of = |i: usize| {
+            if let Some(s) = slice {
+                crate::isa::prefetch_stream(s, i);
+            }
+            get(i as u32).bounds()
+        };
         // In chunks, each a plain loop with its summary in registers.
         const CHUNK: usize = 8192;
         let summary = (0..n.div_ceil(CHUNK))
