@@ -7,8 +7,9 @@
 //! the same pass).
 //!
 //! The sort key is the code above the primitive's input index, so every key is distinct and
-//! the order, and the tree, are the same for any number of threads; node positions follow the
-//! 2n − 1 rule of [`super::recurse`]. The code gets what the index leaves of 64 bits (42 bits,
+//! the order, and the tree, are the same for any number of threads; each task writes its
+//! nodes densely (a node the collapse turns into a leaf drops its subtree's nodes from the end
+//! of the task's vector) and [`super::recurse`]'s pieces lay them out in preorder. The code gets what the index leaves of 64 bits (42 bits,
 //! 14 per axis, for a million primitives; at least 30), which also bounds the depth: each
 //! split below the root clears one more code bit or halves a run of equal codes, so no path
 //! is longer than 64 edges.
@@ -16,8 +17,8 @@
 //! The fast preset's builder: several times quicker than the binned SAH, with a costlier tree
 //! (the planes fall on a fixed grid, wherever the primitives are).
 
-use super::recurse::{compact, Slot};
-use super::{BuildConfig, BuildNode};
+use super::recurse::Piece;
+use super::{BuildConfig, BuildNode, NodeKind};
 use crate::geometry::Aabb;
 use glam::Vec3A;
 use rayon::prelude::*;
@@ -40,15 +41,16 @@ pub(super) fn build(
         .par_iter()
         .map(|&k| (k & ((1u64 << id_bits) - 1)) as u32)
         .collect();
-    let mut slots: Vec<Slot> = bytemuck::zeroed_vec(2 * keys.len() - 1);
     let job = Job {
         bounds,
         config,
         id_bits,
         id_mask: (1u64 << id_bits) - 1,
     };
-    job.node(&keys, 0, 0, &mut slots);
-    (compact(&slots), order)
+    let (piece, ..) = job.node(&keys, 0);
+    let mut nodes = Vec::with_capacity(piece.len());
+    piece.flatten(&mut nodes);
+    (nodes, order)
 }
 
 /// Each primitive's key (Morton code of its centroid, then its index), sorted.
@@ -101,43 +103,77 @@ struct Job<'a> {
 }
 
 impl Job<'_> {
-    /// Builds the subtree over `keys` (positions `first..` of the sorted order) into `slots`
-    /// (its 2n − 1 slots, the first at index `slot`); returns its box and SAH cost (in units
-    /// of half area).
-    fn node(&self, keys: &[u64], first: u32, slot: u32, slots: &mut [Slot]) -> (Aabb, f32) {
+    /// Builds the subtree over `keys` (positions `first..` of the sorted order); returns it,
+    /// its box and its SAH cost (in units of half area).
+    fn node(&self, keys: &[u64], first: u32) -> (Piece, Aabb, f32) {
+        let n = keys.len();
+        if n < TASK_CUTOFF {
+            // Leaves hold at most `max_leaf_size`, so the nodes number at most 2n - 1; most
+            // subtrees collapse to far fewer.
+            let mut nodes = Vec::with_capacity(n);
+            let (b, cost) = self.serial(keys, first, &mut nodes);
+            return (Piece::Nodes(nodes), b, cost);
+        }
+        let mid = self.split(keys);
+        let (left_keys, right_keys) = keys.split_at(mid);
+        let ((l, lb, lc), (r, rb, rc)) = rayon::join(
+            || self.node(left_keys, first),
+            || self.node(right_keys, first + mid as u32),
+        );
+        let b = lb.union(&rb);
+        match self.choose(n, &b, lc + rc) {
+            (cost, true) => (Piece::Nodes(vec![leaf(b, first, n)]), b, cost),
+            (cost, false) => (Piece::join(b, l, r), b, cost),
+        }
+    }
+
+    /// [`Job::node`] on this thread: the subtree's nodes appended to `out` in preorder,
+    /// links counted from the start of `out`.
+    fn serial(&self, keys: &[u64], first: u32, out: &mut Vec<BuildNode>) -> (Aabb, f32) {
         let n = keys.len();
         let config = self.config;
         if n == 1 {
             let b = self.bounds[(keys[0] & self.id_mask) as usize];
-            slots[0] = Slot::new(&b, Slot::LEAF, first, 1);
+            out.push(leaf(b, first, 1));
             return (
                 b,
                 config.intersection_cost * config.tests(1) * b.half_area(),
             );
         }
         let mid = self.split(keys);
-        let (left_keys, right_keys) = keys.split_at(mid);
-        let (own, rest) = slots.split_first_mut().expect("2n - 1 slots");
-        let (l_slots, r_slots) = rest.split_at_mut(2 * mid - 1);
-        let (l_slot, r_slot) = (slot + 1, slot + 2 * mid as u32);
-        let r_first = first + mid as u32;
-        let mut left = move || self.node(left_keys, first, l_slot, l_slots);
-        let mut right = move || self.node(right_keys, r_first, r_slot, r_slots);
-        let ((lb, lc), (rb, rc)) = if n >= TASK_CUTOFF {
-            rayon::join(left, right)
-        } else {
-            (left(), right())
-        };
+        let me = out.len();
+        out.push(leaf(Aabb::EMPTY, first, 0));
+        let (lb, lc) = self.serial(&keys[..mid], first, out);
+        let right = out.len();
+        let (rb, rc) = self.serial(&keys[mid..], first + mid as u32, out);
         let b = lb.union(&rb);
+        let (cost, is_leaf) = self.choose(n, &b, lc + rc);
+        out[me] = if is_leaf {
+            out.truncate(me + 1);
+            leaf(b, first, n)
+        } else {
+            BuildNode {
+                bounds: b,
+                kind: NodeKind::Inner {
+                    left: me as u32 + 1,
+                    right: right as u32,
+                },
+            }
+        };
+        (b, cost)
+    }
+
+    /// A node of `n` primitives, box `b` and children costing `children`: its cost, and
+    /// whether the SAH makes it a leaf (the optimal collapse, bottom-up).
+    fn choose(&self, n: usize, b: &Aabb, children: f32) -> (f32, bool) {
+        let config = self.config;
         let area = b.half_area();
-        let inner = config.traversal_cost * area + lc + rc;
+        let inner = config.traversal_cost * area + children;
         let leaf = config.intersection_cost * config.tests(n) * area;
         if n <= config.max_leaf_size && leaf <= inner {
-            *own = Slot::new(&b, Slot::LEAF, first, n as u32);
-            (b, leaf)
+            (leaf, true)
         } else {
-            *own = Slot::new(&b, Slot::INNER, l_slot, r_slot);
-            (b, inner)
+            (inner, false)
         }
     }
 
@@ -152,6 +188,17 @@ impl Job<'_> {
         }
         // Every key of the run agrees above `bit`, so those with it clear come first.
         keys.partition_point(|&k| (k >> bit) & 1 == 0)
+    }
+}
+
+/// A leaf over sorted positions `first..first + n`.
+fn leaf(bounds: Aabb, first: u32, n: usize) -> BuildNode {
+    BuildNode {
+        bounds,
+        kind: NodeKind::Leaf {
+            first,
+            count: n as u32,
+        },
     }
 }
 

@@ -163,9 +163,9 @@ pub(crate) fn build_tree<S: Splitter>(
 /// A subtree as the recursion returns it. Each task below [`TASK_CUTOFF`] writes its nodes
 /// densely into a vector of its own, and the joins above them are kept apart until one pass
 /// lays all of it out in preorder; the result depends on the input alone, however the tasks
-/// ran. (Writing every node into a preassigned position of a 2n - 1 slot array, as the
-/// linear builder does, touched a fresh page of that array for nearly every few nodes.)
-enum Piece {
+/// ran. (Writing every node into a preassigned position of a 2n - 1 slot array touched a
+/// fresh page of that array for nearly every few nodes.) The linear builder shares it.
+pub(crate) enum Piece {
     /// Nodes in preorder, child links counted from the first of them.
     Nodes(Vec<BuildNode>),
     /// An inner node whose children were built as tasks of their own.
@@ -178,14 +178,14 @@ enum Piece {
 }
 
 impl Piece {
-    fn len(&self) -> usize {
+    pub(crate) fn len(&self) -> usize {
         match self {
             Piece::Nodes(v) => v.len(),
             Piece::Join { len, .. } => *len,
         }
     }
 
-    fn join(bounds: Aabb, left: Piece, right: Piece) -> Piece {
+    pub(crate) fn join(bounds: Aabb, left: Piece, right: Piece) -> Piece {
         Piece::Join {
             len: 1 + left.len() + right.len(),
             bounds,
@@ -195,7 +195,7 @@ impl Piece {
     }
 
     /// Appends the subtree to `out` in preorder, its links shifted to their place there.
-    fn flatten(self, out: &mut Vec<BuildNode>) {
+    pub(crate) fn flatten(self, out: &mut Vec<BuildNode>) {
         match self {
             Piece::Nodes(v) => {
                 let base = out.len() as u32;
@@ -226,69 +226,6 @@ impl Piece {
             }
         }
     }
-}
-
-/// A node as the linear builder writes it into its preallocated position; all zeros is "no
-/// node".
-#[repr(C)]
-#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
-pub(crate) struct Slot {
-    min: [f32; 3],
-    max: [f32; 3],
-    /// Left child slot (inner) or first primitive (leaf).
-    a: u32,
-    /// Right child slot (inner) or primitive count (leaf).
-    b: u32,
-    tag: u32,
-}
-
-impl Slot {
-    pub const INNER: u32 = 1;
-    pub const LEAF: u32 = 2;
-
-    pub fn new(bounds: &Aabb, tag: u32, a: u32, b: u32) -> Slot {
-        Slot {
-            min: bounds.min.into(),
-            max: bounds.max.into(),
-            a,
-            b,
-            tag,
-        }
-    }
-}
-
-/// Collects the nodes reachable from slot 0 into a gap-free preorder array. Walking the tree
-/// (rather than scanning every slot) reads only the slots that hold nodes.
-pub(crate) fn compact(slots: &[Slot]) -> Vec<BuildNode> {
-    let mut out: Vec<BuildNode> = Vec::with_capacity(slots.len() / 2 + 1);
-    // (slot, output index of the parent whose right link points here)
-    let mut stack = vec![(0u32, u32::MAX)];
-    while let Some((s, parent)) = stack.pop() {
-        let me = out.len() as u32;
-        if let Some(NodeKind::Inner { right, .. }) =
-            out.get_mut(parent as usize).map(|p| &mut p.kind)
-        {
-            *right = me;
-        }
-        let slot = &slots[s as usize];
-        let bounds = Aabb::new(slot.min.into(), slot.max.into());
-        let kind = if slot.tag == Slot::INNER {
-            stack.push((slot.b, me));
-            stack.push((slot.a, u32::MAX));
-            NodeKind::Inner {
-                left: me + 1,
-                right: 0,
-            }
-        } else {
-            debug_assert_eq!(slot.tag, Slot::LEAF);
-            NodeKind::Leaf {
-                first: slot.a,
-                count: slot.b,
-            }
-        };
-        out.push(BuildNode { bounds, kind });
-    }
-    out
 }
 
 struct Job<'a, S> {
