@@ -132,7 +132,11 @@ pub(crate) fn build_tree<S: Splitter>(
     let ctx = Ctx { config, areas };
     let mut refs: Vec<Ref> = idx
         .par_iter()
-        .map(|&i| Ref::new(&bounds[i as usize], i))
+        .enumerate()
+        .map(|(k, &i)| {
+            crate::isa::prefetch_stream(bounds, k);
+            Ref::new(&bounds[i as usize], i)
+        })
         .collect();
     let (node, cent) = refs.par_chunks(CHUNK).map(refs_bounds).reduce(
         || (Aabb::EMPTY, Aabb::EMPTY),
@@ -428,7 +432,8 @@ where
 {
     let (mut a, mut b) = (0, 0);
     let (mut cl, mut cr) = (Aabb::EMPTY, Aabb::EMPTY);
-    for x in src {
+    for (i, x) in src.iter().enumerate() {
+        crate::isa::prefetch_stream(src, i);
         let c = x.center();
         if goes_left(c) {
             l[a] = *x;

@@ -200,7 +200,10 @@ impl<'p> BuildOptions<'p> {
     /// As [`BuildOptions::build`].
     pub fn build_with_tree<P: Primitive>(&self, prims: &[P]) -> (Bvh<P>, BuildTree) {
         self.run(|| {
-            let (bounds, frame) = Frame::bounds(prims.len(), |i| prims[i].bounds());
+            let (bounds, frame) = Frame::bounds(prims.len(), |i| {
+                crate::isa::prefetch_stream(prims, i);
+                prims[i].bounds()
+            });
             let local = frame_prims(frame, prims);
             // A type that cannot be scaled stays in its own units.
             let frame = if local.is_some() {
