@@ -132,11 +132,7 @@ pub(crate) fn build_tree<S: Splitter>(
     let ctx = Ctx { config, areas };
     let mut refs: Vec<Ref> = idx
         .par_iter()
-        .enumerate()
-        .map(|(k, &i)| {
-            crate::isa::prefetch_stream(bounds, k);
-            Ref::new(&bounds[i as usize], i)
-        })
+        .map(|&i| Ref::new(&bounds[i as usize], i))
         .collect();
     let (node, cent) = refs.par_chunks(CHUNK).map(refs_bounds).reduce(
         || (Aabb::EMPTY, Aabb::EMPTY),
@@ -432,8 +428,7 @@ where
 {
     let (mut a, mut b) = (0, 0);
     let (mut cl, mut cr) = (Aabb::EMPTY, Aabb::EMPTY);
-    for (i, x) in src.iter().enumerate() {
-        crate::isa::prefetch_stream(src, i);
+    for x in src {
         let c = x.center();
         if goes_left(c) {
             l[a] = *x;
