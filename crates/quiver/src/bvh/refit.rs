@@ -217,9 +217,9 @@ impl<P: Primitive> Bvh<P> {
     /// exactly as a fresh layout of the same build tree over `prims` ([`Bvh::from_tree`])
     /// does, and the BVH takes the frame `prims` call for, as that layout would (a scene
     /// moved far from unit size is scaled by a power of two, one brought back is not). A
-    /// refit takes about a tenth of the default build's time (the README's "Refit": 7.6 to 11.9%
-    /// on 0.1 to 1 million triangles): the way to follow vertices that move while the
-    /// topology stays.
+    /// refit takes 6 to 7% of the default build's time (the README's "Refit": 5.7 to 7.4% on
+    /// 0.1 to 1 million triangles, 1 and 2 threads): the way to follow vertices that move
+    /// while the topology stays.
     ///
     /// # When to rebuild instead
     ///
