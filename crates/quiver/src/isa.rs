@@ -196,7 +196,13 @@ pub(crate) fn prefetch<T>(x: &T, lines: usize) {
 #[inline(always)]
 pub(crate) fn prefetch_stream<T>(s: &[T], i: usize) {
     let ahead = (2048 / std::mem::size_of::<T>().max(1)).max(1);
-    if let Some(x) = s.get(i + ahead) {
+    prefetch_at(s, i + ahead);
+}
+
+/// [`prefetch`] of `s[i]`'s first cache line, where `s` has an element `i`.
+#[inline(always)]
+pub(crate) fn prefetch_at<T>(s: &[T], i: usize) {
+    if let Some(x) = s.get(i) {
         prefetch(x, 1);
     }
 }

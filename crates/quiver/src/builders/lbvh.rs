@@ -9,10 +9,10 @@
 //! The sort key is the code above the primitive's input index, so every key is distinct and
 //! the order, and the tree, are the same for any number of threads; each task writes its
 //! nodes densely (a node the collapse turns into a leaf drops its subtree's nodes from the end
-//! of the task's vector) and [`super::recurse`]'s pieces lay them out in preorder. The code gets what the index leaves of 64 bits (42 bits,
-//! 14 per axis, for a million primitives; at least 30), which also bounds the depth: each
-//! split below the root clears one more code bit or halves a run of equal codes, so no path
-//! is longer than 64 edges.
+//! of the task's vector) and [`super::recurse`]'s pieces lay them out in preorder. The code
+//! gets what the index leaves of 64 bits (42 bits, 14 per axis, for a million primitives; at
+//! least 30), which also bounds the depth: each split below the root clears one more code bit
+//! or halves a run of equal codes, so no path is longer than 64 edges.
 //!
 //! The fast preset's builder: several times quicker than the binned SAH, with a costlier tree
 //! (the planes fall on a fixed grid, wherever the primitives are).

@@ -84,8 +84,8 @@ struct Input<'s, P, G> {
 impl<P: Primitive, G: Fn(u32) -> P + Sync> Source<P> for Input<'_, P, G> {
     #[inline]
     fn prefetch(&self, id: u32) {
-        if let Some(p) = self.slice.and_then(|s| s.get(id as usize)) {
-            crate::isa::prefetch(p, 1);
+        if let Some(s) = self.slice {
+            crate::isa::prefetch_at(s, id as usize);
         }
     }
 

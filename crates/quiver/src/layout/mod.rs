@@ -176,10 +176,8 @@ impl<P: Primitive> LeafPrims<'_, P> {
     /// primitives are in memory the layout can see.
     #[inline(always)]
     pub fn prefetch(&self, ids: &[u32], j: usize) {
-        if let LeafPrims::Slice(s) = self {
-            if let Some(p) = ids.get(j).and_then(|&i| s.get(i as usize)) {
-                crate::isa::prefetch(p, 1);
-            }
+        if let (LeafPrims::Slice(s), Some(&i)) = (self, ids.get(j)) {
+            crate::isa::prefetch_at(s, i as usize);
         }
     }
 
