@@ -4,7 +4,7 @@
 
 use super::collapse::{self, collapse, Child};
 use super::order::{self, Shape, HOLE};
-use super::tri4::{self, Tri4};
+use super::tri4::{self, FarGroups, Tri4};
 use super::{Footprint, LeafPrims};
 use crate::builders::{BuildTree, TreeError};
 use crate::geometry::{Aabb, Triangle};
@@ -175,9 +175,9 @@ pub struct Bvh4<P = Triangle, N = Bvh4Node> {
     /// The leaves as SIMD groups of four triangles, for primitive types with a triangle
     /// [`crate::LeafFormat`] (empty otherwise); leaf children then index these groups.
     pub(crate) tri4: Vec<Tri4>,
-    /// Some group is far ([`Tri4`]): the leaves take the path that tests such groups lane by
-    /// lane (a layout without one never looks).
-    pub(crate) far: bool,
+    /// The groups stored far ([`Tri4`]): where there are any, the leaves take the path that
+    /// tests such groups lane by lane (a layout without one never looks).
+    pub(crate) far: FarGroups,
     /// Node order.
     pub(crate) mapping: Bvh4Mapping,
     /// The kernels packet queries run on (single rays run the same 4-lane kernel on either).
@@ -267,7 +267,8 @@ impl<P: Primitive, N: Node4> Bvh4<P, N> {
         f.kept = f.node_bytes
             + std::mem::size_of_val(&self.prims[..])
             + std::mem::size_of_val(&self.prim_ids[..])
-            + std::mem::size_of_val(&self.tri4[..]);
+            + std::mem::size_of_val(&self.tri4[..])
+            + self.far.bytes();
         f
     }
 

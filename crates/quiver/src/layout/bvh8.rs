@@ -2,7 +2,7 @@
 //! in one 8-lane slab test (one AVX2 instruction per step on the AVX2 path).
 
 use super::collapse::{collapse_sah, Wide};
-use super::tri4::{self, Tri4};
+use super::tri4::{self, FarGroups, Tri4};
 use super::{Footprint, LeafPrims};
 use crate::builders::{BuildConfig, BuildTree, TreeError};
 use crate::geometry::Aabb;
@@ -90,9 +90,9 @@ pub struct Bvh8<P = Triangle> {
     /// The leaves as SIMD groups of four triangles, for primitive types with a triangle
     /// [`LeafFormat`] (empty otherwise); leaf children then index these groups.
     pub(crate) tri4: Vec<Tri4>,
-    /// Some group is far ([`Tri4`]): the leaves take the path that tests such groups lane by
-    /// lane (a layout without one never looks).
-    pub(crate) far: bool,
+    /// The groups stored far ([`Tri4`]): where there are any, the leaves take the path that
+    /// tests such groups lane by lane (a layout without one never looks).
+    pub(crate) far: FarGroups,
     /// The kernels queries run on, checked against the CPU when chosen.
     pub(crate) kernels: Kernels,
     /// Every primitive's box.
@@ -173,7 +173,8 @@ impl<P: Primitive> Bvh8<P> {
         f.kept = f.node_bytes
             + std::mem::size_of_val(&self.prims[..])
             + std::mem::size_of_val(&self.prim_ids[..])
-            + std::mem::size_of_val(&self.tri4[..]);
+            + std::mem::size_of_val(&self.tri4[..])
+            + self.far.bytes();
         f
     }
 

@@ -19,7 +19,7 @@ use super::bvh2::{compact_children, Addressing, Bvh2, Bvh2Mapping, Bvh2Node};
 use super::bvh4::{Bvh4, Bvh4Mapping, Bvh4Node, Node4};
 use super::bvh8::{Bvh8, Bvh8Node};
 use super::collapse::{Child, Wide};
-use super::tri4::{fill, groups as group_count, Tri4};
+use super::tri4::{fill, groups as group_count, FarGroups, Tri4};
 use crate::geometry::Aabb;
 use crate::primitive::{LeafFormat, Primitive};
 use rayon::prelude::*;
@@ -488,10 +488,20 @@ fn refit_wide<const W: usize, N: WideNode<W>, P: Primitive, S: Source<P>>(
     (root, far.into_inner())
 }
 
+/// The far groups after a refit that found some (`far`), or none: found in a pass of their
+/// own, which the refit's tasks, each filling its own groups, could not share a list for.
+fn far_groups<P: Primitive, S: Source<P>>(far: bool, groups: &[Tri4], src: &S) -> FarGroups {
+    if !far {
+        return FarGroups::default();
+    }
+    FarGroups::find(groups, P::LEAF_FORMAT, |id| src.get(id).triangle())
+}
+
 impl<P: Primitive> Bvh8<P> {
     /// Refits in place from `src` (see the [module](self) docs).
     pub(crate) fn refit<S: Source<P>>(&mut self, src: &S) {
-        (self.bounds, self.far) = refit_wide::<8, _, _, _>(
+        let far;
+        (self.bounds, far) = refit_wide::<8, _, _, _>(
             &mut self.nodes,
             &mut self.prims,
             &self.prim_ids,
@@ -499,13 +509,15 @@ impl<P: Primitive> Bvh8<P> {
             true,
             src,
         );
+        self.far = far_groups(far, &self.tri4, src);
     }
 }
 
 impl<P: Primitive, N: Node4> Bvh4<P, N> {
     /// Refits in place from `src`, quantized nodes encoded again (see the [module](self) docs).
     pub(crate) fn refit<S: Source<P>>(&mut self, src: &S) {
-        (self.bounds, self.far) = refit_wide::<4, _, _, _>(
+        let far;
+        (self.bounds, far) = refit_wide::<4, _, _, _>(
             &mut self.nodes,
             &mut self.prims,
             &self.prim_ids,
@@ -513,6 +525,7 @@ impl<P: Primitive, N: Node4> Bvh4<P, N> {
             self.mapping == Bvh4Mapping::DepthFirst,
             src,
         );
+        self.far = far_groups(far, &self.tri4, src);
     }
 }
 

@@ -10,41 +10,98 @@ use bytemuck::{Pod, Zeroable};
 
 use glam::{Mat4, Vec3A, Vec4};
 
-/// Four triangles, one per SIMD lane: 208 bytes.
+/// Four triangles, one per SIMD lane: 160 bytes.
 ///
-/// `rows` holds four vectors, each as x, y and z rows of four lanes. For
-/// [`LeafFormat::FastTriangles`]: `v0`, `e1 = v0 - v1`, `e2 = v2 - v0` and `n = e1 × e2`,
-/// computed with the same glam arithmetic as [`Triangle::intersect`]; for
-/// [`LeafFormat::WatertightTriangles`]: `v0`, `v1`, `v2` and zeros. An unused lane is all
-/// NaN, which every test rejects without a mask (NaN fails every comparison it must pass),
-/// with id `u32::MAX`.
+/// `rows` holds three vectors, each as x, y and z rows of four lanes. For
+/// [`LeafFormat::FastTriangles`]: `v0`, `e1 = v0 - v1` and `e2 = v2 - v0`, computed with the
+/// same glam arithmetic as [`Triangle::intersect`], which the kernels complete with
+/// `n = e1 × e2` in the same operations (six products a test, but no memory: a stored normal
+/// was a quarter of the leaf bytes a ray reads); for [`LeafFormat::WatertightTriangles`]:
+/// `v0`, `v1`, `v2`. An unused lane is all NaN, which every test rejects without a mask (NaN
+/// fails every comparison it must pass), with id `u32::MAX`.
 ///
 /// A group holding a triangle too large or too small for the SIMD arithmetic (it could
 /// overflow or underflow f32 where the scalar tests rescale: a coordinate or edge past
 /// `2^32`, an edge below `2^-40`, a normal outside `2^-80..2^66`; a scene mixing unit sizes
 /// with 1e15 or 1e-15 holds such groups) is stored *far*: `v0`, `v1`, `v2` in both formats,
-/// row 3 all NaN with the payload `0x7fc029ca`, and the kernels test its lanes one by one
+/// its index in the layout's list of far groups, and the kernels test its lanes one by one
 /// with the scalar test, so every layout answers what [`Triangle::intersect`] answers.
+///
+/// ```
+/// use quiver::glam::Vec3A;
+/// use quiver::{BuildOptions, Bvh8, Isa, Triangle};
+/// let tris = [Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y); 3];
+/// let (_, tree) = BuildOptions::default().build_with_tree(&tris);
+/// let bvh: Bvh8 = Bvh8::from_tree(&tree, &tris, &Default::default(), Isa::detect()).unwrap();
+/// let g = &bvh.groups()[0];
+/// assert_eq!(std::mem::size_of_val(g), 160);
+/// let mut ids = g.id;
+/// ids.sort();
+/// assert_eq!(ids, [0, 1, 2, u32::MAX]);
+/// // The fast format's second row is e1 = v0 - v1 = -X; an unused lane is NaN.
+/// assert_eq!(g.rows[1][0][..3], [-1.0; 3]);
+/// assert!(g.rows[1][0][3].is_nan());
+/// ```
 #[repr(C, align(16))]
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 pub struct Tri4 {
-    /// Four vectors as `[x, y, z]` rows of four lanes.
-    pub rows: [[[f32; 4]; 3]; 4],
+    /// Three vectors as `[x, y, z]` rows of four lanes.
+    pub rows: [[[f32; 4]; 3]; 3],
     /// Each lane's primitive index in the input; `u32::MAX` for an unused lane.
     pub id: [u32; 4],
 }
 
-const _: () = assert!(std::mem::size_of::<Tri4>() == 208);
+const _: () = assert!(std::mem::size_of::<Tri4>() == 160);
+
+/// The groups of a layout stored far (see [`Tri4`]): their indices, ascending. Empty in
+/// nearly every BVH; only the kernels' far path, which a layout without far groups never
+/// takes, looks a group up.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub(crate) struct FarGroups(Vec<u32>);
+
+impl FarGroups {
+    /// Whether any group is far.
+    #[inline(always)]
+    pub(crate) fn any(&self) -> bool {
+        !self.0.is_empty()
+    }
+
+    /// Whether group `g` is far.
+    #[inline]
+    pub(crate) fn has(&self, g: usize) -> bool {
+        self.0.binary_search(&(g as u32)).is_ok()
+    }
+
+    /// The bytes the list holds.
+    pub(crate) fn bytes(&self) -> usize {
+        std::mem::size_of_val(&self.0[..])
+    }
+
+    /// The far groups among `groups`, whose lanes' triangles `tri(id)` gives, as [`fill`]
+    /// decides them (for a refit that made some group far).
+    pub(crate) fn find(
+        groups: &[Tri4],
+        format: LeafFormat,
+        tri: impl Fn(u32) -> Option<Triangle> + Sync,
+    ) -> Self {
+        use rayon::prelude::*;
+        let far = groups
+            .par_iter()
+            .enumerate()
+            .filter_map(|(i, g)| {
+                let tris = g.id.map(|id| if id == u32::MAX { None } else { tri(id) });
+                fill(&mut Tri4::zeroed(), &tris, format).then_some(i as u32)
+            })
+            .collect();
+        FarGroups(far)
+    }
+}
 
 /// Groups of four needed for `count` triangles.
 #[inline(always)]
 pub(crate) fn groups(count: u32) -> u32 {
     count.div_ceil(4)
 }
-
-/// Row 3's word in every lane of a far group (see [`Tri4`]): a NaN no arithmetic produces
-/// and no triangle the builders keep holds (a non-finite triangle is far itself).
-const FAR: u32 = 0x7fc0_29ca;
 
 /// A triangle's fast-test terms: `v0`, `e1 = v0 - v1`, `e2 = v2 - v0`, `n = e1 × e2`, with
 /// the same glam arithmetic as [`Triangle::intersect`].
@@ -111,19 +168,14 @@ pub(crate) fn fill(g: &mut Tri4, tris: &[Option<Triangle>; 4], format: LeafForma
         }
     }
     let far = out_of_band(Vec4::from_array(corners), [&fast[1], &fast[2], &fast[3]]) & used != 0;
-    g.rows = match format {
-        _ if far => {
-            transpose(&tris.map(|t| t.map_or(UNUSED, |t| [t.v[0], t.v[1], t.v[2], Vec3A::NAN])))
-        }
-        LeafFormat::FastTriangles => fast,
-        LeafFormat::WatertightTriangles => {
-            transpose(&tris.map(|t| t.map_or(UNUSED, |t| [t.v[0], t.v[1], t.v[2], Vec3A::ZERO])))
-        }
+    let vertices =
+        || transpose(&tris.map(|t| t.map_or(UNUSED, |t| [t.v[0], t.v[1], t.v[2], t.v[0]])));
+    let [a, b, c, _] = match format {
+        LeafFormat::FastTriangles if !far => fast,
+        LeafFormat::FastTriangles | LeafFormat::WatertightTriangles => vertices(),
         LeafFormat::Plain => unreachable!("plain leaves are not packed"),
     };
-    if far {
-        g.rows[3] = [[f32::from_bits(FAR); 4]; 3];
-    }
+    g.rows = [a, b, c];
     far
 }
 
@@ -132,17 +184,17 @@ pub(crate) fn fill(g: &mut Tri4, tris: &[Option<Triangle>; 4], format: LeafForma
 const PREFETCH: usize = 16;
 
 /// Writes the groups of the leaf over leaf positions `range` (`ids`: every position's input
-/// index) in `format` to `out`, which holds exactly `groups(range.len())` of them; returns
-/// whether any of them is far.
+/// index) in `format` to `out`, which holds exactly `groups(range.len())` of them, the first
+/// being group `base`; adds those stored far to `far`.
 fn pack<P: Primitive>(
     prims: &LeafPrims<P>,
     ids: &[u32],
     range: std::ops::Range<usize>,
     format: LeafFormat,
-    out: &mut [Tri4],
-) -> bool {
-    let mut far = false;
-    for (start, g) in range.clone().step_by(4).zip(out) {
+    (base, out): (u32, &mut [Tri4]),
+    far: &mut Vec<u32>,
+) {
+    for ((start, g), i) in range.clone().step_by(4).zip(out).zip(base..) {
         let four = start..(start + 4).min(range.end);
         g.id = [u32::MAX; 4];
         g.id[..four.len()].copy_from_slice(&ids[four.clone()]);
@@ -151,9 +203,10 @@ fn pack<P: Primitive>(
             prims.prefetch(ids, j + PREFETCH);
             *t = prims.at(ids, j).triangle();
         }
-        far |= fill(g, &tris, format);
+        if fill(g, &tris, format) {
+            far.push(i);
+        }
     }
-    far
 }
 
 /// The leaf-order primitives a wide layout keeps: all of them for a plain leaf format, none
@@ -169,16 +222,16 @@ pub(crate) fn plain_only<P: Primitive>(prims: LeafPrims<P>, ids: &[u32]) -> Vec<
 /// For primitive types with a triangle [`LeafFormat`]: packs every leaf of the collapsed tree
 /// into groups and points the leaf at its first group instead of its first primitive. Plain
 /// formats keep their leaves and get no groups. The groups are numbered in one pass over the
-/// nodes, then filled by all threads, each leaf into its own range. Also returns whether any
-/// group is far (see [`Tri4`]).
+/// nodes, then filled by all threads, each leaf into its own range. Also returns the groups
+/// stored far (see [`Tri4`]).
 pub(crate) fn pack_leaves<P: Primitive, const W: usize>(
     wide: &mut [Wide<W>],
     prims: &LeafPrims<P>,
     ids: &[u32],
-) -> (Vec<Tri4>, bool) {
+) -> (Vec<Tri4>, FarGroups) {
     use rayon::prelude::*;
     if P::LEAF_FORMAT == LeafFormat::Plain {
-        return (Vec::new(), false);
+        return (Vec::new(), FarGroups::default());
     }
     // (first primitive, count) of each leaf, in the order its groups are stored.
     let mut leaves = Vec::new();
@@ -195,17 +248,27 @@ pub(crate) fn pack_leaves<P: Primitive, const W: usize>(
     let mut out: Vec<Tri4> = bytemuck::zeroed_vec(total as usize);
     let mut rest = &mut out[..];
     let mut jobs = Vec::with_capacity(leaves.len());
+    let mut base = 0u32;
     for (first, count) in leaves {
-        let (mine, tail) = std::mem::take(&mut rest).split_at_mut(groups(count as u32) as usize);
+        let n = groups(count as u32);
+        let (mine, tail) = std::mem::take(&mut rest).split_at_mut(n as usize);
         rest = tail;
-        jobs.push((first..first + count, mine));
+        jobs.push((first..first + count, (base, mine)));
+        base += n;
     }
-    let far = jobs
+    let mut far: Vec<u32> = jobs
         .into_par_iter()
         .with_min_len(256)
-        .map(|(range, mine)| pack(prims, ids, range, P::LEAF_FORMAT, mine))
-        .reduce(|| false, |a, b| a | b);
-    (out, far)
+        .fold(Vec::new, |mut far, (range, out)| {
+            pack(prims, ids, range, P::LEAF_FORMAT, out, &mut far);
+            far
+        })
+        .reduce(Vec::new, |mut a, mut b| {
+            a.append(&mut b);
+            a
+        });
+    far.sort_unstable();
+    (out, FarGroups(far))
 }
 
 impl Tri4 {
@@ -220,11 +283,5 @@ impl Tri4 {
             )
         };
         Triangle::new(v(0), v(1), v(2))
-    }
-
-    /// Whether the kernels test this group lane by lane with the scalar test (see [`Tri4`]).
-    #[inline(always)]
-    pub(crate) fn is_far(&self) -> bool {
-        self.rows[3][0][0].to_bits() == FAR
     }
 }

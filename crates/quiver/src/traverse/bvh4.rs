@@ -172,7 +172,7 @@ pub(crate) fn closest_from<N: WideNode, B: BoxTest, P: Primitive, S: Stats, F: F
     stats: &mut S,
     filter: &mut F,
 ) {
-    if leaves.far {
+    if leaves.far.any() {
         *best = closest_far::<N, B, P, S, F>(nodes, leaves, ray, root, *best, stats, filter);
         return;
     }
@@ -259,7 +259,7 @@ pub(crate) fn any_from<N: WideNode, B: BoxTest, P: Primitive, S: Stats, F: Filte
     stats: &mut S,
     filter: &mut F,
 ) -> bool {
-    if leaves.far {
+    if leaves.far.any() {
         return any_far::<N, B, P, S, F>(nodes, leaves, ray, root, stats, filter);
     }
     any_walk::<N, B, P, S, F, false>(nodes, leaves, ray, root, stats, filter)

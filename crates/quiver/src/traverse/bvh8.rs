@@ -160,7 +160,7 @@ pub(crate) fn closest_from<V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<
     stats: &mut S,
     filter: &mut F,
 ) {
-    if leaves.far {
+    if leaves.far.any() {
         *best = closest_far::<V, B, P, S, F>(cpu, nodes, leaves, ray, root, *best, stats, filter);
         return;
     }
@@ -228,7 +228,7 @@ pub(crate) fn any_from<V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>
     stats: &mut S,
     filter: &mut F,
 ) -> bool {
-    if leaves.far {
+    if leaves.far.any() {
         return any_far::<V, B, P, S, F>(cpu, nodes, leaves, ray, root, stats, filter);
     }
     any_walk::<V, B, P, S, F, false>(cpu, nodes, leaves, ray, root, stats, filter)
@@ -319,7 +319,7 @@ pub(crate) fn closest_on<B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
     stats: &mut S,
     filter: &mut F,
 ) -> Option<Hit> {
-    if bvh.far {
+    if bvh.far.any() {
         return closest_on_far::<B, P, S, F>(kernels, bvh, ray, stats, filter);
     }
     closest_on_as::<B, P, S, F, false>(kernels, bvh, ray, stats, filter)
@@ -364,7 +364,7 @@ pub(crate) fn any_on<B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
     stats: &mut S,
     filter: &mut F,
 ) -> bool {
-    if bvh.far {
+    if bvh.far.any() {
         return any_on_far::<B, P, S, F>(kernels, bvh, ray, stats, filter);
     }
     any_on_as::<B, P, S, F, false>(kernels, bvh, ray, stats, filter)

@@ -5,6 +5,7 @@
 use super::tri4::{any, any_far, closest, closest_far, Ray4Tri};
 use super::{Filter, Stats};
 use crate::geometry::{Hit, Ray};
+use crate::layout::tri4::FarGroups;
 use crate::layout::{Bvh4, Bvh8, Node4, Tri4};
 use crate::primitive::{LeafFormat, Primitive};
 
@@ -16,8 +17,9 @@ pub(crate) struct Leaves<'a, P> {
     pub prims: &'a [P],
     pub ids: &'a [u32],
     pub tri4: &'a [Tri4],
-    /// Some group is far ([`Tri4`]): leaves go through the groups' lane-by-lane path.
-    pub far: bool,
+    /// The groups stored far ([`Tri4`]); where there are any, leaves go through the path
+    /// that tests such groups lane by lane.
+    pub far: &'a FarGroups,
 }
 
 impl<P: Primitive> Leaves<'_, P> {
@@ -54,8 +56,8 @@ impl<P: Primitive> Leaves<'_, P> {
         stats: &mut S,
         filter: &mut F,
     ) -> bool {
-        if P::LEAF_FORMAT != LeafFormat::Plain && self.far {
-            let groups = self.groups(first, count);
+        if P::LEAF_FORMAT != LeafFormat::Plain && self.far.any() {
+            let groups = (self.groups(first, count), first, self.far);
             let (found, b) = closest_far(groups, count, ray, P::LEAF_FORMAT, *best, stats, filter);
             *best = b;
             return found;
@@ -92,7 +94,7 @@ impl<P: Primitive> Leaves<'_, P> {
             format => {
                 let r = prep.get_or_insert_with(|| Ray4Tri::new(ray, format));
                 closest::<S, F, FAR>(
-                    self.groups(first, count),
+                    (self.groups(first, count), first, self.far),
                     count,
                     ray,
                     r,
@@ -117,8 +119,8 @@ impl<P: Primitive> Leaves<'_, P> {
         stats: &mut S,
         filter: &mut F,
     ) -> bool {
-        if P::LEAF_FORMAT != LeafFormat::Plain && self.far {
-            let groups = self.groups(first, count);
+        if P::LEAF_FORMAT != LeafFormat::Plain && self.far.any() {
+            let groups = (self.groups(first, count), first, self.far);
             return any_far(groups, count, ray, P::LEAF_FORMAT, stats, filter);
         }
         self.any_as::<S, F, false>(first, count, ray, prep, stats, filter)
@@ -150,7 +152,7 @@ impl<P: Primitive> Leaves<'_, P> {
             format => {
                 let r = prep.get_or_insert_with(|| Ray4Tri::new(ray, format));
                 any::<S, F, FAR>(
-                    self.groups(first, count),
+                    (self.groups(first, count), first, self.far),
                     count,
                     ray,
                     r,
@@ -171,7 +173,7 @@ impl<P: Primitive, N: Node4> Bvh4<P, N> {
             prims: &self.prims,
             ids: &self.prim_ids,
             tri4: &self.tri4,
-            far: self.far,
+            far: &self.far,
         }
     }
 }
@@ -184,7 +186,7 @@ impl<P: Primitive> Bvh8<P> {
             prims: &self.prims,
             ids: &self.prim_ids,
             tri4: &self.tri4,
-            far: self.far,
+            far: &self.far,
         }
     }
 }

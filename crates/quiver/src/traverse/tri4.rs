@@ -8,6 +8,7 @@ use super::simd::bits;
 use super::{accepts, offer, Filter, Stats};
 use crate::geometry::{Hit, PrimHit, Ray};
 use crate::intersect::Watertight;
+use crate::layout::tri4::FarGroups;
 use crate::layout::Tri4;
 use crate::primitive::{LeafFormat, Primitive};
 use wide::f32x4;
@@ -54,7 +55,13 @@ fn row(g: &Tri4, v: usize, a: usize) -> f32x4 {
 #[inline(always)]
 fn fast4(g: &Tri4, r: &Ray4Tri, t_max: f32) -> (u32, [f32; 4], [f32; 4], [f32; 4]) {
     let [dx, dy, dz] = r.d;
-    let (nx, ny, nz) = (row(g, 3, 0), row(g, 3, 1), row(g, 3, 2));
+    let (e1x, e1y, e1z) = (row(g, 1, 0), row(g, 1, 1), row(g, 1, 2));
+    let (e2x, e2y, e2z) = (row(g, 2, 0), row(g, 2, 1), row(g, 2, 2));
+    // n = e1 × e2 as glam computes it (and as packing did before), each component a product
+    // minus a product.
+    let nx = e1y * e2z - e1z * e2y;
+    let ny = e1z * e2x - e1x * e2z;
+    let nz = e1x * e2y - e1y * e2x;
     let det = (nx * dx + ny * dy) + nz * dz;
     let inv = f32x4::ONE / det;
     let [cx, cy, cz] = [0, 1, 2].map(|a| row(g, 0, a) - r.o[a]);
@@ -62,8 +69,6 @@ fn fast4(g: &Tri4, r: &Ray4Tri, t_max: f32) -> (u32, [f32; 4], [f32; 4], [f32; 4
     let rx = dy * cz - cy * dz;
     let ry = dz * cx - cz * dx;
     let rz = dx * cy - cx * dy;
-    let (e1x, e1y, e1z) = (row(g, 1, 0), row(g, 1, 1), row(g, 1, 2));
-    let (e2x, e2y, e2z) = (row(g, 2, 0), row(g, 2, 1), row(g, 2, 2));
     let u = ((rx * e2x + ry * e2y) + rz * e2z) * inv;
     let v = ((rx * e1x + ry * e1y) + rz * e1z) * inv;
     let t = ((nx * cx + ny * cy) + nz * cz) * inv;
@@ -114,18 +119,23 @@ fn watertight4(g: &Tri4, r: &Ray4Tri, t_max: f32) -> (u32, u32, [f32; 4], [f32; 
     )
 }
 
-/// Hits of one group in `format` within `[t_min, t_max]`: `(lane, hit)` for each. `FAR`:
-/// the layout holds far groups ([`Tri4`]), which are tested lane by lane.
+/// A leaf's groups as the kernels take them: the groups, the index of the first in the
+/// layout, and the layout's far groups.
+pub(crate) type LeafGroups<'a> = (&'a [Tri4], usize, &'a FarGroups);
+
+/// Hits of one group in `format` within `[t_min, t_max]`: `(lane, hit)` for each. `far`:
+/// the group is stored far and is tested lane by lane; only looked at when `FAR` (the
+/// layout holds far groups).
 #[inline(always)]
 pub(crate) fn group_hits<const FAR: bool>(
-    g: &Tri4,
+    (g, far): (&Tri4, bool),
     r: &Ray4Tri,
     ray: &Ray,
     t_max: f32,
     format: LeafFormat,
     mut hit: impl FnMut(usize, PrimHit),
 ) {
-    if FAR && g.is_far() {
+    if FAR && far {
         for (l, h) in far_hits(g, ray, t_max, format).into_iter().enumerate() {
             if let Some(h) = h {
                 hit(l, h);
@@ -179,7 +189,7 @@ fn far_hits(g: &Tri4, ray: &Ray, t_max: f32, format: LeafFormat) -> [Option<Prim
 #[cold]
 #[inline(never)]
 pub(crate) fn closest_far<S: Stats, F: Filter<Hit>>(
-    groups: &[Tri4],
+    groups: LeafGroups<'_>,
     count: u32,
     ray: &Ray,
     format: LeafFormat,
@@ -196,7 +206,7 @@ pub(crate) fn closest_far<S: Stats, F: Filter<Hit>>(
 #[cold]
 #[inline(never)]
 pub(crate) fn any_far<S: Stats, F: Filter<Hit>>(
-    groups: &[Tri4],
+    groups: LeafGroups<'_>,
     count: u32,
     ray: &Ray,
     format: LeafFormat,
@@ -212,7 +222,7 @@ pub(crate) fn any_far<S: Stats, F: Filter<Hit>>(
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn closest<S: Stats, F: Filter<Hit>, const FAR: bool>(
-    groups: &[Tri4],
+    (groups, first, far): LeafGroups<'_>,
     count: u32,
     ray: &Ray,
     r: &Ray4Tri,
@@ -223,9 +233,10 @@ pub(crate) fn closest<S: Stats, F: Filter<Hit>, const FAR: bool>(
 ) -> bool {
     stats.prims(count);
     let mut found = false;
-    for g in groups {
+    for (i, g) in groups.iter().enumerate() {
+        let g = (g, FAR && far.has(first + i));
         group_hits::<FAR>(g, r, ray, best.t, format, |l, h| {
-            found |= offer(best, g.id[l], h, filter)
+            found |= offer(best, g.0.id[l], h, filter)
         });
     }
     if !found {
@@ -238,7 +249,7 @@ pub(crate) fn closest<S: Stats, F: Filter<Hit>, const FAR: bool>(
 /// interval. `FAR`: as for [`group_hits`].
 #[inline(always)]
 pub(crate) fn any<S: Stats, F: Filter<Hit>, const FAR: bool>(
-    groups: &[Tri4],
+    (groups, first, far): LeafGroups<'_>,
     count: u32,
     ray: &Ray,
     r: &Ray4Tri,
@@ -248,8 +259,9 @@ pub(crate) fn any<S: Stats, F: Filter<Hit>, const FAR: bool>(
 ) -> bool {
     for (i, g) in groups.iter().enumerate() {
         let mut hit = false;
+        let g = (g, FAR && far.has(first + i));
         group_hits::<FAR>(g, r, ray, ray.t_max, format, |l, h| {
-            hit = hit || accepts(g.id[l], h, filter)
+            hit = hit || accepts(g.0.id[l], h, filter)
         });
         if hit {
             stats.prims((4 * (i as u32 + 1)).min(count));

@@ -19,7 +19,7 @@ impl<P: Primitive, N: Node4> RayQuery for Bvh4<P, N> {
         stats: &mut S,
         filter: &mut F,
     ) -> Option<Hit> {
-        if self.far {
+        if self.far.any() {
             return closest4_far::<N, B, P, S, F>(self, ray, stats, filter);
         }
         closest4::<N, B, P, S, F>(self, ray, stats, filter)
@@ -31,7 +31,7 @@ impl<P: Primitive, N: Node4> RayQuery for Bvh4<P, N> {
         stats: &mut S,
         filter: &mut F,
     ) -> bool {
-        if self.far {
+        if self.far.any() {
             return any4_far::<N, B, P, S, F>(self, ray, stats, filter);
         }
         any4::<N, B, P, S, F>(self, ray, stats, filter)

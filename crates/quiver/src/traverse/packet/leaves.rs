@@ -10,7 +10,7 @@ use crate::primitive::{LeafFormat, PacketLeaf, PacketRays, Primitive};
 use crate::traverse::lane8::F8;
 use crate::traverse::leaves::Leaves;
 use crate::traverse::simd::bits;
-use crate::traverse::tri4::{group_hits, Ray4Tri};
+use crate::traverse::tri4::{group_hits, LeafGroups, Ray4Tri};
 use std::ops::Range;
 
 /// Runs the leaf `range` (primitives, or groups holding `range.len()` triangles) for the
@@ -39,8 +39,12 @@ pub(super) fn test_leaf<V: F8, P: Primitive, F>(
     match P::LEAF_FORMAT {
         LeafFormat::Plain => P::intersect_packet(&leaves.prims[range], &mut leaf),
         format => {
-            let groups = leaves.groups(range.start, range.len() as u32);
-            if leaves.far {
+            let groups = (
+                leaves.groups(range.start, range.len() as u32),
+                range.start,
+                leaves.far,
+            );
+            if leaves.far.any() {
                 groups_packet_far::<V, F>(cpu, groups, format, &mut leaf);
             } else {
                 groups_packet::<V, F, false>(cpu, groups, format, &mut leaf);
@@ -54,7 +58,7 @@ pub(super) fn test_leaf<V: F8, P: Primitive, F>(
 #[inline(never)]
 fn groups_packet_far<V: F8, F>(
     cpu: V::Cpu,
-    groups: &[Tri4],
+    groups: LeafGroups<'_>,
     format: LeafFormat,
     rays: &mut PacketLeaf<'_, F>,
 ) where
@@ -104,33 +108,35 @@ fn chunks_packet<V: F8, F>(
 #[inline(always)]
 fn groups_packet<V: F8, F, const FAR: bool>(
     cpu: V::Cpu,
-    groups: &[Tri4],
+    (groups, first, far): LeafGroups<'_>,
     format: LeafFormat,
     rays: &mut PacketLeaf<'_, F>,
 ) where
     F: FnMut(usize, u32, PrimHit) -> Option<f32>,
 {
+    let is_far = |i: usize| FAR && far.has(first + i);
     if format == LeafFormat::WatertightTriangles {
         for i in bits(rays.live) {
             let ray = rays.ray(i);
             let r = Ray4Tri::new(&ray, format);
-            for g in groups {
+            for (j, g) in groups.iter().enumerate() {
                 if rays.live >> i & 1 == 0 {
                     break;
                 }
-                group_for_ray::<F, FAR>(g, i, &ray, &r, format, rays);
+                group_for_ray::<F, FAR>((g, is_far(j)), i, &ray, &r, format, rays);
             }
         }
         return;
     }
-    for g in groups {
-        if FAR && g.is_far() {
+    for (j, g) in groups.iter().enumerate() {
+        if is_far(j) {
             for i in bits(rays.live) {
                 if rays.live >> i & 1 == 0 {
                     continue;
                 }
                 let ray = rays.ray(i);
-                group_for_ray::<F, true>(g, i, &ray, &Ray4Tri::new(&ray, format), format, rays);
+                let r = Ray4Tri::new(&ray, format);
+                group_for_ray::<F, true>((g, true), i, &ray, &r, format, rays);
             }
             continue;
         }
@@ -152,7 +158,7 @@ fn groups_packet<V: F8, F, const FAR: bool>(
 /// test, which takes a far group lane by lane when `FAR`; the hits reported as the lanes' ids.
 #[inline(always)]
 fn group_for_ray<F, const FAR: bool>(
-    g: &Tri4,
+    (g, far): (&Tri4, bool),
     i: usize,
     ray: &Ray,
     r: &Ray4Tri,
@@ -168,7 +174,7 @@ fn group_for_ray<F, const FAR: bool>(
     };
     let mut found = [None; 4];
     group_hits::<FAR>(
-        g,
+        (g, far),
         r,
         &ray,
         limit,
@@ -202,7 +208,12 @@ fn group_lane8<V: F8>(
     k: usize,
 ) -> (u32, V, V, V) {
     let row = |v: usize| V::splat3(cpu, [g.rows[v][0][l], g.rows[v][1][l], g.rows[v][2][l]]);
-    let (v0, e1, e2, n) = (row(0), row(1), row(2), row(3));
+    let (v0, e1, e2) = (row(0), row(1), row(2));
+    let n = [
+        e1[1].mul(e2[2]).sub(e1[2].mul(e2[1])),
+        e1[2].mul(e2[0]).sub(e1[0].mul(e2[2])),
+        e1[0].mul(e2[1]).sub(e1[1].mul(e2[0])),
+    ];
     let (dx, dy, dz) = (
         V::of(cpu, &pk.d[0][k]),
         V::of(cpu, &pk.d[1][k]),
