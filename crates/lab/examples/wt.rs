@@ -1,0 +1,57 @@
+//! Watertight probe: `cargo run --release -p quiver-lab --example wt -- KERNEL SCENE RAYS REPS`
+//! traces RAYS incoherent rays (the accuracy study's) through SCENE as triangles on one thread,
+//! closest then any hit, with KERNEL `fast` (fast triangles, plain boxes) or `water`
+//! (watertight triangles, conservative boxes), or `fast-conservative` / `water-plain`, and prints the fastest round's Mrays/s of each.
+//! For quick A/B runs and instruction counts under callgrind; the table comes from
+//! `quiver accuracy`.
+use quiver::intersect::Watertight;
+use quiver::traverse::{BoxTest, ConservativeBoxes, FastBoxes, NoFilter, NoStats};
+use quiver::{Bvh, Primitive, Ray, RayQuery};
+use quiver_scenes::Scene;
+use std::time::Instant;
+
+fn time<P: Primitive, B: BoxTest>(bvh: &Bvh<P>, rays: &[Ray], reps: usize) -> [f64; 2] {
+    [false, true].map(|any| {
+        let mut best = f64::MAX;
+        for _ in 0..reps {
+            let t = Instant::now();
+            let mut n = 0usize;
+            for r in rays {
+                n += if any {
+                    bvh.any_hit_with::<B, _, _>(r, &mut NoStats, &mut NoFilter) as usize
+                } else {
+                    bvh.closest_hit_with::<B, _, _>(r, &mut NoStats, &mut NoFilter)
+                        .is_some() as usize
+                };
+            }
+            std::hint::black_box(n);
+            best = best.min(t.elapsed().as_secs_f64());
+        }
+        rays.len() as f64 / best / 1e6
+    })
+}
+
+fn main() {
+    let a: Vec<String> = std::env::args().collect();
+    let kernel = a.get(1).map_or("fast", |s| s.as_str());
+    let name = a.get(2).map_or("teapot12", |s| s.as_str());
+    let n: usize = a.get(3).map_or(300_000, |s| s.parse().expect("rays"));
+    let reps: usize = a.get(4).map_or(5, |s| s.parse().expect("reps"));
+    let tris = Scene::load(name).expect("scene").triangles();
+    let bounds = tris
+        .iter()
+        .fold(quiver::Aabb::EMPTY, |b, t| b.union(&t.bounds()));
+    let rays = quiver_lab::rays::random_rays(&bounds, n, 17);
+    let [c, y] = match kernel {
+        "water" | "water-plain" => {
+            let w: Vec<Watertight> = tris.iter().map(|&t| Watertight(t)).collect();
+            match kernel {
+                "water" => time::<_, ConservativeBoxes>(&Bvh::new(&w), &rays, reps),
+                _ => time::<_, FastBoxes>(&Bvh::new(&w), &rays, reps),
+            }
+        }
+        "fast-conservative" => time::<_, ConservativeBoxes>(&Bvh::new(&tris), &rays, reps),
+        _ => time::<_, FastBoxes>(&Bvh::new(&tris), &rays, reps),
+    };
+    println!("{kernel} {name}: closest {c:.2} any {y:.2} Mrays/s");
+}
