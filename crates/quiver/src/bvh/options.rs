@@ -88,11 +88,11 @@ impl BuildOptions<'static> {
     /// spatial split candidates scored by the SAH, so long, thin or overlapping triangles
     /// are cut at split planes instead of stretching boxes over their neighbours. The tree
     /// holds up to 1.3 references per primitive (a split triangle sits in several leaves;
-    /// hits still name it once, by its index in the input). Builds take far longer than the
-    /// default's (19 to 73 times in the README's measurement: the spatial pass is not yet
-    /// tuned); traces were faster where triangles are long or overlap (up to 1.5 times),
-    /// and up to 13% slower on other scenes. A refit keeps the tree but boxes whole
-    /// primitives, losing the spatial splits' tightness: rebuild after large motion.
+    /// hits still name it once, by its index in the input). Builds take 3.1 to 4.1 times the
+    /// default's (README, "Spatial splits"); traces were faster where triangles are long or
+    /// overlap (1.14 to 1.44 times on eye rays), and at most 5% slower elsewhere. A refit
+    /// keeps the tree but boxes whole primitives, losing the spatial splits' tightness:
+    /// rebuild after large motion.
     ///
     /// ```
     /// use quiver::{reference, BuildOptions, Ray, RayQuery, Triangle};
