@@ -109,9 +109,11 @@ fn sbvh_gives_the_oracles_hits_in_every_layout_and_isa() {
     for layout in Layout::ALL {
         let options = BuildOptions::high_quality().layout(layout);
         let (bvh, tree) = options.build_with_tree(&tris);
-        // The scene must make the builder split triangles, or this tests nothing new.
+        // The scene must make the builder split triangles, or this tests nothing new (at
+        // least one in twenty: the spatial pass skips nodes below 64 references since the
+        // cheaper binning, so 3000 slivers hold fewer pieces than the one in ten they did).
         assert!(
-            tree.prim_indices.len() > tris.len() + tris.len() / 10,
+            tree.prim_indices.len() > tris.len() + tris.len() / 20,
             "{layout}: only {} references for {} triangles",
             tree.prim_indices.len(),
             tris.len()

@@ -91,9 +91,17 @@ pub fn build_with_areas(
     build_clipped(bounds, areas, config, builder, None)
 }
 
-/// Each primitive's triangle by input index, for the spatial splits of [`Builder::Sbvh`]
-/// (`None` for a primitive that has none: its box is clipped instead).
-pub(crate) type Triangles<'a> = &'a (dyn Fn(u32) -> Option<Triangle> + Sync);
+/// Each primitive's triangle by input index, for the spatial splits of [`Builder::Sbvh`].
+#[derive(Clone, Copy)]
+pub(crate) struct Triangles<'a> {
+    /// The triangle of primitive `i` (`None` for a primitive that has none: its box is
+    /// clipped instead).
+    pub get: &'a (dyn Fn(u32) -> Option<Triangle> + Sync),
+    /// A hint that `get(i)` comes soon, so its memory can be fetched meanwhile: the spatial
+    /// pass reads the triangles in the order of a node's references, a gather from the
+    /// input. May do nothing.
+    pub soon: &'a (dyn Fn(u32) + Sync),
+}
 
 /// [`build_with_areas`], with the triangles [`Builder::Sbvh`] clips at its spatial split
 /// planes (`None`: it clips the boxes). The other builders ignore them.

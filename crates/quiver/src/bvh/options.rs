@@ -3,7 +3,7 @@
 
 use super::nodes::{lay_out, Laid};
 use super::Bvh;
-use crate::builders::{build_clipped, BuildConfig, BuildTree, Builder, CostModel};
+use crate::builders::{build_clipped, BuildConfig, BuildTree, Builder, CostModel, Triangles};
 use crate::frame::Frame;
 use crate::isa::Isa;
 use crate::layout::{Layout, LeafPrims};
@@ -88,11 +88,11 @@ impl BuildOptions<'static> {
     /// spatial split candidates scored by the SAH, so long, thin or overlapping triangles
     /// are cut at split planes instead of stretching boxes over their neighbours. The tree
     /// holds up to 1.3 references per primitive (a split triangle sits in several leaves;
-    /// hits still name it once, by its index in the input). Builds take far longer than the
-    /// default's (19 to 73 times in the README's measurement: the spatial pass is not yet
-    /// tuned); traces were faster where triangles are long or overlap (up to 1.5 times),
-    /// and up to 13% slower on other scenes. A refit keeps the tree but boxes whole
-    /// primitives, losing the spatial splits' tightness: rebuild after large motion.
+    /// hits still name it once, by its index in the input). Builds take 3.1 to 4.1 times the
+    /// default's (README, "Spatial splits"); traces were faster where triangles are long or
+    /// overlap (1.14 to 1.44 times on eye rays), and at most 5% slower elsewhere. A refit
+    /// keeps the tree but boxes whole primitives, losing the spatial splits' tightness:
+    /// rebuild after large motion.
     ///
     /// ```
     /// use quiver::{reference, BuildOptions, Ray, RayQuery, Triangle};
@@ -213,16 +213,21 @@ impl<'p> BuildOptions<'p> {
             };
             let in_frame = local.as_deref().unwrap_or(prims);
             // The triangle a spatial split clips is the one the kernels test.
-            let tri = |i: u32| match P::LEAF_FORMAT {
+            let get = |i: u32| match P::LEAF_FORMAT {
                 LeafFormat::Plain => None,
                 _ => in_frame[i as usize].triangle(),
+            };
+            let soon = |i: u32| crate::isa::prefetch_at(in_frame, i as usize);
+            let tri = Triangles {
+                get: &get,
+                soon: &soon,
             };
             let tree = build_clipped(
                 &frame.boxes(&bounds),
                 self.areas(in_frame).as_deref(),
                 &self.effective_config::<P>(),
                 self.builder,
-                Some(&tri),
+                Some(tri),
             );
             let nodes = self.lay_out(&tree, LeafPrims::Slice(in_frame));
             let tree = frame.world_tree(tree, &bounds);
@@ -273,13 +278,17 @@ impl<'p> BuildOptions<'p> {
                     .map(|i| framed(i).surface_area())
                     .collect()
             });
-            let tri = |i: u32| Some(framed(i));
+            let get = |i: u32| Some(framed(i));
+            let tri = Triangles {
+                get: &get,
+                soon: &|_| {},
+            };
             let tree = build_clipped(
                 &frame.boxes(&bounds),
                 areas.as_deref(),
                 &self.effective_config::<Triangle>(),
                 self.builder,
-                Some(&tri),
+                Some(tri),
             );
             let nodes = self.lay_out(&tree, LeafPrims::Input(&framed));
             let tree = frame.world_tree(tree, &bounds);
