@@ -494,7 +494,7 @@ fn far_groups<P: Primitive, S: Source<P>>(far: bool, groups: &[Tri4], src: &S) -
     if !far {
         return FarGroups::default();
     }
-    FarGroups::find(groups, P::LEAF_FORMAT, |id| src.get(id).triangle())
+    FarGroups::find(groups, |id| src.get(id).triangle())
 }
 
 impl<P: Primitive> Bvh8<P> {

@@ -77,20 +77,16 @@ impl FarGroups {
         std::mem::size_of_val(&self.0[..])
     }
 
-    /// The far groups among `groups`, whose lanes' triangles `tri(id)` gives, as [`fill`]
-    /// decides them (for a refit that made some group far).
-    pub(crate) fn find(
-        groups: &[Tri4],
-        format: LeafFormat,
-        tri: impl Fn(u32) -> Option<Triangle> + Sync,
-    ) -> Self {
+    /// The far groups among `groups`, whose lanes' triangles `tri(id)` gives, decided as
+    /// [`fill`] decides them (for a refit that made some group far).
+    pub(crate) fn find(groups: &[Tri4], tri: impl Fn(u32) -> Option<Triangle> + Sync) -> Self {
         use rayon::prelude::*;
         let far = groups
             .par_iter()
             .enumerate()
             .filter_map(|(i, g)| {
                 let tris = g.id.map(|id| if id == u32::MAX { None } else { tri(id) });
-                fill(&mut Tri4::zeroed(), &tris, format).then_some(i as u32)
+                fast_rows(&tris).1.then_some(i as u32)
             })
             .collect();
         FarGroups(far)
@@ -134,7 +130,7 @@ fn out_of_band(corners: Vec4, [e1, e2, n]: [&[[f32; 4]; 3]; 3]) -> u32 {
 
 /// Four lanes' vectors as rows: `rows[k][a][lane]` is component `a` of `lanes[lane][k]`.
 #[inline(always)]
-fn transpose(lanes: &[[Vec3A; 4]; 4]) -> [[[f32; 4]; 3]; 4] {
+fn transpose<const K: usize>(lanes: &[[Vec3A; K]; 4]) -> [[[f32; 4]; 3]; K] {
     std::array::from_fn(|k| {
         let m = Mat4::from_cols(
             lanes[0][k].extend(0.0),
@@ -151,13 +147,11 @@ fn transpose(lanes: &[[Vec3A; 4]; 4]) -> [[[f32; 4]; 3]; 4] {
     })
 }
 
-/// Writes the rows of one group from its lanes' triangles (`None`: an unused lane or a
-/// primitive without a triangle, never hit) as `format` stores them; a far group when any
-/// triangle is outside the band (see [`Tri4`]). The ids are the caller's. What packing and
-/// refitting both write; returns whether the group is far.
-pub(crate) fn fill(g: &mut Tri4, tris: &[Option<Triangle>; 4], format: LeafFormat) -> bool {
-    const UNUSED: [Vec3A; 4] = [Vec3A::NAN; 4];
-    let fast = transpose(&tris.map(|t| t.map_or(UNUSED, |t| fast_terms(&t))));
+/// A group's fast-test terms as rows (`v0`, `e1`, `e2`, `n`; an unused lane NaN), and
+/// whether the group is far: some triangle outside the band (see [`Tri4`]).
+#[inline(always)]
+fn fast_rows(tris: &[Option<Triangle>; 4]) -> ([[[f32; 4]; 3]; 4], bool) {
+    let fast = transpose(&tris.map(|t| t.map_or([Vec3A::NAN; 4], |t| fast_terms(&t))));
     let mut corners = [0.0f32; 4];
     let mut used = 0u32;
     for (lane, t) in tris.iter().enumerate() {
@@ -168,14 +162,22 @@ pub(crate) fn fill(g: &mut Tri4, tris: &[Option<Triangle>; 4], format: LeafForma
         }
     }
     let far = out_of_band(Vec4::from_array(corners), [&fast[1], &fast[2], &fast[3]]) & used != 0;
-    let vertices =
-        || transpose(&tris.map(|t| t.map_or(UNUSED, |t| [t.v[0], t.v[1], t.v[2], t.v[0]])));
-    let [a, b, c, _] = match format {
-        LeafFormat::FastTriangles if !far => fast,
-        LeafFormat::FastTriangles | LeafFormat::WatertightTriangles => vertices(),
+    (fast, far)
+}
+
+/// Writes the rows of one group from its lanes' triangles (`None`: an unused lane or a
+/// primitive without a triangle, never hit) as `format` stores them; a far group when any
+/// triangle is outside the band (see [`Tri4`]). The ids are the caller's. What packing and
+/// refitting both write; returns whether the group is far.
+pub(crate) fn fill(g: &mut Tri4, tris: &[Option<Triangle>; 4], format: LeafFormat) -> bool {
+    let (fast, far) = fast_rows(tris);
+    g.rows = match format {
+        LeafFormat::FastTriangles if !far => [fast[0], fast[1], fast[2]],
+        LeafFormat::FastTriangles | LeafFormat::WatertightTriangles => {
+            transpose(&tris.map(|t| t.map_or([Vec3A::NAN; 3], |t| t.v)))
+        }
         LeafFormat::Plain => unreachable!("plain leaves are not packed"),
     };
-    g.rows = [a, b, c];
     far
 }
 
