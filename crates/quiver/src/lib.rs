@@ -48,6 +48,7 @@ pub mod intersect;
 mod isa;
 pub mod layout;
 mod mask;
+mod mem;
 mod mesh;
 pub mod predict;
 pub mod primitive;

@@ -130,17 +130,15 @@ pub(crate) fn build_tree<S: Splitter>(
         "too many primitives for 32-bit node indices"
     );
     let ctx = Ctx { config, areas };
-    let mut refs: Vec<Ref> = idx
-        .par_iter()
-        .map(|&i| Ref::new(&bounds[i as usize], i))
-        .collect();
+    let mut refs: Vec<Ref> = crate::mem::with_capacity(idx.len());
+    refs.par_extend(idx.par_iter().map(|&i| Ref::new(&bounds[i as usize], i)));
     let (node, cent) = refs.par_chunks(CHUNK).map(refs_bounds).reduce(
         || (Aabb::EMPTY, Aabb::EMPTY),
         |a, b| (a.0.union(&b.0), a.1.union(&b.1)),
     );
     // Every node writes its part of the spare buffer before reading it: zeroed pages from
     // the OS, not a copy of `refs`.
-    let mut spare: Vec<Ref> = bytemuck::zeroed_vec(refs.len());
+    let mut spare: Vec<Ref> = crate::mem::zeroed_vec(refs.len());
     let mut order = idx;
     let job = Job {
         splitter,

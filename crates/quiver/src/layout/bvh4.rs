@@ -231,19 +231,17 @@ impl<P: Primitive, N: Node4> Bvh4<P, N> {
         let (groups, far) = tri4::pack_leaves(&mut wide, &prims, &tree.prim_indices);
         let prims = tri4::plain_only(prims, &tree.prim_indices);
         let (slots, pos) = arrange(&wide, mapping, std::mem::size_of::<N>());
-        let nodes = slots
-            .iter()
-            .map(|&s| {
-                N::encode(
-                    if s == HOLE {
-                        &Wide::EMPTY
-                    } else {
-                        &wide[s as usize]
-                    },
-                    &pos,
-                )
-            })
-            .collect();
+        let mut nodes = crate::mem::with_capacity(slots.len());
+        nodes.extend(slots.iter().map(|&s| {
+            N::encode(
+                if s == HOLE {
+                    &Wide::EMPTY
+                } else {
+                    &wide[s as usize]
+                },
+                &pos,
+            )
+        }));
         Bvh4 {
             nodes,
             prims,

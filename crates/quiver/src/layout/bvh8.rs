@@ -139,7 +139,8 @@ impl<P: Primitive> Bvh8<P> {
         let mut wide = collapse_sah::<8>(tree, max_leaf, config.traversal_cost, leaf_cost);
         let (groups, far) = tri4::pack_leaves(&mut wide, &prims, &tree.prim_indices);
         let prims = tri4::plain_only(prims, &tree.prim_indices);
-        let nodes = wide.par_iter().map(Bvh8Node::encode).collect();
+        let mut nodes = crate::mem::with_capacity(wide.len());
+        nodes.par_extend(wide.par_iter().map(Bvh8Node::encode));
         Bvh8 {
             nodes,
             prims,

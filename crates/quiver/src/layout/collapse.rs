@@ -174,10 +174,11 @@ pub(crate) fn collapse_sah<const W: usize>(
         traversal_cost,
         leaf_cost,
     };
-    let mut dp = vec![Dp::<W>::UNSET; n];
+    let mut dp = crate::mem::with_capacity(n);
+    dp.resize(n, Dp::<W>::UNSET);
     costs.subtree(0, &mut dp);
     let plan = Plan { tree, dp: &dp };
-    let mut out = Vec::with_capacity(n / (W - 1) + 1);
+    let mut out = crate::mem::with_capacity(n / (W - 1) + 1);
     plan.emit(0, &mut out);
     out
 }

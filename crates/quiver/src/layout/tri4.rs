@@ -247,7 +247,7 @@ pub(crate) fn pack_leaves<P: Primitive, const W: usize>(
             }
         }
     }
-    let mut out: Vec<Tri4> = bytemuck::zeroed_vec(total as usize);
+    let mut out: Vec<Tri4> = crate::mem::zeroed_vec(total as usize);
     let mut rest = &mut out[..];
     let mut jobs = Vec::with_capacity(leaves.len());
     let mut base = 0u32;
