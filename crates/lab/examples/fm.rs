@@ -1,0 +1,58 @@
+//! Filter and mask price probe: `cargo run --release -p quiver-lab --example fm -- SCENE MODE`
+//! builds SCENE (an SPD generator name) as instances of unit shapes, the world `quiver bench
+//! --instanced` measures, and traces its 256² eye rays (closest hit) and their shadow rays
+//! (any hit) once, in MODE: `plain` (no filter, default masks), `filter` (a filter that
+//! accepts every hit), `mask` (ray mask 1, which every instance shares: it excludes nothing)
+//! or `none` (builds only). Meant for `valgrind --tool=callgrind
+//! --toggle-collect='fm::trace*'`, whose instruction counts, unlike times on a shared
+//! machine, repeat exactly: the difference between modes is the features' price per ray.
+use quiver::{BuildOptions, Hit, Ray, RayQuery};
+use quiver_lab::rays;
+use quiver_scenes::accel::SceneBvh;
+use quiver_scenes::scene::tessellate::DEFAULT_RESOLUTION;
+use quiver_scenes::Scene;
+
+#[inline(never)]
+fn trace_plain(q: &SceneBvh, eye: &[Ray], shadow: &[Ray]) -> usize {
+    let closest = eye.iter().filter(|r| q.closest_hit(r).is_some()).count();
+    closest + shadow.iter().filter(|r| q.any_hit(r)).count()
+}
+
+#[inline(never)]
+fn trace_filtered(q: &SceneBvh, eye: &[Ray], shadow: &[Ray]) -> usize {
+    let accept = |_: &Hit| true;
+    let closest = eye
+        .iter()
+        .filter(|r| q.closest_hit_filtered(r, accept).is_some())
+        .count();
+    closest
+        + shadow
+            .iter()
+            .filter(|r| q.any_hit_filtered(r, accept))
+            .count()
+}
+
+fn main() {
+    let a: Vec<String> = std::env::args().collect();
+    let name = a.get(1).map_or("balls4", |s| s.as_str());
+    let mode = a.get(2).map_or("plain", |s| s.as_str());
+    let scene = Scene::load(name).expect("scene");
+    let q = SceneBvh::build_instanced(&scene, DEFAULT_RESOLUTION, &BuildOptions::default())
+        .expect("an instanced world");
+    let eye = rays::camera_rays(&scene.camera, 256);
+    let light = scene.lights.first().map_or(scene.camera.from, |l| l.pos);
+    let shadow = rays::shadow_rays(&q, &eye, &[light]);
+    let mask = |v: &[Ray]| v.iter().map(|r| r.with_mask(0b1)).collect::<Vec<_>>();
+    let hits = match mode {
+        "plain" => trace_plain(&q, &eye, &shadow),
+        "filter" => trace_filtered(&q, &eye, &shadow),
+        "mask" => trace_plain(&q, &mask(&eye), &mask(&shadow)),
+        "none" => 0,
+        m => panic!("unknown mode {m}: plain, filter, mask or none"),
+    };
+    println!(
+        "{name} {mode}: {} eye, {} shadow rays, {hits} hits",
+        eye.len(),
+        shadow.len()
+    );
+}
