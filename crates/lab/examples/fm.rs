@@ -3,7 +3,8 @@
 //! --instanced` measures, and traces its 256² eye rays (closest hit) and their shadow rays
 //! (any hit) once, in MODE: `plain` (no filter, default masks), `filter` (a filter that
 //! accepts every hit), `mask` (ray mask 1, which every instance shares: it excludes nothing)
-//! or `none` (builds only). Meant for `valgrind --tool=callgrind
+//! `packets` (the eye rays in 8×8 tiles, closest hits as packets of 64), `flat-packets` (the
+//! same through the flattened patch scene) or `none` (builds only). Meant for `valgrind --tool=callgrind
 //! --toggle-collect='fm::trace*'`, whose instruction counts, unlike times on a shared
 //! machine, repeat exactly: the difference between modes is the features' price per ray.
 use quiver::{BuildOptions, Hit, Ray, RayQuery};
@@ -16,6 +17,18 @@ use quiver_scenes::Scene;
 fn trace_plain(q: &SceneBvh, eye: &[Ray], shadow: &[Ray]) -> usize {
     let closest = eye.iter().filter(|r| q.closest_hit(r).is_some()).count();
     closest + shadow.iter().filter(|r| q.any_hit(r)).count()
+}
+
+/// The 256² eye rays in 8×8 tiles, closest hits as packets of 64.
+#[inline(never)]
+fn trace_packets<Q: RayQuery>(q: &Q, tiles: &[Ray]) -> usize {
+    let mut out = vec![None; 64];
+    let mut hits = 0;
+    for p in tiles.chunks(64) {
+        q.closest_hit_packet(p, &mut out[..p.len()]);
+        hits += out[..p.len()].iter().filter(|h| h.is_some()).count();
+    }
+    hits
 }
 
 #[inline(never)]
@@ -47,8 +60,14 @@ fn main() {
         "plain" => trace_plain(&q, &eye, &shadow),
         "filter" => trace_filtered(&q, &eye, &shadow),
         "mask" => trace_plain(&q, &mask(&eye), &mask(&shadow)),
+        "packets" => trace_packets(&q, &rays::camera_tiles(&scene.camera, 256, 8)),
+        "flat-packets" => {
+            let patched = scene.clone().into_patches(DEFAULT_RESOLUTION);
+            let flat = SceneBvh::build_triangles(&patched, &BuildOptions::default());
+            trace_packets(&flat, &rays::camera_tiles(&scene.camera, 256, 8))
+        }
         "none" => 0,
-        m => panic!("unknown mode {m}: plain, filter, mask or none"),
+        m => panic!("unknown mode {m}: plain, filter, mask, packets, flat-packets or none"),
     };
     println!(
         "{name} {mode}: {} eye, {} shadow rays, {hits} hits",
