@@ -13,10 +13,12 @@ pub use refit::RefitError;
 use crate::builders::{prim_bounds, BuildTree, TreeError};
 use crate::frame::Frame;
 use crate::geometry::{Aabb, Hit, Ray, Triangle};
-use crate::isa::Isa;
+use crate::isa::{Isa, Kernels};
 use crate::layout::{bvh2::leaf_order, Footprint};
 use crate::mesh::{MeshError, Positions};
 use crate::primitive::Primitive;
+use crate::traverse::lane8::F8;
+use crate::traverse::packet::{InLanes, RayPacket};
 use crate::traverse::{BoxTest, Filter, PacketQuery, RayQuery, Stats};
 use options::frame_prims;
 
@@ -165,6 +167,22 @@ impl<P: Primitive> Bvh<P> {
     /// What the nodes and leaves occupy.
     pub fn footprint(&self) -> Footprint {
         self.nodes.footprint()
+    }
+
+    /// `ask` of a packet already in lanes (see [`Nodes::in_lanes`]).
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn in_lanes<V: F8, B: BoxTest, S: Stats, F: Filter<Hit>>(
+        &self,
+        kernels: Kernels,
+        cpu: V::Cpu,
+        pk: &mut RayPacket,
+        ask: InLanes<'_>,
+        stats: &mut S,
+        filter: &mut F,
+    ) -> bool {
+        self.nodes
+            .in_lanes::<V, B, S, F>(kernels, cpu, pk, ask, stats, filter)
     }
 }
 

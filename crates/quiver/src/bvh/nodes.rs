@@ -6,11 +6,13 @@
 use crate::builders::{BuildConfig, BuildTree};
 use crate::frame::{Back, Frame};
 use crate::geometry::{Aabb, Hit, Ray};
-use crate::isa::Isa;
+use crate::isa::{Isa, Kernels};
 use crate::layout::{
     Bvh2, Bvh2Mapping, Bvh4, Bvh4Mapping, Bvh8, Footprint, Layout, LeafPrims, QBvh4,
 };
 use crate::primitive::Primitive;
+use crate::traverse::lane8::F8;
+use crate::traverse::packet::{InLanes, RayPacket};
 use crate::traverse::{BoxTest, Filter, PacketQuery, RayQuery, Stats};
 
 /// The nodes and leaves of one [`Layout`].
@@ -112,6 +114,36 @@ impl<P: Primitive> Nodes<P> {
 
     pub(crate) fn footprint(&self) -> Footprint {
         self.unframed(&Aabb::EMPTY).0.footprint()
+    }
+}
+
+impl<P: Primitive> Nodes<P> {
+    /// `ask` of a packet already in lanes (see [`Bvh8::in_lanes`]): the wide layouts in the
+    /// caller's units; false, with nothing done, for binary nodes, a scaled frame (whose rays
+    /// must be brought into it first) or other kernels.
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn in_lanes<V: F8, B: BoxTest, S: Stats, F: Filter<Hit>>(
+        &self,
+        kernels: Kernels,
+        cpu: V::Cpu,
+        pk: &mut RayPacket,
+        ask: InLanes<'_>,
+        stats: &mut S,
+        filter: &mut F,
+    ) -> bool {
+        match self {
+            Nodes::Plain(Laid::Bvh8(b)) => {
+                b.in_lanes::<V, B, S, F>(kernels, cpu, pk, ask, stats, filter)
+            }
+            Nodes::Plain(Laid::Bvh4(b)) => {
+                b.in_lanes::<V, B, S, F>(kernels, cpu, pk, ask, stats, filter)
+            }
+            Nodes::Plain(Laid::QBvh4(b)) => {
+                b.in_lanes::<V, B, S, F>(kernels, cpu, pk, ask, stats, filter)
+            }
+            Nodes::Plain(Laid::Bvh2(_)) | Nodes::Scaled(_) => false,
+        }
     }
 }
 

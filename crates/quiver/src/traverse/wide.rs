@@ -2,11 +2,12 @@
 //! (`bvh4`, `bvh8`) or the packet kernel (`packet`), on the BVH's instruction set. Above both,
 //! so neither kernel imports the other's entry points.
 
-use super::packet::PacketQuery;
-use super::packet::{any_rays_on, closest_rays_on};
+use super::lane8::F8;
+use super::packet::{any_rays_on, closest_rays_on, in_lanes, InLanes, PacketQuery, RayPacket};
 use super::query::RayQuery;
 use super::{bvh4, bvh8, BoxTest, Filter, Stats};
 use crate::geometry::{Hit, Ray};
+use crate::isa::Kernels;
 use crate::layout::{Bvh4, Bvh8, Bvh8Node, Node4};
 use crate::primitive::Primitive;
 
@@ -133,6 +134,51 @@ impl<P: Primitive> RayQuery for Bvh8<P> {
             stats,
             filter,
         )
+    }
+}
+
+impl<P: Primitive, N: Node4> Bvh4<P, N> {
+    /// `ask` of a packet already in lanes, on the caller's lanes `V`, which run `kernels`:
+    /// false, with nothing done, where this BVH runs other kernels (ask it the usual way).
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn in_lanes<V: F8, B: BoxTest, S: Stats, F: Filter<Hit>>(
+        &self,
+        kernels: Kernels,
+        cpu: V::Cpu,
+        pk: &mut RayPacket,
+        ask: InLanes<'_>,
+        stats: &mut S,
+        filter: &mut F,
+    ) -> bool {
+        let ours = self.kernels == kernels;
+        if ours {
+            let leaves = self.leaves();
+            in_lanes::<N, V, B, P, S, F>(cpu, &self.nodes, &leaves, pk, ask, stats, filter);
+        }
+        ours
+    }
+}
+
+impl<P: Primitive> Bvh8<P> {
+    /// As [`Bvh4::in_lanes`].
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn in_lanes<V: F8, B: BoxTest, S: Stats, F: Filter<Hit>>(
+        &self,
+        kernels: Kernels,
+        cpu: V::Cpu,
+        pk: &mut RayPacket,
+        ask: InLanes<'_>,
+        stats: &mut S,
+        filter: &mut F,
+    ) -> bool {
+        let ours = self.kernels == kernels;
+        if ours {
+            let leaves = self.leaves();
+            in_lanes::<Bvh8Node, V, B, P, S, F>(cpu, &self.nodes, &leaves, pk, ask, stats, filter);
+        }
+        ours
     }
 }
 

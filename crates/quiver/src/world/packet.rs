@@ -1,17 +1,22 @@
 //! A world's packet queries: a coherent packet walks the top level as one (the packet walk of
 //! `traverse::packet` over the top level's 8-wide nodes), and at each instance leaf the rays
 //! that enter it and see it go into object space together, transformed in SIMD lanes, and on
-//! into the instance's geometry as one packet. Packets that come apart, and incoherent ones,
-//! go on ray by ray through the single-ray walk.
+//! into the instance's geometry as one packet: straight from lanes into the geometry's packet
+//! walk where it is a wide layout in the caller's units on the world's kernels (the common
+//! case; laying the rays out one by one and packing them again was a sixth of an instanced
+//! packet query's instructions), through its packet query as rays otherwise. Packets that
+//! come apart, and incoherent ones, go on ray by ray through the single-ray walk.
 
 use super::query::InInstance;
-use super::{Placed, World, WorldHit};
+use super::{Geometry, Placed, World, WorldHit};
 use crate::geometry::{Hit, Ray};
 use crate::isa::Kernels;
 use crate::layout::Bvh8Node;
 use crate::primitive::{Primitive, CHUNKS, LANES, PACKET_RAYS};
 use crate::traverse::lane8::F8;
-use crate::traverse::packet::{each_packet, walk, AloneIn, PacketMode, RayPacket, Visit};
+use crate::traverse::packet::{
+    each_packet, walk, AloneIn, InLanes, PacketBuilder, PacketMode, RayPacket, Visit,
+};
 use crate::traverse::simd::bits;
 use crate::traverse::{BoxTest, Filter, PacketQuery, RayQuery, Stats};
 use glam::Vec3A;
@@ -36,11 +41,74 @@ fn uniform_mask(rays: &[Ray]) -> Option<u32> {
     rays.iter().all(|r| r.mask == m).then_some(m)
 }
 
-/// The rays `m` of packet `pk` in instance `p`'s object space, each searching up to its
-/// `limit`: the packet's origin and direction lanes transformed eight at a time, then laid
-/// out as rays for the geometry's packet query. Rays outside `m` are left as they are.
+/// Chunk `k` of packet `pk` in instance `p`'s object space: its origin and direction lanes
+/// transformed (an instance placed as it is takes them as they are).
 #[inline(always)]
-fn to_object(
+fn chunk_to_object(p: &Placed, pk: &RayPacket, k: usize) -> ([f32x8; 3], [f32x8; 3]) {
+    let (o, d) = (&pk.rays.o, &pk.rays.d);
+    let (wo, wd) = ([o[0][k], o[1][k], o[2][k]], [d[0][k], d[1][k], d[2][k]]);
+    if p.identity {
+        return (wo, wd);
+    }
+    let lin = p.world_to_object.matrix3;
+    let col = |c: Vec3A| [f32x8::splat(c.x), f32x8::splat(c.y), f32x8::splat(c.z)];
+    let (cx, cy, cz) = (col(lin.x_axis), col(lin.y_axis), col(lin.z_axis));
+    let t = col(p.world_to_object.translation);
+    // glam's `transform_point3a` / `transform_vector3a` lane-wise (x·col0 + y·col1 + z·col2,
+    // + translation), so every ray is transformed as the single-ray walk transforms it.
+    let mut lo = [f32x8::ZERO; 3];
+    let mut ld = [f32x8::ZERO; 3];
+    for a in 0..3 {
+        lo[a] = cx[a] * wo[0] + cy[a] * wo[1] + cz[a] * wo[2] + t[a];
+        ld[a] = cx[a] * wd[0] + cy[a] * wd[1] + cz[a] * wd[2];
+    }
+    (lo, ld)
+}
+
+/// The rays `m` of packet `pk` in instance `p`'s object space, as a packet of their own in
+/// `out`, each searching over its interval so far.
+#[inline(always)]
+fn local_packet(p: &Placed, pk: &RayPacket, m: u64, out: &mut RayPacket) {
+    let mut b = PacketBuilder::over(out);
+    for k in 0..CHUNKS {
+        let lanes = (m >> (LANES * k)) as u32 & 0xFF;
+        if lanes != 0 {
+            let (lo, ld) = chunk_to_object(p, pk, k);
+            b.chunk(out, k, lo, ld, pk.rays.t_min[k], pk.rays.limit[k], lanes);
+        }
+    }
+    b.finish(out);
+}
+
+impl<P: Primitive> Geometry<P> {
+    /// `ask` of a packet already in object space, on the world's lanes (see
+    /// [`crate::Bvh`]'s `in_lanes`): false, with nothing done, where the geometry's layout
+    /// takes its rays the usual way.
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn in_lanes<V: F8, B: BoxTest, S: Stats, F: Filter<Hit>>(
+        &self,
+        kernels: Kernels,
+        cpu: V::Cpu,
+        pk: &mut RayPacket,
+        ask: InLanes<'_>,
+        stats: &mut S,
+        filter: &mut F,
+    ) -> bool {
+        match self {
+            Geometry::Triangles(b, _) => {
+                b.in_lanes::<V, B, S, F>(kernels, cpu, pk, ask, stats, filter)
+            }
+            Geometry::Prims(b, _) => b.in_lanes::<V, B, S, F>(kernels, cpu, pk, ask, stats, filter),
+        }
+    }
+}
+
+/// The rays `m` of packet `pk` in instance `p`'s object space as rays, each searching up to
+/// its `limit`, for a geometry that takes its rays through its packet query (binary nodes, a
+/// scaled frame, other kernels). Rays outside `m` are left as they are.
+#[inline(always)]
+fn local_rays(
     p: &Placed,
     pk: &RayPacket,
     rays: &[Ray],
@@ -48,27 +116,12 @@ fn to_object(
     limit: impl Fn(usize) -> f32,
     out: &mut [Ray],
 ) {
-    let lin = p.world_to_object.matrix3;
-    let tr = p.world_to_object.translation;
-    let col = |c: Vec3A| [f32x8::splat(c.x), f32x8::splat(c.y), f32x8::splat(c.z)];
-    let (cx, cy, cz, t) = (col(lin.x_axis), col(lin.y_axis), col(lin.z_axis), col(tr));
     for k in 0..CHUNKS {
         let lanes = (m >> (LANES * k)) as u32 & 0xFF;
         if lanes == 0 {
             continue;
         }
-        let (o, d) = (&pk.rays.o, &pk.rays.d);
-        let (ox, oy, oz) = (o[0][k], o[1][k], o[2][k]);
-        let (dx, dy, dz) = (d[0][k], d[1][k], d[2][k]);
-        // The arithmetic of glam's `transform_point3a` / `transform_vector3a`, lane-wise:
-        // x·col0 + y·col1 + z·col2 (+ translation), so every ray is transformed as the
-        // single-ray walk transforms it.
-        let mut lo = [f32x8::ZERO; 3];
-        let mut ld = [f32x8::ZERO; 3];
-        for a in 0..3 {
-            lo[a] = cx[a] * ox + cy[a] * oy + cz[a] * oz + t[a];
-            ld[a] = cx[a] * dx + cy[a] * dy + cz[a] * dz;
-        }
+        let (lo, ld) = chunk_to_object(p, pk, k);
         let (lo, ld) = (lo.map(|v| v.to_array()), ld.map(|v| v.to_array()));
         for l in bits(lanes) {
             let i = LANES * k + l;
@@ -79,28 +132,6 @@ fn to_object(
                 ..rays[i]
             };
         }
-    }
-}
-
-/// The rays of `m` as the geometry's packet query takes them, with their flags.
-#[inline(always)]
-fn local_rays(
-    p: &Placed,
-    pk: &RayPacket,
-    rays: &[Ray],
-    m: u64,
-    limit: impl Fn(usize) -> f32,
-    out: &mut [Ray],
-) {
-    if p.identity {
-        for i in bits(m) {
-            out[i] = Ray {
-                t_max: limit(i),
-                ..rays[i]
-            };
-        }
-    } else {
-        to_object(p, pk, rays, m, limit, out);
     }
 }
 
@@ -131,6 +162,9 @@ impl<P: Primitive> World<P> {
         let mut local = [Ray::new(Vec3A::ZERO, Vec3A::ZERO); PACKET_RAYS];
         let mut active = [false; PACKET_RAYS];
         let mut found: [Option<Hit>; PACKET_RAYS] = [None; PACKET_RAYS];
+        let mut records = [Hit::none(0.0); PACKET_RAYS];
+        let mut lp = RayPacket::empty();
+        let kernels = top.kernels;
         walk::<Bvh8Node, V, B, S, _>(
             cpu,
             &top.nodes,
@@ -149,31 +183,44 @@ impl<P: Primitive> World<P> {
                             if m == 0 {
                                 continue;
                             }
-                            local_rays(
-                                p,
-                                pk,
-                                rays,
-                                m,
-                                #[inline(always)]
-                                |i| best[i].t,
-                                &mut local,
-                            );
-                            flags(m, n, &mut active);
+                            let geometry = &self.geometries[p.geometry as usize];
                             let mut f = InInstance {
                                 filter: &mut *filter,
                                 instance: p.instance,
                                 geometry: p.geometry,
                             };
-                            let query = PacketQuery::new(&local[..n])
-                                .active(&active[..n])
-                                .mode(PacketMode::Always);
-                            self.geometries[p.geometry as usize]
-                                .closest_hit_packet_with::<B, S, _>(
+                            local_packet(p, pk, m, &mut lp);
+                            for i in bits(m) {
+                                records[i] = Hit::none(best[i].t);
+                            }
+                            let ask = InLanes::Closest(&mut records);
+                            if geometry
+                                .in_lanes::<V, B, S, _>(kernels, cpu, &mut lp, ask, stats, &mut f)
+                            {
+                                for i in bits(m) {
+                                    found[i] = records[i].found();
+                                }
+                            } else {
+                                local_rays(
+                                    p,
+                                    pk,
+                                    rays,
+                                    m,
+                                    #[inline(always)]
+                                    |i| best[i].t,
+                                    &mut local,
+                                );
+                                flags(m, n, &mut active);
+                                let query = PacketQuery::new(&local[..n])
+                                    .active(&active[..n])
+                                    .mode(PacketMode::Always);
+                                geometry.closest_hit_packet_with::<B, S, _>(
                                     query,
                                     &mut found[..n],
                                     stats,
                                     &mut f,
                                 );
+                            }
                             for i in bits(m) {
                                 if let Some(h) = found[i] {
                                     if best[i].is_beaten_by(h.t, p.instance) {
@@ -227,6 +274,8 @@ impl<P: Primitive> World<P> {
         let mut local = [Ray::new(Vec3A::ZERO, Vec3A::ZERO); PACKET_RAYS];
         let mut active = [false; PACKET_RAYS];
         let mut blocked = [false; PACKET_RAYS];
+        let mut lp = RayPacket::empty();
+        let kernels = top.kernels;
         walk::<Bvh8Node, V, B, S, _>(
             cpu,
             &top.nodes,
@@ -245,22 +294,32 @@ impl<P: Primitive> World<P> {
                             if m == 0 {
                                 continue;
                             }
-                            local_rays(p, pk, rays, m, |i| rays[i].t_max, &mut local);
-                            flags(m, n, &mut active);
+                            let geometry = &self.geometries[p.geometry as usize];
                             let mut f = InInstance {
                                 filter: &mut *filter,
                                 instance: p.instance,
                                 geometry: p.geometry,
                             };
-                            let query = PacketQuery::new(&local[..n])
-                                .active(&active[..n])
-                                .mode(PacketMode::Always);
-                            self.geometries[p.geometry as usize].any_hit_packet_with::<B, S, _>(
-                                query,
-                                &mut blocked[..n],
-                                stats,
-                                &mut f,
-                            );
+                            local_packet(p, pk, m, &mut lp);
+                            for i in bits(m) {
+                                blocked[i] = false;
+                            }
+                            let ask = InLanes::Any(&mut blocked);
+                            if !geometry
+                                .in_lanes::<V, B, S, _>(kernels, cpu, &mut lp, ask, stats, &mut f)
+                            {
+                                local_rays(p, pk, rays, m, |i| rays[i].t_max, &mut local);
+                                flags(m, n, &mut active);
+                                let query = PacketQuery::new(&local[..n])
+                                    .active(&active[..n])
+                                    .mode(PacketMode::Always);
+                                geometry.any_hit_packet_with::<B, S, _>(
+                                    query,
+                                    &mut blocked[..n],
+                                    stats,
+                                    &mut f,
+                                );
+                            }
                             for i in bits(m) {
                                 if blocked[i] {
                                     hit[i] = true;

@@ -181,6 +181,67 @@ pub(crate) struct RayPacket {
     leaf_rays: u32,
 }
 
+/// Fills a [`RayPacket`] chunk by chunk from rays already in lanes: what [`RayPacket::new`]
+/// does after gathering, and what a world's instance entry does with rays it transformed in
+/// lanes, into one packet it reuses (no round trip through one `Ray` per lane, no copy of
+/// the packet). Chunks never given stay inactive.
+pub(crate) struct PacketBuilder {
+    bound: ChunkBound,
+}
+
+impl PacketBuilder {
+    /// Starts over `p`: every ray of it inactive.
+    #[inline(always)]
+    pub(crate) fn over(p: &mut RayPacket) -> PacketBuilder {
+        p.active = 0;
+        p.rays.limit = [f32x8::NEG_INFINITY; CHUNKS];
+        p.leaf_visits = 0;
+        p.leaf_rays = 0;
+        PacketBuilder {
+            bound: ChunkBound::new(),
+        }
+    }
+
+    /// Chunk `k`'s rays into `p`: origins, directions, intervals, and `on`, the lanes traced.
+    /// Lanes with a NaN `t_min` or `t_max` can hit nothing and stay inactive.
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn chunk(
+        &mut self,
+        p: &mut RayPacket,
+        k: usize,
+        o: [f32x8; 3],
+        d: [f32x8; 3],
+        t_min: f32x8,
+        t_max: f32x8,
+        on: u32,
+    ) {
+        let numbers = t_min.simd_eq(t_min) & t_max.simd_eq(t_max);
+        let valid = on & numbers.to_bitmask();
+        if valid == 0 {
+            return;
+        }
+        p.active |= u64::from(valid) << (LANES * k);
+        let vm = lane_mask(valid);
+        let inv = [reciprocal8(d[0]), reciprocal8(d[1]), reciprocal8(d[2])];
+        for a in 0..3 {
+            p.rays.o[a][k] = o[a];
+            p.rays.d[a][k] = d[a];
+            p.inv[a][k] = inv[a];
+            p.neg[a][k] = sign_mask(inv[a]);
+        }
+        p.rays.t_min[k] = t_min;
+        p.rays.limit[k] = sel(vm, t_max, f32x8::NEG_INFINITY);
+        self.bound.add(o, inv, t_min, t_max, valid, vm);
+    }
+
+    /// The packet's bound, once every chunk is in.
+    #[inline(always)]
+    pub(crate) fn finish(self, p: &mut RayPacket) {
+        p.bound = self.bound.finish();
+    }
+}
+
 impl RayPacket {
     /// Packs `rays` (at most [`PACKET_RAYS`]); bit `i` of `active` says whether ray `i` is
     /// traced. Rays with a NaN `t_min` or `t_max` can hit nothing and start inactive.
@@ -192,8 +253,38 @@ impl RayPacket {
     #[inline(always)]
     pub(crate) fn new(rays: &[Ray], active: u64) -> RayPacket {
         debug_assert!(rays.len() <= PACKET_RAYS);
+        let mut p = RayPacket::empty();
+        let mut b = PacketBuilder::over(&mut p);
+        for (k, chunk) in rays.chunks(LANES).enumerate() {
+            let f = match <&[Ray; LANES]>::try_from(chunk) {
+                Ok(full) => ray_rows(full),
+                Err(_) => {
+                    // A partial chunk: the missing lanes repeat its first ray, inactive.
+                    let mut full = [chunk[0]; LANES];
+                    full[..chunk.len()].copy_from_slice(chunk);
+                    ray_rows(&full)
+                }
+            };
+            let on = (active >> (LANES * k)) as u32 & (u32::MAX >> (32 - chunk.len()));
+            b.chunk(
+                &mut p,
+                k,
+                [f[0], f[1], f[2]],
+                [f[3], f[4], f[5]],
+                f[6],
+                f[7],
+                on,
+            );
+        }
+        b.finish(&mut p);
+        p
+    }
+
+    /// A packet of no rays, to be filled by a [`PacketBuilder`].
+    #[inline(always)]
+    pub(crate) fn empty() -> RayPacket {
         let zero = [f32x8::ZERO; CHUNKS];
-        let mut p = RayPacket {
+        RayPacket {
             rays: PacketRays {
                 o: [zero; 3],
                 d: [zero; 3],
@@ -206,43 +297,7 @@ impl RayPacket {
             bound: BoundBuilder::new().finish(),
             leaf_visits: 0,
             leaf_rays: 0,
-        };
-        let mut bound = ChunkBound::new();
-        for (k, chunk) in rays.chunks(LANES).enumerate() {
-            let f = match <&[Ray; LANES]>::try_from(chunk) {
-                Ok(full) => ray_rows(full),
-                Err(_) => {
-                    // A partial chunk: the missing lanes repeat its first ray, inactive.
-                    let mut full = [chunk[0]; LANES];
-                    full[..chunk.len()].copy_from_slice(chunk);
-                    ray_rows(&full)
-                }
-            };
-            let on = (active >> (LANES * k)) as u32 & (u32::MAX >> (32 - chunk.len()));
-            // Rays with a NaN t_min or t_max can hit nothing.
-            let numbers = f[6].simd_eq(f[6]) & f[7].simd_eq(f[7]);
-            let valid = on & numbers.to_bitmask();
-            if valid == 0 {
-                continue;
-            }
-            p.active |= u64::from(valid) << (LANES * k);
-            let vm = lane_mask(valid);
-            let o = [f[0], f[1], f[2]];
-            let d = [f[3], f[4], f[5]];
-            let inv = [reciprocal8(d[0]), reciprocal8(d[1]), reciprocal8(d[2])];
-            for a in 0..3 {
-                p.rays.o[a][k] = o[a];
-                p.rays.d[a][k] = d[a];
-                p.inv[a][k] = inv[a];
-                p.neg[a][k] = sign_mask(inv[a]);
-            }
-            let (t_min, t_max) = (f[6], f[7]);
-            p.rays.t_min[k] = t_min;
-            p.rays.limit[k] = sel(vm, t_max, f32x8::NEG_INFINITY);
-            bound.add(o, inv, t_min, t_max, valid, vm);
         }
-        p.bound = bound.finish();
-        p
     }
 
     /// Ray `i`'s search limit.

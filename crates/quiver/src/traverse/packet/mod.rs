@@ -33,8 +33,8 @@ mod node;
 mod query;
 mod walk;
 
-pub(crate) use lanes::RayPacket;
-pub(crate) use query::{any_rays_on, closest_rays_on};
+pub(crate) use lanes::{PacketBuilder, RayPacket};
+pub(crate) use query::{any_rays_on, closest_rays_on, in_lanes, InLanes};
 pub(crate) use walk::{walk, AloneIn, Visit};
 
 use crate::geometry::Ray;

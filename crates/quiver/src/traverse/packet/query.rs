@@ -11,7 +11,7 @@ use super::PacketQuery;
 use super::{each_packet, PACKET_RAYS};
 use crate::geometry::{Hit, PrimHit, Ray};
 use crate::isa::Kernels;
-use crate::primitive::Primitive;
+use crate::primitive::{lane, Primitive};
 use crate::traverse::lane8::F8;
 use crate::traverse::leaves::Leaves;
 use crate::traverse::simd::bits;
@@ -42,7 +42,15 @@ fn closest_rays<N: PacketNode, V: F8, B: BoxTest, P: Primitive, S: Stats, F: Fil
                     *b = Hit::none(r.t_max);
                 }
                 closest_packet::<N, V, B, P, S, F>(
-                    cpu, nodes, leaves, rays, &mut pk, &mut best, stats, filter,
+                    cpu,
+                    nodes,
+                    leaves,
+                    #[inline(always)]
+                    |_, i| rays[i],
+                    &mut pk,
+                    &mut best,
+                    stats,
+                    filter,
                 );
                 for (i, (h, b)) in hits.iter_mut().zip(best).enumerate() {
                     *h = if on >> i & 1 == 1 { b.found() } else { None };
@@ -85,7 +93,15 @@ fn any_rays<N: PacketNode, V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<
             if packet {
                 let mut pk = RayPacket::new(rays, on);
                 any_packet::<N, V, B, P, S, F>(
-                    cpu, nodes, leaves, rays, &mut pk, out, stats, filter,
+                    cpu,
+                    nodes,
+                    leaves,
+                    #[inline(always)]
+                    |_, i| rays[i],
+                    &mut pk,
+                    out,
+                    stats,
+                    filter,
                 );
             } else {
                 for (i, (o, r)) in out.iter_mut().zip(rays).enumerate() {
@@ -97,14 +113,53 @@ fn any_rays<N: PacketNode, V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<
     );
 }
 
+/// Ray `i` of `pk` read back from its lanes, searching up to its limit.
+#[inline(always)]
+fn lane_ray(pk: &RayPacket, i: usize) -> Ray {
+    pk.rays.ray(i)
+}
+
+/// What a packet already in lanes asks of a BVH (a world's rays entering an instance).
+pub(crate) enum InLanes<'a> {
+    /// Closest hits into these records, one per ray ([`Hit::none`] at its limit to start).
+    Closest(&'a mut [Hit]),
+    /// Whether each ray hits anything: sets these flags (false to start).
+    Any(&'a mut [bool]),
+}
+
+/// `ask` of packet `pk` over one node format, on the caller's lanes `V`: the packet walk
+/// without cutting and packing rays first. A ray the packet hands over to the single-ray walk
+/// is read back from its lanes.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn in_lanes<N: PacketNode, V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
+    cpu: V::Cpu,
+    nodes: &[N],
+    leaves: &Leaves<P>,
+    pk: &mut RayPacket,
+    ask: InLanes<'_>,
+    stats: &mut S,
+    filter: &mut F,
+) {
+    match ask {
+        InLanes::Closest(best) => closest_packet::<N, V, B, P, S, F>(
+            cpu, nodes, leaves, lane_ray, pk, best, stats, filter,
+        ),
+        InLanes::Any(hit) => {
+            any_packet::<N, V, B, P, S, F>(cpu, nodes, leaves, lane_ray, pk, hit, stats, filter)
+        }
+    }
+}
+
 /// Closest hits of one packet into `best` (one record per ray, [`Hit::none`] to start).
+/// `ray(pk, i)` is ray `i` as the single-ray walk takes it when the packet hands it over.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 fn closest_packet<N: PacketNode, V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
     cpu: V::Cpu,
     nodes: &[N],
     leaves: &Leaves<P>,
-    rays: &[Ray],
+    ray: impl Fn(&RayPacket, usize) -> Ray,
     pk: &mut RayPacket,
     best: &mut [Hit],
     stats: &mut S,
@@ -122,13 +177,14 @@ fn closest_packet<N: PacketNode, V: F8, B: BoxTest, P: Primitive, S: Stats, F: F
             let (range, b, cand) = match visit {
                 Visit::Leaf(range, b, cand) => (range, b, cand),
                 Visit::Alone(i, at) => {
+                    let alone = ray(pk, i);
                     match at {
                         AloneIn::Leaf(r) => {
                             let count = r.len() as u32;
                             leaves.closest(
                                 r.start,
                                 count,
-                                &rays[i],
+                                &alone,
                                 &mut None,
                                 &mut best[i],
                                 stats,
@@ -139,7 +195,7 @@ fn closest_packet<N: PacketNode, V: F8, B: BoxTest, P: Primitive, S: Stats, F: F
                             cpu,
                             nodes,
                             leaves,
-                            &rays[i],
+                            &alone,
                             node,
                             &mut best[i],
                             stats,
@@ -175,19 +231,23 @@ fn closest_packet<N: PacketNode, V: F8, B: BoxTest, P: Primitive, S: Stats, F: F
     );
 }
 
-/// Any-hit answers of one packet: sets `hit[i]` for every ray that hits something.
+/// Any-hit answers of one packet: sets `hit[i]` for every ray that hits something. `ray`
+/// as for [`closest_packet`].
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 fn any_packet<N: PacketNode, V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
     cpu: V::Cpu,
     nodes: &[N],
     leaves: &Leaves<P>,
-    rays: &[Ray],
+    ray: impl Fn(&RayPacket, usize) -> Ray,
     pk: &mut RayPacket,
     hit: &mut [bool],
     stats: &mut S,
     filter: &mut F,
 ) {
+    // Every active ray's whole interval: an any-hit query never shortens one, and a ray
+    // whose candidate the filter rejects searches on over all of it.
+    let t_max = pk.rays.limit;
     walk::<N, V, B, S, _>(
         cpu,
         nodes,
@@ -200,13 +260,14 @@ fn any_packet<N: PacketNode, V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filte
             let (range, b, cand) = match visit {
                 Visit::Leaf(range, b, cand) => (range, b, cand),
                 Visit::Alone(i, at) => {
+                    let alone = ray(pk, i);
                     let found = match at {
                         AloneIn::Leaf(r) => {
                             let (first, n) = (r.start, r.len() as u32);
-                            leaves.any(first, n, &rays[i], &mut None, stats, filter)
+                            leaves.any(first, n, &alone, &mut None, stats, filter)
                         }
                         AloneIn::Inner(node) => N::any_from::<V, B, P, S, F>(
-                            cpu, nodes, leaves, &rays[i], node, stats, filter,
+                            cpu, nodes, leaves, &alone, node, stats, filter,
                         ),
                     };
                     if found {
@@ -229,7 +290,7 @@ fn any_packet<N: PacketNode, V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filte
                 |i: usize, id: u32, h: PrimHit| {
                     if !accepts(id, h, filter) {
                         // Rejected: the ray searches on over its whole interval.
-                        return Some(rays[i].t_max);
+                        return Some(lane(&t_max, i));
                     }
                     hit[i] = true;
                     found |= 1 << i;
