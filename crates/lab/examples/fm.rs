@@ -22,7 +22,7 @@ fn trace_plain(q: &SceneBvh, eye: &[Ray], shadow: &[Ray]) -> usize {
 /// The 256² eye rays in 8×8 tiles, closest hits as packets of 64.
 #[inline(never)]
 fn trace_packets<Q: RayQuery>(q: &Q, tiles: &[Ray]) -> usize {
-    let mut out = vec![None; 64];
+    let mut out = [None; 64];
     let mut hits = 0;
     for p in tiles.chunks(64) {
         q.closest_hit_packet(p, &mut out[..p.len()]);
