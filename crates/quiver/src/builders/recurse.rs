@@ -420,28 +420,125 @@ where
 
 /// Writes the references of `src` that go left to `l`, the others to `r`, in order; the
 /// lengths of `l` and `r` are the counts (a mismatch panics on the index).
+///
+/// Which side a reference goes to follows the input's order, and in many inputs no branch
+/// predictor learns it: on the snowden scan a loop branching on it mispredicted on about a
+/// quarter of the references, and partitioning took a quarter of the build. So each block of
+/// 64 is decided first into a bit mask, without branches, and then stored in one copy when it
+/// is all on one side, else by walking each side's bits (the branches left are the loops'
+/// exits, a few per block).
 fn scatter<F>(src: &[Ref], l: &mut [Ref], r: &mut [Ref], goes_left: &F) -> (Aabb, Aabb)
 where
     F: Fn(Vec3A) -> bool,
 {
-    let (mut a, mut b) = (0, 0);
-    let (mut cl, mut cr) = (Aabb::EMPTY, Aabb::EMPTY);
-    for x in src {
-        let c = x.center();
-        if goes_left(c) {
-            l[a] = *x;
-            a += 1;
-            cl.grow(c);
-        } else {
-            r[b] = *x;
-            b += 1;
-            cr.grow(c);
+    let mut sides = [Side::new(l), Side::new(r)];
+    for block in src.chunks(BLOCK) {
+        let mut left = 0u64;
+        for (i, x) in block.iter().enumerate() {
+            left |= (goes_left(x.center()) as u64) << i;
+        }
+        let all = u64::MAX >> (BLOCK - block.len());
+        if left == all || left == 0 {
+            sides[(left == 0) as usize].take(block);
+            continue;
+        }
+        for (side, mut bits) in sides.iter_mut().zip([left, !left & all]) {
+            while bits != 0 {
+                side.push(&block[bits.trailing_zeros() as usize]);
+                bits &= bits - 1;
+            }
         }
     }
+    let [l, r] = sides;
     debug_assert_eq!(
-        (a, b),
-        (l.len(), r.len()),
+        (l.at, r.at),
+        (l.out.len(), r.out.len()),
         "the counts must match the partition"
     );
-    (cl, cr)
+    (l.centroids, r.centroids)
+}
+
+/// References [`scatter`] decides at once (one bit each of a `u64`).
+const BLOCK: usize = 64;
+
+/// One side of a partition being written: its output, how much is written, and the
+/// centroid bounds of what is.
+struct Side<'a> {
+    out: &'a mut [Ref],
+    at: usize,
+    centroids: Aabb,
+}
+
+impl<'a> Side<'a> {
+    fn new(out: &'a mut [Ref]) -> Self {
+        Side {
+            out,
+            at: 0,
+            centroids: Aabb::EMPTY,
+        }
+    }
+
+    /// Appends `x`.
+    #[inline(always)]
+    fn push(&mut self, x: &Ref) {
+        self.out[self.at] = *x;
+        self.at += 1;
+        self.centroids.grow(x.center());
+    }
+
+    /// Appends a run of references.
+    #[inline(always)]
+    fn take(&mut self, run: &[Ref]) {
+        self.out[self.at..self.at + run.len()].copy_from_slice(run);
+        self.at += run.len();
+        for x in run {
+            self.centroids.grow(x.center());
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `partition_into` against the stable partition written out plainly, over lengths
+    /// around the block size and sides in random order, in runs, and all on one side.
+    #[test]
+    fn partition_is_the_stable_one_with_each_sides_centroid_bounds() {
+        let boxes = crate::testing::soup_bounds(700, 7);
+        let refs: Vec<Ref> = boxes.iter().zip(0..).map(|(b, i)| Ref::new(b, i)).collect();
+        let mut rng = crate::rng::Rng::new(3);
+        let random: Vec<bool> = (0..refs.len()).map(|_| rng.next_u64() & 1 == 0).collect();
+        let patterns: [&dyn Fn(usize) -> bool; 4] =
+            [&|i| random[i], &|i| (i / 37) % 2 == 0, &|_| true, &|_| {
+                false
+            }];
+        for n in [0, 1, 5, 63, 64, 65, 128, 129, 700] {
+            let src = &refs[..n];
+            for side in patterns {
+                // The side is a function of the centroid here, as the builders' planes are.
+                let left_ids: Vec<u32> = src
+                    .iter()
+                    .map(|r| r.id())
+                    .filter(|&i| side(i as usize))
+                    .collect();
+                let goes_left = |c: Vec3A| {
+                    let i = src.iter().position(|r| r.center() == c).unwrap();
+                    side(src[i].id() as usize)
+                };
+                let mut dst = vec![Ref::new(&Aabb::EMPTY, u32::MAX); n];
+                let (cl, cr) = partition_into(src, &mut dst, left_ids.len(), goes_left);
+                let want: Vec<u32> = left_ids
+                    .iter()
+                    .copied()
+                    .chain(src.iter().map(|r| r.id()).filter(|&i| !side(i as usize)))
+                    .collect();
+                let got: Vec<u32> = dst.iter().map(|r| r.id()).collect();
+                assert_eq!(got, want, "n {n}");
+                let (l, r) = dst.split_at(left_ids.len());
+                assert_eq!(refs_bounds(l).1, cl, "n {n}");
+                assert_eq!(refs_bounds(r).1, cr, "n {n}");
+            }
+        }
+    }
 }
