@@ -20,7 +20,7 @@ pub(super) fn build(
     build_tree(&Binned, bounds, areas, idx, config)
 }
 
-struct Binned;
+pub(crate) struct Binned;
 
 /// Primitive bounds and count of one bin (or of a run of bins). Children's centroid bounds
 /// are gathered later, by the partition, so binning touches one box per primitive and axis.

@@ -158,6 +158,44 @@ pub(crate) fn build_tree<S: Splitter>(
     (nodes, order)
 }
 
+/// The subtree over `refs` (box `bounds`, centroid box `centroids`, at `depth` below the
+/// root) as `splitter` builds it on this thread: its nodes in preorder (links counted from the
+/// first of them, leaf ranges from 0) and its leaf order (input indices). For a builder that
+/// hands its small nodes to a cheaper one.
+pub(crate) fn serial_subtree<S: Splitter>(
+    splitter: &S,
+    config: &BuildConfig,
+    refs: &mut [Ref],
+    (bounds, centroids): (Aabb, Aabb),
+    depth: usize,
+) -> (Vec<BuildNode>, Vec<u32>) {
+    let n = refs.len();
+    let ctx = Ctx {
+        config,
+        areas: None,
+    };
+    let job = Job {
+        splitter,
+        ctx: &ctx,
+    };
+    let mut spare = vec![Ref::new(&Aabb::EMPTY, 0); n];
+    let mut order = vec![0; n];
+    let mut nodes = Vec::with_capacity(2 * n);
+    job.serial(
+        Work {
+            refs,
+            spare: &mut spare,
+            order: &mut order,
+            first: 0,
+            bounds,
+            centroids,
+            depth,
+        },
+        &mut nodes,
+    );
+    (nodes, order)
+}
+
 /// A subtree as the recursion returns it. Each task below [`TASK_CUTOFF`] writes its nodes
 /// densely into a vector of its own, and the joins above them are kept apart until one pass
 /// lays all of it out in preorder; the result depends on the input alone, however the tasks
@@ -420,35 +458,16 @@ where
 
 /// Writes the references of `src` that go left to `l`, the others to `r`, in order; the
 /// lengths of `l` and `r` are the counts (a mismatch panics on the index).
-///
-/// Which side a reference goes to follows the input's order, and in many inputs no branch
-/// predictor learns it: on the snowden scan a loop branching on it mispredicted on about a
-/// quarter of the references, and partitioning took a quarter of the build. So each block of
-/// 64 is decided first into a bit mask, without branches, and then stored in one copy when it
-/// is all on one side, else by walking each side's bits (the branches left are the loops'
-/// exits, a few per block).
 fn scatter<F>(src: &[Ref], l: &mut [Ref], r: &mut [Ref], goes_left: &F) -> (Aabb, Aabb)
 where
     F: Fn(Vec3A) -> bool,
 {
     let mut sides = [Side::new(l), Side::new(r)];
-    for block in src.chunks(BLOCK) {
-        let mut left = 0u64;
-        for (i, x) in block.iter().enumerate() {
-            left |= (goes_left(x.center()) as u64) << i;
-        }
-        let all = u64::MAX >> (BLOCK - block.len());
-        if left == all || left == 0 {
-            sides[(left == 0) as usize].take(block);
-            continue;
-        }
-        for (side, mut bits) in sides.iter_mut().zip([left, !left & all]) {
-            while bits != 0 {
-                side.push(&block[bits.trailing_zeros() as usize]);
-                bits &= bits - 1;
-            }
-        }
-    }
+    by_side(
+        src,
+        |x| goes_left(x.center()),
+        |left, x| sides[!left as usize].push(x),
+    );
     let [l, r] = sides;
     debug_assert_eq!(
         (l.at, r.at),
@@ -458,7 +477,39 @@ where
     (l.centroids, r.centroids)
 }
 
-/// References [`scatter`] decides at once (one bit each of a `u64`).
+/// Hands every reference of `refs` to `sink` with the side it goes to (`true`: left), each
+/// side's references in their order in `refs`; what a stable partition needs.
+///
+/// Which side a reference goes to follows the input's order, and in many inputs no branch
+/// predictor learns it: on the snowden scan a partition loop branching on it mispredicted so
+/// often that the whole tree built 1.4 times slower (1 thread, `build_phases`). So each block
+/// of 64 is decided first into a bit mask, without branches, and then each side's references
+/// go out by walking its bits (the branches left are the loops' exits, a few per block).
+#[inline(always)]
+pub(crate) fn by_side(
+    refs: &[Ref],
+    goes_left: impl Fn(&Ref) -> bool,
+    mut sink: impl FnMut(bool, &Ref),
+) {
+    for block in refs.chunks(BLOCK) {
+        let mut left = 0u64;
+        for (i, x) in block.iter().enumerate() {
+            left |= (goes_left(x) as u64) << i;
+        }
+        let mut bits = left;
+        while bits != 0 {
+            sink(true, &block[bits.trailing_zeros() as usize]);
+            bits &= bits - 1;
+        }
+        let mut bits = !left & (u64::MAX >> (BLOCK - block.len()));
+        while bits != 0 {
+            sink(false, &block[bits.trailing_zeros() as usize]);
+            bits &= bits - 1;
+        }
+    }
+}
+
+/// References [`by_side`] decides at once (one bit each of a `u64`).
 const BLOCK: usize = 64;
 
 /// One side of a partition being written: its output, how much is written, and the
@@ -484,16 +535,6 @@ impl<'a> Side<'a> {
         self.out[self.at] = *x;
         self.at += 1;
         self.centroids.grow(x.center());
-    }
-
-    /// Appends a run of references.
-    #[inline(always)]
-    fn take(&mut self, run: &[Ref]) {
-        self.out[self.at..self.at + run.len()].copy_from_slice(run);
-        self.at += run.len();
-        for x in run {
-            self.centroids.grow(x.center());
-        }
     }
 }
 

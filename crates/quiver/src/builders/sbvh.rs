@@ -30,7 +30,8 @@
 //!
 //! Splits are scored by the plain SAH whatever `config.cost_model` says.
 
-use super::recurse::{take_split, Ref};
+use super::binned::Binned;
+use super::recurse::{by_side, serial_subtree, take_split, Ref};
 use super::{widest_axis, BuildConfig, BuildNode, NodeKind, MEDIAN_DEPTH};
 use crate::geometry::{Aabb, Triangle};
 use glam::{BVec3A, Vec3A};
@@ -331,6 +332,13 @@ impl Job<'_> {
             cent,
         } = side;
         let n = refs.len();
+        if n < MIN_SPATIAL || budget == 0 {
+            // No spatial split can be tried below here, and the object splits are the binned
+            // builder's: its recursion builds the same subtree without a vector per node.
+            let (nodes, ids) =
+                serial_subtree(&Binned, self.config, &mut refs, (bounds, cent), depth);
+            return out.append(Out { nodes, ids });
+        }
         let split = if n == 1 || depth >= MEDIAN_DEPTH {
             None
         } else {
@@ -410,15 +418,10 @@ impl Job<'_> {
                 if !take_split(self.config, node.half_area(), o.cost, n) {
                     return None;
                 }
-                let mut left = Side::with_capacity(o.nl);
-                let mut right = Side::with_capacity(n - o.nl);
-                for r in refs {
-                    if o.map.bin(r.center()[o.axis], o.axis) < o.bin {
-                        left.push(*r);
-                    } else {
-                        right.push(*r);
-                    }
-                }
+                let mut sides = [Side::with_capacity(o.nl), Side::with_capacity(n - o.nl)];
+                let goes_left = |r: &Ref| o.map.bin(r.center()[o.axis], o.axis) < o.bin;
+                by_side(refs, goes_left, |l, r| sides[!l as usize].push(*r));
+                let [left, right] = sides;
                 Some(Children {
                     left,
                     right,
