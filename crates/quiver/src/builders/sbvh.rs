@@ -332,9 +332,10 @@ impl Job<'_> {
             cent,
         } = side;
         let n = refs.len();
-        if n < MIN_SPATIAL || budget == 0 {
+        if n < MIN_SPATIAL || (budget == 0 && n < TASK_CUTOFF) {
             // No spatial split can be tried below here, and the object splits are the binned
-            // builder's: its recursion builds the same subtree without a vector per node.
+            // builder's: its recursion builds the same subtree without a vector per node. It
+            // runs on this thread, so a large node out of budget first splits on here, as tasks.
             let (nodes, ids) =
                 serial_subtree(&Binned, self.config, &mut refs, (bounds, cent), depth);
             return out.append(Out { nodes, ids });
