@@ -158,18 +158,19 @@ pub(crate) fn build_tree<S: Splitter>(
     (nodes, order)
 }
 
-/// The subtree over `refs` (box `bounds`, centroid box `centroids`, at `depth` below the
-/// root) as `splitter` builds it on this thread: its nodes in preorder (links counted from the
-/// first of them, leaf ranges from 0) and its leaf order (input indices). For a builder that
-/// hands its small nodes to a cheaper one.
+/// Appends the subtree over `refs` (box `bounds`, centroid box `centroids`, at `depth` below
+/// the root), as `splitter` builds it on this thread, to `nodes` (in preorder, links as
+/// positions in `nodes`) and its leaf order to `ids` (leaf ranges as positions in `ids`). For a
+/// builder that hands its small nodes to a cheaper one.
 pub(crate) fn serial_subtree<S: Splitter>(
     splitter: &S,
     config: &BuildConfig,
     refs: &mut [Ref],
     (bounds, centroids): (Aabb, Aabb),
     depth: usize,
-) -> (Vec<BuildNode>, Vec<u32>) {
-    let n = refs.len();
+    nodes: &mut Vec<BuildNode>,
+    ids: &mut Vec<u32>,
+) {
     let ctx = Ctx {
         config,
         areas: None,
@@ -178,22 +179,23 @@ pub(crate) fn serial_subtree<S: Splitter>(
         splitter,
         ctx: &ctx,
     };
-    let mut spare = vec![Ref::new(&Aabb::EMPTY, 0); n];
-    let mut order = vec![0; n];
-    let mut nodes = Vec::with_capacity(2 * n);
+    let first = ids.len();
+    ids.resize(first + refs.len(), 0);
+    // As in `build_tree`: every node writes its part of the spare buffer before reading it.
+    let mut spare: Vec<Ref> = crate::mem::zeroed_vec(refs.len());
+    nodes.reserve(2 * refs.len());
     job.serial(
         Work {
             refs,
             spare: &mut spare,
-            order: &mut order,
-            first: 0,
+            order: &mut ids[first..],
+            first: first as u32,
             bounds,
             centroids,
             depth,
         },
-        &mut nodes,
+        nodes,
     );
-    (nodes, order)
 }
 
 /// A subtree as the recursion returns it. Each task below [`TASK_CUTOFF`] writes its nodes

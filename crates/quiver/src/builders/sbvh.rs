@@ -336,9 +336,9 @@ impl Job<'_> {
             // No spatial split can be tried below here, and the object splits are the binned
             // builder's: its recursion builds the same subtree without a vector per node. It
             // runs on this thread, so a large node out of budget first splits on here, as tasks.
-            let (nodes, ids) =
-                serial_subtree(&Binned, self.config, &mut refs, (bounds, cent), depth);
-            return out.append(Out { nodes, ids });
+            let (nodes, ids) = (&mut out.nodes, &mut out.ids);
+            let subtree = (bounds, cent);
+            return serial_subtree(&Binned, self.config, &mut refs, subtree, depth, nodes, ids);
         }
         let split = if n == 1 || depth >= MEDIAN_DEPTH {
             None
