@@ -1,7 +1,10 @@
 //! Watertight probe: `cargo run --release -p quiver-lab --example wt -- KERNEL SCENE RAYS REPS`
 //! traces RAYS incoherent rays (the accuracy study's) through SCENE as triangles on one thread,
 //! closest then any hit, with KERNEL `fast` (fast triangles, plain boxes) or `water`
-//! (watertight triangles, conservative boxes), or `fast-conservative` / `water-plain`, and prints the fastest round's Mrays/s of each.
+//! (watertight triangles, conservative boxes), or `fast-conservative` / `water-plain`, and prints the fastest round's Mrays/s of each;
+//! `alt` times `fast` and `water` round by round through the accuracy study's timing (medians of
+//! REPS interleaved rounds, on the current rayon pool: `RAYON_NUM_THREADS=1` for one thread).
+//! `COUNT=1` also prints the nodes, leaves and triangle tests per closest-hit ray.
 //! For quick A/B runs and instruction counts under callgrind; the table comes from
 //! `quiver accuracy`.
 use quiver::intersect::Watertight;
@@ -42,6 +45,44 @@ fn main() {
         .iter()
         .fold(quiver::Aabb::EMPTY, |b, t| b.union(&t.bounds()));
     let rays = quiver_lab::rays::random_rays(&bounds, n, 17);
+    if kernel == "alt" {
+        // Fast + plain against watertight + conservative interleaved round by round, through
+        // the accuracy study's timing (medians), for comparing the two ways of timing.
+        let w: Vec<Watertight> = tris.iter().map(|&t| Watertight(t)).collect();
+        let (fast, water) = (Bvh::new(&tris), Bvh::new(&w));
+        for any in [false, true] {
+            let t = quiver_lab::measure::median_times_interleaved(reps, 2, |i| {
+                let n = quiver_lab::measure::count_hits(&rays, |r| match (i, any) {
+                    (0, false) => fast
+                        .closest_hit_with::<FastBoxes, _, _>(r, &mut NoStats, &mut NoFilter)
+                        .is_some(),
+                    (0, true) => {
+                        fast.any_hit_with::<FastBoxes, _, _>(r, &mut NoStats, &mut NoFilter)
+                    }
+                    (_, false) => water
+                        .closest_hit_with::<ConservativeBoxes, _, _>(r, &mut NoStats, &mut NoFilter)
+                        .is_some(),
+                    (_, true) => water.any_hit_with::<ConservativeBoxes, _, _>(
+                        r,
+                        &mut NoStats,
+                        &mut NoFilter,
+                    ),
+                });
+                std::hint::black_box(n);
+            });
+            let m: Vec<f64> = t
+                .iter()
+                .map(|t| rays.len() as f64 / t.as_secs_f64() / 1e6)
+                .collect();
+            println!(
+                "alt {name} any={any}: fast {:.2} water {:.2} ratio {:.3}",
+                m[0],
+                m[1],
+                m[1] / m[0]
+            );
+        }
+        return;
+    }
     let [c, y] = match kernel {
         "water" | "water-plain" => {
             let w: Vec<Watertight> = tris.iter().map(|&t| Watertight(t)).collect();
@@ -54,4 +95,19 @@ fn main() {
         _ => time::<_, FastBoxes>(&Bvh::new(&tris), &rays, reps),
     };
     println!("{kernel} {name}: closest {c:.2} any {y:.2} Mrays/s");
+    if std::env::var_os("COUNT").is_some() {
+        // The fast layout's work per closest-hit ray (the watertight one walks the same tree).
+        let bvh = Bvh::new(&tris);
+        let mut s = quiver::traverse::Counters::default();
+        for r in &rays {
+            bvh.closest_hit_with::<FastBoxes, _, _>(r, &mut s, &mut NoFilter);
+        }
+        let per = |x: u64| x as f64 / rays.len() as f64;
+        println!(
+            "closest per ray: nodes {:.2} leaves {:.2} triangle tests {:.2}",
+            per(s.nodes),
+            per(s.leaves),
+            per(s.prim_tests)
+        );
+    }
 }

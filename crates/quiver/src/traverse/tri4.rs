@@ -95,20 +95,21 @@ fn watertight4(g: &Tri4, r: &Ray4Tri, t_max: f32) -> (u32, u32, [f32; 4], [f32; 
     let v = x[0] * y[2] - y[0] * x[2];
     let w = x[1] * y[0] - y[1] * x[0];
     let zero = f32x4::ZERO;
-    // An unused lane is NaN: never zero, never on an edge, and its t fails the range test.
-    let edge = u.simd_eq(zero) | v.simd_eq(zero) | w.simd_eq(zero);
-    let neg = u.simd_lt(zero) | v.simd_lt(zero) | w.simd_lt(zero);
-    let pos = u.simd_gt(zero) | v.simd_gt(zero) | w.simd_gt(zero);
+    // An unused lane is NaN: of no sign, never on an edge, and its t fails the range test.
+    // Inside: edge functions all of one sign, none zero (the scalar test's sign test where it
+    // stays in f32); it also makes the determinant nonzero, a sum of nonzero terms of one sign.
+    let lo = u.fast_min(v).fast_min(w);
+    let hi = u.fast_max(v).fast_max(w);
+    let inside = lo.simd_gt(zero) | hi.simd_lt(zero);
+    // On an edge: some edge function zero, which the scalar test decides in f64. A product
+    // that underflowed adds lanes the scalar test decides alike; one inside is decided here.
+    let edge = (u * v * w).simd_eq(zero) & !inside;
     let det = u + v + w;
     let z = [0, 1, 2].map(|v| sz * rel(v, kz));
     let t_scaled = u * z[0] + v * z[1] + w * z[2];
     let inv = f32x4::ONE / det;
     let t = t_scaled * inv;
-    let ok = !(neg & pos)
-        & det.simd_ne(zero)
-        & t.simd_ge(r.t_min)
-        & t.simd_le(f32x4::splat(t_max))
-        & !edge;
+    let ok = inside & t.simd_ge(r.t_min) & t.simd_le(f32x4::splat(t_max));
     let (hu, hv) = (v * inv, w * inv);
     (
         ok.to_bitmask(),
@@ -161,11 +162,19 @@ pub(crate) fn group_hits<const FAR: bool>(
         );
     }
     for l in bits(edge) {
-        let limited = Ray { t_max, ..*ray };
-        if let Some(h) = Watertight(g.triangle(l)).intersect(&limited) {
+        if let Some(h) = edge_hit(g, l, ray, t_max) {
             hit(l, h);
         }
     }
+}
+
+/// One lane of a group on an edge in f32, decided by the scalar watertight test (its f64
+/// fallback). Out of line, so the walks do not compute its per-ray terms (the shear) at every
+/// ray's entry, as the compiler did when this was inlined: almost no ray comes here.
+#[cold]
+#[inline(never)]
+fn edge_hit(g: &Tri4, l: usize, ray: &Ray, t_max: f32) -> Option<PrimHit> {
+    Watertight(g.triangle(l)).intersect(&Ray { t_max, ..*ray })
 }
 
 /// A far group's hits ([`Tri4`]): each lane by the scalar test of `format`, which rescales
@@ -215,6 +224,40 @@ pub(crate) fn any_far<S: Stats, F: Filter<Hit>>(
 ) -> bool {
     let r = Ray4Tri::new(ray, format);
     any::<S, F, true>(groups, count, ray, &r, format, stats, filter)
+}
+
+/// [`closest`] for watertight groups, out of line: the watertight test needs more registers
+/// than the walk can lend it, and inlined it made the walk keep the ray's node terms in memory.
+/// Makes the ray's group terms at its first leaf.
+#[inline(never)]
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn closest_watertight<S: Stats, F: Filter<Hit>, const FAR: bool>(
+    groups: LeafGroups<'_>,
+    count: u32,
+    ray: &Ray,
+    prep: &mut Option<Ray4Tri>,
+    best: &mut Hit,
+    stats: &mut S,
+    filter: &mut F,
+) -> bool {
+    let format = LeafFormat::WatertightTriangles;
+    let r = prep.get_or_insert_with(|| Ray4Tri::new(ray, format));
+    closest::<S, F, FAR>(groups, count, ray, r, format, best, stats, filter)
+}
+
+/// [`any`] for watertight groups, out of line as [`closest_watertight`].
+#[inline(never)]
+pub(crate) fn any_watertight<S: Stats, F: Filter<Hit>, const FAR: bool>(
+    groups: LeafGroups<'_>,
+    count: u32,
+    ray: &Ray,
+    prep: &mut Option<Ray4Tri>,
+    stats: &mut S,
+    filter: &mut F,
+) -> bool {
+    let format = LeafFormat::WatertightTriangles;
+    let r = prep.get_or_insert_with(|| Ray4Tri::new(ray, format));
+    any::<S, F, FAR>(groups, count, ray, r, format, stats, filter)
 }
 
 /// Closest hit among a leaf's groups, improving `best`; `count` triangles in the leaf.
@@ -271,4 +314,82 @@ pub(crate) fn any<S: Stats, F: Filter<Hit>, const FAR: bool>(
     stats.prims(count);
     stats.empty_leaf();
     false
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::{pow2, Triangle};
+    use crate::layout::tri4::fill;
+    use crate::rng::Rng;
+    use bytemuck::Zeroable;
+    use glam::Vec3A;
+
+    /// Each lane of the watertight group test answers exactly as the scalar watertight test
+    /// (hit or miss; t, u, v bit for bit), and once: on rays through the shared vertex and
+    /// edge points of a fan (edge functions exactly zero, the scalar test's f64 fallback), on
+    /// rays through random interior points, and at a scale inside the SIMD band where the
+    /// product of the edge functions underflows (lanes the group sends to the scalar test
+    /// although no edge function is zero).
+    #[test]
+    fn watertight_groups_answer_as_the_scalar_test() {
+        let mut rng = Rng::new(7);
+        let mut zero_lanes = 0;
+        let mut edge_lanes = [0usize; 2];
+        for (scale_index, scale) in [1.0, pow2(-38)].into_iter().enumerate() {
+            for _ in 0..300 {
+                // Four triangles around a shared centre, each sharing an edge with the next.
+                let centre = rng.in_box(Vec3A::splat(-scale), Vec3A::splat(scale));
+                let ring: Vec<Vec3A> = (0..5)
+                    .map(|_| centre + rng.in_box(Vec3A::splat(-scale), Vec3A::splat(scale)))
+                    .collect();
+                let tris: [Option<Triangle>; 4] =
+                    std::array::from_fn(|i| Some(Triangle::new(centre, ring[i], ring[i + 1])));
+                let mut g = Tri4::zeroed();
+                if fill(&mut g, &tris, LeafFormat::WatertightTriangles) {
+                    // A far group is tested lane by lane with the scalar test.
+                    continue;
+                }
+                let mut targets = vec![centre, (centre + ring[1]) * 0.5, ring[2]];
+                for t in tris.iter().flatten() {
+                    let (a, b) = (rng.in_box(Vec3A::ZERO, Vec3A::ONE).x, 0.3);
+                    targets.push(t.v[0] + (t.v[1] - t.v[0]) * a * b + (t.v[2] - t.v[0]) * b);
+                }
+                for target in targets {
+                    let origin =
+                        target + rng.in_box(Vec3A::splat(-4.0 * scale), Vec3A::splat(4.0 * scale));
+                    let ray = Ray::new(origin, target - origin);
+                    let r = Ray4Tri::new(&ray, LeafFormat::WatertightTriangles);
+                    let (_, edge, ..) = watertight4(&g, &r, ray.t_max);
+                    edge_lanes[scale_index] += edge.count_ones() as usize;
+                    let mut got = [None; 4];
+                    group_hits::<false>(
+                        (&g, false),
+                        &r,
+                        &ray,
+                        ray.t_max,
+                        LeafFormat::WatertightTriangles,
+                        |l, h| {
+                            assert!(got[l].is_none(), "lane {l} reported twice");
+                            got[l] = Some(h);
+                        },
+                    );
+                    for (l, t) in tris.iter().enumerate() {
+                        let want = Watertight(t.unwrap()).intersect(&ray);
+                        let bits =
+                            |h: Option<PrimHit>| h.map(|h| [h.t, h.u, h.v].map(f32::to_bits));
+                        assert_eq!(
+                            bits(got[l]),
+                            bits(want),
+                            "lane {l}, scale {scale}, ray {ray:?}"
+                        );
+                        zero_lanes += usize::from(edge >> l & 1 == 1 && want.is_some());
+                    }
+                }
+            }
+        }
+        // Both kinds of lane the scalar test decides were met.
+        assert!(edge_lanes[0] > 0 && edge_lanes[1] > 0, "{edge_lanes:?}");
+        assert!(zero_lanes > 0);
+    }
 }
