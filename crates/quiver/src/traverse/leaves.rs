@@ -2,9 +2,7 @@
 //! [`LeafFormat`], chosen by a compile-time constant, so a leaf is a primitive range (plain
 //! types) or a range of [`Tri4`] groups (triangle formats), never a run-time check.
 
-use super::tri4::{
-    any, any_far, any_watertight, closest, closest_far, closest_watertight, Ray4Tri,
-};
+use super::tri4::{any_far, any_leaf, closest_far, closest_leaf, Ray4Tri};
 use super::{Filter, Stats};
 use crate::geometry::{Hit, Ray};
 use crate::layout::tri4::FarGroups;
@@ -93,28 +91,16 @@ impl<P: Primitive> Leaves<'_, P> {
                     filter,
                 )
             }
-            LeafFormat::WatertightTriangles => closest_watertight::<S, F, FAR>(
+            format => closest_leaf::<S, F, FAR>(
                 (self.groups(first, count), first, self.far),
                 count,
                 ray,
                 prep,
+                format,
                 best,
                 stats,
                 filter,
             ),
-            format => {
-                let r = prep.get_or_insert_with(|| Ray4Tri::new(ray, format));
-                closest::<S, F, FAR>(
-                    (self.groups(first, count), first, self.far),
-                    count,
-                    ray,
-                    r,
-                    format,
-                    best,
-                    stats,
-                    filter,
-                )
-            }
         }
     }
 
@@ -160,26 +146,15 @@ impl<P: Primitive> Leaves<'_, P> {
                     filter,
                 )
             }
-            LeafFormat::WatertightTriangles => any_watertight::<S, F, FAR>(
+            format => any_leaf::<S, F, FAR>(
                 (self.groups(first, count), first, self.far),
                 count,
                 ray,
                 prep,
+                format,
                 stats,
                 filter,
             ),
-            format => {
-                let r = prep.get_or_insert_with(|| Ray4Tri::new(ray, format));
-                any::<S, F, FAR>(
-                    (self.groups(first, count), first, self.far),
-                    count,
-                    ray,
-                    r,
-                    format,
-                    stats,
-                    filter,
-                )
-            }
         }
     }
 }
