@@ -172,21 +172,31 @@ fn avx2_supported() -> bool {
 /// no-op off x86-64.
 #[inline(always)]
 pub(crate) fn prefetch<T>(x: &T, lines: usize) {
+    prefetch_lines((x as *const T).cast(), lines);
+}
+
+/// [`prefetch`] of `lines` cache lines from element `i` of `s`, whether or not `s` has one:
+/// for a walk that has just read an index it trusts, where a bounds check would only cost.
+#[inline(always)]
+pub(crate) fn prefetch_index<T>(s: &[T], i: usize, lines: usize) {
+    // `wrapping_add` keeps the address arithmetic defined for any `i`; nothing is read.
+    prefetch_lines(s.as_ptr().wrapping_add(i).cast(), lines);
+}
+
+#[inline(always)]
+fn prefetch_lines(p: *const i8, lines: usize) {
     #[cfg(target_arch = "x86_64")]
-    {
-        let p = (x as *const T).cast::<i8>();
-        for l in 0..lines {
-            // SAFETY: SSE is part of every x86-64 CPU. A prefetch is a hint: it reads nothing
-            // into the program and faults on nothing, whatever the address (the second line
-            // may lie past `x`; `wrapping_add` keeps that pointer arithmetic defined).
-            unsafe {
-                use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-                _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(64 * l));
-            }
+    for l in 0..lines {
+        // SAFETY: SSE is part of every x86-64 CPU. A prefetch is a hint: it reads nothing
+        // into the program and faults on nothing, whatever the address (the lines may lie
+        // past the caller's data; `wrapping_add` keeps that pointer arithmetic defined).
+        unsafe {
+            use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+            _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(64 * l));
         }
     }
     #[cfg(not(target_arch = "x86_64"))]
-    let _ = (x, lines);
+    let _ = (p, lines);
 }
 
 /// For a pass that reads `s` in order: prefetches the element some 2 KiB past `s[i]`. On

@@ -73,7 +73,10 @@ impl<V: F8> Ray8<V> {
 
 /// The walk over the subtree of inner node `root`, searching up to `limit`: `leaf(first,
 /// count, limit, stats)` tests a leaf (its first primitive or group, and its primitive
-/// count), may lower the limit, and returns true to stop. `ORDERED`:
+/// count), may lower the limit, and returns true to stop. Where a node sends the ray into
+/// several children, `touch(child, count)` is told of each as it is pushed, so it can start
+/// loading them: one is taken next, the others wait on the stack, and their cache misses
+/// then overlap the work in between instead of each stalling the walk in turn. `ORDERED`:
 /// visit hit children nearest first (closest hit) or in slot order (any hit, which stops at
 /// the first hit and gains nothing from sorting).
 #[inline(always)]
@@ -84,6 +87,7 @@ pub(crate) fn walk<V, B, S, F, const ORDERED: bool>(
     mut limit: f32,
     stats: &mut S,
     mut leaf: F,
+    touch: impl Fn(u32, u32),
 ) where
     V: F8,
     B: BoxTest,
@@ -116,12 +120,19 @@ pub(crate) fn walk<V, B, S, F, const ORDERED: bool>(
                     k += 1;
                 }
                 for &(ti, i) in &hits[..k] {
+                    touch(n.child[i as usize], n.count[i as usize]);
                     stack.push((n.child[i as usize], n.count[i as usize], ti));
                 }
             }
         } else {
-            for i in bits(mask) {
+            if mask.is_power_of_two() {
+                let i = mask.trailing_zeros() as usize;
                 stack.push((n.child[i], n.count[i], t[i]));
+            } else {
+                for i in bits(mask) {
+                    touch(n.child[i], n.count[i]);
+                    stack.push((n.child[i], n.count[i], t[i]));
+                }
             }
         }
         // Pop until an inner node worth entering; leaves are handled on the way.
@@ -143,6 +154,17 @@ pub(crate) fn walk<V, B, S, F, const ORDERED: bool>(
                 return;
             }
         }
+    }
+}
+
+/// Starts loading a child the walk pushed: an inner node's four lines, or a leaf's first
+/// group.
+#[inline(always)]
+fn touch<P: Primitive>(nodes: &[Bvh8Node], leaves: &Leaves<P>, c: u32, count: u32) {
+    if count & Bvh8Node::LEAF == 0 {
+        crate::isa::prefetch_index(nodes, c as usize, 4);
+    } else {
+        leaves.prefetch(c as usize);
     }
 }
 
@@ -214,6 +236,8 @@ fn closest_walk<V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>, const
             *limit = best.t;
             false
         },
+        #[inline(always)]
+        |c, count| touch(nodes, leaves, c, count),
     );
 }
 
@@ -274,6 +298,8 @@ fn any_walk<V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>, const FAR
             hit = leaves.any_as::<S, F, FAR>(first, count, ray, &mut prep, stats, filter);
             hit
         },
+        #[inline(always)]
+        |c, count| touch(nodes, leaves, c, count),
     );
     hit
 }

@@ -23,15 +23,13 @@ pub(crate) struct Leaves<'a, P> {
 }
 
 impl<P: Primitive> Leaves<'_, P> {
-    /// Asks the CPU to start loading the leaf at `first` (its first group's first two cache
-    /// lines), so the memory latency overlaps the work before the leaf is tested.
+    /// Asks the CPU to start loading the leaf at `first` (its first group's three cache
+    /// lines: a 160-byte group starts on a line or half-way into one), so the memory latency
+    /// overlaps the work before the leaf is tested.
     #[inline(always)]
     pub fn prefetch(&self, first: usize) {
-        #[cfg(target_arch = "x86_64")]
         if P::LEAF_FORMAT != LeafFormat::Plain {
-            if let Some(g) = self.tri4.get(first) {
-                crate::isa::prefetch(g, 2);
-            }
+            crate::isa::prefetch_index(self.tri4, first, 3);
         }
     }
 

@@ -183,6 +183,7 @@ impl<P: Primitive> World<P> {
                 *limit = best.t;
                 false
             },
+            |_, _| {},
         );
     }
 
@@ -214,6 +215,7 @@ impl<P: Primitive> World<P> {
                     .any(|p| self.any_in::<B, S, F>(p, ray, stats, filter));
                 hit
             },
+            |_, _| {},
         );
         hit
     }
