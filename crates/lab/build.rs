@@ -42,14 +42,26 @@ mod tinybvh {
             PathBuf::from(std::env::var("CARGO_MANIFEST_DIR").unwrap()).join("Cargo.toml");
         // Only this target's packages: the others (Windows crates) may never have been fetched.
         let target = std::env::var("TARGET").unwrap();
-        let out = Command::new(cargo)
-            .args(["metadata", "--format-version", "1", "--offline"])
-            .args(["--features", "quiver-lab/tinybvh", "--filter-platform"])
-            .arg(&target)
-            .arg("--manifest-path")
-            .arg(&manifest)
-            .output()
-            .expect("running cargo metadata to find tinybvh-rs");
+        // Offline first (the crate is already there); on a fresh machine cargo may not yet
+        // have fetched every package the metadata names (other targets' dev-dependencies),
+        // and then it may fetch them.
+        let metadata = |offline: bool| {
+            let mut c = Command::new(&cargo);
+            c.args(["metadata", "--format-version", "1"]);
+            if offline {
+                c.arg("--offline");
+            }
+            c.args(["--features", "quiver-lab/tinybvh", "--filter-platform"])
+                .arg(&target)
+                .arg("--manifest-path")
+                .arg(&manifest)
+                .output()
+                .expect("running cargo metadata to find tinybvh-rs")
+        };
+        let mut out = metadata(true);
+        if !out.status.success() {
+            out = metadata(false);
+        }
         assert!(
             out.status.success(),
             "cargo metadata failed: {}",
