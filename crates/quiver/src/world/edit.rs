@@ -294,7 +294,11 @@ impl<P: Primitive> World<P> {
             moved_instances,
             lost: AtomicBool::new(false),
         };
+        // The refit walks the leaves with their input indices, which the top level does not
+        // keep (`top_level`): each record's instance is its index.
+        self.top.prim_ids = self.top.prims.iter().map(|p| p.instance).collect();
         self.top.refit(&src);
+        self.top.prim_ids = Vec::new();
         let n = src.instances.len();
         let mut rebuild = src.lost.load(Ordering::Relaxed);
         if rebuild || self.top.prims.len() < n {
