@@ -85,7 +85,8 @@ pub struct Bvh8<P = Triangle> {
     pub(crate) nodes: Vec<Bvh8Node>,
     /// Primitives in leaf order.
     pub(crate) prims: Vec<P>,
-    /// For each entry of `prims`, its index in the input.
+    /// For each entry of `prims`, its index in the input. Empty in a world's top level,
+    /// whose records name their instance (`world::top_level`), outside its refit.
     pub(crate) prim_ids: Vec<u32>,
     /// The leaves as SIMD groups of four triangles, for primitive types with a triangle
     /// [`LeafFormat`] (empty otherwise); leaf children then index these groups.

@@ -39,6 +39,17 @@ pub(crate) trait Source<P>: Sync {
     /// Starts loading primitive `id`, where the source knows its address.
     #[inline]
     fn prefetch(&self, _id: u32) {}
+
+    /// The box of `p`, the up-to-date primitive `id`: every leaf box a refit computes comes
+    /// from here, so a source whose primitives keep no box of their own (the world's
+    /// placed instances) can compute it from what it knows.
+    #[inline]
+    fn bounds(&self, _id: u32, p: &P) -> Aabb
+    where
+        P: Primitive,
+    {
+        p.bounds()
+    }
 }
 
 /// A subtree of at most this many nodes is refit by one task, without further splitting.
@@ -105,7 +116,7 @@ impl<'a, S> Ctx<'a, S> {
                 let mut tris = [None; 4];
                 for (t, &id) in tris.iter_mut().zip(four) {
                     let p = self.src.get(id);
-                    b = b.union(&p.bounds());
+                    b = b.union(&self.src.bounds(id, &p));
                     *t = p.triangle();
                 }
                 if fill(g, &tris, P::LEAF_FORMAT) {
@@ -118,7 +129,7 @@ impl<'a, S> Ctx<'a, S> {
             if !self.fresh {
                 self.src.refresh(id, p);
             }
-            b = b.union(&p.bounds());
+            b = b.union(&self.src.bounds(id, p));
         }
         b
     }
@@ -536,13 +547,20 @@ fn set_box(n: &mut Bvh2Node, b: &Aabb) {
 }
 
 /// The box of a plain leaf: `count` primitives of the (refreshed) leaf-order copy from
-/// `first`.
+/// `first`, whose input indices `ids` holds at the same positions.
 #[inline]
-fn plain_leaf<P: Primitive>(prims: &[P], first: u32, count: u32) -> Aabb {
-    let first = first as usize;
-    prims[first..first + count as usize]
+fn plain_leaf<P: Primitive, S: Source<P>>(
+    prims: &[P],
+    ids: &[u32],
+    src: &S,
+    first: u32,
+    count: u32,
+) -> Aabb {
+    let leaf = first as usize..first as usize + count as usize;
+    prims[leaf.clone()]
         .iter()
-        .fold(Aabb::EMPTY, |b, p| b.union(&p.bounds()))
+        .zip(&ids[leaf])
+        .fold(Aabb::EMPTY, |b, (p, &id)| b.union(&src.bounds(id, p)))
 }
 
 /// Refits a depth-first binary subtree (`nodes` from position `base`, the root first) over
@@ -629,13 +647,13 @@ impl<P: Primitive> Bvh2<P> {
             return;
         }
         refresh_prims(&mut self.prims, &self.prim_ids, src);
-        let prims = &self.prims;
+        let (prims, ids) = (&self.prims, &self.prim_ids);
         // Leaves (padding slots are empty leaves and stay empty) are independent.
         self.nodes
             .par_iter_mut()
             .with_min_len(TASK_NODES)
             .filter(|n| n.is_leaf())
-            .for_each(|n| set_box(n, &plain_leaf(prims, n.link, n.prim_count())));
+            .for_each(|n| set_box(n, &plain_leaf(prims, ids, src, n.link, n.prim_count())));
         if !self.nodes.is_empty() {
             bvh2_inner(&mut self.nodes, 0, self.mapping.addressing());
         }

@@ -2,7 +2,8 @@
 //! re-masks instances; when the edit ends, the instances' world boxes are recomputed and the
 //! top-level BVH refit, so the world is never seen half edited.
 
-use super::{check_instance, placement, top_level, world_box, Geometry, GeometryId, Placed};
+use super::{check_instance, instance_box, placement, top_level, world_boxes};
+use super::{Geometry, GeometryId, Placed};
 use super::{World, WorldError};
 use crate::geometry::{Aabb, Triangle};
 use crate::layout::refit::Source;
@@ -57,8 +58,9 @@ use std::sync::atomic::{AtomicBool, Ordering};
 #[must_use = "the top level is refit when the edit ends"]
 pub struct WorldEdit<'w, P: Primitive = Triangle> {
     world: &'w mut World<P>,
-    /// Geometries refit during the edit (empty until the first).
-    geometries: Vec<bool>,
+    /// A geometry was refit during the edit (the top level's refit computes every world box
+    /// afresh, so it needs not know which).
+    geometry_refit: bool,
     /// Instances moved or re-masked during the edit (empty until the first).
     instances: Vec<bool>,
 }
@@ -68,7 +70,7 @@ impl<P: Primitive> World<P> {
     pub fn edit(&mut self) -> WorldEdit<'_, P> {
         WorldEdit {
             world: self,
-            geometries: Vec::new(),
+            geometry_refit: false,
             instances: Vec::new(),
         }
     }
@@ -113,7 +115,7 @@ impl<P: Primitive> WorldEdit<'_, P> {
             }
             Geometry::Prims(..) => Err(prims_not_triangles(geometry)),
         };
-        self.refit(geometry, done)
+        self.refit(done)
     }
 
     /// Refits mesh geometry `geometry` (added by [`super::WorldBuilder::mesh`]) to new vertex
@@ -146,7 +148,7 @@ impl<P: Primitive> WorldEdit<'_, P> {
             }
             Geometry::Prims(..) => Err(prims_not_triangles(geometry)),
         };
-        self.refit(geometry, done)
+        self.refit(done)
     }
 
     /// Refits geometry `geometry` of the world's primitive type (added by
@@ -169,17 +171,13 @@ impl<P: Primitive> WorldEdit<'_, P> {
                 holds: "triangles",
             }),
         };
-        self.refit(geometry, done)
+        self.refit(done)
     }
 
-    /// Notes geometry `g` as refit once `done` says it was.
-    fn refit(&mut self, g: GeometryId, done: Result<(), WorldError>) -> Result<(), WorldError> {
+    /// Notes a geometry as refit once `done` says it was.
+    fn refit(&mut self, done: Result<(), WorldError>) -> Result<(), WorldError> {
         done?;
-        mark(
-            &mut self.geometries,
-            self.world.geometries.len(),
-            g.0 as usize,
-        );
+        self.geometry_refit = true;
         Ok(())
     }
 
@@ -228,11 +226,11 @@ impl<P: Primitive> WorldEdit<'_, P> {
 
     /// Brings the top level up to date with the changes so far.
     fn finish(&mut self) {
-        if self.geometries.is_empty() && self.instances.is_empty() {
+        if !self.geometry_refit && self.instances.is_empty() {
             return;
         }
-        self.world.refit_top(&self.geometries, &self.instances);
-        self.geometries.clear();
+        self.world.refit_top(&self.instances);
+        self.geometry_refit = false;
         self.instances.clear();
     }
 }
@@ -254,8 +252,7 @@ impl<P: Primitive> Drop for WorldEdit<'_, P> {
 struct Top<'a, P> {
     instances: &'a [super::Instance],
     geometries: &'a [Geometry<P>],
-    /// Which geometries and instances changed (empty: none).
-    moved_geometries: &'a [bool],
+    /// Which instances changed (empty: none).
     moved_instances: &'a [bool],
     /// Set when an instance the top level holds has a world box out of f32's range now.
     lost: AtomicBool,
@@ -264,63 +261,65 @@ struct Top<'a, P> {
 impl<P: Primitive> Source<Placed> for Top<'_, P> {
     fn get(&self, id: u32) -> Placed {
         let inst = &self.instances[id as usize];
-        let g = &self.geometries[inst.geometry.0 as usize];
-        Placed::new(id as usize, inst, placement(&inst.transform), g)
+        Placed::new(id as usize, inst, placement(&inst.transform))
     }
 
     fn refresh(&self, id: u32, p: &mut Placed) {
         if self.moved_instances.get(id as usize) == Some(&true) {
             *p = self.get(id);
-        } else if self.moved_geometries.get(p.geometry as usize) == Some(&true) {
-            let inst = &self.instances[id as usize];
-            let g = &self.geometries[p.geometry as usize];
-            p.bounds = world_box(&inst.transform, &g.bounds());
-        } else {
-            return;
         }
-        if !p.bounds.is_finite() {
+    }
+
+    /// The world box as placed now, from the instance's transform and its geometry's box:
+    /// the record keeps none (it fills one line without), so the refit computes it for every
+    /// instance, moved or not (eight corners transformed: small beside the refit's walk of
+    /// the nodes, and a refit geometry needs no flag of its own).
+    fn bounds(&self, id: u32, _: &Placed) -> Aabb {
+        let b = instance_box(&self.instances[id as usize], self.geometries);
+        if !b.is_finite() {
             self.lost.store(true, Ordering::Relaxed);
         }
+        b
     }
 }
 
 impl<P: Primitive> World<P> {
-    /// The changed instances' world boxes recomputed and the top level refit over them
-    /// (rebuilt instead when an instance's box went out of f32's range or came back: the
-    /// build leaves those out).
-    fn refit_top(&mut self, moved_geometries: &[bool], moved_instances: &[bool]) {
+    /// The instances' world boxes recomputed and the top level refit over them (rebuilt
+    /// instead when an instance's box went out of f32's range or came back: the build leaves
+    /// those out).
+    fn refit_top(&mut self, moved_instances: &[bool]) {
         let src = Top {
             instances: &self.instances,
             geometries: &self.geometries,
-            moved_geometries,
             moved_instances,
             lost: AtomicBool::new(false),
         };
+        // The refit walks the leaves with their input indices, which the top level does not
+        // keep (`top_level`): each record's instance is its index.
+        self.top.prim_ids = self.top.prims.iter().map(|p| p.instance).collect();
         self.top.refit(&src);
+        self.top.prim_ids = Vec::new();
         let n = src.instances.len();
         let mut rebuild = src.lost.load(Ordering::Relaxed);
-        let mut every = None;
         if rebuild || self.top.prims.len() < n {
-            let placed: Vec<Placed> = (0..n as u32).into_par_iter().map(|i| src.get(i)).collect();
+            let boxes = world_boxes(src.instances, src.geometries);
             if !rebuild {
                 // Those the build left out must stay out of range.
                 let mut in_top = vec![false; n];
                 for p in &self.top.prims {
                     in_top[p.instance as usize] = true;
                 }
-                rebuild = placed
-                    .iter()
-                    .any(|p| !in_top[p.instance as usize] && p.bounds.is_finite());
+                rebuild = (0..n).any(|i| !in_top[i] && boxes[i].is_finite());
             }
             if rebuild {
-                self.top = top_level(&placed, self.top.isa());
+                let placed: Vec<Placed> =
+                    (0..n as u32).into_par_iter().map(|i| src.get(i)).collect();
+                self.top = top_level(&placed, &boxes, self.top.isa());
             }
-            every = Some(placed);
+            // The world's box as the build takes it: the union of every instance's.
+            self.bounds = boxes.iter().fold(Aabb::EMPTY, |b, w| b.union(w));
+        } else {
+            self.bounds = self.top.bounds;
         }
-        // The world's box as the build takes it: the union of every instance's.
-        self.bounds = match every {
-            Some(placed) => placed.iter().fold(Aabb::EMPTY, |b, p| b.union(&p.bounds)),
-            None => self.top.bounds,
-        };
     }
 }

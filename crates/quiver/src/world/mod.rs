@@ -52,7 +52,7 @@ mod query;
 
 pub use edit::WorldEdit;
 
-use crate::builders::{build, prim_bounds, BuildConfig, Builder};
+use crate::builders::{build, BuildConfig, Builder};
 use crate::bvh::BuildOptions;
 use crate::bvh::RefitError;
 use crate::geometry::{unit_or_zero, Aabb, PrimHit, Ray, Triangle};
@@ -61,7 +61,7 @@ use crate::layout::{bvh2::leaf_order, Bvh8, Footprint};
 use crate::mesh::{Mesh, MeshError, Positions};
 use crate::primitive::Primitive;
 use crate::Bvh;
-use glam::{Affine3A, Mat3A, Vec3A};
+use glam::{Affine3A, Mat3A, Vec3A, Vec4, Vec4Swizzles};
 use std::fmt;
 
 /// A geometry's index in its [`World`] (what [`WorldBuilder`]'s `mesh`, `triangles` and
@@ -442,13 +442,11 @@ impl<P: Primitive> WorldBuilder<P> {
         let placed: Vec<Placed> = placements
             .into_iter()
             .enumerate()
-            .map(|(i, placement)| {
-                let inst = &self.instances[i];
-                Placed::new(i, inst, placement, &geometries[inst.geometry.0 as usize])
-            })
+            .map(|(i, placement)| Placed::new(i, &self.instances[i], placement))
             .collect();
-        let top = options.run(|| top_level(&placed, options.chosen_isa()));
-        let bounds = placed.iter().fold(Aabb::EMPTY, |b, p| b.union(&p.bounds));
+        let boxes = options.run(|| world_boxes(&self.instances, &geometries));
+        let top = options.run(|| top_level(&placed, &boxes, options.chosen_isa()));
+        let bounds = boxes.iter().fold(Aabb::EMPTY, |b, w| b.union(w));
         Ok(World {
             geometries,
             instances: self.instances,
@@ -521,24 +519,60 @@ fn world_box(m: &Affine3A, b: &Aabb) -> Aabb {
     Aabb::new(finite(out.min - pad), finite(out.max + pad))
 }
 
-/// The top-level BVH: 8-wide, one instance per leaf (an instance's test is a whole walk of
-/// its geometry, far costlier than a node's).
-fn top_level(placed: &[Placed], isa: Isa) -> Bvh8<Placed> {
+/// Every instance's world box, in instance order: what the top level is built over. Kept
+/// out of [`Placed`], which the walks read, so a placed instance fills one cache line; the
+/// refit computes them again from the instances ([`Source::bounds`] of `edit::Top`).
+///
+/// [`Source::bounds`]: crate::layout::refit::Source::bounds
+fn world_boxes<P: Primitive>(instances: &[Instance], geometries: &[Geometry<P>]) -> Vec<Aabb> {
+    use rayon::prelude::*;
+    instances
+        .par_iter()
+        .map(|inst| instance_box(inst, geometries))
+        .collect()
+}
+
+/// The world box of instance `inst` as placed now.
+fn instance_box<P: Primitive>(inst: &Instance, geometries: &[Geometry<P>]) -> Aabb {
+    world_box(
+        &inst.transform,
+        &geometries[inst.geometry.0 as usize].bounds(),
+    )
+}
+
+/// The top-level BVH over `placed` (in instance order), whose world boxes are `boxes`:
+/// 8-wide, one instance per leaf (an instance's test is a whole walk of its geometry, far
+/// costlier than a node's). The build drops an instance whose box is not finite.
+///
+/// It keeps no input indices (`prim_ids` empty): the input index of a record is the
+/// instance it names, so they would repeat `Placed::instance` in 4 more bytes an instance.
+/// Only a refit reads them, and `World::refit_top` lends it a copy for the while.
+fn top_level(placed: &[Placed], boxes: &[Aabb], isa: Isa) -> Bvh8<Placed> {
     let config = BuildConfig {
         max_leaf_size: 1,
         ..BuildConfig::default()
     };
-    let tree = build(&prim_bounds(placed), &config, Builder::Binned);
-    Bvh8::from_leaf_prims(&tree, leaf_order(&tree, placed).into(), isa, &config)
+    let tree = build(boxes, &config, Builder::Binned);
+    let mut top = Bvh8::from_leaf_prims(&tree, leaf_order(&tree, placed).into(), isa, &config);
+    debug_assert!(top
+        .prims
+        .iter()
+        .map(|p| p.instance)
+        .eq(top.prim_ids.iter().copied()));
+    top.prim_ids = Vec::new();
+    top
 }
 
-/// An instance as the walks read it, in top-level leaf order.
+/// An instance as the walks read it, in top-level leaf order: one cache line, so a leaf's
+/// instance costs the walk one miss. Its world box is not kept (the walks never read it:
+/// the top level's nodes hold it); builds and refits compute it from the [`Instance`].
 #[derive(Clone, Debug)]
+#[repr(C, align(64))]
 pub(crate) struct Placed {
-    /// World to object space.
-    pub(crate) world_to_object: Affine3A,
-    /// The placed geometry's world box.
-    pub(crate) bounds: Aabb,
+    /// World to object space, packed into 48 bytes: `to_object[j]` holds column `j` of the
+    /// linear part in lanes 0..3 and the translation's component `j` in lane 3 (read through
+    /// [`Placed::world_to_object`], or lane by lane by the packet transform).
+    pub(crate) to_object: [[f32; 4]; 3],
     pub(crate) geometry: u32,
     pub(crate) mask: u32,
     /// Its index among the instances.
@@ -547,21 +581,39 @@ pub(crate) struct Placed {
     pub(crate) identity: bool,
 }
 
+// One line per instance: a record that grew past it would cost every instance entry a
+// second miss and the world's memory target (issue 26) its margin.
+const _: () = assert!(std::mem::size_of::<Placed>() == 64);
+
 impl Placed {
-    /// Instance `index` (`inst`, with its checked `placement`) of `geometry`.
-    fn new<P: Primitive>(
-        index: usize,
-        inst: &Instance,
-        (world_to_object, identity): (Affine3A, bool),
-        geometry: &Geometry<P>,
-    ) -> Placed {
+    /// Instance `index` (`inst`, with its checked `placement`).
+    fn new(index: usize, inst: &Instance, (world_to_object, identity): (Affine3A, bool)) -> Placed {
+        let (m, t) = (world_to_object.matrix3, world_to_object.translation);
+        let col = |c: Vec3A, t: f32| [c.x, c.y, c.z, t];
         Placed {
-            world_to_object,
-            bounds: world_box(&inst.transform, &geometry.bounds()),
+            to_object: [col(m.x_axis, t.x), col(m.y_axis, t.y), col(m.z_axis, t.z)],
             geometry: inst.geometry.0,
             mask: inst.mask,
             instance: index as u32,
             identity,
+        }
+    }
+
+    /// World to object space: the inverse transform the instance was placed with, the same
+    /// floats in the same lanes, so glam's products run as they did on it. Each vector is
+    /// built from its three floats (lane 3 a copy of lane 2, as [`Vec3A::new`] makes it):
+    /// lane 3 then repeats lane 2's arithmetic, and never multiplies a translation
+    /// component, which may be subnormal (an assist per multiply, ~100x its cost) or make a
+    /// subnormal product.
+    #[inline(always)]
+    pub(crate) fn world_to_object(&self) -> Affine3A {
+        // Whole columns loaded and shuffled in registers (a load and a shuffle a column, two
+        // shuffles for the translation); element by element, LLVM built each from scalars.
+        let [x, y, z] = self.to_object.map(Vec4::from_array);
+        let col = |c: Vec4| Vec3A::from_vec4(c.xyzz());
+        Affine3A {
+            matrix3: Mat3A::from_cols(col(x), col(y), col(z)),
+            translation: Vec3A::new(x.w, y.w, z.w),
         }
     }
 
@@ -571,20 +623,30 @@ impl Placed {
         if self.identity {
             return Ray { t_max, ..*ray };
         }
+        let to_object = self.world_to_object();
         Ray {
-            origin: self.world_to_object.transform_point3a(ray.origin),
-            dir: self.world_to_object.transform_vector3a(ray.dir),
+            origin: to_object.transform_point3a(ray.origin),
+            dir: to_object.transform_vector3a(ray.dir),
             t_max,
             ..*ray
         }
     }
 }
 
-/// The top level's primitive: an instance's world box. Its ray test is never called (the
-/// world's walks test the instance's geometry instead), so it is the crate's alone.
+/// The top level's primitive, for the layout's sake only: [`Bvh8`] holds it as its leaf
+/// data, which the world's walks read (they test the instance's geometry, never `intersect`).
+///
+/// `bounds` is not called either, so the record keeps no box. No path of `Bvh8<Placed>`
+/// reaches it: the build takes the world boxes from [`world_boxes`] (never `prim_bounds`),
+/// `Bvh8::from_leaf_prims` lays out the tree's boxes (a plain leaf format packs no groups and
+/// reads no primitive's box), `footprint` counts bytes, and the refit asks its source for
+/// every leaf box ([`Source::bounds`](crate::layout::refit::Source::bounds), which
+/// `edit::Top` computes from the instance); nor are the defaults that call it
+/// (`surface_area`, `is_finite`), nor the layout's own queries. A path that did would be a bug,
+/// so it panics rather than give a box.
 impl Primitive for Placed {
     fn bounds(&self) -> Aabb {
-        self.bounds
+        unreachable!("a placed instance keeps no box: its world box comes from the instance")
     }
     fn intersect(&self, _: &Ray) -> Option<PrimHit> {
         None
@@ -714,7 +776,8 @@ mod tests {
         let (a, b, c) = (make(1), make(2), make(2));
         for other in [&b, &c] {
             assert_eq!(a.top.nodes, other.top.nodes);
-            assert_eq!(a.top.prim_ids, other.top.prim_ids);
+            let instances = |w: &World| w.top.prims.iter().map(|p| p.instance).collect::<Vec<_>>();
+            assert_eq!(instances(&a), instances(other));
         }
         assert_eq!(a.top.prims.len(), 500);
     }

@@ -50,17 +50,18 @@ fn chunk_to_object(p: &Placed, pk: &RayPacket, k: usize) -> ([f32x8; 3], [f32x8;
     if p.identity {
         return (wo, wd);
     }
-    let lin = p.world_to_object.matrix3;
-    let col = |c: Vec3A| [f32x8::splat(c.x), f32x8::splat(c.y), f32x8::splat(c.z)];
-    let (cx, cy, cz) = (col(lin.x_axis), col(lin.y_axis), col(lin.z_axis));
-    let t = col(p.world_to_object.translation);
+    // The floats of `Placed::world_to_object`, each broadcast straight from the record:
+    // column `j` of the linear part in lanes 0..3 of `to_object[j]`, translation component
+    // `a` in lane 3 of `to_object[a]`.
+    let [cx, cy, cz] = &p.to_object;
+    let s = f32x8::splat;
     // glam's `transform_point3a` / `transform_vector3a` lane-wise (x·col0 + y·col1 + z·col2,
     // + translation), so every ray is transformed as the single-ray walk transforms it.
     let mut lo = [f32x8::ZERO; 3];
     let mut ld = [f32x8::ZERO; 3];
     for a in 0..3 {
-        lo[a] = cx[a] * wo[0] + cy[a] * wo[1] + cz[a] * wo[2] + t[a];
-        ld[a] = cx[a] * wd[0] + cy[a] * wd[1] + cz[a] * wd[2];
+        lo[a] = s(cx[a]) * wo[0] + s(cy[a]) * wo[1] + s(cz[a]) * wo[2] + s(p.to_object[a][3]);
+        ld[a] = s(cx[a]) * wd[0] + s(cy[a]) * wd[1] + s(cz[a]) * wd[2];
     }
     (lo, ld)
 }
