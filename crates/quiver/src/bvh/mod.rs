@@ -19,6 +19,7 @@ use crate::mesh::{MeshError, Positions};
 use crate::primitive::Primitive;
 use crate::traverse::lane8::F8;
 use crate::traverse::packet::{InLanes, RayPacket};
+use crate::traverse::wide::OneRay;
 use crate::traverse::{BoxTest, Filter, PacketQuery, RayQuery, Stats};
 use options::frame_prims;
 
@@ -167,6 +168,22 @@ impl<P: Primitive> Bvh<P> {
     /// What the nodes and leaves occupy.
     pub fn footprint(&self) -> Footprint {
         self.nodes.footprint()
+    }
+
+    /// `ask` of one ray on the caller's lanes (see [`Nodes::one_ray`]).
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn one_ray<V: F8, B: BoxTest, S: Stats, F: Filter<Hit>>(
+        &self,
+        kernels: Kernels,
+        cpu: V::Cpu,
+        ray: &Ray,
+        ask: OneRay<'_>,
+        stats: &mut S,
+        filter: &mut F,
+    ) -> bool {
+        self.nodes
+            .one_ray::<V, B, S, F>(kernels, cpu, ray, ask, stats, filter)
     }
 
     /// `ask` of a packet already in lanes (see [`Nodes::in_lanes`]).

@@ -13,6 +13,7 @@ use crate::layout::{
 use crate::primitive::Primitive;
 use crate::traverse::lane8::F8;
 use crate::traverse::packet::{InLanes, RayPacket};
+use crate::traverse::wide::OneRay;
 use crate::traverse::{BoxTest, Filter, PacketQuery, RayQuery, Stats};
 
 /// The nodes and leaves of one [`Layout`].
@@ -118,6 +119,27 @@ impl<P: Primitive> Nodes<P> {
 }
 
 impl<P: Primitive> Nodes<P> {
+    /// `ask` of one ray on the caller's lanes (see [`Bvh8::one_ray`]): the 8-wide layout in
+    /// the caller's units; false, with nothing done, for the others (asked the usual way).
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn one_ray<V: F8, B: BoxTest, S: Stats, F: Filter<Hit>>(
+        &self,
+        kernels: Kernels,
+        cpu: V::Cpu,
+        ray: &Ray,
+        ask: OneRay<'_>,
+        stats: &mut S,
+        filter: &mut F,
+    ) -> bool {
+        match self {
+            Nodes::Plain(Laid::Bvh8(b)) => {
+                b.one_ray::<V, B, S, F>(kernels, cpu, ray, ask, stats, filter)
+            }
+            _ => false,
+        }
+    }
+
     /// `ask` of a packet already in lanes (see [`Bvh8::in_lanes`]): the wide layouts in the
     /// caller's units; false, with nothing done, for binary nodes, a scaled frame (whose rays
     /// must be brought into it first) or other kernels.

@@ -21,7 +21,7 @@ pub mod reference;
 pub(crate) mod simd;
 mod stats;
 mod tri4;
-mod wide;
+pub(crate) mod wide;
 
 pub use packet::{PacketMode, PacketQuery, PACKET_RAYS};
 pub use query::{Filter, NoFilter, RayQuery};

@@ -238,7 +238,14 @@ impl<P: Primitive> World<P> {
                         match at {
                             AloneIn::Leaf(r) => {
                                 for p in &top.prims[r] {
-                                    self.closest_in::<B, S, F>(p, ray, &mut best[i], stats, filter);
+                                    self.closest_in::<V, B, S, F>(
+                                        cpu,
+                                        p,
+                                        ray,
+                                        &mut best[i],
+                                        stats,
+                                        filter,
+                                    );
                                 }
                             }
                             AloneIn::Inner(node) => self.closest_from::<V, B, S, F>(
@@ -334,7 +341,7 @@ impl<P: Primitive> World<P> {
                         let found = match at {
                             AloneIn::Leaf(r) => top.prims[r]
                                 .iter()
-                                .any(|p| self.any_in::<B, S, F>(p, ray, stats, filter)),
+                                .any(|p| self.any_in::<V, B, S, F>(cpu, p, ray, stats, filter)),
                             AloneIn::Inner(node) => {
                                 self.any_from::<V, B, S, F>(cpu, ray, node, stats, filter)
                             }

@@ -8,6 +8,7 @@ use crate::isa::Kernels;
 use crate::primitive::Primitive;
 use crate::traverse::bvh8::{walk, Ray8};
 use crate::traverse::lane8::F8;
+use crate::traverse::wide::OneRay;
 use crate::traverse::{BoxTest, Filter, PacketQuery, RayQuery, Stats};
 use wide::f32x8;
 
@@ -105,11 +106,39 @@ impl<P: Primitive> RayQuery for Geometry<P> {
     }
 }
 
-impl<P: Primitive> World<P> {
-    /// Instance `p`'s closest hit along `ray`, improving `best`.
+impl<P: Primitive> Geometry<P> {
+    /// `ask` of one ray in object space on the world's lanes (see [`crate::Bvh`]'s
+    /// `one_ray`): false, with nothing done, where the geometry's layout takes the ray the
+    /// usual way.
     #[inline(always)]
-    pub(super) fn closest_in<B: BoxTest, S: Stats, F: Filter<WorldHit>>(
+    #[allow(clippy::too_many_arguments)]
+    fn one_ray<V: F8, B: BoxTest, S: Stats, F: Filter<Hit>>(
         &self,
+        kernels: Kernels,
+        cpu: V::Cpu,
+        ray: &Ray,
+        ask: OneRay<'_>,
+        stats: &mut S,
+        filter: &mut F,
+    ) -> bool {
+        match self {
+            Geometry::Triangles(b, _) => {
+                b.one_ray::<V, B, S, F>(kernels, cpu, ray, ask, stats, filter)
+            }
+            Geometry::Prims(b, _) => b.one_ray::<V, B, S, F>(kernels, cpu, ray, ask, stats, filter),
+        }
+    }
+}
+
+impl<P: Primitive> World<P> {
+    /// Instance `p`'s closest hit along `ray`, improving `best`: the geometry's walk inlined
+    /// on the world's lanes where its layout allows (an 8-wide BVH on the world's kernels),
+    /// else through its query.
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn closest_in<V: F8, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
+        &self,
+        cpu: V::Cpu,
         p: &Placed,
         ray: &Ray,
         best: &mut WorldHit,
@@ -126,17 +155,26 @@ impl<P: Primitive> World<P> {
             instance: p.instance,
             geometry: p.geometry,
         };
-        if let Some(h) = g.closest_hit_with::<B, S, _>(&local, stats, &mut f) {
+        let mut h = Hit::none(local.t_max);
+        let ask = OneRay::Closest(&mut h);
+        let found = if g.one_ray::<V, B, S, _>(self.top.kernels, cpu, &local, ask, stats, &mut f) {
+            h.found()
+        } else {
+            g.closest_hit_with::<B, S, _>(&local, stats, &mut f)
+        };
+        if let Some(h) = found {
             if best.is_beaten_by(h.t, p.instance) {
                 *best = f.hit(&h);
             }
         }
     }
 
-    /// Whether instance `p` blocks `ray`.
+    /// Whether instance `p` blocks `ray` (the geometry's walk inlined as in
+    /// [`World::closest_in`]).
     #[inline(always)]
-    pub(super) fn any_in<B: BoxTest, S: Stats, F: Filter<WorldHit>>(
+    pub(super) fn any_in<V: F8, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
         &self,
+        cpu: V::Cpu,
         p: &Placed,
         ray: &Ray,
         stats: &mut S,
@@ -152,6 +190,11 @@ impl<P: Primitive> World<P> {
             instance: p.instance,
             geometry: p.geometry,
         };
+        let mut hit = false;
+        let ask = OneRay::Any(&mut hit);
+        if g.one_ray::<V, B, S, _>(self.top.kernels, cpu, &local, ask, stats, &mut f) {
+            return hit;
+        }
         g.any_hit_with::<B, S, _>(&local, stats, &mut f)
     }
 
@@ -178,7 +221,7 @@ impl<P: Primitive> World<P> {
             |first, count, limit, stats| {
                 stats.prims(count);
                 for p in &top.prims[first..first + count as usize] {
-                    self.closest_in::<B, S, F>(p, ray, best, stats, filter);
+                    self.closest_in::<V, B, S, F>(cpu, p, ray, best, stats, filter);
                 }
                 *limit = best.t;
                 false
@@ -212,7 +255,7 @@ impl<P: Primitive> World<P> {
                 let leaf = &top.prims[first..first + count as usize];
                 hit = leaf
                     .iter()
-                    .any(|p| self.any_in::<B, S, F>(p, ray, stats, filter));
+                    .any(|p| self.any_in::<V, B, S, F>(cpu, p, ray, stats, filter));
                 hit
             },
             |_, _| {},
