@@ -330,7 +330,16 @@ impl EmbreeDevice {
         Self::with_config(Some(&format!("threads={threads}")))
     }
 
+    /// The device for `config` (Embree's configuration string), with whatever
+    /// `QUIVER_EMBREE_CONFIG` holds appended: e.g. `isa=avx2` to run Embree's AVX2 kernels on
+    /// a CPU where it would pick its AVX-512 ones (as quiver has none), which README's
+    /// comparisons name where they use it.
     fn with_config(config: Option<&str>) -> Result<Self, String> {
+        let extra = std::env::var("QUIVER_EMBREE_CONFIG").ok();
+        let config = match (config, extra.as_deref()) {
+            (Some(c), Some(e)) => Some(format!("{c},{e}")),
+            (c, e) => c.or(e).map(str::to_owned),
+        };
         let config = config
             .map(CString::new)
             .transpose()
