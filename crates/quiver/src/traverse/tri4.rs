@@ -104,6 +104,11 @@ fn watertight4(g: &Tri4, r: &Ray4Tri, t_max: f32) -> (u32, u32, [f32; 4], [f32; 
     // On an edge: some edge function zero, which the scalar test decides in f64. A product
     // that underflowed adds lanes the scalar test decides alike; one inside is decided here.
     let edge = (u * v * w).simd_eq(zero) & !inside;
+    // Most groups a ray reaches it misses: no lane inside or on an edge leaves nothing for
+    // the distance (a division) to decide.
+    if (inside | edge).none() {
+        return (0, 0, [0.0; 4], [0.0; 4], [0.0; 4]);
+    }
     let det = u + v + w;
     let z = [0, 1, 2].map(|v| sz * rel(v, kz));
     let t_scaled = u * z[0] + v * z[1] + w * z[2];
@@ -227,8 +232,7 @@ pub(crate) fn any_far<S: Stats, F: Filter<Hit>>(
 }
 
 /// A triangle leaf's closest hit through [`closest`], the ray's group terms made at its first
-/// leaf (`prep`). Watertight groups are tested out of line ([`closest_watertight`]); the fast
-/// test stays inline, where moving it out cost the dragon 3-4%.
+/// leaf (`prep`, see [`prepared`]).
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn closest_leaf<S: Stats, F: Filter<Hit>, const FAR: bool>(
@@ -241,31 +245,7 @@ pub(crate) fn closest_leaf<S: Stats, F: Filter<Hit>, const FAR: bool>(
     stats: &mut S,
     filter: &mut F,
 ) -> bool {
-    if format == LeafFormat::WatertightTriangles {
-        closest_watertight::<S, F, FAR>(groups, count, ray, prep, best, stats, filter)
-    } else {
-        let r = prep.get_or_insert_with(|| Ray4Tri::new(ray, format));
-        closest::<S, F, FAR>(groups, count, ray, r, format, best, stats, filter)
-    }
-}
-
-/// [`closest_leaf`] for watertight groups, out of line: the watertight test needs more
-/// registers than the walk can lend it, and inlined it made the walk keep the ray's node terms
-/// in memory (and the compiler hoisted the ray's shear to every ray's entry, though most rays
-/// reach no leaf).
-#[inline(never)]
-#[allow(clippy::too_many_arguments)]
-fn closest_watertight<S: Stats, F: Filter<Hit>, const FAR: bool>(
-    groups: LeafGroups<'_>,
-    count: u32,
-    ray: &Ray,
-    prep: &mut Option<Ray4Tri>,
-    best: &mut Hit,
-    stats: &mut S,
-    filter: &mut F,
-) -> bool {
-    let format = LeafFormat::WatertightTriangles;
-    let r = prep.get_or_insert_with(|| Ray4Tri::new(ray, format));
+    let r = prepared(prep, ray, format);
     closest::<S, F, FAR>(groups, count, ray, r, format, best, stats, filter)
 }
 
@@ -280,27 +260,29 @@ pub(crate) fn any_leaf<S: Stats, F: Filter<Hit>, const FAR: bool>(
     stats: &mut S,
     filter: &mut F,
 ) -> bool {
+    let r = prepared(prep, ray, format);
+    any::<S, F, FAR>(groups, count, ray, r, format, stats, filter)
+}
+
+/// The ray's group terms, made at its first leaf. The watertight shear (an axis choice, a
+/// division, splats) is made out of line: inlined, the compiler hoisted it to every ray's
+/// entry, though most rays reach no leaf, and held its terms in registers the walk needed.
+/// The fast terms are splats of the ray and stay inline (made out of line, the fast walks took
+/// 3-5% more instructions).
+#[inline(always)]
+fn prepared<'p>(prep: &'p mut Option<Ray4Tri>, ray: &Ray, format: LeafFormat) -> &'p Ray4Tri {
     if format == LeafFormat::WatertightTriangles {
-        any_watertight::<S, F, FAR>(groups, count, ray, prep, stats, filter)
+        prep.get_or_insert_with(|| shear(ray))
     } else {
-        let r = prep.get_or_insert_with(|| Ray4Tri::new(ray, format));
-        any::<S, F, FAR>(groups, count, ray, r, format, stats, filter)
+        prep.get_or_insert_with(|| Ray4Tri::new(ray, format))
     }
 }
 
-/// [`any_leaf`] for watertight groups, out of line as [`closest_watertight`].
+/// [`Ray4Tri::new`] for the watertight test, out of line (see [`prepared`]).
+#[cold]
 #[inline(never)]
-fn any_watertight<S: Stats, F: Filter<Hit>, const FAR: bool>(
-    groups: LeafGroups<'_>,
-    count: u32,
-    ray: &Ray,
-    prep: &mut Option<Ray4Tri>,
-    stats: &mut S,
-    filter: &mut F,
-) -> bool {
-    let format = LeafFormat::WatertightTriangles;
-    let r = prep.get_or_insert_with(|| Ray4Tri::new(ray, format));
-    any::<S, F, FAR>(groups, count, ray, r, format, stats, filter)
+fn shear(ray: &Ray) -> Ray4Tri {
+    Ray4Tri::new(ray, LeafFormat::WatertightTriangles)
 }
 
 /// Closest hit among a leaf's groups, improving `best`; `count` triangles in the leaf.
