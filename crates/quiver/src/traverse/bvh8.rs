@@ -103,7 +103,10 @@ pub(crate) fn walk<V, B, S, F, const ORDERED: bool>(
         stats.boxes(8);
         let (t, mask) = ray.enter::<B>(n, limit * B::SLACK);
         // The child taken next is held here rather than pushed and popped: the next node's
-        // address then does not wait on a store and a load through the stack.
+        // address then does not wait on a store and a load through the stack. The held entry
+        // is a plain value each pop replaces: taken through an `Option` chain
+        // (`take().or_else(pop)`, or a helper returning one), LLVM zeroed the whole
+        // `MaybeUninit` stack on every ray.
         let mut next = if mask.is_power_of_two() {
             // One child hit (the common case): nothing to order.
             let i = mask.trailing_zeros() as usize;
