@@ -198,8 +198,14 @@ impl<P: Primitive> World<P> {
                             if geometry
                                 .in_lanes::<V, B, S, _>(kernels, cpu, &mut lp, ask, stats, &mut f)
                             {
+                                // Straight from the records: one pass over the rays, not a
+                                // copy into `found` and a second.
                                 for i in bits(m) {
-                                    found[i] = records[i].found();
+                                    let h = records[i];
+                                    if h.prim != u32::MAX && best[i].is_beaten_by(h.t, p.instance) {
+                                        best[i] = f.hit(&h);
+                                        pk.set_limit(i, h.t);
+                                    }
                                 }
                             } else {
                                 local_rays(
@@ -221,12 +227,12 @@ impl<P: Primitive> World<P> {
                                     stats,
                                     &mut f,
                                 );
-                            }
-                            for i in bits(m) {
-                                if let Some(h) = found[i] {
-                                    if best[i].is_beaten_by(h.t, p.instance) {
-                                        best[i] = f.hit(&h);
-                                        pk.set_limit(i, best[i].t);
+                                for i in bits(m) {
+                                    if let Some(h) = found[i] {
+                                        if best[i].is_beaten_by(h.t, p.instance) {
+                                            best[i] = f.hit(&h);
+                                            pk.set_limit(i, h.t);
+                                        }
                                     }
                                 }
                             }
