@@ -4,9 +4,13 @@
 //! (any hit) once, in MODE: `plain` (no filter, default masks), `filter` (a filter that
 //! accepts every hit), `mask` (ray mask 1, which every instance shares: it excludes nothing)
 //! `packets` (the eye rays in 8×8 tiles, closest hits as packets of 64), `flat-packets` (the
-//! same through the flattened patch scene) or `none` (builds only). Meant for `valgrind --tool=callgrind
-//! --toggle-collect='fm::trace*'`, whose instruction counts, unlike times on a shared
-//! machine, repeat exactly: the difference between modes is the features' price per ray.
+//! same through the flattened patch scene), `plain20` and `flat` (the plain rays 20 times,
+//! through the world and through the flattened patch scene, for `perf record`), `counts`
+//! (nodes, boxes, leaves and primitives a ray, instanced beside flattened) or `none` (builds
+//! only). `FM_BUILD=hq` or `sweep` builds the world with that preset instead of the default.
+//! Meant for `valgrind --tool=callgrind --toggle-collect='fm::trace*'`, whose instruction
+//! counts, unlike times on a shared machine, repeat exactly: the difference between modes is
+//! the features' price per ray.
 use quiver::{BuildOptions, Hit, Ray, RayQuery};
 use quiver_lab::rays;
 use quiver_scenes::accel::SceneBvh;
@@ -50,8 +54,13 @@ fn main() {
     let name = a.get(1).map_or("balls4", |s| s.as_str());
     let mode = a.get(2).map_or("plain", |s| s.as_str());
     let scene = Scene::load(name).expect("scene");
-    let q = SceneBvh::build_instanced(&scene, DEFAULT_RESOLUTION, &BuildOptions::default())
-        .expect("an instanced world");
+    let opts = match std::env::var("FM_BUILD").as_deref() {
+        Ok("hq") => BuildOptions::high_quality(),
+        Ok("sweep") => BuildOptions::quality(),
+        _ => BuildOptions::default(),
+    };
+    let q =
+        SceneBvh::build_instanced(&scene, DEFAULT_RESOLUTION, &opts).expect("an instanced world");
     let eye = rays::camera_rays(&scene.camera, 256);
     let light = scene.lights.first().map_or(scene.camera.from, |l| l.pos);
     let shadow = rays::shadow_rays(&q, &eye, &[light]);
@@ -65,6 +74,29 @@ fn main() {
             let patched = scene.clone().into_patches(DEFAULT_RESOLUTION);
             let flat = SceneBvh::build_triangles(&patched, &BuildOptions::default());
             trace_packets(&flat, &rays::camera_tiles(&scene.camera, 256, 8))
+        }
+        "flat" => {
+            let patched = scene.clone().into_patches(DEFAULT_RESOLUTION);
+            let flat = SceneBvh::build_triangles(&patched, &BuildOptions::default());
+            (0..20).map(|_| trace_plain(&flat, &eye, &shadow)).sum()
+        }
+        "plain20" => (0..20).map(|_| trace_plain(&q, &eye, &shadow)).sum(),
+        "counts" => {
+            let patched = scene.clone().into_patches(DEFAULT_RESOLUTION);
+            let flat = SceneBvh::build_triangles(&patched, &BuildOptions::default());
+            for (label, q) in [("instanced", &q), ("flattened", &flat)] {
+                let (mut ce, mut cs) = (
+                    quiver::traverse::Counters::default(),
+                    quiver::traverse::Counters::default(),
+                );
+                eye.iter()
+                    .for_each(|r| drop(q.closest_hit_counted(r, &mut ce)));
+                shadow
+                    .iter()
+                    .for_each(|r| drop(q.any_hit_counted(r, &mut cs)));
+                println!("{label} eye {ce:?}\n{label} shadow {cs:?}");
+            }
+            0
         }
         "none" => 0,
         m => panic!("unknown mode {m}: plain, filter, mask, packets, flat-packets or none"),
