@@ -89,11 +89,12 @@ fn main() {
                     quiver::traverse::Counters::default(),
                     quiver::traverse::Counters::default(),
                 );
-                eye.iter()
-                    .for_each(|r| drop(q.closest_hit_counted(r, &mut ce)));
-                shadow
-                    .iter()
-                    .for_each(|r| drop(q.any_hit_counted(r, &mut cs)));
+                eye.iter().for_each(|r| {
+                    let _ = q.closest_hit_counted(r, &mut ce);
+                });
+                shadow.iter().for_each(|r| {
+                    let _ = q.any_hit_counted(r, &mut cs);
+                });
                 println!("{label} eye {ce:?}\n{label} shadow {cs:?}");
             }
             0

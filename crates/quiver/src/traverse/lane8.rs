@@ -29,6 +29,7 @@ pub(crate) trait F8: Copy {
     fn max_nan_first(self, b: Self) -> Self;
     /// `min(self, b)`, or `b` where either is NaN.
     fn min_nan_first(self, b: Self) -> Self;
+    fn lt(self, b: Self) -> Self;
     fn le(self, b: Self) -> Self;
     fn ge(self, b: Self) -> Self;
     fn ne(self, b: Self) -> Self;
@@ -37,6 +38,9 @@ pub(crate) trait F8: Copy {
     fn select(self, t: Self, f: Self) -> Self;
     /// Bit `i` set where lane `i`'s sign bit is set (a mask lane is true).
     fn bitmask(self) -> u32;
+    /// Each lane's sign bit copied into all its bits (a lane mask of the negative lanes,
+    /// `-0.0` and NaNs with the sign bit among them).
+    fn sign_fill(self) -> Self;
 
     /// Runs `f` in a function of its own (a cold path kept out of a kernel's loop), compiled
     /// for the same instruction set as the kernel.
@@ -61,6 +65,12 @@ pub(crate) trait F8: Copy {
     #[inline(always)]
     fn of(cpu: Self::Cpu, x: &f32x8) -> Self {
         Self::load(cpu, bytemuck::cast_ref(x))
+    }
+
+    /// Stores the lanes into a `wide::f32x8` (what packets keep their rays in).
+    #[inline(always)]
+    fn store(self, out: &mut f32x8) {
+        *out = f32x8::from(self.to_array());
     }
 }
 
@@ -103,6 +113,10 @@ impl F8 for f32x8 {
         NanFirst::min_nan_first(self, b)
     }
     #[inline(always)]
+    fn lt(self, b: Self) -> Self {
+        self.simd_lt(b)
+    }
+    #[inline(always)]
     fn le(self, b: Self) -> Self {
         self.simd_le(b)
     }
@@ -125,6 +139,11 @@ impl F8 for f32x8 {
     #[inline(always)]
     fn bitmask(self) -> u32 {
         self.to_bitmask()
+    }
+    #[inline(always)]
+    fn sign_fill(self) -> Self {
+        let i: wide::i32x8 = bytemuck::cast(self);
+        bytemuck::cast(i >> 31)
     }
 }
 
@@ -189,6 +208,10 @@ mod avx {
             Avx(unsafe { _mm256_min_ps(self.0, b.0) })
         }
         #[inline(always)]
+        fn lt(self, b: Self) -> Self {
+            Avx(unsafe { _mm256_cmp_ps::<_CMP_LT_OQ>(self.0, b.0) })
+        }
+        #[inline(always)]
         fn le(self, b: Self) -> Self {
             Avx(unsafe { _mm256_cmp_ps::<_CMP_LE_OQ>(self.0, b.0) })
         }
@@ -212,6 +235,19 @@ mod avx {
         #[inline(always)]
         fn bitmask(self) -> u32 {
             (unsafe { _mm256_movemask_ps(self.0) }) as u32
+        }
+        #[inline(always)]
+        fn sign_fill(self) -> Self {
+            // An arithmetic shift of the integer lanes (AVX2).
+            Avx(unsafe {
+                _mm256_castsi256_ps(_mm256_srai_epi32::<31>(_mm256_castps_si256(self.0)))
+            })
+        }
+        #[inline(always)]
+        fn store(self, out: &mut wide::f32x8) {
+            // `f32x8` is eight `f32`s (Pod), so its bytes are a `[f32; 8]`.
+            let out: &mut [f32; 8] = bytemuck::cast_mut(out);
+            unsafe { _mm256_storeu_ps(out.as_mut_ptr(), self.0) }
         }
         #[inline(always)]
         fn outlined<R>(_: Avx2Cpu, f: impl FnOnce() -> R) -> R {
@@ -274,6 +310,7 @@ mod tests {
         same(va.min_nan_first(vb).to_array(), lanes(nan_first_min), "min");
         let mask =
             |f: fn(f32, f32) -> bool| (0..8).fold(0u32, |m, i| m | (f(a[i], b[i]) as u32) << i);
+        assert_eq!(va.lt(vb).bitmask(), mask(|x, y| x < y), "lt");
         assert_eq!(va.le(vb).bitmask(), mask(|x, y| x <= y), "le");
         assert_eq!(va.ge(vb).bitmask(), mask(|x, y| x >= y), "ge");
         assert_eq!(va.ne(vb).bitmask(), mask(|x, y| x != y), "ne");
@@ -290,6 +327,11 @@ mod tests {
         );
         same(V::splat(cpu, -0.0).to_array(), [-0.0; 8], "splat");
         same(V::of(cpu, &f32x8::from(a)).to_array(), a, "of");
+        let mut stored = f32x8::ZERO;
+        vb.store(&mut stored);
+        same(stored.to_array(), b, "store");
+        let signs = a.map(|x| f32::from_bits(0u32.wrapping_sub(x.to_bits() >> 31)));
+        same(va.sign_fill().to_array(), signs, "sign_fill");
     }
 
     #[test]

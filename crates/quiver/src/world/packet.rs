@@ -12,7 +12,7 @@ use super::{Geometry, Placed, World, WorldHit};
 use crate::geometry::{Hit, Ray};
 use crate::isa::Kernels;
 use crate::layout::Bvh8Node;
-use crate::primitive::{Primitive, CHUNKS, LANES, PACKET_RAYS};
+use crate::primitive::{Lanes, Primitive, CHUNKS, LANES, PACKET_RAYS};
 use crate::traverse::lane8::F8;
 use crate::traverse::packet::{
     each_packet, walk, AloneIn, InLanes, PacketBuilder, PacketMode, RayPacket, Visit,
@@ -41,12 +41,19 @@ fn uniform_mask(rays: &[Ray]) -> Option<u32> {
     rays.iter().all(|r| r.mask == m).then_some(m)
 }
 
-/// Chunk `k` of packet `pk` in instance `p`'s object space: its origin and direction lanes
-/// transformed (an instance placed as it is takes them as they are).
+/// Chunk `k` of packet `pk` in instance `p`'s object space, in lanes `V`: its origin and
+/// direction lanes transformed (an instance placed as it is takes them as they are).
 #[inline(always)]
-fn chunk_to_object(p: &Placed, pk: &RayPacket, k: usize) -> ([f32x8; 3], [f32x8; 3]) {
+fn chunk_to_object<V: F8>(cpu: V::Cpu, p: &Placed, pk: &RayPacket, k: usize) -> ([V; 3], [V; 3]) {
     let (o, d) = (&pk.rays.o, &pk.rays.d);
-    let (wo, wd) = ([o[0][k], o[1][k], o[2][k]], [d[0][k], d[1][k], d[2][k]]);
+    let lanes = |x: &[Lanes; 3]| {
+        [
+            V::of(cpu, &x[0][k]),
+            V::of(cpu, &x[1][k]),
+            V::of(cpu, &x[2][k]),
+        ]
+    };
+    let (wo, wd) = (lanes(o), lanes(d));
     if p.identity {
         return (wo, wd);
     }
@@ -54,14 +61,19 @@ fn chunk_to_object(p: &Placed, pk: &RayPacket, k: usize) -> ([f32x8; 3], [f32x8;
     // column `j` of the linear part in lanes 0..3 of `to_object[j]`, translation component
     // `a` in lane 3 of `to_object[a]`.
     let [cx, cy, cz] = &p.to_object;
-    let s = f32x8::splat;
+    let s = |x: f32| V::splat(cpu, x);
     // glam's `transform_point3a` / `transform_vector3a` lane-wise (x·col0 + y·col1 + z·col2,
     // + translation), so every ray is transformed as the single-ray walk transforms it.
-    let mut lo = [f32x8::ZERO; 3];
-    let mut ld = [f32x8::ZERO; 3];
+    let mut lo = [s(0.0); 3];
+    let mut ld = [s(0.0); 3];
     for a in 0..3 {
-        lo[a] = s(cx[a]) * wo[0] + s(cy[a]) * wo[1] + s(cz[a]) * wo[2] + s(p.to_object[a][3]);
-        ld[a] = s(cx[a]) * wd[0] + s(cy[a]) * wd[1] + s(cz[a]) * wd[2];
+        let (x, y, z) = (s(cx[a]), s(cy[a]), s(cz[a]));
+        lo[a] = x
+            .mul(wo[0])
+            .add(y.mul(wo[1]))
+            .add(z.mul(wo[2]))
+            .add(s(p.to_object[a][3]));
+        ld[a] = x.mul(wd[0]).add(y.mul(wd[1])).add(z.mul(wd[2]));
     }
     (lo, ld)
 }
@@ -69,13 +81,15 @@ fn chunk_to_object(p: &Placed, pk: &RayPacket, k: usize) -> ([f32x8; 3], [f32x8;
 /// The rays `m` of packet `pk` in instance `p`'s object space, as a packet of their own in
 /// `out`, each searching over its interval so far.
 #[inline(always)]
-fn local_packet(p: &Placed, pk: &RayPacket, m: u64, out: &mut RayPacket) {
-    let mut b = PacketBuilder::over(out);
+fn local_packet<V: F8>(cpu: V::Cpu, p: &Placed, pk: &RayPacket, m: u64, out: &mut RayPacket) {
+    let mut b = PacketBuilder::<V>::over(cpu, out);
     for k in 0..CHUNKS {
         let lanes = (m >> (LANES * k)) as u32 & 0xFF;
         if lanes != 0 {
-            let (lo, ld) = chunk_to_object(p, pk, k);
-            b.chunk(out, k, lo, ld, pk.rays.t_min[k], pk.rays.limit[k], lanes);
+            let (lo, ld) = chunk_to_object::<V>(cpu, p, pk, k);
+            let t_min = V::of(cpu, &pk.rays.t_min[k]);
+            let limit = V::of(cpu, &pk.rays.limit[k]);
+            b.chunk(out, k, lo, ld, t_min, limit, lanes);
         }
     }
     b.finish(out);
@@ -109,7 +123,8 @@ impl<P: Primitive> Geometry<P> {
 /// its `limit`, for a geometry that takes its rays through its packet query (binary nodes, a
 /// scaled frame, other kernels). Rays outside `m` are left as they are.
 #[inline(always)]
-fn local_rays(
+fn local_rays<V: F8>(
+    cpu: V::Cpu,
     p: &Placed,
     pk: &RayPacket,
     rays: &[Ray],
@@ -122,7 +137,7 @@ fn local_rays(
         if lanes == 0 {
             continue;
         }
-        let (lo, ld) = chunk_to_object(p, pk, k);
+        let (lo, ld) = chunk_to_object::<V>(cpu, p, pk, k);
         let (lo, ld) = (lo.map(|v| v.to_array()), ld.map(|v| v.to_array()));
         for l in bits(lanes) {
             let i = LANES * k + l;
@@ -190,7 +205,7 @@ impl<P: Primitive> World<P> {
                                 instance: p.instance,
                                 geometry: p.geometry,
                             };
-                            local_packet(p, pk, m, &mut lp);
+                            local_packet::<V>(cpu, p, pk, m, &mut lp);
                             for i in bits(m) {
                                 records[i] = Hit::none(best[i].t);
                             }
@@ -208,7 +223,8 @@ impl<P: Primitive> World<P> {
                                     }
                                 }
                             } else {
-                                local_rays(
+                                local_rays::<V>(
+                                    cpu,
                                     p,
                                     pk,
                                     rays,
@@ -314,7 +330,7 @@ impl<P: Primitive> World<P> {
                                 instance: p.instance,
                                 geometry: p.geometry,
                             };
-                            local_packet(p, pk, m, &mut lp);
+                            local_packet::<V>(cpu, p, pk, m, &mut lp);
                             for i in bits(m) {
                                 blocked[i] = false;
                             }
@@ -322,7 +338,7 @@ impl<P: Primitive> World<P> {
                             if !geometry
                                 .in_lanes::<V, B, S, _>(kernels, cpu, &mut lp, ask, stats, &mut f)
                             {
-                                local_rays(p, pk, rays, m, |i| rays[i].t_max, &mut local);
+                                local_rays::<V>(cpu, p, pk, rays, m, |i| rays[i].t_max, &mut local);
                                 flags(m, n, &mut active);
                                 let query = PacketQuery::new(&local[..n])
                                     .active(&active[..n])

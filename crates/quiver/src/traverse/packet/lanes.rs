@@ -24,60 +24,63 @@ pub(crate) fn chunks(mut m: u64) -> impl Iterator<Item = (usize, u32)> {
     })
 }
 
-/// Lanes of `t` where `mask` is set, of `f` elsewhere.
-#[inline(always)]
-fn sel(mask: f32x8, t: f32x8, f: f32x8) -> f32x8 {
-    wide::Select::select(mask, t, f)
-}
-
 /// All bits set in the lanes whose bit is set in `bits`.
 #[inline(always)]
-fn lane_mask(bits: u32) -> f32x8 {
+fn lane_mask<V: F8>(cpu: V::Cpu, bits: u32) -> V {
     let lane = |j: u32| f32::from_bits(0u32.wrapping_sub(bits >> j & 1));
-    f32x8::from([
-        lane(0),
-        lane(1),
-        lane(2),
-        lane(3),
-        lane(4),
-        lane(5),
-        lane(6),
-        lane(7),
-    ])
+    V::load(
+        cpu,
+        &[
+            lane(0),
+            lane(1),
+            lane(2),
+            lane(3),
+            lane(4),
+            lane(5),
+            lane(6),
+            lane(7),
+        ],
+    )
 }
 
-/// All bits set in the lanes whose sign bit is set.
+/// `|x|` lane by lane (the sign bit cleared).
 #[inline(always)]
-fn sign_mask(x: f32x8) -> f32x8 {
-    let i: wide::i32x8 = bytemuck::cast(x);
-    bytemuck::cast(i >> 31)
+fn abs8<V: F8>(cpu: V::Cpu, x: V) -> V {
+    V::splat(cpu, f32::from_bits(0x7fff_ffff)).and(x)
 }
 
 /// [`slab_reciprocal`] in eight lanes: `1 / d`, NaN for a subnormal component.
 #[inline(always)]
-fn reciprocal8(d: f32x8) -> f32x8 {
-    let subnormal = d.abs().simd_lt(f32x8::splat(f32::MIN_POSITIVE)) & d.simd_ne(f32x8::ZERO);
-    sel(subnormal, f32x8::splat(f32::NAN), f32x8::ONE / d)
+fn reciprocal8<V: F8>(cpu: V::Cpu, d: V) -> V {
+    let subnormal = abs8(cpu, d)
+        .lt(V::splat(cpu, f32::MIN_POSITIVE))
+        .and(d.ne(V::splat(cpu, 0.0)));
+    subnormal.select(V::splat(cpu, f32::NAN), V::splat(cpu, 1.0).div(d))
 }
 
-/// [`BoundBuilder`] fed eight rays at a time (the valid lanes of each chunk).
-struct ChunkBound {
-    o_lo: [f32x8; 3],
-    o_hi: [f32x8; 3],
-    i_lo: [f32x8; 3],
-    i_hi: [f32x8; 3],
-    t_min_lo: f32x8,
-    t_max_hi: f32x8,
+/// [`BoundBuilder`] fed eight rays at a time (the valid lanes of each chunk), on lanes `V`.
+struct ChunkBound<V: F8> {
+    cpu: V::Cpu,
+    o_lo: [V; 3],
+    o_hi: [V; 3],
+    i_lo: [V; 3],
+    i_hi: [V; 3],
+    t_min_lo: V,
+    t_max_hi: V,
     usable: [bool; 3],
     negs: [u32; 3],
     rays: u32,
 }
 
-impl ChunkBound {
+impl<V: F8> ChunkBound<V> {
     #[inline(always)]
-    fn new() -> Self {
-        let (inf, ninf) = (f32x8::INFINITY, f32x8::NEG_INFINITY);
+    fn new(cpu: V::Cpu) -> Self {
+        let (inf, ninf) = (
+            V::splat(cpu, f32::INFINITY),
+            V::splat(cpu, f32::NEG_INFINITY),
+        );
         ChunkBound {
+            cpu,
             o_lo: [inf; 3],
             o_hi: [ninf; 3],
             i_lo: [inf; 3],
@@ -92,28 +95,26 @@ impl ChunkBound {
 
     /// Adds the `valid` lanes (`vm`: their lane mask) of a chunk.
     #[inline(always)]
-    fn add(
-        &mut self,
-        o: [f32x8; 3],
-        inv: [f32x8; 3],
-        t_min: f32x8,
-        t_max: f32x8,
-        valid: u32,
-        vm: f32x8,
-    ) {
-        let (inf, ninf) = (f32x8::INFINITY, f32x8::NEG_INFINITY);
+    fn add(&mut self, o: [V; 3], inv: [V; 3], t_min: V, t_max: V, valid: u32, vm: V) {
+        let cpu = self.cpu;
+        let (inf, ninf) = (
+            V::splat(cpu, f32::INFINITY),
+            V::splat(cpu, f32::NEG_INFINITY),
+        );
+        let finite = |x: V| abs8(cpu, x).lt(inf);
         for a in 0..3 {
-            self.negs[a] += (inv[a].to_bitmask() & valid).count_ones();
-            let finite = |x: f32x8| x.abs().simd_lt(inf);
-            let ok = finite(o[a]) & finite(inv[a]) & inv[a].simd_ne(f32x8::ZERO);
-            self.usable[a] &= ok.to_bitmask() & valid == valid;
-            self.o_lo[a] = self.o_lo[a].fast_min(sel(vm, o[a], inf));
-            self.o_hi[a] = self.o_hi[a].fast_max(sel(vm, o[a], ninf));
-            self.i_lo[a] = self.i_lo[a].fast_min(sel(vm, inv[a], inf));
-            self.i_hi[a] = self.i_hi[a].fast_max(sel(vm, inv[a], ninf));
+            self.negs[a] += (inv[a].bitmask() & valid).count_ones();
+            let ok = finite(o[a])
+                .and(finite(inv[a]))
+                .and(inv[a].ne(V::splat(cpu, 0.0)));
+            self.usable[a] &= ok.bitmask() & valid == valid;
+            self.o_lo[a] = self.o_lo[a].min_nan_first(vm.select(o[a], inf));
+            self.o_hi[a] = self.o_hi[a].max_nan_first(vm.select(o[a], ninf));
+            self.i_lo[a] = self.i_lo[a].min_nan_first(vm.select(inv[a], inf));
+            self.i_hi[a] = self.i_hi[a].max_nan_first(vm.select(inv[a], ninf));
         }
-        self.t_min_lo = self.t_min_lo.fast_min(sel(vm, t_min, inf));
-        self.t_max_hi = self.t_max_hi.fast_max(sel(vm, t_max, ninf));
+        self.t_min_lo = self.t_min_lo.min_nan_first(vm.select(t_min, inf));
+        self.t_max_hi = self.t_max_hi.max_nan_first(vm.select(t_max, ninf));
         self.rays += valid.count_ones();
     }
 
@@ -122,7 +123,7 @@ impl ChunkBound {
     #[inline(always)]
     fn finish(&self) -> Bound {
         #[inline(always)]
-        fn lo(x: f32x8) -> f32 {
+        fn lo<V: F8>(x: V) -> f32 {
             let mut m = f32::INFINITY;
             for v in x.to_array() {
                 m = m.min(v);
@@ -130,7 +131,7 @@ impl ChunkBound {
             m
         }
         #[inline(always)]
-        fn hi(x: f32x8) -> f32 {
+        fn hi<V: F8>(x: V) -> f32 {
             let mut m = f32::NEG_INFINITY;
             for v in x.to_array() {
                 m = m.max(v);
@@ -181,24 +182,26 @@ pub(crate) struct RayPacket {
     leaf_rays: u32,
 }
 
-/// Fills a [`RayPacket`] chunk by chunk from rays already in lanes: what [`RayPacket::new`]
-/// does after gathering, and what a world's instance entry does with rays it transformed in
-/// lanes, into one packet it reuses (no round trip through one `Ray` per lane, no copy of
-/// the packet). Chunks never given stay inactive.
-pub(crate) struct PacketBuilder {
-    bound: ChunkBound,
+/// Fills a [`RayPacket`] chunk by chunk from rays already in lanes `V`: what
+/// [`RayPacket::new`] does after gathering, and what a world's instance entry does with rays
+/// it transformed in lanes, into one packet it reuses (no round trip through one `Ray` per
+/// lane, no copy of the packet). Chunks never given stay inactive. On AVX lanes each step is
+/// one instruction where `wide::f32x8` on baseline x86-64 takes two SSE halves: an instanced
+/// packet builds a packet at every instance it enters.
+pub(crate) struct PacketBuilder<V: F8> {
+    bound: ChunkBound<V>,
 }
 
-impl PacketBuilder {
+impl<V: F8> PacketBuilder<V> {
     /// Starts over `p`: every ray of it inactive.
     #[inline(always)]
-    pub(crate) fn over(p: &mut RayPacket) -> PacketBuilder {
+    pub(crate) fn over(cpu: V::Cpu, p: &mut RayPacket) -> PacketBuilder<V> {
         p.active = 0;
         p.rays.limit = [f32x8::NEG_INFINITY; CHUNKS];
         p.leaf_visits = 0;
         p.leaf_rays = 0;
         PacketBuilder {
-            bound: ChunkBound::new(),
+            bound: ChunkBound::new(cpu),
         }
     }
 
@@ -210,28 +213,35 @@ impl PacketBuilder {
         &mut self,
         p: &mut RayPacket,
         k: usize,
-        o: [f32x8; 3],
-        d: [f32x8; 3],
-        t_min: f32x8,
-        t_max: f32x8,
+        o: [V; 3],
+        d: [V; 3],
+        t_min: V,
+        t_max: V,
         on: u32,
     ) {
-        let numbers = t_min.simd_eq(t_min) & t_max.simd_eq(t_max);
-        let valid = on & numbers.to_bitmask();
+        let cpu = self.bound.cpu;
+        // `x <= x` is false exactly for NaN.
+        let numbers = t_min.le(t_min).and(t_max.le(t_max));
+        let valid = on & numbers.bitmask();
         if valid == 0 {
             return;
         }
         p.active |= u64::from(valid) << (LANES * k);
-        let vm = lane_mask(valid);
-        let inv = [reciprocal8(d[0]), reciprocal8(d[1]), reciprocal8(d[2])];
+        let vm = lane_mask::<V>(cpu, valid);
+        let inv = [
+            reciprocal8(cpu, d[0]),
+            reciprocal8(cpu, d[1]),
+            reciprocal8(cpu, d[2]),
+        ];
         for a in 0..3 {
-            p.rays.o[a][k] = o[a];
-            p.rays.d[a][k] = d[a];
-            p.inv[a][k] = inv[a];
-            p.neg[a][k] = sign_mask(inv[a]);
+            o[a].store(&mut p.rays.o[a][k]);
+            d[a].store(&mut p.rays.d[a][k]);
+            inv[a].store(&mut p.inv[a][k]);
+            inv[a].sign_fill().store(&mut p.neg[a][k]);
         }
-        p.rays.t_min[k] = t_min;
-        p.rays.limit[k] = sel(vm, t_max, f32x8::NEG_INFINITY);
+        t_min.store(&mut p.rays.t_min[k]);
+        vm.select(t_max, V::splat(cpu, f32::NEG_INFINITY))
+            .store(&mut p.rays.limit[k]);
         self.bound.add(o, inv, t_min, t_max, valid, vm);
     }
 
@@ -254,7 +264,7 @@ impl RayPacket {
     pub(crate) fn new(rays: &[Ray], active: u64) -> RayPacket {
         debug_assert!(rays.len() <= PACKET_RAYS);
         let mut p = RayPacket::empty();
-        let mut b = PacketBuilder::over(&mut p);
+        let mut b = PacketBuilder::<f32x8>::over((), &mut p);
         for (k, chunk) in rays.chunks(LANES).enumerate() {
             let f = match <&[Ray; LANES]>::try_from(chunk) {
                 Ok(full) => ray_rows(full),
