@@ -4,7 +4,7 @@
 //! (any hit) once, in MODE: `plain` (no filter, default masks), `filter` (a filter that
 //! accepts every hit), `mask` (ray mask 1, which every instance shares: it excludes nothing)
 //! `packets` (the eye rays in 8×8 tiles, closest hits as packets of 64), `flat-packets` (the
-//! same through the flattened patch scene), `plain20` and `flat` (the plain rays 20 times,
+//! same through the flattened patch scene), `packets50` (the packets 50 times), `plain20` and `flat` (the plain rays 20 times,
 //! through the world and through the flattened patch scene, for `perf record`), `counts`
 //! (nodes, boxes, leaves and primitives a ray, instanced beside flattened) or `none` (builds
 //! only). `FM_BUILD=hq` or `sweep` builds the world with that preset instead of the default.
@@ -70,6 +70,10 @@ fn main() {
         "filter" => trace_filtered(&q, &eye, &shadow),
         "mask" => trace_plain(&q, &mask(&eye), &mask(&shadow)),
         "packets" => trace_packets(&q, &rays::camera_tiles(&scene.camera, 256, 8)),
+        "packets50" => {
+            let tiles = rays::camera_tiles(&scene.camera, 256, 8);
+            (0..50).map(|_| trace_packets(&q, &tiles)).sum()
+        }
         "flat-packets" => {
             let patched = scene.clone().into_patches(DEFAULT_RESOLUTION);
             let flat = SceneBvh::build_triangles(&patched, &BuildOptions::default());
