@@ -3,7 +3,9 @@
 //! one thread, its 512² eye rays, shadow rays from their hits toward the first light, and RAYS
 //! incoherent rays (default 200,000), REPS rounds each, interleaved; prints the fastest
 //! round's Mrays/s of each. The fastest round is what a busy machine perturbs least: for
-//! quick A/B runs of two builds; the tables come from `quiver bench`.
+//! quick A/B runs of two builds; the tables come from `quiver bench`. Environment knobs for
+//! trying build settings: `TR_LEAF` (largest leaf), `TR_BINS`, `TR_CT` (the SAH's node cost)
+//! and `TR_BUILDER` (`sbvh` or `sweep`).
 use quiver::{Bvh, RayQuery};
 use quiver_scenes::scene::tessellate::DEFAULT_RESOLUTION;
 use quiver_scenes::Scene;
@@ -18,7 +20,23 @@ fn main() {
         .expect("scene")
         .into_patches(DEFAULT_RESOLUTION);
     let tris = scene.triangles();
-    let bvh = Bvh::new(&tris);
+    let env = |k: &str| std::env::var(k).ok().map(|v| v.parse::<f32>().expect(k));
+    let mut config = quiver::builders::BuildConfig::default();
+    if let Some(v) = env("TR_LEAF") {
+        config.max_leaf_size = v as usize;
+    }
+    if let Some(v) = env("TR_BINS") {
+        config.bins = v as usize;
+    }
+    if let Some(v) = env("TR_CT") {
+        config.traversal_cost = v;
+    }
+    let options = match std::env::var("TR_BUILDER").as_deref() {
+        Ok("sbvh") => quiver::BuildOptions::high_quality(),
+        Ok("sweep") => quiver::BuildOptions::quality(),
+        _ => quiver::BuildOptions::default(),
+    };
+    let bvh: Bvh = options.config(config).build(&tris);
     let eye = quiver_lab::rays::camera_rays(&scene.camera, 512);
     let light = scene.lights.first().map_or(scene.camera.from, |l| l.pos);
     let shadow = quiver_lab::rays::shadow_rays(&bvh, &eye, &[light]);
