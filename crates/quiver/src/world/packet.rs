@@ -216,9 +216,8 @@ impl<P: Primitive> World<P> {
                                 // Straight from the records: one pass over the rays, not a
                                 // copy into `found` and a second.
                                 for i in bits(m) {
-                                    let h = records[i];
-                                    if h.prim != u32::MAX && best[i].is_beaten_by(h.t, p.instance) {
-                                        best[i] = f.hit(&h);
+                                    let h = &records[i];
+                                    if h.prim != u32::MAX && f.improve(&mut best[i], h) {
                                         pk.set_limit(i, h.t);
                                     }
                                 }
@@ -244,9 +243,8 @@ impl<P: Primitive> World<P> {
                                     &mut f,
                                 );
                                 for i in bits(m) {
-                                    if let Some(h) = found[i] {
-                                        if best[i].is_beaten_by(h.t, p.instance) {
-                                            best[i] = f.hit(&h);
+                                    if let Some(h) = &found[i] {
+                                        if f.improve(&mut best[i], h) {
                                             pk.set_limit(i, h.t);
                                         }
                                     }

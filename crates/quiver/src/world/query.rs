@@ -40,6 +40,17 @@ impl<F> InInstance<'_, F> {
             v: h.v,
         }
     }
+
+    /// Makes the geometry's hit `h` the world's `best` where it beats it (see
+    /// [`WorldHit::is_beaten_by`]); says whether it did.
+    #[inline(always)]
+    pub(super) fn improve(&self, best: &mut WorldHit, h: &Hit) -> bool {
+        let better = best.is_beaten_by(h.t, self.instance);
+        if better {
+            *best = self.hit(h);
+        }
+        better
+    }
 }
 
 impl<P: Primitive> RayQuery for Geometry<P> {
@@ -163,9 +174,7 @@ impl<P: Primitive> World<P> {
             g.closest_hit_with::<B, S, _>(&local, stats, &mut f)
         };
         if let Some(h) = found {
-            if best.is_beaten_by(h.t, p.instance) {
-                *best = f.hit(&h);
-            }
+            f.improve(best, &h);
         }
     }
 
