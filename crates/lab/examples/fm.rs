@@ -4,10 +4,11 @@
 //! (any hit) once, in MODE: `plain` (no filter, default masks), `filter` (a filter that
 //! accepts every hit), `mask` (ray mask 1, which every instance shares: it excludes nothing)
 //! `packets` (the eye rays in 8×8 tiles, closest hits as packets of 64), `flat-packets` (the
-//! same through the flattened patch scene), `packets50` (the packets 50 times), `plain20` and `flat` (the plain rays 20 times,
-//! through the world and through the flattened patch scene, for `perf record`), `counts`
-//! (nodes, boxes, leaves and primitives a ray, instanced beside flattened) or `none` (builds
-//! only). `FM_BUILD=hq` or `sweep` builds the world with that preset instead of the default.
+//! same through the flattened patch scene), `packets50` (the packets 50 times), `plain20` and
+//! `flat` (the plain rays 20 times, through the world and through the flattened patch scene,
+//! for `perf record`), `counts` (nodes, boxes, leaves and primitives a ray, instanced beside
+//! flattened) or `none` (builds only). `FM_BUILDER=NAME` builds the world with that builder
+//! (a `quiver::builders::Builder` name, e.g. `sbvh` or `sweep`) instead of the default.
 //! Meant for `valgrind --tool=callgrind --toggle-collect='fm::trace*'`, whose instruction
 //! counts, unlike times on a shared machine, repeat exactly: the difference between modes is
 //! the features' price per ray.
@@ -54,16 +55,20 @@ fn main() {
     let name = a.get(1).map_or("balls4", |s| s.as_str());
     let mode = a.get(2).map_or("plain", |s| s.as_str());
     let scene = Scene::load(name).expect("scene");
-    let opts = match std::env::var("FM_BUILD").as_deref() {
-        Ok("hq") => BuildOptions::high_quality(),
-        Ok("sweep") => BuildOptions::quality(),
-        _ => BuildOptions::default(),
-    };
+    let mut opts = BuildOptions::default();
+    if let Ok(name) = std::env::var("FM_BUILDER") {
+        opts = opts.builder(name.parse().expect("FM_BUILDER"));
+    }
     let q =
         SceneBvh::build_instanced(&scene, DEFAULT_RESOLUTION, &opts).expect("an instanced world");
     let eye = rays::camera_rays(&scene.camera, 256);
     let light = scene.lights.first().map_or(scene.camera.from, |l| l.pos);
     let shadow = rays::shadow_rays(&q, &eye, &[light]);
+    // The same scene flattened to world-space triangles, for the modes that compare.
+    let flattened = || {
+        let patched = scene.clone().into_patches(DEFAULT_RESOLUTION);
+        SceneBvh::build_triangles(&patched, &BuildOptions::default())
+    };
     let mask = |v: &[Ray]| v.iter().map(|r| r.with_mask(0b1)).collect::<Vec<_>>();
     let hits = match mode {
         "plain" => trace_plain(&q, &eye, &shadow),
@@ -74,20 +79,14 @@ fn main() {
             let tiles = rays::camera_tiles(&scene.camera, 256, 8);
             (0..50).map(|_| trace_packets(&q, &tiles)).sum()
         }
-        "flat-packets" => {
-            let patched = scene.clone().into_patches(DEFAULT_RESOLUTION);
-            let flat = SceneBvh::build_triangles(&patched, &BuildOptions::default());
-            trace_packets(&flat, &rays::camera_tiles(&scene.camera, 256, 8))
-        }
+        "flat-packets" => trace_packets(&flattened(), &rays::camera_tiles(&scene.camera, 256, 8)),
         "flat" => {
-            let patched = scene.clone().into_patches(DEFAULT_RESOLUTION);
-            let flat = SceneBvh::build_triangles(&patched, &BuildOptions::default());
+            let flat = flattened();
             (0..20).map(|_| trace_plain(&flat, &eye, &shadow)).sum()
         }
         "plain20" => (0..20).map(|_| trace_plain(&q, &eye, &shadow)).sum(),
         "counts" => {
-            let patched = scene.clone().into_patches(DEFAULT_RESOLUTION);
-            let flat = SceneBvh::build_triangles(&patched, &BuildOptions::default());
+            let flat = flattened();
             for (label, q) in [("instanced", &q), ("flattened", &flat)] {
                 let (mut ce, mut cs) = (
                     quiver::traverse::Counters::default(),
@@ -104,7 +103,10 @@ fn main() {
             0
         }
         "none" => 0,
-        m => panic!("unknown mode {m}: plain, filter, mask, packets, flat-packets or none"),
+        m => panic!(
+            "unknown mode {m}: plain, filter, mask, packets, packets50, flat-packets, flat, \
+             plain20, counts or none"
+        ),
     };
     println!(
         "{name} {mode}: {} eye, {} shadow rays, {hits} hits",

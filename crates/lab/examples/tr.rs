@@ -5,7 +5,7 @@
 //! round's Mrays/s of each. The fastest round is what a busy machine perturbs least: for
 //! quick A/B runs of two builds; the tables come from `quiver bench`. Environment knobs for
 //! trying build settings: `TR_LEAF` (largest leaf), `TR_BINS`, `TR_CT` (the SAH's node cost)
-//! and `TR_BUILDER` (`sbvh` or `sweep`).
+//! and `TR_BUILDER` (a `quiver::builders::Builder` name, e.g. `sbvh` or `sweep`).
 use quiver::{Bvh, RayQuery};
 use quiver_scenes::scene::tessellate::DEFAULT_RESOLUTION;
 use quiver_scenes::Scene;
@@ -31,12 +31,11 @@ fn main() {
     if let Some(v) = env("TR_CT") {
         config.traversal_cost = v;
     }
-    let options = match std::env::var("TR_BUILDER").as_deref() {
-        Ok("sbvh") => quiver::BuildOptions::high_quality(),
-        Ok("sweep") => quiver::BuildOptions::quality(),
-        _ => quiver::BuildOptions::default(),
-    };
-    let bvh: Bvh = options.config(config).build(&tris);
+    let mut options = quiver::BuildOptions::default().config(config);
+    if let Ok(name) = std::env::var("TR_BUILDER") {
+        options = options.builder(name.parse().expect("TR_BUILDER"));
+    }
+    let bvh: Bvh = options.build(&tris);
     let eye = quiver_lab::rays::camera_rays(&scene.camera, 512);
     let light = scene.lights.first().map_or(scene.camera.from, |l| l.pos);
     let shadow = quiver_lab::rays::shadow_rays(&bvh, &eye, &[light]);
