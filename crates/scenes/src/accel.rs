@@ -3,7 +3,7 @@
 //! the primitive; [`SceneBvh::object_of`] maps it back to the scene object (and material).
 //!
 //! ```
-//! use quiver::{BuildOptions, RayQuery};
+//! use quiver_rt::{BuildOptions, RayQuery};
 //! use quiver_scenes::{accel::SceneBvh, Scene};
 //! let scene = Scene::load("tetra3").unwrap();
 //! let bvh = SceneBvh::build(&scene, &BuildOptions::default());
@@ -15,12 +15,12 @@ use crate::instanced::Instanced;
 use crate::primitive::{PatchTriangle, Prim};
 use crate::scene::Scene;
 use glam::Vec3A;
-use quiver::builders::BuildTree;
-use quiver::layout::Footprint;
-use quiver::predict::{Piece, Pieces};
-use quiver::traverse::NoStats;
-use quiver::traverse::{BoxTest, Filter, PacketQuery, RayQuery, Stats};
-use quiver::{BuildOptions, Bvh, Hit, PrimHit, Primitive, Ray, Triangle};
+use quiver_rt::builders::BuildTree;
+use quiver_rt::layout::Footprint;
+use quiver_rt::predict::{Piece, Pieces};
+use quiver_rt::traverse::NoStats;
+use quiver_rt::traverse::{BoxTest, Filter, PacketQuery, RayQuery, Stats};
+use quiver_rt::{BuildOptions, Bvh, Hit, PrimHit, Primitive, Ray, Triangle};
 use std::sync::Mutex;
 
 /// The BVH of one scene.
@@ -131,7 +131,7 @@ impl SceneBvh {
         scene: &Scene,
         resolution: u32,
         options: &BuildOptions,
-    ) -> Result<SceneBvh, quiver::WorldError> {
+    ) -> Result<SceneBvh, quiver_rt::WorldError> {
         Ok(SceneBvh {
             kind: Kind::Instanced(Box::new(Instanced::build(scene, resolution, options)?)),
             owner: Vec::new(),
@@ -202,7 +202,7 @@ impl SceneBvh {
     /// counting, not for timing.
     ///
     /// ```
-    /// use quiver::{BuildOptions, RayQuery};
+    /// use quiver_rt::{BuildOptions, RayQuery};
     /// use quiver_scenes::{accel::SceneBvh, Scene};
     /// let scene = Scene::load("tetra3").unwrap();
     /// let rec = SceneBvh::build(&scene, &BuildOptions::default()).recording();
@@ -264,7 +264,7 @@ impl SceneBvh {
 }
 
 impl Pieces for SceneBvh {
-    /// The traversed layout's nodes (see `quiver::predict`).
+    /// The traversed layout's nodes (see `quiver_rt::predict`).
     fn pieces(&self, f: &mut dyn FnMut(Piece)) {
         match &self.kind {
             Kind::Triangles(b, ..) => b.pieces(f),

@@ -9,12 +9,12 @@
 //! map that takes the unit shape onto each object, so an instanced scene is the flattened patch
 //! scene up to the rounding of the placement (a vertex lands within an ulp or two of where
 //! patch mode puts it). Hits are numbered as in a flattened list, instance by instance:
-//! `quiver::Hit::prim` is the instance's first number plus the primitive's index in its
+//! `quiver_rt::Hit::prim` is the instance's first number plus the primitive's index in its
 //! geometry, so the renderer and every `RayQuery` user read an instanced scene like any
 //! other.
 //!
 //! ```
-//! use quiver::{BuildOptions, RayQuery};
+//! use quiver_rt::{BuildOptions, RayQuery};
 //! use quiver_scenes::instanced::Instanced;
 //! use quiver_scenes::Scene;
 //! let scene = Scene::load("balls1").unwrap();
@@ -27,8 +27,8 @@
 use crate::primitive::{Cone, PatchTriangle, Prim, Sphere};
 use crate::scene::{tessellate, Scene, Shape};
 use glam::{Affine3A, DVec3, Mat3A, Vec3, Vec3A};
-use quiver::traverse::{BoxTest, Filter, PacketQuery, RayQuery, Stats, PACKET_RAYS};
-use quiver::{
+use quiver_rt::traverse::{BoxTest, Filter, PacketQuery, RayQuery, Stats, PACKET_RAYS};
+use quiver_rt::{
     BuildOptions, Footprint, GeometryId, Hit, Instance, PrimHit, Ray, Triangle, World, WorldError,
     WorldHit,
 };
@@ -258,8 +258,8 @@ impl Instanced {
         let inst = self.world.instance(i as u32);
         let g = inst.geometry.0 as usize;
         let tri = match &self.world.geometries()[g] {
-            quiver::Geometry::Triangles(_, t) => t[p as usize],
-            quiver::Geometry::Prims(_, t) => t[p as usize],
+            quiver_rt::Geometry::Triangles(_, t) => t[p as usize],
+            quiver_rt::Geometry::Prims(_, t) => t[p as usize],
         };
         (tri, self.normals[g][p as usize], inst)
     }
@@ -416,15 +416,15 @@ impl RayQuery for Instanced {
 /// a BVH over [`Scene::triangles`] answers; only the numbering differs.
 ///
 /// ```
-/// use quiver::{BuildOptions, RayQuery};
-/// use quiver::glam::Vec3A;
+/// use quiver_rt::{BuildOptions, RayQuery};
+/// use quiver_rt::glam::Vec3A;
 /// use quiver_scenes::instanced::grouped;
 /// use quiver_scenes::scene::obj;
 /// let text = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 0 1 1\n\
 ///             o near\nf 4 5 6\no far\nf 1 2 3\n";
 /// let scene = obj::parse(text, "two.obj").unwrap();
 /// let world = grouped(&scene, &BuildOptions::default()).unwrap();
-/// let hit = world.closest_hit(&quiver::Ray::new(Vec3A::new(0.2, 0.2, 2.0), -Vec3A::Z)).unwrap();
+/// let hit = world.closest_hit(&quiver_rt::Ray::new(Vec3A::new(0.2, 0.2, 2.0), -Vec3A::Z)).unwrap();
 /// assert_eq!(scene.groups[hit.instance as usize].name, "near");
 /// ```
 ///
