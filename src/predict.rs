@@ -34,7 +34,7 @@
 //! ```
 
 use crate::builders::{BuildTree, NodeKind};
-use crate::bvh::{Bvh, Laid};
+use crate::bvh::{AnyLayout, Bvh};
 use crate::geometry::Aabb;
 use crate::layout::bvh2::{compact_children, Addressing};
 use crate::layout::{Bvh2, Bvh4, Bvh8, Bvh8Node, Node4};
@@ -337,13 +337,13 @@ impl<P: Primitive> Pieces for Bvh8<P> {
     }
 }
 
-impl<P: Primitive> Pieces for Laid<P> {
+impl<P: Primitive> Pieces for AnyLayout<P> {
     fn pieces(&self, f: &mut dyn FnMut(Piece)) {
         match self {
-            Laid::Bvh2(b) => b.pieces(f),
-            Laid::Bvh4(b) => b.pieces(f),
-            Laid::QBvh4(b) => b.pieces(f),
-            Laid::Bvh8(b) => b.pieces(f),
+            AnyLayout::Bvh2(b) => b.pieces(f),
+            AnyLayout::Bvh4(b) => b.pieces(f),
+            AnyLayout::QBvh4(b) => b.pieces(f),
+            AnyLayout::Bvh8(b) => b.pieces(f),
         }
     }
 }
@@ -367,7 +367,7 @@ impl<P: Primitive> Pieces for Bvh<P> {
     /// for lines given in world units).
     fn pieces(&self, f: &mut dyn FnMut(Piece)) {
         // A frame scales every box by one power of two, which leaves area ratios alone.
-        self.layout_nodes().unframed(&Aabb::EMPTY).0.pieces(f)
+        self.layout().0.pieces(f)
     }
 }
 
@@ -387,8 +387,8 @@ impl<P: Primitive> Bvh<P> {
     /// assert!(p.nodes >= 1.0 && p.box_tests >= 8.0);
     /// ```
     pub fn predict_within(&self, root: &Aabb) -> Prediction {
-        let (nodes, local) = self.layout_nodes().unframed(root);
-        let mut p = predict_within(nodes, &local);
+        let (layout, frame) = self.layout();
+        let mut p = predict_within(layout, &frame.aabb(root));
         p.root = *root;
         p
     }

@@ -2,11 +2,11 @@
 //! defaults or by [`BuildOptions`] with every choice (builder, layout, leaf size, bins, thread
 //! pool), from a primitive slice or an indexed mesh.
 
-mod nodes;
+mod any_layout;
 mod options;
 mod refit;
 
-pub(crate) use nodes::{Laid, Nodes};
+pub(crate) use any_layout::AnyLayout;
 pub use options::BuildOptions;
 pub use refit::RefitError;
 
@@ -19,8 +19,7 @@ use crate::mesh::{MeshError, Positions};
 use crate::primitive::Primitive;
 use crate::traverse::lane8::F8;
 use crate::traverse::packet::{InLanes, RayPacket};
-use crate::traverse::wide::OneRay;
-use crate::traverse::{BoxTest, Filter, PacketQuery, RayQuery, Stats};
+use crate::traverse::{Ask, BoxTest, Filter, PacketQuery, RayQuery, Stats};
 use options::frame_prims;
 
 /// A laid-out BVH in any [`crate::Layout`], answering every query of [`RayQuery`].
@@ -44,7 +43,11 @@ use options::frame_prims;
 /// ```
 #[derive(Clone, Debug)]
 pub struct Bvh<P = Triangle> {
-    nodes: Nodes<P>,
+    /// The nodes and leaves, in the units of `frame`.
+    layout: AnyLayout<P>,
+    /// The identity, or for a scene far from unit size the power-of-two scale the layout was
+    /// built in (see [`Primitive::scaled`]).
+    frame: Frame,
     /// Every primitive's box, in the caller's units.
     bounds: Aabb,
     /// The primitives the BVH was built over, those the build dropped included: what a refit
@@ -59,18 +62,20 @@ impl<P> Bvh<P> {
     /// A BVH over `nodes`, whose tree (in the caller's units) is `tree`, built over `len`
     /// input primitives (not the tree's reference count, which counts a spatially split
     /// primitive once per leaf holding it).
-    fn of(nodes: Nodes<P>, tree: &BuildTree, len: usize) -> Self {
+    fn of(layout: AnyLayout<P>, frame: Frame, tree: &BuildTree, len: usize) -> Self {
         Bvh {
-            nodes,
+            layout,
+            frame,
             bounds: tree.nodes.first().map_or(Aabb::EMPTY, |n| n.bounds),
             len,
             held: len - tree.dropped,
         }
     }
 
-    /// The nodes of the layout, for readers inside the crate (the cost predictor).
-    pub(crate) fn layout_nodes(&self) -> &Nodes<P> {
-        &self.nodes
+    /// The layout and the frame it was built in, for readers inside the crate (the cost
+    /// predictor).
+    pub(crate) fn layout(&self) -> (&AnyLayout<P>, Frame) {
+        (&self.layout, self.frame)
     }
 
     /// The box around every primitive the BVH holds (those with finite coordinates), in the
@@ -139,67 +144,76 @@ impl<P: Primitive> Bvh<P> {
         })?;
         let world = tree.refit(&bounds);
         let frame = Frame::for_prims(&bounds);
-        let nodes = options.run(|| match frame_prims(frame, prims) {
-            Some(local) => options
-                .lay_out(&tree.refit(&prim_bounds(&local)), leaf_order(tree, &local))
-                .framed(frame),
-            None => options
-                .lay_out(&world, leaf_order(tree, prims))
-                .framed(Frame::default()),
+        let (layout, frame) = options.run(|| match frame_prims(frame, prims) {
+            Some(local) => (
+                options.lay_out(&tree.refit(&prim_bounds(&local)), leaf_order(tree, &local)),
+                frame,
+            ),
+            None => (
+                options.lay_out(&world, leaf_order(tree, prims)),
+                Frame::default(),
+            ),
         });
-        Ok(Bvh::of(nodes, &world, prims.len()))
+        Ok(Bvh::of(layout, frame, &world, prims.len()))
     }
 
     /// The instruction set queries run on: the BVH's own for 8-wide nodes (all queries) and
     /// 4-wide nodes (packet queries), portable for the binary layouts (they have no AVX2
     /// kernels).
     pub fn isa(&self) -> Isa {
-        self.nodes.isa()
+        self.layout.isa()
     }
 
     /// The same BVH traversed with `isa` where it has kernels for it (see [`Bvh::isa`]).
     pub fn with_isa(self, isa: Isa) -> Self {
         Bvh {
-            nodes: self.nodes.with_isa(isa),
+            layout: self.layout.with_isa(isa),
             ..self
         }
     }
 
     /// What the nodes and leaves occupy.
     pub fn footprint(&self) -> Footprint {
-        self.nodes.footprint()
+        self.layout.footprint()
     }
 
-    /// `ask` of one ray on the caller's lanes (see [`Nodes::one_ray`]).
+    /// The query `A` of one ray on the caller's lanes `V` (a world's ray entering an
+    /// instance; see [`crate::layout::Bvh8`]'s `one_ray`): false, with nothing done, where
+    /// this BVH takes the ray the usual way (another layout, kernels or frame).
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
-    pub(crate) fn one_ray<V: F8, B: BoxTest, S: Stats, F: Filter<Hit>>(
+    pub(crate) fn one_ray<V: F8, A: Ask, B: BoxTest, S: Stats, F: Filter<Hit>>(
         &self,
         kernels: Kernels,
         cpu: V::Cpu,
         ray: &Ray,
-        ask: OneRay<'_>,
+        best: &mut Hit,
         stats: &mut S,
         filter: &mut F,
     ) -> bool {
-        self.nodes
-            .one_ray::<V, B, S, F>(kernels, cpu, ray, ask, stats, filter)
+        self.frame.is_identity()
+            && self
+                .layout
+                .one_ray::<V, A, B, S, F>(kernels, cpu, ray, best, stats, filter)
     }
 
-    /// `ask` of a packet already in lanes (see [`Nodes::in_lanes`]).
+    /// The query `A` of a packet already in lanes, on the caller's lanes `V` (see
+    /// [`Bvh::one_ray`]).
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
-    pub(crate) fn in_lanes<V: F8, B: BoxTest, S: Stats, F: Filter<Hit>>(
+    pub(crate) fn in_lanes<V: F8, A: Ask, B: BoxTest, S: Stats, F: Filter<Hit>>(
         &self,
         kernels: Kernels,
         cpu: V::Cpu,
         pk: &mut RayPacket,
-        ask: InLanes<'_>,
+        best: InLanes<'_>,
         stats: &mut S,
         filter: &mut F,
     ) -> bool {
-        self.nodes
-            .in_lanes::<V, B, S, F>(kernels, cpu, pk, ask, stats, filter)
+        self.frame.is_identity()
+            && self
+                .layout
+                .in_lanes::<V, A, B, S, F>(kernels, cpu, pk, best, stats, filter)
     }
 }
 
@@ -224,46 +238,46 @@ impl Bvh {
 impl<P: Primitive> RayQuery for Bvh<P> {
     type Hit = Hit;
 
+    /// The layout's query (a scene built in a scaled frame takes the cold path that brings
+    /// its rays in and its hits back).
     #[inline(always)]
-    fn closest_hit_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
+    fn trace_with<A: Ask, B: BoxTest, S: Stats, F: Filter<Hit>>(
         &self,
         ray: &Ray,
         stats: &mut S,
         filter: &mut F,
     ) -> Option<Hit> {
-        self.nodes.closest_hit_with::<B, S, F>(ray, stats, filter)
+        if !self.frame.is_identity() {
+            return any_layout::trace_scaled::<P, A, B, S, F>(
+                &self.layout,
+                self.frame,
+                ray,
+                stats,
+                filter,
+            );
+        }
+        self.layout.trace_with::<A, B, S, F>(ray, stats, filter)
     }
 
-    #[inline(always)]
-    fn any_hit_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
-        &self,
-        ray: &Ray,
-        stats: &mut S,
-        filter: &mut F,
-    ) -> bool {
-        self.nodes.any_hit_with::<B, S, F>(ray, stats, filter)
-    }
-
-    fn closest_hit_packet_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
+    fn trace_packet_with<A: Ask, B: BoxTest, S: Stats, F: Filter<Hit>>(
         &self,
         query: PacketQuery<'_>,
         hits: &mut [Option<Hit>],
         stats: &mut S,
         filter: &mut F,
     ) {
-        self.nodes
-            .closest_hit_packet_with::<B, S, F>(query, hits, stats, filter)
-    }
-
-    fn any_hit_packet_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
-        &self,
-        query: PacketQuery<'_>,
-        occluded: &mut [bool],
-        stats: &mut S,
-        filter: &mut F,
-    ) {
-        self.nodes
-            .any_hit_packet_with::<B, S, F>(query, occluded, stats, filter)
+        if !self.frame.is_identity() {
+            return any_layout::trace_packet_scaled::<P, A, B, S, F>(
+                &self.layout,
+                self.frame,
+                query,
+                hits,
+                stats,
+                filter,
+            );
+        }
+        self.layout
+            .trace_packet_with::<A, B, S, F>(query, hits, stats, filter)
     }
 }
 
@@ -347,7 +361,7 @@ mod tests {
         let (big, tree) = BuildOptions::default()
             .build_mesh_with_tree(&positions, &indices)
             .unwrap();
-        assert!(matches!(big.nodes, Nodes::Scaled(_)));
+        assert!(!big.frame.is_identity());
         let unit = Bvh::new(&tris);
         for i in 0..200 {
             let o = Vec3A::new(i as f32 / 200.0, 0.5, -1.0);

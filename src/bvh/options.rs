@@ -1,7 +1,7 @@
 //! [`BuildOptions`]: how a [`Bvh`] is built (builder, layout, leaf size, bins, costs, thread
 //! pool, instruction set), with presets, from a primitive slice or an indexed mesh.
 
-use super::nodes::{lay_out, Laid};
+use super::any_layout::{lay_out, AnyLayout};
 use super::Bvh;
 use crate::builders::{build_clipped, BuildConfig, BuildTree, Builder, CostModel, Triangles};
 use crate::frame::Frame;
@@ -231,7 +231,7 @@ impl<'p> BuildOptions<'p> {
             );
             let nodes = self.lay_out(&tree, LeafPrims::Slice(in_frame));
             let tree = frame.world_tree(tree, &bounds);
-            (Bvh::of(nodes.framed(frame), &tree, prims.len()), tree)
+            (Bvh::of(nodes, frame, &tree, prims.len()), tree)
         })
     }
 
@@ -292,7 +292,7 @@ impl<'p> BuildOptions<'p> {
             );
             let nodes = self.lay_out(&tree, LeafPrims::Input(&framed));
             let tree = frame.world_tree(tree, &bounds);
-            (Bvh::of(nodes.framed(frame), &tree, indices.len()), tree)
+            (Bvh::of(nodes, frame, &tree, indices.len()), tree)
         }))
     }
 
@@ -327,7 +327,7 @@ impl<'p> BuildOptions<'p> {
         &self,
         tree: &BuildTree,
         prims: impl Into<LeafPrims<'i, P>>,
-    ) -> Laid<P> {
+    ) -> AnyLayout<P> {
         lay_out(
             self.layout,
             tree,

@@ -2,12 +2,11 @@
 //! boxes recomputed; [`RefitError`] for input a refit cannot take; [`Bvh::sah_cost`] to judge
 //! when a refit tree has loosened enough to rebuild.
 
-use super::nodes::{Laid, Nodes};
+use super::any_layout::AnyLayout;
 use super::Bvh;
 use crate::frame::{Frame, Sizes};
 use crate::geometry::{Aabb, Triangle};
 use crate::layout::refit::Source;
-use crate::layout::{Bvh2, Bvh2Mapping};
 use crate::mesh::{Mesh, MeshError, Positions};
 use crate::predict::Pieces;
 use crate::primitive::Primitive;
@@ -150,59 +149,23 @@ impl Summary {
     }
 }
 
-impl<P: Primitive> Laid<P> {
+impl<P: Primitive> AnyLayout<P> {
     /// For each primitive in leaf order, its index in the input.
     fn prim_ids(&self) -> &[u32] {
         match self {
-            Laid::Bvh2(b) => b.prim_ids(),
-            Laid::Bvh4(b) => b.prim_ids(),
-            Laid::QBvh4(b) => b.prim_ids(),
-            Laid::Bvh8(b) => b.prim_ids(),
+            AnyLayout::Bvh2(b) => b.prim_ids(),
+            AnyLayout::Bvh4(b) => b.prim_ids(),
+            AnyLayout::QBvh4(b) => b.prim_ids(),
+            AnyLayout::Bvh8(b) => b.prim_ids(),
         }
     }
 
     fn refit<S: Source<P>>(&mut self, src: &S) {
         match self {
-            Laid::Bvh2(b) => b.refit(src),
-            Laid::Bvh4(b) => b.refit(src),
-            Laid::QBvh4(b) => b.refit(src),
-            Laid::Bvh8(b) => b.refit(src),
-        }
-    }
-}
-
-impl<P> Nodes<P> {
-    /// The layout, out of any frame.
-    fn laid(&self) -> &Laid<P> {
-        match self {
-            Nodes::Plain(l) => l,
-            Nodes::Scaled(s) => &s.nodes,
-        }
-    }
-
-    /// The layout, to be refit in `frame` (moved into or out of a scaled frame if the new
-    /// input calls for another one than the last).
-    fn reframed(&mut self, frame: Frame) -> &mut Laid<P> {
-        let now = match self {
-            Nodes::Plain(_) => Frame::default(),
-            Nodes::Scaled(s) => s.frame,
-        };
-        if now != frame {
-            let nothing = Nodes::Plain(Laid::Bvh2(Bvh2 {
-                nodes: Vec::new(),
-                prims: Vec::new(),
-                prim_ids: Vec::new(),
-                mapping: Bvh2Mapping::DepthFirst,
-            }));
-            let laid = match std::mem::replace(self, nothing) {
-                Nodes::Plain(l) => l,
-                Nodes::Scaled(s) => s.nodes,
-            };
-            *self = laid.framed(frame);
-        }
-        match self {
-            Nodes::Plain(l) => l,
-            Nodes::Scaled(s) => &mut s.nodes,
+            AnyLayout::Bvh2(b) => b.refit(src),
+            AnyLayout::Bvh4(b) => b.refit(src),
+            AnyLayout::QBvh4(b) => b.refit(src),
+            AnyLayout::Bvh8(b) => b.refit(src),
         }
     }
 }
@@ -359,7 +322,7 @@ impl<P: Primitive> Bvh<P> {
             .reduce(Summary::default, Summary::merge);
         // A primitive the build split spatially is held more than once: count it once.
         let distinct = self.held;
-        let held = self.nodes.laid().prim_ids();
+        let held = self.layout.prim_ids();
         if distinct == n {
             if summary.first_bad != usize::MAX {
                 return Err(RefitError::NonFinite {
@@ -400,9 +363,10 @@ impl<P: Primitive> Bvh<P> {
         {
             frame = Frame::default();
         }
-        self.nodes
-            .reframed(frame)
-            .refit(&Input { get, frame, slice });
+        // Moving into or out of a scaled frame only changes the units the boxes are
+        // recomputed in.
+        self.frame = frame;
+        self.layout.refit(&Input { get, frame, slice });
         self.bounds = summary.all;
         Ok(())
     }

@@ -682,7 +682,7 @@ mod tests {
     }
 
     /// Every layout of `tree`, laid out over `prims` from scratch.
-    fn laid<P: Primitive>(tree: &BuildTree, prims: &[P]) -> Vec<(Layout, crate::bvh::Laid<P>)> {
+    fn laid<P: Primitive>(tree: &BuildTree, prims: &[P]) -> Vec<(Layout, crate::bvh::AnyLayout<P>)> {
         let tree = tree.refit(&prim_bounds(prims));
         Layout::ALL
             .iter()
@@ -693,39 +693,39 @@ mod tests {
             .collect()
     }
 
-    fn refit<P: Primitive>(l: &mut crate::bvh::Laid<P>, prims: &[P]) {
+    fn refit<P: Primitive>(l: &mut crate::bvh::AnyLayout<P>, prims: &[P]) {
         let src = Slice(prims);
         match l {
-            crate::bvh::Laid::Bvh2(b) => b.refit(&src),
-            crate::bvh::Laid::Bvh4(b) => b.refit(&src),
-            crate::bvh::Laid::QBvh4(b) => b.refit(&src),
-            crate::bvh::Laid::Bvh8(b) => b.refit(&src),
+            crate::bvh::AnyLayout::Bvh2(b) => b.refit(&src),
+            crate::bvh::AnyLayout::Bvh4(b) => b.refit(&src),
+            crate::bvh::AnyLayout::QBvh4(b) => b.refit(&src),
+            crate::bvh::AnyLayout::Bvh8(b) => b.refit(&src),
         }
     }
 
     /// The arrays of a layout, as bytes (NaN lanes compare by their bits).
-    fn bytes<P: Primitive>(l: &crate::bvh::Laid<P>) -> (Vec<u8>, Vec<u8>, Vec<u32>, Aabb) {
-        use crate::bvh::Laid;
+    fn bytes<P: Primitive>(l: &crate::bvh::AnyLayout<P>) -> (Vec<u8>, Vec<u8>, Vec<u32>, Aabb) {
+        use crate::bvh::AnyLayout;
         match l {
-            Laid::Bvh2(b) => (
+            AnyLayout::Bvh2(b) => (
                 b.node_bytes().to_vec(),
                 Vec::new(),
                 b.prim_ids().to_vec(),
                 b.bounds(),
             ),
-            Laid::Bvh4(b) => (
+            AnyLayout::Bvh4(b) => (
                 b.node_bytes().to_vec(),
                 bytemuck::cast_slice(b.groups()).to_vec(),
                 b.prim_ids().to_vec(),
                 b.bounds(),
             ),
-            Laid::QBvh4(b) => (
+            AnyLayout::QBvh4(b) => (
                 b.node_bytes().to_vec(),
                 bytemuck::cast_slice(b.groups()).to_vec(),
                 b.prim_ids().to_vec(),
                 b.bounds(),
             ),
-            Laid::Bvh8(b) => (
+            AnyLayout::Bvh8(b) => (
                 b.node_bytes().to_vec(),
                 bytemuck::cast_slice(b.groups()).to_vec(),
                 b.prim_ids().to_vec(),
@@ -777,7 +777,7 @@ mod tests {
         let b = moved(&a, 0.2);
         let (_, tree) = BuildOptions::default().build_with_tree(&a);
         for ((layout, mut l), (_, fresh)) in laid(&tree, &a).into_iter().zip(laid(&tree, &b)) {
-            if !matches!(l, crate::bvh::Laid::Bvh2(_)) || layout == Layout::Bvh2SubtreePage {
+            if !matches!(l, crate::bvh::AnyLayout::Bvh2(_)) || layout == Layout::Bvh2SubtreePage {
                 continue;
             }
             refit(&mut l, &b);

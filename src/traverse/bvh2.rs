@@ -1,7 +1,8 @@
 //! Single-ray traversal of a [`Bvh2`] in any of its memory mappings.
 
+use super::search::test_prims;
 use super::stats::Stats;
-use super::{leaf_any_hit, leaf_closest_hit, BoxTest, Filter, RayQuery, SlabRay, Stack};
+use super::{Ask, BoxTest, Filter, RayQuery, SlabRay, Stack};
 use crate::builders::MAX_DEPTH;
 use crate::geometry::{Hit, Ray};
 use crate::layout::bvh2::{compact_children, Addressing};
@@ -52,7 +53,7 @@ impl Children for Compact {
 impl<P: Primitive> RayQuery for Bvh2<P> {
     type Hit = Hit;
 
-    fn closest_hit_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
+    fn trace_with<A: Ask, B: BoxTest, S: Stats, F: Filter<Hit>>(
         &self,
         ray: &Ray,
         stats: &mut S,
@@ -61,7 +62,7 @@ impl<P: Primitive> RayQuery for Bvh2<P> {
         let ray = &ray.raised_t_min();
         let mut best = Hit::none(ray.t_max);
         traverse::<P, B, S, _>(self, ray, stats, |range, limit, stats| {
-            leaf_closest_hit(
+            let found = test_prims::<A, P, S, F>(
                 &self.prims[range.clone()],
                 &self.prim_ids[range],
                 ray,
@@ -70,30 +71,9 @@ impl<P: Primitive> RayQuery for Bvh2<P> {
                 filter,
             );
             *limit = best.t;
-            false
+            A::ANY && found
         });
         best.found()
-    }
-
-    fn any_hit_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
-        &self,
-        ray: &Ray,
-        stats: &mut S,
-        filter: &mut F,
-    ) -> bool {
-        let ray = &ray.raised_t_min();
-        let mut hit = false;
-        traverse::<P, B, S, _>(self, ray, stats, |range, _, stats| {
-            hit = leaf_any_hit(
-                &self.prims[range.clone()],
-                &self.prim_ids[range],
-                ray,
-                stats,
-                filter,
-            );
-            hit
-        });
-        hit
     }
 }
 

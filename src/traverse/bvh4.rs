@@ -1,14 +1,20 @@
-//! Single-ray traversal of 4-wide BVHs: the four child boxes of a node are tested at once
-//! with `wide::f32x4`, hit children are visited nearest first, any-hit exits at the first hit.
+//! Single-ray traversal of 4-wide BVHs ([`Bvh4`], both node formats) and their
+//! [`RayQuery`]: the four child boxes of a node are tested at once with `wide::f32x4`, hit
+//! children are visited nearest first, any hit exits at the first hit.
 
+use super::dispatch::{self, LaneKernel};
+use super::lane8::F8;
 use super::leaves::Leaves;
+use super::packet::{self, InLanes, PacketQuery, RayPacket};
 use super::simd::{bits, insert_farthest_first, NanFirst};
 use super::stats::Stats;
-use super::{slab_reciprocal, BoxTest, Filter, Stack};
+use super::{slab_reciprocal, Ask, BoxTest, Filter, RayQuery, Stack};
 use crate::builders::MAX_DEPTH;
 use crate::geometry::{Hit, Ray};
-use crate::layout::Bvh4Node;
+use crate::isa::Kernels;
+use crate::layout::{Bvh4, Bvh4Node};
 use crate::primitive::Primitive;
+use std::marker::PhantomData;
 use wide::f32x4;
 
 /// The kernels' name for a 4-wide node format.
@@ -64,10 +70,10 @@ impl Ray4 {
 type Entry = (u32, u32, f32);
 
 /// The 4-wide walk, shared by both node formats, over the subtree of inner node `root`,
-/// searching up to `limit`. See `Bvh2`'s walk for the `leaf` contract. `ORDERED`: visit hit
-/// children nearest first (closest hit) or in slot order (any hit).
+/// searching up to `limit`. See `Bvh2`'s walk for the `leaf` contract. Closest hit visits hit
+/// children nearest first, any hit (`A::ANY`) in slot order.
 #[inline(always)]
-fn walk<N, B, S, F, const ORDERED: bool>(
+fn walk<N, A, B, S, F>(
     nodes: &[N],
     ray: &Ray,
     root: usize,
@@ -76,6 +82,7 @@ fn walk<N, B, S, F, const ORDERED: bool>(
     mut leaf: F,
 ) where
     N: WideNode,
+    A: Ask,
     B: BoxTest,
     S: Stats,
     F: FnMut(std::ops::Range<usize>, &mut f32, &mut S) -> bool,
@@ -89,7 +96,7 @@ fn walk<N, B, S, F, const ORDERED: bool>(
         stats.node();
         stats.boxes(4);
         let (t, mask) = r4.enter::<B>(&n.planes(), limit * B::SLACK);
-        if ORDERED {
+        if !A::ANY {
             // Push hit children farthest first, so the nearest is popped next.
             if mask.is_power_of_two() {
                 // One child hit (the common case): nothing to order.
@@ -137,33 +144,12 @@ fn walk<N, B, S, F, const ORDERED: bool>(
     }
 }
 
-/// Closest-hit and any-hit over one 4-wide node format, the leaves' far path compiled in or
-/// out (`FAR`: the layout's `far`; see `traverse::wide`, which picks).
+/// The search `A` in the subtree of inner node `root`, improving `best`, whose distance is the
+/// search limit (the ray's `t_min` raised already). `FAR`: the leaves' far-group path,
+/// compiled in only for a layout that holds far groups.
 #[inline(always)]
-pub(crate) fn closest<
-    N: WideNode,
-    B: BoxTest,
-    P: Primitive,
-    S: Stats,
-    F: Filter<Hit>,
-    const FAR: bool,
->(
-    nodes: &[N],
-    leaves: &Leaves<P>,
-    ray: &Ray,
-    stats: &mut S,
-    filter: &mut F,
-) -> Option<Hit> {
-    let ray = &ray.raised_t_min();
-    let mut best = Hit::none(ray.t_max);
-    closest_walk::<N, B, P, S, F, FAR>(nodes, leaves, ray, 0, &mut best, stats, filter);
-    best.found()
-}
-
-/// Closest hit in the subtree of inner node `root`, improving on `best`, whose distance is
-/// the search limit.
-#[inline(always)]
-pub(crate) fn closest_from<N: WideNode, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn search<N, A, B, P, S, F, const FAR: bool>(
     nodes: &[N],
     leaves: &Leaves<P>,
     ray: &Ray,
@@ -171,51 +157,16 @@ pub(crate) fn closest_from<N: WideNode, B: BoxTest, P: Primitive, S: Stats, F: F
     best: &mut Hit,
     stats: &mut S,
     filter: &mut F,
-) {
-    if leaves.far.any() {
-        *best = closest_far::<N, B, P, S, F>(nodes, leaves, ray, root, *best, stats, filter);
-        return;
-    }
-    closest_walk::<N, B, P, S, F, false>(nodes, leaves, ray, root, best, stats, filter);
-}
-
-/// [`closest_from`] over a layout holding far groups ([`crate::layout::Tri4`]), out of the
-/// fast walk's line; `best` by value, so the fast walk's never has its address taken.
-#[cold]
-#[inline(never)]
-fn closest_far<N: WideNode, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
-    nodes: &[N],
-    leaves: &Leaves<P>,
-    ray: &Ray,
-    root: usize,
-    mut best: Hit,
-    stats: &mut S,
-    filter: &mut F,
-) -> Hit {
-    closest_walk::<N, B, P, S, F, true>(nodes, leaves, ray, root, &mut best, stats, filter);
-    best
-}
-
-/// The closest-hit walk, its leaves with the far groups' path compiled in or out (`FAR`).
-#[inline(always)]
-fn closest_walk<
+) where
     N: WideNode,
+    A: Ask,
     B: BoxTest,
     P: Primitive,
     S: Stats,
     F: Filter<Hit>,
-    const FAR: bool,
->(
-    nodes: &[N],
-    leaves: &Leaves<P>,
-    ray: &Ray,
-    root: usize,
-    best: &mut Hit,
-    stats: &mut S,
-    filter: &mut F,
-) {
+{
     let mut prep = None;
-    walk::<N, B, S, _, true>(
+    walk::<N, A, B, S, _>(
         nodes,
         ray,
         root,
@@ -224,85 +175,168 @@ fn closest_walk<
         #[inline(always)]
         |range, limit, stats| {
             let count = range.len() as u32;
-            leaves.closest_as::<S, F, FAR>(range.start, count, ray, &mut prep, best, stats, filter);
+            let found = leaves.test::<A, S, F, FAR>(
+                range.start,
+                count,
+                ray,
+                &mut prep,
+                best,
+                stats,
+                filter,
+            );
             *limit = best.t;
-            false
+            A::ANY && found
         },
     );
 }
 
+/// [`search`] with the far-group path picked at run time (see `bvh8::search_from`).
 #[inline(always)]
-pub(crate) fn any<
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn search_from<N, A, B, P, S, F>(
+    nodes: &[N],
+    leaves: &Leaves<P>,
+    ray: &Ray,
+    root: usize,
+    best: &mut Hit,
+    stats: &mut S,
+    filter: &mut F,
+) where
     N: WideNode,
+    A: Ask,
     B: BoxTest,
     P: Primitive,
     S: Stats,
     F: Filter<Hit>,
-    const FAR: bool,
->(
-    nodes: &[N],
-    leaves: &Leaves<P>,
-    ray: &Ray,
-    stats: &mut S,
-    filter: &mut F,
-) -> bool {
-    any_walk::<N, B, P, S, F, FAR>(nodes, leaves, &ray.raised_t_min(), 0, stats, filter)
-}
-
-/// Any hit in the subtree of inner node `root`.
-#[inline(always)]
-pub(crate) fn any_from<N: WideNode, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
-    nodes: &[N],
-    leaves: &Leaves<P>,
-    ray: &Ray,
-    root: usize,
-    stats: &mut S,
-    filter: &mut F,
-) -> bool {
+{
     if leaves.far.any() {
-        return any_far::<N, B, P, S, F>(nodes, leaves, ray, root, stats, filter);
+        *best = search_far::<N, A, B, P, S, F>(nodes, leaves, ray, root, *best, stats, filter);
+        return;
     }
-    any_walk::<N, B, P, S, F, false>(nodes, leaves, ray, root, stats, filter)
+    search::<N, A, B, P, S, F, false>(nodes, leaves, ray, root, best, stats, filter);
 }
 
-/// [`any_from`] over a layout holding far groups, out of the fast walk's line.
 #[cold]
 #[inline(never)]
-fn any_far<N: WideNode, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
+fn search_far<N, A, B, P, S, F>(
     nodes: &[N],
     leaves: &Leaves<P>,
     ray: &Ray,
     root: usize,
+    mut best: Hit,
     stats: &mut S,
     filter: &mut F,
-) -> bool {
-    any_walk::<N, B, P, S, F, true>(nodes, leaves, ray, root, stats, filter)
+) -> Hit
+where
+    N: WideNode,
+    A: Ask,
+    B: BoxTest,
+    P: Primitive,
+    S: Stats,
+    F: Filter<Hit>,
+{
+    search::<N, A, B, P, S, F, true>(nodes, leaves, ray, root, &mut best, stats, filter);
+    best
 }
 
-/// The any-hit walk, its leaves with the far groups' path compiled in or out (`FAR`).
-#[inline(always)]
-fn any_walk<N: WideNode, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>, const FAR: bool>(
-    nodes: &[N],
-    leaves: &Leaves<P>,
-    ray: &Ray,
-    root: usize,
-    stats: &mut S,
-    filter: &mut F,
-) -> bool {
-    let mut prep = None;
-    let mut hit = false;
-    walk::<N, B, S, _, false>(
-        nodes,
-        ray,
-        root,
-        ray.t_max,
-        stats,
-        #[inline(always)]
-        |range, _, stats| {
-            let count = range.len() as u32;
-            hit = leaves.any_as::<S, F, FAR>(range.start, count, ray, &mut prep, stats, filter);
-            hit
-        },
-    );
-    hit
+/// One ray's query of a [`Bvh4`], as the kernel [`dispatch`] runs (its slab test is four
+/// `f32x4` lanes on every instruction set; the dispatch picks the far-group path).
+struct Trace<'a, P, N, A, B, S, F> {
+    bvh: &'a Bvh4<P, N>,
+    ray: &'a Ray,
+    stats: &'a mut S,
+    filter: &'a mut F,
+    ask: PhantomData<(A, B)>,
+}
+
+impl<P, N, A, B, S, F> LaneKernel for Trace<'_, P, N, A, B, S, F>
+where
+    P: Primitive,
+    N: WideNode,
+    A: Ask,
+    B: BoxTest,
+    S: Stats,
+    F: Filter<Hit>,
+{
+    type Out = Option<Hit>;
+
+    #[inline(always)]
+    fn run<V: F8, const FAR: bool>(self, _: V::Cpu) -> Option<Hit> {
+        let ray = &self.ray.raised_t_min();
+        let mut best = Hit::none(ray.t_max);
+        let leaves = self.bvh.leaves();
+        let nodes = &self.bvh.nodes;
+        search::<N, A, B, P, S, F, FAR>(nodes, &leaves, ray, 0, &mut best, self.stats, self.filter);
+        best.found()
+    }
+}
+
+impl<P: Primitive, N: WideNode> RayQuery for Bvh4<P, N> {
+    type Hit = Hit;
+
+    fn trace_with<A: Ask, B: BoxTest, S: Stats, F: Filter<Hit>>(
+        &self,
+        ray: &Ray,
+        stats: &mut S,
+        filter: &mut F,
+    ) -> Option<Hit> {
+        let kernel = Trace::<P, N, A, B, S, F> {
+            bvh: self,
+            ray,
+            stats,
+            filter,
+            ask: PhantomData,
+        };
+        dispatch::run(self.kernels, self.far.any(), kernel)
+    }
+
+    fn trace_packet_with<A: Ask, B: BoxTest, S: Stats, F: Filter<Hit>>(
+        &self,
+        query: PacketQuery<'_>,
+        hits: &mut [Option<Hit>],
+        stats: &mut S,
+        filter: &mut F,
+    ) {
+        let leaves = self.leaves();
+        packet::trace_rays::<N, A, B, P, S, F>(
+            self.kernels,
+            &self.nodes,
+            &leaves,
+            query,
+            hits,
+            stats,
+            filter,
+        )
+    }
+}
+
+impl<P: Primitive, N: WideNode> Bvh4<P, N> {
+    /// `ask` of a packet already in lanes, on the caller's lanes `V`, which run `kernels`:
+    /// false, with nothing done, where this BVH runs other kernels (ask it the usual way).
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn in_lanes<V: F8, A: Ask, B: BoxTest, S: Stats, F: Filter<Hit>>(
+        &self,
+        kernels: Kernels,
+        cpu: V::Cpu,
+        pk: &mut RayPacket,
+        ask: InLanes<'_>,
+        stats: &mut S,
+        filter: &mut F,
+    ) -> bool {
+        let ours = self.kernels == kernels;
+        if ours {
+            let leaves = self.leaves();
+            packet::in_lanes::<N, V, A, B, P, S, F>(
+                cpu,
+                &self.nodes,
+                &leaves,
+                pk,
+                ask,
+                stats,
+                filter,
+            );
+        }
+        ours
+    }
 }

@@ -1,21 +1,23 @@
-//! Single-ray traversal of 8-wide BVHs: the eight child boxes of a node in one 8-lane slab
-//! test. Two implementations of that test, chosen per BVH ([`crate::Isa`]): `wide::f32x8`
-//! (two SSE halves on baseline x86-64) and AVX2 intrinsics (one 256-bit register), which
-//! compute every lane with the same operations in the same order, so both walks visit the
-//! same nodes and return the same hits. Closest hit visits hit children nearest first; any
-//! hit pushes them unordered and stops at the first hit.
+//! Single-ray traversal of 8-wide BVHs ([`Bvh8`]) and their [`RayQuery`]: the eight child
+//! boxes of a node in one 8-lane slab test, written once over the lanes of every instruction
+//! set ([`F8`]; `dispatch` picks), which compute every lane with the same operations in the
+//! same order, so every instruction set visits the same nodes and returns the same hits.
+//! Closest hit visits hit children nearest first; any hit takes them unordered and stops at
+//! the first hit.
 
+use super::dispatch::{self, LaneKernel};
 use super::lane8::F8;
 use super::leaves::Leaves;
+use super::packet::{self, InLanes, PacketQuery, RayPacket};
 use super::simd::{bits, insert_farthest_first};
 use super::stats::Stats;
-use super::{slab_reciprocal, BoxTest, Filter, Stack};
+use super::{slab_reciprocal, Ask, BoxTest, Filter, RayQuery, Stack};
 use crate::builders::MAX_DEPTH;
 use crate::geometry::{Hit, Ray};
 use crate::isa::Kernels;
 use crate::layout::{Bvh8, Bvh8Node};
 use crate::primitive::Primitive;
-use wide::f32x8;
+use std::marker::PhantomData;
 
 /// A ray prepared for the slab test of a node's eight boxes in eight lanes of `V`.
 pub(crate) struct Ray8<V: F8> {
@@ -76,11 +78,11 @@ impl<V: F8> Ray8<V> {
 /// count), may lower the limit, and returns true to stop. Where a node sends the ray into
 /// several children, `touch(child, count)` is told of each as it is pushed, so it can start
 /// loading them: one is taken next, the others wait on the stack, and their cache misses
-/// then overlap the work in between instead of each stalling the walk in turn. `ORDERED`:
-/// visit hit children nearest first (closest hit) or in slot order (any hit, which stops at
-/// the first hit and gains nothing from sorting).
+/// then overlap the work in between instead of each stalling the walk in turn. Closest hit
+/// visits hit children nearest first; any hit (`A::ANY`) in slot order (it stops at the
+/// first hit and gains nothing from sorting).
 #[inline(always)]
-pub(crate) fn walk<V, B, S, F, const ORDERED: bool>(
+pub(crate) fn walk<V, A, B, S, F>(
     nodes: &[Bvh8Node],
     ray: &Ray8<V>,
     root: usize,
@@ -90,6 +92,7 @@ pub(crate) fn walk<V, B, S, F, const ORDERED: bool>(
     touch: impl Fn(u32, u32),
 ) where
     V: F8,
+    A: Ask,
     B: BoxTest,
     S: Stats,
     F: FnMut(usize, u32, &mut f32, &mut S) -> bool,
@@ -112,7 +115,7 @@ pub(crate) fn walk<V, B, S, F, const ORDERED: bool>(
             let i = mask.trailing_zeros() as usize;
             (n.child[i], n.count[i], t[i])
         } else if mask != 0 {
-            if ORDERED {
+            if !A::ANY {
                 // Push hit children farthest first and take the nearest. Measured against
                 // per-octant precomputed orders (children by centre along the ray's octant, 32
                 // more bytes a node): those ran eye rays 4-29% faster but incoherent rays up
@@ -180,11 +183,12 @@ fn touch<P: Primitive>(nodes: &[Bvh8Node], leaves: &Leaves<P>, c: u32, count: u3
     }
 }
 
-/// Closest hit in the subtree of inner node `root`, improving on `best`, whose distance is
-/// the search limit.
+/// The search `A` in the subtree of inner node `root`, improving `best`, whose distance is the
+/// search limit (the ray's `t_min` raised already). `FAR`: the leaves' far-group path,
+/// compiled in only for a layout that holds far groups.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-pub(crate) fn closest_from<V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
+pub(crate) fn search<V, A, B, P, S, F, const FAR: bool>(
     cpu: V::Cpu,
     nodes: &[Bvh8Node],
     leaves: &Leaves<P>,
@@ -193,50 +197,18 @@ pub(crate) fn closest_from<V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<
     best: &mut Hit,
     stats: &mut S,
     filter: &mut F,
-) {
-    if leaves.far.any() {
-        *best = closest_far::<V, B, P, S, F>(cpu, nodes, leaves, ray, root, *best, stats, filter);
-        return;
-    }
-    closest_walk::<V, B, P, S, F, false>(cpu, nodes, leaves, ray, root, best, stats, filter);
-}
-
-/// [`closest_from`] over a layout holding far groups ([`crate::layout::Tri4`]), out of the
-/// fast walk's line; `best` by value, so the fast walk's never has its address taken.
-#[cold]
-#[inline(never)]
-#[allow(clippy::too_many_arguments)]
-fn closest_far<V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
-    cpu: V::Cpu,
-    nodes: &[Bvh8Node],
-    leaves: &Leaves<P>,
-    ray: &Ray,
-    root: usize,
-    mut best: Hit,
-    stats: &mut S,
-    filter: &mut F,
-) -> Hit {
-    closest_walk::<V, B, P, S, F, true>(cpu, nodes, leaves, ray, root, &mut best, stats, filter);
-    best
-}
-
-/// The closest-hit walk, its leaves with the far groups' path compiled in or out (`FAR`).
-#[inline(always)]
-#[allow(clippy::too_many_arguments)]
-fn closest_walk<V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>, const FAR: bool>(
-    cpu: V::Cpu,
-    nodes: &[Bvh8Node],
-    leaves: &Leaves<P>,
-    ray: &Ray,
-    root: usize,
-    best: &mut Hit,
-    stats: &mut S,
-    filter: &mut F,
-) {
+) where
+    V: F8,
+    A: Ask,
+    B: BoxTest,
+    P: Primitive,
+    S: Stats,
+    F: Filter<Hit>,
+{
     // Prepared at the first leaf: many rays never reach one.
     let mut prep = None;
     let r8 = Ray8::<V>::new(cpu, ray);
-    walk::<V, B, S, _, true>(
+    walk::<V, A, B, S, _>(
         nodes,
         &r8,
         root,
@@ -244,241 +216,182 @@ fn closest_walk<V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>, const
         stats,
         #[inline(always)]
         |first, count, limit, stats| {
-            leaves.closest_as::<S, F, FAR>(first, count, ray, &mut prep, best, stats, filter);
+            let found =
+                leaves.test::<A, S, F, FAR>(first, count, ray, &mut prep, best, stats, filter);
             *limit = best.t;
-            false
+            A::ANY && found
         },
         #[inline(always)]
         |c, count| touch(nodes, leaves, c, count),
     );
 }
 
-/// Whether anything in the subtree of inner node `root` is hit.
+/// [`search`] with the far-group path picked at run time, for a walk that starts in another
+/// (a packet's ray continuing alone, a world's ray entering an instance): the far path is a
+/// cold call of its own, compiled for the caller's lanes ([`F8::outlined`]), and `best` goes
+/// to it by value, so the fast walk's search state never has its address taken.
 #[inline(always)]
-pub(crate) fn any_from<V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn search_from<V, A, B, P, S, F>(
     cpu: V::Cpu,
     nodes: &[Bvh8Node],
     leaves: &Leaves<P>,
     ray: &Ray,
     root: usize,
+    best: &mut Hit,
     stats: &mut S,
     filter: &mut F,
-) -> bool {
+) where
+    V: F8,
+    A: Ask,
+    B: BoxTest,
+    P: Primitive,
+    S: Stats,
+    F: Filter<Hit>,
+{
     if leaves.far.any() {
-        return any_far::<V, B, P, S, F>(cpu, nodes, leaves, ray, root, stats, filter);
+        let mut far_best = *best;
+        *best = V::outlined(
+            cpu,
+            #[inline(always)]
+            move || {
+                search::<V, A, B, P, S, F, true>(
+                    cpu,
+                    nodes,
+                    leaves,
+                    ray,
+                    root,
+                    &mut far_best,
+                    stats,
+                    filter,
+                );
+                far_best
+            },
+        );
+        return;
     }
-    any_walk::<V, B, P, S, F, false>(cpu, nodes, leaves, ray, root, stats, filter)
+    search::<V, A, B, P, S, F, false>(cpu, nodes, leaves, ray, root, best, stats, filter);
 }
 
-/// [`any_from`] over a layout holding far groups, out of the fast walk's line.
-#[cold]
-#[inline(never)]
-fn any_far<V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
-    cpu: V::Cpu,
-    nodes: &[Bvh8Node],
-    leaves: &Leaves<P>,
-    ray: &Ray,
-    root: usize,
-    stats: &mut S,
-    filter: &mut F,
-) -> bool {
-    any_walk::<V, B, P, S, F, true>(cpu, nodes, leaves, ray, root, stats, filter)
+/// One ray's query of a [`Bvh8`], as the kernel [`dispatch`] runs.
+struct Trace<'a, P, A, B, S, F> {
+    bvh: &'a Bvh8<P>,
+    ray: &'a Ray,
+    stats: &'a mut S,
+    filter: &'a mut F,
+    ask: PhantomData<(A, B)>,
 }
 
-/// The any-hit walk, its leaves with the far groups' path compiled in or out (`FAR`).
-#[inline(always)]
-fn any_walk<V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>, const FAR: bool>(
-    cpu: V::Cpu,
-    nodes: &[Bvh8Node],
-    leaves: &Leaves<P>,
-    ray: &Ray,
-    root: usize,
-    stats: &mut S,
-    filter: &mut F,
-) -> bool {
-    let mut prep = None;
-    let mut hit = false;
-    let r8 = Ray8::<V>::new(cpu, ray);
-    walk::<V, B, S, _, false>(
-        nodes,
-        &r8,
-        root,
-        ray.t_max,
-        stats,
-        #[inline(always)]
-        |first, count, _, stats| {
-            hit = leaves.any_as::<S, F, FAR>(first, count, ray, &mut prep, stats, filter);
-            hit
-        },
-        #[inline(always)]
-        |c, count| touch(nodes, leaves, c, count),
-    );
-    hit
-}
+impl<P, A, B, S, F> LaneKernel for Trace<'_, P, A, B, S, F>
+where
+    P: Primitive,
+    A: Ask,
+    B: BoxTest,
+    S: Stats,
+    F: Filter<Hit>,
+{
+    type Out = Option<Hit>;
 
-/// Closest hit over lanes of `V`, the leaves' far path compiled in or out (`FAR`: the
-/// layout's `far`).
-#[inline(always)]
-fn closest<V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>, const FAR: bool>(
-    cpu: V::Cpu,
-    bvh: &Bvh8<P>,
-    ray: &Ray,
-    stats: &mut S,
-    filter: &mut F,
-) -> Option<Hit> {
-    let ray = &ray.raised_t_min();
-    let mut best = Hit::none(ray.t_max);
-    let leaves = bvh.leaves();
-    closest_walk::<V, B, P, S, F, FAR>(cpu, &bvh.nodes, &leaves, ray, 0, &mut best, stats, filter);
-    best.found()
-}
-
-/// Any hit over lanes of `V` (`FAR` as for [`closest`]).
-#[inline(always)]
-fn any<V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>, const FAR: bool>(
-    cpu: V::Cpu,
-    bvh: &Bvh8<P>,
-    ray: &Ray,
-    stats: &mut S,
-    filter: &mut F,
-) -> bool {
-    let ray = &ray.raised_t_min();
-    any_walk::<V, B, P, S, F, FAR>(cpu, &bvh.nodes, &bvh.leaves(), ray, 0, stats, filter)
-}
-
-/// The closest hit of one ray on `kernels`: the one place a single-ray 8-wide query picks
-/// its lanes. A layout holding far groups takes its own kernels, so the others carry no
-/// trace of that path.
-#[inline]
-pub(crate) fn closest_on<B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
-    kernels: Kernels,
-    bvh: &Bvh8<P>,
-    ray: &Ray,
-    stats: &mut S,
-    filter: &mut F,
-) -> Option<Hit> {
-    if bvh.far.any() {
-        return closest_on_far::<B, P, S, F>(kernels, bvh, ray, stats, filter);
-    }
-    closest_on_as::<B, P, S, F, false>(kernels, bvh, ray, stats, filter)
-}
-
-#[cold]
-#[inline(never)]
-fn closest_on_far<B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
-    kernels: Kernels,
-    bvh: &Bvh8<P>,
-    ray: &Ray,
-    stats: &mut S,
-    filter: &mut F,
-) -> Option<Hit> {
-    closest_on_as::<B, P, S, F, true>(kernels, bvh, ray, stats, filter)
-}
-
-#[inline(always)]
-fn closest_on_as<B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>, const FAR: bool>(
-    kernels: Kernels,
-    bvh: &Bvh8<P>,
-    ray: &Ray,
-    stats: &mut S,
-    filter: &mut F,
-) -> Option<Hit> {
-    match kernels {
-        #[cfg(target_arch = "x86_64")]
-        // SAFETY: `cpu` proves the CPU has AVX2 and FMA (only detection makes one).
-        Kernels::Avx2(cpu) => unsafe {
-            avx2::closest::<B, P, S, F, FAR>(cpu, bvh, ray, stats, filter)
-        },
-        _ => closest::<f32x8, B, P, S, F, FAR>((), bvh, ray, stats, filter),
+    #[inline(always)]
+    fn run<V: F8, const FAR: bool>(self, cpu: V::Cpu) -> Option<Hit> {
+        let ray = &self.ray.raised_t_min();
+        let mut best = Hit::none(ray.t_max);
+        let leaves = self.bvh.leaves();
+        let nodes = &self.bvh.nodes;
+        search::<V, A, B, P, S, F, FAR>(cpu, nodes, &leaves, ray, 0, &mut best, self.stats, self.filter);
+        best.found()
     }
 }
 
-/// Whether one ray hits anything, on `kernels` (see [`closest_on`]).
-#[inline]
-pub(crate) fn any_on<B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
-    kernels: Kernels,
-    bvh: &Bvh8<P>,
-    ray: &Ray,
-    stats: &mut S,
-    filter: &mut F,
-) -> bool {
-    if bvh.far.any() {
-        return any_on_far::<B, P, S, F>(kernels, bvh, ray, stats, filter);
-    }
-    any_on_as::<B, P, S, F, false>(kernels, bvh, ray, stats, filter)
-}
+impl<P: Primitive> RayQuery for Bvh8<P> {
+    type Hit = Hit;
 
-#[cold]
-#[inline(never)]
-fn any_on_far<B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
-    kernels: Kernels,
-    bvh: &Bvh8<P>,
-    ray: &Ray,
-    stats: &mut S,
-    filter: &mut F,
-) -> bool {
-    any_on_as::<B, P, S, F, true>(kernels, bvh, ray, stats, filter)
-}
-
-#[inline(always)]
-fn any_on_as<B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>, const FAR: bool>(
-    kernels: Kernels,
-    bvh: &Bvh8<P>,
-    ray: &Ray,
-    stats: &mut S,
-    filter: &mut F,
-) -> bool {
-    match kernels {
-        #[cfg(target_arch = "x86_64")]
-        // SAFETY: as in `closest_on_as`.
-        Kernels::Avx2(cpu) => unsafe { avx2::any::<B, P, S, F, FAR>(cpu, bvh, ray, stats, filter) },
-        _ => any::<f32x8, B, P, S, F, FAR>((), bvh, ray, stats, filter),
-    }
-}
-
-/// The AVX2 kernels: the same walks on 256-bit registers, compiled with AVX2 enabled (every
-/// function they call is inlined into these).
-#[cfg(target_arch = "x86_64")]
-mod avx2 {
-    use super::*;
-    use crate::isa::Avx2Cpu;
-    use crate::traverse::lane8::Avx;
-
-    /// # Safety
-    /// The CPU must support AVX2 and FMA (as `cpu` proves).
-    #[target_feature(enable = "avx2,fma")]
-    pub(super) unsafe fn closest<
-        B: BoxTest,
-        P: Primitive,
-        S: Stats,
-        F: Filter<Hit>,
-        const FAR: bool,
-    >(
-        cpu: Avx2Cpu,
-        bvh: &Bvh8<P>,
+    fn trace_with<A: Ask, B: BoxTest, S: Stats, F: Filter<Hit>>(
+        &self,
         ray: &Ray,
         stats: &mut S,
         filter: &mut F,
     ) -> Option<Hit> {
-        super::closest::<Avx, B, P, S, F, FAR>(cpu, bvh, ray, stats, filter)
+        let kernel = Trace::<P, A, B, S, F> {
+            bvh: self,
+            ray,
+            stats,
+            filter,
+            ask: PhantomData,
+        };
+        dispatch::run(self.kernels, self.far.any(), kernel)
     }
 
-    /// # Safety
-    /// The CPU must support AVX2 and FMA (as `cpu` proves).
-    #[target_feature(enable = "avx2,fma")]
-    pub(super) unsafe fn any<
-        B: BoxTest,
-        P: Primitive,
-        S: Stats,
-        F: Filter<Hit>,
-        const FAR: bool,
-    >(
-        cpu: Avx2Cpu,
-        bvh: &Bvh8<P>,
+    fn trace_packet_with<A: Ask, B: BoxTest, S: Stats, F: Filter<Hit>>(
+        &self,
+        query: PacketQuery<'_>,
+        hits: &mut [Option<Hit>],
+        stats: &mut S,
+        filter: &mut F,
+    ) {
+        let leaves = self.leaves();
+        packet::trace_rays::<Bvh8Node, A, B, P, S, F>(
+            self.kernels,
+            &self.nodes,
+            &leaves,
+            query,
+            hits,
+            stats,
+            filter,
+        )
+    }
+}
+
+impl<P: Primitive> Bvh8<P> {
+    /// The search `A` of `ray` (its `t_min` raised already) improving `best`, on the caller's
+    /// lanes `V`, which run `kernels` (a world's ray entering an instance): the 8-wide walk
+    /// inlined into the caller's, without this BVH's dispatch and call. False, with nothing
+    /// done, where this BVH runs other kernels.
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn one_ray<V: F8, A: Ask, B: BoxTest, S: Stats, F: Filter<Hit>>(
+        &self,
+        kernels: Kernels,
+        cpu: V::Cpu,
         ray: &Ray,
+        best: &mut Hit,
         stats: &mut S,
         filter: &mut F,
     ) -> bool {
-        super::any::<Avx, B, P, S, F, FAR>(cpu, bvh, ray, stats, filter)
+        let ours = self.kernels == kernels;
+        if ours && !self.nodes.is_empty() {
+            let leaves = self.leaves();
+            search_from::<V, A, B, P, S, F>(cpu, &self.nodes, &leaves, ray, 0, best, stats, filter);
+        }
+        ours
+    }
+
+    /// `ask` of a packet already in lanes, on the caller's lanes `V`, which run `kernels`:
+    /// false, with nothing done, where this BVH runs other kernels (ask it the usual way).
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn in_lanes<V: F8, A: Ask, B: BoxTest, S: Stats, F: Filter<Hit>>(
+        &self,
+        kernels: Kernels,
+        cpu: V::Cpu,
+        pk: &mut RayPacket,
+        ask: InLanes<'_>,
+        stats: &mut S,
+        filter: &mut F,
+    ) -> bool {
+        let ours = self.kernels == kernels;
+        if ours {
+            let leaves = self.leaves();
+            packet::in_lanes::<Bvh8Node, V, A, B, P, S, F>(
+                cpu,
+                &self.nodes,
+                &leaves,
+                pk,
+                ask,
+                stats,
+                filter,
+            );
+        }
+        ours
     }
 }

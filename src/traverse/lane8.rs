@@ -43,7 +43,9 @@ pub(crate) trait F8: Copy {
     fn sign_fill(self) -> Self;
 
     /// Runs `f` in a function of its own (a cold path kept out of a kernel's loop), compiled
-    /// for the same instruction set as the kernel.
+    /// for the same instruction set as the kernel. `f` should be an `#[inline(always)]`
+    /// closure, so that its body is compiled there.
+    #[cold]
     #[inline(never)]
     fn outlined<R>(cpu: Self::Cpu, f: impl FnOnce() -> R) -> R {
         let _ = cpu;
@@ -254,6 +256,7 @@ mod avx {
             /// # Safety
             /// The CPU must support AVX2 and FMA.
             #[target_feature(enable = "avx2,fma")]
+            #[cold]
             #[inline(never)]
             unsafe fn run<R>(f: impl FnOnce() -> R) -> R {
                 f()

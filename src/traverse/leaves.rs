@@ -2,8 +2,9 @@
 //! [`LeafFormat`], chosen by a compile-time constant, so a leaf is a primitive range (plain
 //! types) or a range of [`Tri4`] groups (triangle formats), never a run-time check.
 
-use super::tri4::{any_far, any_leaf, closest_far, closest_leaf, Ray4Tri};
-use super::{Filter, Stats};
+use super::search::test_prims;
+use super::tri4::{test_far, test_leaf, Ray4Tri};
+use super::{Ask, Filter, Stats};
 use crate::geometry::{Hit, Ray};
 use crate::layout::tri4::FarGroups;
 use crate::layout::{Bvh4, Bvh8, Node4, Tri4};
@@ -39,35 +40,13 @@ impl<P: Primitive> Leaves<'_, P> {
         &self.tri4[first..first + crate::layout::tri4::groups(count) as usize]
     }
 
-    /// Closest hit in one leaf, improving `best`; `prep` holds the ray's group terms once the
-    /// first leaf made them. Returns true when `best` changed. Checks for far groups at run
-    /// time: for callers outside a walk; a walk picks [`Leaves::closest_as`] once.
+    /// The search `A` in one leaf at `first` (`count` primitives), improving `best`; `prep`
+    /// holds the ray's group terms once the first leaf made them. Returns true when `best`
+    /// changed. `FAR`: the far groups' path compiled in (only for a layout whose `far` is
+    /// `FAR`, or false).
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
-    pub fn closest<S: Stats, F: Filter<Hit>>(
-        &self,
-        first: usize,
-        count: u32,
-        ray: &Ray,
-        prep: &mut Option<Ray4Tri>,
-        best: &mut Hit,
-        stats: &mut S,
-        filter: &mut F,
-    ) -> bool {
-        if P::LEAF_FORMAT != LeafFormat::Plain && self.far.any() {
-            let groups = (self.groups(first, count), first, self.far);
-            let (found, b) = closest_far(groups, count, ray, P::LEAF_FORMAT, *best, stats, filter);
-            *best = b;
-            return found;
-        }
-        self.closest_as::<S, F, false>(first, count, ray, prep, best, stats, filter)
-    }
-
-    /// [`Leaves::closest`] with the far groups' path compiled in (`FAR`) or out: only for a
-    /// layout whose `far` is `FAR`, or false.
-    #[inline(always)]
-    #[allow(clippy::too_many_arguments)]
-    pub fn closest_as<S: Stats, F: Filter<Hit>, const FAR: bool>(
+    pub fn test<A: Ask, S: Stats, F: Filter<Hit>, const FAR: bool>(
         &self,
         first: usize,
         count: u32,
@@ -80,7 +59,7 @@ impl<P: Primitive> Leaves<'_, P> {
         match P::LEAF_FORMAT {
             LeafFormat::Plain => {
                 let range = first..first + count as usize;
-                super::leaf_closest_hit(
+                test_prims::<A, P, S, F>(
                     &self.prims[range.clone()],
                     &self.ids[range],
                     ray,
@@ -89,7 +68,7 @@ impl<P: Primitive> Leaves<'_, P> {
                     filter,
                 )
             }
-            format => closest_leaf::<S, F, FAR>(
+            format => test_leaf::<A, S, F, FAR>(
                 (self.groups(first, count), first, self.far),
                 count,
                 ray,
@@ -102,58 +81,25 @@ impl<P: Primitive> Leaves<'_, P> {
         }
     }
 
-    /// Whether anything in one leaf is hit within the ray's interval. Checks for far groups
-    /// at run time, as [`Leaves::closest`] does.
+    /// [`Leaves::test`] with the far groups checked at run time, for callers outside a walk
+    /// (a packet's ray alone at a leaf).
     #[inline(always)]
-    pub fn any<S: Stats, F: Filter<Hit>>(
+    pub fn test_checked<A: Ask, S: Stats, F: Filter<Hit>>(
         &self,
         first: usize,
         count: u32,
         ray: &Ray,
-        prep: &mut Option<Ray4Tri>,
+        best: &mut Hit,
         stats: &mut S,
         filter: &mut F,
     ) -> bool {
         if P::LEAF_FORMAT != LeafFormat::Plain && self.far.any() {
             let groups = (self.groups(first, count), first, self.far);
-            return any_far(groups, count, ray, P::LEAF_FORMAT, stats, filter);
+            let (found, b) = test_far::<A, S, F>(groups, count, ray, P::LEAF_FORMAT, *best, stats, filter);
+            *best = b;
+            return found;
         }
-        self.any_as::<S, F, false>(first, count, ray, prep, stats, filter)
-    }
-
-    /// [`Leaves::any`] with the far groups' path compiled in (`FAR`) or out, as for
-    /// [`Leaves::closest_as`].
-    #[inline(always)]
-    pub fn any_as<S: Stats, F: Filter<Hit>, const FAR: bool>(
-        &self,
-        first: usize,
-        count: u32,
-        ray: &Ray,
-        prep: &mut Option<Ray4Tri>,
-        stats: &mut S,
-        filter: &mut F,
-    ) -> bool {
-        match P::LEAF_FORMAT {
-            LeafFormat::Plain => {
-                let range = first..first + count as usize;
-                super::leaf_any_hit(
-                    &self.prims[range.clone()],
-                    &self.ids[range],
-                    ray,
-                    stats,
-                    filter,
-                )
-            }
-            format => any_leaf::<S, F, FAR>(
-                (self.groups(first, count), first, self.far),
-                count,
-                ray,
-                prep,
-                format,
-                stats,
-                filter,
-            ),
-        }
+        self.test::<A, S, F, false>(first, count, ray, &mut None, best, stats, filter)
     }
 }
 

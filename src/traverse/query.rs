@@ -1,9 +1,46 @@
-//! [`RayQuery`]: the one interface every traversable structure answers, and [`Filter`], the
-//! candidate test a query may carry.
+//! [`RayQuery`]: the one interface every traversable structure answers; [`Ask`], whether a
+//! query wants the closest hit or any hit; [`Filter`], the candidate test a query may carry.
 
-use super::packet::{each_packet, PacketMode, PacketQuery};
+use super::packet::{each_packet, PacketMode, PacketQuery, PACKET_RAYS};
 use super::{BoxTest, ConservativeBoxes, Counters, NoStats, Stats};
 use crate::geometry::Ray;
+
+/// What a query asks for, chosen at compile time: the closest hit ([`ClosestHit`]) or any
+/// hit ([`AnyHit`]). Every walk is written once over it, so the two queries cannot drift apart.
+///
+/// ```
+/// use quiver_rt::traverse::{AnyHit, Ask, ClosestHit};
+/// assert!(AnyHit::ANY && !ClosestHit::ANY);
+/// ```
+pub trait Ask: Copy + Default + sealed::Sealed + 'static {
+    /// True for any hit: the walk stops at the first hit the filter accepts and visits a
+    /// node's children in any order; false for the closest hit: children nearest first, the
+    /// search interval shrinking to the best hit so far.
+    const ANY: bool;
+}
+
+/// The nearest hit along the ray (lowest primitive index on ties).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct ClosestHit;
+
+/// Any hit within the ray's interval: the first the walk meets that the filter accepts.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct AnyHit;
+
+impl Ask for ClosestHit {
+    const ANY: bool = false;
+}
+
+impl Ask for AnyHit {
+    const ANY: bool = true;
+}
+
+mod sealed {
+    /// The walks know exactly two questions.
+    pub trait Sealed {}
+    impl Sealed for super::ClosestHit {}
+    impl Sealed for super::AnyHit {}
+}
 
 /// Which candidate hits a query keeps: an alpha test that looks up the texel at `(u, v)`, a
 /// rule that skips the surface a ray leaves from. A rejected candidate is as if the primitive
@@ -55,19 +92,19 @@ impl<H, F: FnMut(&H) -> bool> Filter<H> for F {
 
 /// Ray queries: closest hit and any hit, one ray at a time or in packets.
 ///
-/// Every layout ([`crate::Bvh2`], [`crate::Bvh4`], [`crate::QBvh4`], [`crate::Bvh8`]), the
-/// layout-erased [`crate::Bvh`], a [`crate::World`] of instances and quiver-scenes' `SceneBvh`
-/// implement it. What a hit names is the implementor's [`RayQuery::Hit`]: [`crate::Hit`] for one BVH,
-/// [`crate::WorldHit`] (instance, geometry, primitive) for a world. An implementor writes the
-/// two single-ray `*_with` methods, generic over the box test ([`BoxTest`]), a statistics sink
-/// ([`Stats`]) and a candidate [`Filter`], and the two packet `*_with` methods where it has a
-/// packet kernel (without one they trace ray by ray); the short forms (`closest_hit`,
-/// `any_hit`, the counted, filtered and packet forms) come with the trait and use the
-/// conservative box test.
+/// Every layout ([`crate::layout::Bvh2`], [`crate::layout::Bvh4`], [`crate::layout::QBvh4`],
+/// [`crate::layout::Bvh8`]), the layout-erased [`crate::Bvh`], a [`crate::World`] of
+/// instances and quiver-scenes' `SceneBvh` implement it. What a hit names is the implementor's
+/// [`RayQuery::Hit`]: [`crate::Hit`] for one BVH, [`crate::WorldHit`] (instance, geometry,
+/// primitive) for a world. An implementor writes [`RayQuery::trace_with`], generic over the
+/// question ([`Ask`]), the box test ([`BoxTest`]), a statistics sink ([`Stats`]) and a
+/// candidate [`Filter`], and [`RayQuery::trace_packet_with`] where it has a packet kernel
+/// (without one, packets are traced ray by ray); every other form comes with the trait and
+/// uses the conservative box test.
 ///
 /// Answers follow the rules in [`crate::geometry`]: the interval `[t_min, t_max]` is closed,
 /// and among hits at equal distance the lowest primitive index wins, so every implementor
-/// returns the same hit for the same ray.
+/// returns the same closest hit for the same ray.
 ///
 /// ```
 /// use quiver_rt::{Bvh, Ray, RayQuery, Triangle};
@@ -86,34 +123,68 @@ pub trait RayQuery {
     /// What a hit names.
     type Hit: Copy;
 
-    /// The nearest hit along `ray` that `filter` accepts, with the box test `B`, reporting
-    /// work to `stats`.
-    fn closest_hit_with<B: BoxTest, S: Stats, F: Filter<Self::Hit>>(
+    /// The hit `A` asks for along `ray` among those `filter` accepts: the nearest
+    /// ([`ClosestHit`]), or the first one met ([`AnyHit`], which stops there); with the box
+    /// test `B`, reporting work to `stats`.
+    fn trace_with<A: Ask, B: BoxTest, S: Stats, F: Filter<Self::Hit>>(
         &self,
         ray: &Ray,
         stats: &mut S,
         filter: &mut F,
     ) -> Option<Self::Hit>;
 
+    /// [`RayQuery::trace_with`] for each of the query's rays into `hits` (one slot per ray),
+    /// in packets of [`PACKET_RAYS`] where its mode and the layout allow: only active rays are
+    /// traced (the others get `None`). Each closest hit is exactly
+    /// [`RayQuery::trace_with`]'s for that ray; an any-hit answer is `Some` exactly where
+    /// it is. `stats` counts packet node visits, not per-ray ones.
+    ///
+    /// Without a packet kernel (the default) every active ray goes through
+    /// [`RayQuery::trace_with`] and the mode is ignored.
+    ///
+    /// # Panics
+    /// When `hits` or the active flags differ in length from the rays.
+    fn trace_packet_with<A: Ask, B: BoxTest, S: Stats, F: Filter<Self::Hit>>(
+        &self,
+        query: PacketQuery<'_>,
+        hits: &mut [Option<Self::Hit>],
+        stats: &mut S,
+        filter: &mut F,
+    ) {
+        ray_by_ray::<_, A, B, S, F>(self, query, hits, stats, filter)
+    }
+
+    /// The nearest hit along `ray` that `filter` accepts, with the box test `B`, reporting
+    /// work to `stats`.
+    #[inline]
+    fn closest_hit_with<B: BoxTest, S: Stats, F: Filter<Self::Hit>>(
+        &self,
+        ray: &Ray,
+        stats: &mut S,
+        filter: &mut F,
+    ) -> Option<Self::Hit> {
+        self.trace_with::<ClosestHit, B, S, F>(ray, stats, filter)
+    }
+
     /// Whether anything `filter` accepts is hit within the ray's interval (stops at the first
     /// accepted hit), with the box test `B`, reporting work to `stats`.
+    #[inline]
     fn any_hit_with<B: BoxTest, S: Stats, F: Filter<Self::Hit>>(
         &self,
         ray: &Ray,
         stats: &mut S,
         filter: &mut F,
-    ) -> bool;
+    ) -> bool {
+        self.trace_with::<AnyHit, B, S, F>(ray, stats, filter)
+            .is_some()
+    }
 
-    /// Closest hits of the query's rays into `hits` (one slot per ray), in packets of
-    /// [`super::PACKET_RAYS`] where its mode and the layout allow: only active rays are traced
-    /// (the others get `None`). Each answer is exactly [`RayQuery::closest_hit_with`]'s for
-    /// that ray. `stats` counts packet node visits, not per-ray ones.
-    ///
-    /// Without a packet kernel (the default) every active ray goes through
-    /// [`RayQuery::closest_hit_with`] and the mode is ignored.
+    /// Closest hits of the query's rays into `hits`: [`RayQuery::trace_packet_with`] asking
+    /// [`ClosestHit`].
     ///
     /// # Panics
     /// When `hits` or the active flags differ in length from the rays.
+    #[inline]
     fn closest_hit_packet_with<B: BoxTest, S: Stats, F: Filter<Self::Hit>>(
         &self,
         query: PacketQuery<'_>,
@@ -121,11 +192,11 @@ pub trait RayQuery {
         stats: &mut S,
         filter: &mut F,
     ) {
-        closest_ray_by_ray::<_, B, S, F>(self, query, hits, stats, filter)
+        self.trace_packet_with::<ClosestHit, B, S, F>(query, hits, stats, filter)
     }
 
-    /// Any-hit answers of the query's rays into `occluded` (inactive rays get `false`); see
-    /// [`RayQuery::closest_hit_packet_with`].
+    /// Any-hit answers of the query's rays into `occluded` (inactive rays get `false`):
+    /// [`RayQuery::trace_packet_with`] asking [`AnyHit`].
     ///
     /// # Panics
     /// When `occluded` or the active flags differ in length from the rays.
@@ -136,7 +207,26 @@ pub trait RayQuery {
         stats: &mut S,
         filter: &mut F,
     ) {
-        any_ray_by_ray::<_, B, S, F>(self, query, occluded, stats, filter)
+        let PacketQuery { rays, active, mode } = query;
+        assert_eq!(occluded.len(), rays.len(), "one flag per ray");
+        if let Some(a) = active {
+            assert_eq!(a.len(), rays.len(), "one active flag per ray");
+        }
+        // Packet by packet, as the packet kernels cut the rays anyway.
+        let mut hits = [None; PACKET_RAYS];
+        for (k, out) in occluded.chunks_mut(PACKET_RAYS).enumerate() {
+            let at = k * PACKET_RAYS;
+            let n = out.len();
+            let part = PacketQuery {
+                rays: &rays[at..at + n],
+                active: active.map(|a| &a[at..at + n]),
+                mode,
+            };
+            self.trace_packet_with::<AnyHit, B, S, F>(part, &mut hits[..n], stats, filter);
+            for (o, h) in out.iter_mut().zip(&hits[..n]) {
+                *o = h.is_some();
+            }
+        }
     }
 
     /// The nearest hit along `ray` (lowest primitive index on ties).
@@ -230,15 +320,65 @@ pub trait RayQuery {
             &mut NoFilter,
         )
     }
+
+    /// [`RayQuery::closest_hit_packet`] keeping only the candidates `filter` accepts.
+    ///
+    /// ```
+    /// use quiver_rt::{Bvh, Hit, Ray, RayQuery, Triangle};
+    /// use glam::Vec3A;
+    /// let near = Triangle::new(Vec3A::new(0.0, 0.0, 1.0), Vec3A::new(1.0, 0.0, 1.0), Vec3A::new(0.0, 1.0, 1.0));
+    /// let far = Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y);
+    /// let bvh = Bvh::new(&[near, far]);
+    /// let rays = [Ray::new(Vec3A::new(0.2, 0.2, 2.0), -Vec3A::Z); 8];
+    /// let mut hits = [None; 8];
+    /// bvh.closest_hit_packet_filtered(&rays, &mut hits, |h: &Hit| h.prim != 0);
+    /// assert!(hits.iter().all(|h| h.map(|h| h.prim) == Some(1)));
+    /// ```
+    ///
+    /// # Panics
+    /// When `hits` and `rays` differ in length.
+    #[inline]
+    fn closest_hit_packet_filtered(
+        &self,
+        rays: &[Ray],
+        hits: &mut [Option<Self::Hit>],
+        mut filter: impl FnMut(&Self::Hit) -> bool,
+    ) {
+        self.closest_hit_packet_with::<ConservativeBoxes, _, _>(
+            PacketQuery::new(rays),
+            hits,
+            &mut NoStats,
+            &mut filter,
+        )
+    }
+
+    /// [`RayQuery::any_hit_packet`] counting only the candidates `filter` accepts.
+    ///
+    /// # Panics
+    /// When `occluded` and `rays` differ in length.
+    #[inline]
+    fn any_hit_packet_filtered(
+        &self,
+        rays: &[Ray],
+        occluded: &mut [bool],
+        mut filter: impl FnMut(&Self::Hit) -> bool,
+    ) {
+        self.any_hit_packet_with::<ConservativeBoxes, _, _>(
+            PacketQuery::new(rays),
+            occluded,
+            &mut NoStats,
+            &mut filter,
+        )
+    }
 }
 
-/// The packet closest-hit query of a structure without a packet kernel: each active ray
-/// through `q`'s single-ray query, inactive ones `None`. The query's mode is ignored.
+/// The packet query of a structure without a packet kernel: each active ray through `q`'s
+/// single-ray query, inactive ones `None`. The query's mode is ignored.
 ///
 /// # Panics
 /// When `hits` or `active` differ in length from `rays`.
 #[inline]
-pub(crate) fn closest_ray_by_ray<Q, B, S, F>(
+pub(crate) fn ray_by_ray<Q, A, B, S, F>(
     q: &Q,
     query: PacketQuery<'_>,
     hits: &mut [Option<Q::Hit>],
@@ -246,44 +386,18 @@ pub(crate) fn closest_ray_by_ray<Q, B, S, F>(
     filter: &mut F,
 ) where
     Q: RayQuery + ?Sized,
+    A: Ask,
     B: BoxTest,
     S: Stats,
     F: Filter<Q::Hit>,
 {
     each_packet(query.mode(PacketMode::Never), hits, |rays, on, _, hits| {
         for (i, (h, r)) in hits.iter_mut().zip(rays).enumerate() {
-            *h = (on >> i & 1 == 1)
-                .then(|| q.closest_hit_with::<B, S, F>(r, stats, filter))
-                .flatten();
+            *h = if on >> i & 1 == 1 {
+                q.trace_with::<A, B, S, F>(r, stats, filter)
+            } else {
+                None
+            };
         }
     });
-}
-
-/// The packet any-hit query of a structure without a packet kernel (see
-/// [`closest_ray_by_ray`]).
-///
-/// # Panics
-/// When `occluded` or `active` differ in length from `rays`.
-#[inline]
-pub(crate) fn any_ray_by_ray<Q, B, S, F>(
-    q: &Q,
-    query: PacketQuery<'_>,
-    occluded: &mut [bool],
-    stats: &mut S,
-    filter: &mut F,
-) where
-    Q: RayQuery + ?Sized,
-    B: BoxTest,
-    S: Stats,
-    F: Filter<Q::Hit>,
-{
-    each_packet(
-        query.mode(PacketMode::Never),
-        occluded,
-        |rays, on, _, out| {
-            for (i, (o, r)) in out.iter_mut().zip(rays).enumerate() {
-                *o = on >> i & 1 == 1 && q.any_hit_with::<B, S, F>(r, stats, filter);
-            }
-        },
-    );
 }

@@ -4,8 +4,9 @@
 //! scalar leaf test's, ties by primitive index included. [`super::leaves::Leaves`] picks
 //! them for triangle leaf formats.
 
+use super::search::offer;
 use super::simd::bits;
-use super::{accepts, offer, Filter, Stats};
+use super::{Ask, Filter, Stats};
 use crate::geometry::{Hit, PrimHit, Ray};
 use crate::intersect::Watertight;
 use crate::layout::tri4::FarGroups;
@@ -197,12 +198,13 @@ fn far_hits(g: &Tri4, ray: &Ray, t_max: f32, format: LeafFormat) -> [Option<Prim
     })
 }
 
-/// [`closest`] for a layout holding far groups, out of the fast path's line: from `best`, the
-/// new best and whether it changed. By value, and with the ray's group terms made here, so
-/// the fast path's search state never has its address taken (which would keep it in memory).
+/// [`test_groups`] for a layout holding far groups, out of the fast path's line: from `best`,
+/// the new best and whether it changed. By value, and with the ray's group terms made here,
+/// so the fast path's search state never has its address taken (which would keep it in
+/// memory).
 #[cold]
 #[inline(never)]
-pub(crate) fn closest_far<S: Stats, F: Filter<Hit>>(
+pub(crate) fn test_far<A: Ask, S: Stats, F: Filter<Hit>>(
     groups: LeafGroups<'_>,
     count: u32,
     ray: &Ray,
@@ -212,30 +214,15 @@ pub(crate) fn closest_far<S: Stats, F: Filter<Hit>>(
     filter: &mut F,
 ) -> (bool, Hit) {
     let r = Ray4Tri::new(ray, format);
-    let found = closest::<S, F, true>(groups, count, ray, &r, format, &mut best, stats, filter);
+    let found = test_groups::<A, S, F, true>(groups, count, ray, &r, format, &mut best, stats, filter);
     (found, best)
 }
 
-/// [`any`] for a layout holding far groups, out of the fast path's line.
-#[cold]
-#[inline(never)]
-pub(crate) fn any_far<S: Stats, F: Filter<Hit>>(
-    groups: LeafGroups<'_>,
-    count: u32,
-    ray: &Ray,
-    format: LeafFormat,
-    stats: &mut S,
-    filter: &mut F,
-) -> bool {
-    let r = Ray4Tri::new(ray, format);
-    any::<S, F, true>(groups, count, ray, &r, format, stats, filter)
-}
-
-/// A triangle leaf's closest hit through [`closest`], the ray's group terms made at its first
+/// A triangle leaf's search through [`test_groups`], the ray's group terms made at its first
 /// leaf (`prep`, see [`prepared`]).
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-pub(crate) fn closest_leaf<S: Stats, F: Filter<Hit>, const FAR: bool>(
+pub(crate) fn test_leaf<A: Ask, S: Stats, F: Filter<Hit>, const FAR: bool>(
     groups: LeafGroups<'_>,
     count: u32,
     ray: &Ray,
@@ -246,29 +233,13 @@ pub(crate) fn closest_leaf<S: Stats, F: Filter<Hit>, const FAR: bool>(
     filter: &mut F,
 ) -> bool {
     let r = prepared(prep, ray, format);
-    closest::<S, F, FAR>(groups, count, ray, r, format, best, stats, filter)
-}
-
-/// A triangle leaf's any hit through [`any`], as [`closest_leaf`].
-#[inline(always)]
-pub(crate) fn any_leaf<S: Stats, F: Filter<Hit>, const FAR: bool>(
-    groups: LeafGroups<'_>,
-    count: u32,
-    ray: &Ray,
-    prep: &mut Option<Ray4Tri>,
-    format: LeafFormat,
-    stats: &mut S,
-    filter: &mut F,
-) -> bool {
-    let r = prepared(prep, ray, format);
-    any::<S, F, FAR>(groups, count, ray, r, format, stats, filter)
+    test_groups::<A, S, F, FAR>(groups, count, ray, r, format, best, stats, filter)
 }
 
 /// The ray's group terms, made at its first leaf. The watertight shear (an axis choice, a
 /// division, splats) is made out of line: inlined, the compiler hoisted it to every ray's
 /// entry, though most rays reach no leaf, and held its terms in registers the walk needed.
-/// The fast terms are splats of the ray and stay inline (made out of line, the fast walks took
-/// 3-5% more instructions).
+/// The fast terms are splats of the ray and stay inline.
 #[inline(always)]
 fn prepared<'p>(prep: &'p mut Option<Ray4Tri>, ray: &Ray, format: LeafFormat) -> &'p Ray4Tri {
     if format == LeafFormat::WatertightTriangles {
@@ -285,11 +256,12 @@ fn shear(ray: &Ray) -> Ray4Tri {
     Ray4Tri::new(ray, LeafFormat::WatertightTriangles)
 }
 
-/// Closest hit among a leaf's groups, improving `best`; `count` triangles in the leaf.
-/// Returns true when `best` changed. `FAR`: as for [`group_hits`].
+/// The search `A` among a leaf's groups (`count` triangles in the leaf), improving `best`:
+/// every group for the closest hit, until one is kept for any hit. Returns true when `best`
+/// changed. `FAR`: as for [`group_hits`].
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-pub(crate) fn closest<S: Stats, F: Filter<Hit>, const FAR: bool>(
+pub(crate) fn test_groups<A: Ask, S: Stats, F: Filter<Hit>, const FAR: bool>(
     (groups, first, far): LeafGroups<'_>,
     count: u32,
     ray: &Ray,
@@ -299,46 +271,26 @@ pub(crate) fn closest<S: Stats, F: Filter<Hit>, const FAR: bool>(
     stats: &mut S,
     filter: &mut F,
 ) -> bool {
-    stats.prims(count);
     let mut found = false;
-    for (i, g) in groups.iter().enumerate() {
-        let g = (g, FAR && far.has(first + i));
+    for i in 0..groups.len() {
+        let g = (&groups[i], FAR && far.has(first + i));
+        // Any hit keeps the first candidate its filter accepts, and the group's other lanes
+        // are then not offered.
         group_hits::<FAR>(g, r, ray, best.t, format, |l, h| {
-            found |= offer(best, g.0.id[l], h, filter)
+            if !(A::ANY && found) {
+                found |= offer::<A, F>(best, g.0.id[l], h, filter);
+            }
         });
-    }
-    if !found {
-        stats.empty_leaf();
-    }
-    found
-}
-
-/// Whether anything in a leaf's groups is hit (and accepted by `filter`) within the ray's
-/// interval. `FAR`: as for [`group_hits`].
-#[inline(always)]
-pub(crate) fn any<S: Stats, F: Filter<Hit>, const FAR: bool>(
-    (groups, first, far): LeafGroups<'_>,
-    count: u32,
-    ray: &Ray,
-    r: &Ray4Tri,
-    format: LeafFormat,
-    stats: &mut S,
-    filter: &mut F,
-) -> bool {
-    for (i, g) in groups.iter().enumerate() {
-        let mut hit = false;
-        let g = (g, FAR && far.has(first + i));
-        group_hits::<FAR>(g, r, ray, ray.t_max, format, |l, h| {
-            hit = hit || accepts(g.0.id[l], h, filter)
-        });
-        if hit {
+        if A::ANY && found {
             stats.prims((4 * (i as u32 + 1)).min(count));
             return true;
         }
     }
     stats.prims(count);
-    stats.empty_leaf();
-    false
+    if !found {
+        stats.empty_leaf();
+    }
+    found
 }
 
 #[cfg(test)]

@@ -13,14 +13,15 @@ use crate::geometry::{Hit, Ray};
 use crate::isa::Kernels;
 use crate::layout::Bvh8Node;
 use crate::primitive::{Lanes, Primitive, CHUNKS, LANES, PACKET_RAYS};
+use crate::traverse::dispatch::{self, LaneKernel};
 use crate::traverse::lane8::F8;
 use crate::traverse::packet::{
     each_packet, walk, AloneIn, InLanes, PacketBuilder, PacketMode, RayPacket, Visit,
 };
 use crate::traverse::simd::bits;
-use crate::traverse::{BoxTest, Filter, PacketQuery, RayQuery, Stats};
+use crate::traverse::{Ask, BoxTest, Filter, PacketQuery, RayQuery, Stats};
 use glam::Vec3A;
-use wide::f32x8;
+use std::marker::PhantomData;
 
 /// The rays of one packet that see instance `p`: those of `live` whose mask shares a bit with
 /// the instance's. `uniform` is the packet's mask when every ray has the same one.
@@ -96,25 +97,27 @@ fn local_packet<V: F8>(cpu: V::Cpu, p: &Placed, pk: &RayPacket, m: u64, out: &mu
 }
 
 impl<P: Primitive> Geometry<P> {
-    /// `ask` of a packet already in object space, on the world's lanes (see
+    /// The search `A` of a packet already in object space, on the world's lanes (see
     /// [`crate::Bvh`]'s `in_lanes`): false, with nothing done, where the geometry's layout
     /// takes its rays the usual way.
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
-    fn in_lanes<V: F8, B: BoxTest, S: Stats, F: Filter<Hit>>(
+    fn in_lanes<V: F8, A: Ask, B: BoxTest, S: Stats, F: Filter<Hit>>(
         &self,
         kernels: Kernels,
         cpu: V::Cpu,
         pk: &mut RayPacket,
-        ask: InLanes<'_>,
+        best: InLanes<'_>,
         stats: &mut S,
         filter: &mut F,
     ) -> bool {
         match self {
             Geometry::Triangles(b, _) => {
-                b.in_lanes::<V, B, S, F>(kernels, cpu, pk, ask, stats, filter)
+                b.in_lanes::<V, A, B, S, F>(kernels, cpu, pk, best, stats, filter)
             }
-            Geometry::Prims(b, _) => b.in_lanes::<V, B, S, F>(kernels, cpu, pk, ask, stats, filter),
+            Geometry::Prims(b, _) => {
+                b.in_lanes::<V, A, B, S, F>(kernels, cpu, pk, best, stats, filter)
+            }
         }
     }
 }
@@ -138,7 +141,9 @@ fn local_rays<V: F8>(
             continue;
         }
         let (lo, ld) = chunk_to_object::<V>(cpu, p, pk, k);
-        let (lo, ld) = (lo.map(|v| v.to_array()), ld.map(|v| v.to_array()));
+        // Written out, not `array::map`: a closure over lanes must stay inside the kernel.
+        let lo = [lo[0].to_array(), lo[1].to_array(), lo[2].to_array()];
+        let ld = [ld[0].to_array(), ld[1].to_array(), ld[2].to_array()];
         for l in bits(lanes) {
             let i = LANES * k + l;
             out[i] = Ray {
@@ -160,10 +165,12 @@ fn flags(m: u64, n: usize, out: &mut [bool; PACKET_RAYS]) {
 }
 
 impl<P: Primitive> World<P> {
-    /// Closest hits of one packet into `best`, on lanes of `V`.
+    /// The search `A` of one packet into `best` (one record per ray, [`WorldHit::none`] at
+    /// its limit to start), on lanes of `V`. Closest hit: a kept hit lowers its ray's limit.
+    /// Any hit: a ray that meets something retires, and the walk ends once every ray has.
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
-    fn closest_packet<V: F8, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
+    fn trace_packet<V: F8, A: Ask, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
         &self,
         cpu: V::Cpu,
         rays: &[Ray],
@@ -194,7 +201,8 @@ impl<P: Primitive> World<P> {
                     Visit::Leaf(range, b, cand) => {
                         let live = pk.entering::<V, B>(cpu, b, cand);
                         stats.prims(range.len() as u32);
-                        for p in &top.prims[range] {
+                        for pi in range {
+                            let p = &top.prims[pi];
                             let m = seeing(rays, live & pk.active, uniform, p);
                             if m == 0 {
                                 continue;
@@ -209,19 +217,14 @@ impl<P: Primitive> World<P> {
                             for i in bits(m) {
                                 records[i] = Hit::none(best[i].t);
                             }
-                            let ask = InLanes::Closest(&mut records);
-                            if geometry
-                                .in_lanes::<V, B, S, _>(kernels, cpu, &mut lp, ask, stats, &mut f)
-                            {
-                                // Straight from the records: one pass over the rays, not a
-                                // copy into `found` and a second.
-                                for i in bits(m) {
-                                    let h = &records[i];
-                                    if h.prim != u32::MAX && f.improve(&mut best[i], h) {
-                                        pk.set_limit(i, h.t);
-                                    }
-                                }
-                            } else {
+                            if !geometry.in_lanes::<V, A, B, S, _>(
+                                kernels,
+                                cpu,
+                                &mut lp,
+                                &mut records,
+                                stats,
+                                &mut f,
+                            ) {
                                 local_rays::<V>(
                                     cpu,
                                     p,
@@ -236,286 +239,155 @@ impl<P: Primitive> World<P> {
                                 let query = PacketQuery::new(&local[..n])
                                     .active(&active[..n])
                                     .mode(PacketMode::Always);
-                                geometry.closest_hit_packet_with::<B, S, _>(
+                                geometry.trace_packet_with::<A, B, S, _>(
                                     query,
                                     &mut found[..n],
                                     stats,
                                     &mut f,
                                 );
                                 for i in bits(m) {
-                                    if let Some(h) = &found[i] {
-                                        if f.improve(&mut best[i], h) {
-                                            pk.set_limit(i, h.t);
-                                        }
+                                    if let Some(h) = found[i] {
+                                        records[i] = h;
+                                    }
+                                }
+                            }
+                            // Straight from the records: one pass over the rays.
+                            for i in bits(m) {
+                                let h = &records[i];
+                                if h.prim != u32::MAX && f.improve::<A>(&mut best[i], h) {
+                                    if A::ANY {
+                                        pk.retire(i);
+                                    } else {
+                                        pk.set_limit(i, h.t);
                                     }
                                 }
                             }
                         }
-                        pk.refresh_limit_bound();
-                    }
-                    Visit::Alone(i, at) => {
-                        let ray = &rays[i];
-                        match at {
-                            AloneIn::Leaf(r) => {
-                                for p in &top.prims[r] {
-                                    self.closest_in::<V, B, S, F>(
-                                        cpu,
-                                        p,
-                                        ray,
-                                        &mut best[i],
-                                        stats,
-                                        filter,
-                                    );
-                                }
-                            }
-                            AloneIn::Inner(node) => self.closest_from::<V, B, S, F>(
-                                cpu,
-                                ray,
-                                node,
-                                &mut best[i],
-                                stats,
-                                filter,
-                            ),
-                        }
-                        pk.set_limit(i, best[i].t);
-                    }
-                }
-                false
-            },
-        );
-    }
-
-    /// Any-hit answers of one packet into `hit`, on lanes of `V`.
-    #[inline(always)]
-    fn any_packet<V: F8, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
-        &self,
-        cpu: V::Cpu,
-        rays: &[Ray],
-        pk: &mut RayPacket,
-        hit: &mut [bool],
-        stats: &mut S,
-        filter: &mut F,
-    ) {
-        let top = &self.top;
-        let uniform = uniform_mask(rays);
-        let n = rays.len();
-        let mut local = [Ray::new(Vec3A::ZERO, Vec3A::ZERO); PACKET_RAYS];
-        let mut active = [false; PACKET_RAYS];
-        let mut blocked = [false; PACKET_RAYS];
-        let mut lp = RayPacket::empty();
-        let kernels = top.kernels;
-        walk::<Bvh8Node, V, B, S, _>(
-            cpu,
-            &top.nodes,
-            pk,
-            stats,
-            #[inline(always)]
-            |_| {},
-            #[inline(always)]
-            |pk, visit, stats| {
-                match visit {
-                    Visit::Leaf(range, b, cand) => {
-                        let live = pk.entering::<V, B>(cpu, b, cand);
-                        stats.prims(range.len() as u32);
-                        for p in &top.prims[range] {
-                            let m = seeing(rays, live & pk.active, uniform, p);
-                            if m == 0 {
-                                continue;
-                            }
-                            let geometry = &self.geometries[p.geometry as usize];
-                            let mut f = InInstance {
-                                filter: &mut *filter,
-                                instance: p.instance,
-                                geometry: p.geometry,
-                            };
-                            local_packet::<V>(cpu, p, pk, m, &mut lp);
-                            for i in bits(m) {
-                                blocked[i] = false;
-                            }
-                            let ask = InLanes::Any(&mut blocked);
-                            if !geometry
-                                .in_lanes::<V, B, S, _>(kernels, cpu, &mut lp, ask, stats, &mut f)
-                            {
-                                local_rays::<V>(cpu, p, pk, rays, m, |i| rays[i].t_max, &mut local);
-                                flags(m, n, &mut active);
-                                let query = PacketQuery::new(&local[..n])
-                                    .active(&active[..n])
-                                    .mode(PacketMode::Always);
-                                geometry.any_hit_packet_with::<B, S, _>(
-                                    query,
-                                    &mut blocked[..n],
-                                    stats,
-                                    &mut f,
-                                );
-                            }
-                            for i in bits(m) {
-                                if blocked[i] {
-                                    hit[i] = true;
-                                    pk.retire(i);
-                                }
-                            }
+                        if !A::ANY {
+                            pk.refresh_limit_bound();
                         }
                     }
                     Visit::Alone(i, at) => {
                         let ray = &rays[i];
                         let found = match at {
-                            AloneIn::Leaf(r) => top.prims[r]
-                                .iter()
-                                .any(|p| self.any_in::<V, B, S, F>(cpu, p, ray, stats, filter)),
+                            AloneIn::Leaf(r) => self.search_leaf::<V, A, B, S, F>(
+                                cpu,
+                                r.start,
+                                r.len(),
+                                ray,
+                                &mut best[i],
+                                stats,
+                                filter,
+                            ),
                             AloneIn::Inner(node) => {
-                                self.any_from::<V, B, S, F>(cpu, ray, node, stats, filter)
+                                self.search_from::<V, A, B, S, F>(
+                                    cpu,
+                                    ray,
+                                    node,
+                                    &mut best[i],
+                                    stats,
+                                    filter,
+                                );
+                                best[i].found().is_some()
                             }
                         };
-                        if found {
-                            hit[i] = true;
+                        if !A::ANY {
+                            pk.set_limit(i, best[i].t);
+                        } else if found {
                             pk.retire(i);
                         }
                     }
                 }
-                pk.active == 0
+                A::ANY && pk.active == 0
             },
         );
     }
+}
+
+/// A world's packet query, as the kernel [`dispatch`] runs on the top level's lanes.
+struct TraceRays<'a, P, A, B, S, F> {
+    world: &'a World<P>,
+    query: PacketQuery<'a>,
+    hits: &'a mut [Option<WorldHit>],
+    stats: &'a mut S,
+    filter: &'a mut F,
+    ask: PhantomData<(A, B)>,
+}
+
+impl<P, A, B, S, F> LaneKernel for TraceRays<'_, P, A, B, S, F>
+where
+    P: Primitive,
+    A: Ask,
+    B: BoxTest,
+    S: Stats,
+    F: Filter<WorldHit>,
+{
+    type Out = ();
 
     #[inline(always)]
-    fn closest_rays_on<V: F8, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
-        &self,
-        cpu: V::Cpu,
-        query: PacketQuery<'_>,
-        hits: &mut [Option<WorldHit>],
-        stats: &mut S,
-        filter: &mut F,
-    ) {
-        let walkable = !self.top.prims.is_empty();
+    fn run<V: F8, const FAR: bool>(self, cpu: V::Cpu) {
+        let TraceRays {
+            world,
+            query,
+            hits,
+            stats,
+            filter,
+            ..
+        } = self;
+        let walkable = world.walkable();
         each_packet(
             query,
             hits,
             #[inline(always)]
             |rays, on, packet, hits| {
-                hits.fill(None);
+                for h in hits.iter_mut() {
+                    *h = None;
+                }
                 if !walkable {
                     return;
                 }
-                if packet {
-                    let mut pk = RayPacket::new(rays, on);
-                    let mut best = [WorldHit::none(0.0); PACKET_RAYS];
-                    for (b, r) in best.iter_mut().zip(rays) {
-                        *b = WorldHit::none(r.t_max);
-                    }
-                    self.closest_packet::<V, B, S, F>(cpu, rays, &mut pk, &mut best, stats, filter);
-                    for i in bits(on) {
-                        hits[i] = best[i].found();
-                    }
-                } else {
-                    for i in bits(on) {
-                        let mut best = WorldHit::none(rays[i].t_max);
-                        self.closest_from::<V, B, S, F>(cpu, &rays[i], 0, &mut best, stats, filter);
-                        hits[i] = best.found();
-                    }
-                }
-            },
-        );
-    }
-
-    #[inline(always)]
-    fn any_rays_on<V: F8, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
-        &self,
-        cpu: V::Cpu,
-        query: PacketQuery<'_>,
-        occluded: &mut [bool],
-        stats: &mut S,
-        filter: &mut F,
-    ) {
-        let walkable = !self.top.prims.is_empty();
-        each_packet(
-            query,
-            occluded,
-            #[inline(always)]
-            |rays, on, packet, out| {
-                out.fill(false);
-                if !walkable {
-                    return;
+                let mut best = [WorldHit::none(0.0); PACKET_RAYS];
+                for i in 0..rays.len() {
+                    best[i] = WorldHit::none(rays[i].t_max);
                 }
                 if packet {
                     let mut pk = RayPacket::new(rays, on);
-                    self.any_packet::<V, B, S, F>(cpu, rays, &mut pk, out, stats, filter);
+                    world.trace_packet::<V, A, B, S, F>(cpu, rays, &mut pk, &mut best, stats, filter);
                 } else {
                     for i in bits(on) {
-                        out[i] = self.any_from::<V, B, S, F>(cpu, &rays[i], 0, stats, filter);
+                        world.search_from::<V, A, B, S, F>(
+                            cpu,
+                            &rays[i],
+                            0,
+                            &mut best[i],
+                            stats,
+                            filter,
+                        );
                     }
+                }
+                for i in bits(on) {
+                    hits[i] = best[i].found();
                 }
             },
         );
     }
 }
 
-/// A world's closest-hit packet query on its top level's lanes.
-pub(super) fn closest_rays<P: Primitive, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
+/// A world's packet query on its top level's lanes.
+pub(super) fn trace_rays<P: Primitive, A: Ask, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
     world: &World<P>,
     query: PacketQuery<'_>,
     hits: &mut [Option<WorldHit>],
     stats: &mut S,
     filter: &mut F,
 ) {
-    match world.top.kernels {
-        #[cfg(target_arch = "x86_64")]
-        // SAFETY: `cpu` proves the CPU has AVX2 and FMA (only detection makes one).
-        Kernels::Avx2(cpu) => unsafe {
-            avx2::closest_rays::<P, B, S, F>(world, cpu, query, hits, stats, filter)
-        },
-        _ => world.closest_rays_on::<f32x8, B, S, F>((), query, hits, stats, filter),
-    }
-}
-
-/// A world's any-hit packet query on its top level's lanes.
-pub(super) fn any_rays<P: Primitive, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
-    world: &World<P>,
-    query: PacketQuery<'_>,
-    occluded: &mut [bool],
-    stats: &mut S,
-    filter: &mut F,
-) {
-    match world.top.kernels {
-        #[cfg(target_arch = "x86_64")]
-        // SAFETY: as above.
-        Kernels::Avx2(cpu) => unsafe {
-            avx2::any_rays::<P, B, S, F>(world, cpu, query, occluded, stats, filter)
-        },
-        _ => world.any_rays_on::<f32x8, B, S, F>((), query, occluded, stats, filter),
-    }
-}
-
-#[cfg(target_arch = "x86_64")]
-mod avx2 {
-    use super::*;
-    use crate::isa::Avx2Cpu;
-    use crate::traverse::lane8::Avx;
-
-    /// # Safety
-    /// The CPU must support AVX2 and FMA (as `cpu` proves).
-    #[target_feature(enable = "avx2,fma")]
-    pub(super) unsafe fn closest_rays<P: Primitive, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
-        world: &World<P>,
-        cpu: Avx2Cpu,
-        query: PacketQuery<'_>,
-        hits: &mut [Option<WorldHit>],
-        stats: &mut S,
-        filter: &mut F,
-    ) {
-        world.closest_rays_on::<Avx, B, S, F>(cpu, query, hits, stats, filter)
-    }
-
-    /// # Safety
-    /// The CPU must support AVX2 and FMA (as `cpu` proves).
-    #[target_feature(enable = "avx2,fma")]
-    pub(super) unsafe fn any_rays<P: Primitive, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
-        world: &World<P>,
-        cpu: Avx2Cpu,
-        query: PacketQuery<'_>,
-        occluded: &mut [bool],
-        stats: &mut S,
-        filter: &mut F,
-    ) {
-        world.any_rays_on::<Avx, B, S, F>(cpu, query, occluded, stats, filter)
-    }
+    let kernel = TraceRays::<P, A, B, S, F> {
+        world,
+        query,
+        hits,
+        stats,
+        filter,
+        ask: PhantomData,
+    };
+    dispatch::run(world.top.kernels, false, kernel)
 }

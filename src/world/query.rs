@@ -7,10 +7,10 @@ use crate::geometry::{Hit, Ray};
 use crate::isa::Kernels;
 use crate::primitive::Primitive;
 use crate::traverse::bvh8::{walk, Ray8};
+use crate::traverse::dispatch::{self, LaneKernel};
 use crate::traverse::lane8::F8;
-use crate::traverse::wide::OneRay;
-use crate::traverse::{BoxTest, Filter, PacketQuery, RayQuery, Stats};
-use wide::f32x8;
+use crate::traverse::{Ask, BoxTest, Filter, PacketQuery, RayQuery, Stats};
+use std::marker::PhantomData;
 
 /// The caller's filter, asked about a geometry's candidates as world hits of one instance.
 pub(super) struct InInstance<'f, F> {
@@ -41,11 +41,12 @@ impl<F> InInstance<'_, F> {
         }
     }
 
-    /// Makes the geometry's hit `h` the world's `best` where it beats it (see
-    /// [`WorldHit::is_beaten_by`]); says whether it did.
+    /// Makes the geometry's hit `h` the world's `best` where the search `A` keeps it (any
+    /// hit: always; closest hit: where it beats `best`, see [`WorldHit::is_beaten_by`]); says
+    /// whether it did.
     #[inline(always)]
-    pub(super) fn improve(&self, best: &mut WorldHit, h: &Hit) -> bool {
-        let better = best.is_beaten_by(h.t, self.instance);
+    pub(super) fn improve<A: Ask>(&self, best: &mut WorldHit, h: &Hit) -> bool {
+        let better = A::ANY || best.is_beaten_by(h.t, self.instance);
         if better {
             *best = self.hit(h);
         }
@@ -57,32 +58,19 @@ impl<P: Primitive> RayQuery for Geometry<P> {
     type Hit = Hit;
 
     #[inline]
-    fn closest_hit_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
+    fn trace_with<A: Ask, B: BoxTest, S: Stats, F: Filter<Hit>>(
         &self,
         ray: &Ray,
         stats: &mut S,
         filter: &mut F,
     ) -> Option<Hit> {
         match self {
-            Geometry::Triangles(b, _) => b.closest_hit_with::<B, S, F>(ray, stats, filter),
-            Geometry::Prims(b, _) => b.closest_hit_with::<B, S, F>(ray, stats, filter),
+            Geometry::Triangles(b, _) => b.trace_with::<A, B, S, F>(ray, stats, filter),
+            Geometry::Prims(b, _) => b.trace_with::<A, B, S, F>(ray, stats, filter),
         }
     }
 
-    #[inline]
-    fn any_hit_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
-        &self,
-        ray: &Ray,
-        stats: &mut S,
-        filter: &mut F,
-    ) -> bool {
-        match self {
-            Geometry::Triangles(b, _) => b.any_hit_with::<B, S, F>(ray, stats, filter),
-            Geometry::Prims(b, _) => b.any_hit_with::<B, S, F>(ray, stats, filter),
-        }
-    }
-
-    fn closest_hit_packet_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
+    fn trace_packet_with<A: Ask, B: BoxTest, S: Stats, F: Filter<Hit>>(
         &self,
         query: PacketQuery<'_>,
         hits: &mut [Option<Hit>],
@@ -91,63 +79,46 @@ impl<P: Primitive> RayQuery for Geometry<P> {
     ) {
         match self {
             Geometry::Triangles(b, _) => {
-                b.closest_hit_packet_with::<B, S, F>(query, hits, stats, filter)
+                b.trace_packet_with::<A, B, S, F>(query, hits, stats, filter)
             }
-            Geometry::Prims(b, _) => {
-                b.closest_hit_packet_with::<B, S, F>(query, hits, stats, filter)
-            }
-        }
-    }
-
-    fn any_hit_packet_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
-        &self,
-        query: PacketQuery<'_>,
-        occluded: &mut [bool],
-        stats: &mut S,
-        filter: &mut F,
-    ) {
-        match self {
-            Geometry::Triangles(b, _) => {
-                b.any_hit_packet_with::<B, S, F>(query, occluded, stats, filter)
-            }
-            Geometry::Prims(b, _) => {
-                b.any_hit_packet_with::<B, S, F>(query, occluded, stats, filter)
-            }
+            Geometry::Prims(b, _) => b.trace_packet_with::<A, B, S, F>(query, hits, stats, filter),
         }
     }
 }
 
 impl<P: Primitive> Geometry<P> {
-    /// `ask` of one ray in object space on the world's lanes (see [`crate::Bvh`]'s
+    /// The search `A` of one ray in object space on the world's lanes (see [`crate::Bvh`]'s
     /// `one_ray`): false, with nothing done, where the geometry's layout takes the ray the
     /// usual way.
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
-    fn one_ray<V: F8, B: BoxTest, S: Stats, F: Filter<Hit>>(
+    fn one_ray<V: F8, A: Ask, B: BoxTest, S: Stats, F: Filter<Hit>>(
         &self,
         kernels: Kernels,
         cpu: V::Cpu,
         ray: &Ray,
-        ask: OneRay<'_>,
+        best: &mut Hit,
         stats: &mut S,
         filter: &mut F,
     ) -> bool {
         match self {
             Geometry::Triangles(b, _) => {
-                b.one_ray::<V, B, S, F>(kernels, cpu, ray, ask, stats, filter)
+                b.one_ray::<V, A, B, S, F>(kernels, cpu, ray, best, stats, filter)
             }
-            Geometry::Prims(b, _) => b.one_ray::<V, B, S, F>(kernels, cpu, ray, ask, stats, filter),
+            Geometry::Prims(b, _) => {
+                b.one_ray::<V, A, B, S, F>(kernels, cpu, ray, best, stats, filter)
+            }
         }
     }
 }
 
 impl<P: Primitive> World<P> {
-    /// Instance `p`'s closest hit along `ray`, improving `best`: the geometry's walk inlined
+    /// The search `A` of `ray` in instance `p`, improving `best`: the geometry's walk inlined
     /// on the world's lanes where its layout allows (an 8-wide BVH on the world's kernels),
-    /// else through its query.
+    /// else through its query. Returns true when `best` changed.
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
-    pub(super) fn closest_in<V: F8, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
+    pub(super) fn search_in<V: F8, A: Ask, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
         &self,
         cpu: V::Cpu,
         p: &Placed,
@@ -155,9 +126,9 @@ impl<P: Primitive> World<P> {
         best: &mut WorldHit,
         stats: &mut S,
         filter: &mut F,
-    ) {
+    ) -> bool {
         if ray.mask & p.mask == 0 {
-            return;
+            return false;
         }
         let local = p.local(ray, best.t);
         let g = &self.geometries[p.geometry as usize];
@@ -167,49 +138,47 @@ impl<P: Primitive> World<P> {
             geometry: p.geometry,
         };
         let mut h = Hit::none(local.t_max);
-        let ask = OneRay::Closest(&mut h);
-        let found = if g.one_ray::<V, B, S, _>(self.top.kernels, cpu, &local, ask, stats, &mut f) {
+        let kernels = self.top.kernels;
+        let found = if g.one_ray::<V, A, B, S, _>(kernels, cpu, &local, &mut h, stats, &mut f) {
             h.found()
         } else {
-            g.closest_hit_with::<B, S, _>(&local, stats, &mut f)
+            g.trace_with::<A, B, S, _>(&local, stats, &mut f)
         };
-        if let Some(h) = found {
-            f.improve(best, &h);
+        match found {
+            Some(h) => f.improve::<A>(best, &h),
+            None => false,
         }
     }
 
-    /// Whether instance `p` blocks `ray` (the geometry's walk inlined as in
-    /// [`World::closest_in`]).
+    /// The search `A` in the instances of top-level leaf `first..first + count`, improving
+    /// `best`; any hit stops at the first instance that keeps one. Returns true when `best`
+    /// changed.
     #[inline(always)]
-    pub(super) fn any_in<V: F8, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn search_leaf<V: F8, A: Ask, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
         &self,
         cpu: V::Cpu,
-        p: &Placed,
+        first: usize,
+        count: usize,
         ray: &Ray,
+        best: &mut WorldHit,
         stats: &mut S,
         filter: &mut F,
     ) -> bool {
-        if ray.mask & p.mask == 0 {
-            return false;
+        let mut found = false;
+        for i in first..first + count {
+            let p = &self.top.prims[i];
+            found |= self.search_in::<V, A, B, S, F>(cpu, p, ray, best, stats, filter);
+            if A::ANY && found {
+                break;
+            }
         }
-        let local = p.local(ray, ray.t_max);
-        let g = &self.geometries[p.geometry as usize];
-        let mut f = InInstance {
-            filter,
-            instance: p.instance,
-            geometry: p.geometry,
-        };
-        let mut hit = false;
-        let ask = OneRay::Any(&mut hit);
-        if g.one_ray::<V, B, S, _>(self.top.kernels, cpu, &local, ask, stats, &mut f) {
-            return hit;
-        }
-        g.any_hit_with::<B, S, _>(&local, stats, &mut f)
+        found
     }
 
-    /// The closest hit in the top-level subtree of inner node `root`, improving `best`.
+    /// The search `A` in the top-level subtree of inner node `root`, improving `best`.
     #[inline(always)]
-    pub(super) fn closest_from<V: F8, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
+    pub(super) fn search_from<V: F8, A: Ask, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
         &self,
         cpu: V::Cpu,
         ray: &Ray,
@@ -220,7 +189,7 @@ impl<P: Primitive> World<P> {
     ) {
         let top = &self.top;
         let r8 = Ray8::<V>::new(cpu, ray);
-        walk::<V, B, S, _, true>(
+        walk::<V, A, B, S, _>(
             &top.nodes,
             &r8,
             root,
@@ -229,167 +198,88 @@ impl<P: Primitive> World<P> {
             #[inline(always)]
             |first, count, limit, stats| {
                 stats.prims(count);
-                for p in &top.prims[first..first + count as usize] {
-                    self.closest_in::<V, B, S, F>(cpu, p, ray, best, stats, filter);
-                }
+                let found = self.search_leaf::<V, A, B, S, F>(
+                    cpu,
+                    first,
+                    count as usize,
+                    ray,
+                    best,
+                    stats,
+                    filter,
+                );
                 *limit = best.t;
-                false
+                A::ANY && found
             },
-            |_, _| {},
-        );
-    }
-
-    /// Whether anything in the top-level subtree of inner node `root` blocks `ray`.
-    #[inline(always)]
-    pub(super) fn any_from<V: F8, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
-        &self,
-        cpu: V::Cpu,
-        ray: &Ray,
-        root: usize,
-        stats: &mut S,
-        filter: &mut F,
-    ) -> bool {
-        let top = &self.top;
-        let r8 = Ray8::<V>::new(cpu, ray);
-        let mut hit = false;
-        walk::<V, B, S, _, false>(
-            &top.nodes,
-            &r8,
-            root,
-            ray.t_max,
-            stats,
             #[inline(always)]
-            |first, count, _, stats| {
-                stats.prims(count);
-                let leaf = &top.prims[first..first + count as usize];
-                hit = leaf
-                    .iter()
-                    .any(|p| self.any_in::<V, B, S, F>(cpu, p, ray, stats, filter));
-                hit
-            },
             |_, _| {},
         );
-        hit
     }
 
     /// Whether the top level has a root node to walk (an empty world has none worth it).
     #[inline(always)]
-    fn walkable(&self) -> bool {
+    pub(super) fn walkable(&self) -> bool {
         !self.top.prims.is_empty()
     }
+}
+
+/// One ray's query of a [`World`], as the kernel [`dispatch`] runs on the top level's lanes
+/// (the geometries' own queries pick their kernels).
+struct Trace<'a, P, A, B, S, F> {
+    world: &'a World<P>,
+    ray: &'a Ray,
+    stats: &'a mut S,
+    filter: &'a mut F,
+    ask: PhantomData<(A, B)>,
+}
+
+impl<P, A, B, S, F> LaneKernel for Trace<'_, P, A, B, S, F>
+where
+    P: Primitive,
+    A: Ask,
+    B: BoxTest,
+    S: Stats,
+    F: Filter<WorldHit>,
+{
+    type Out = Option<WorldHit>;
 
     #[inline(always)]
-    fn closest<V: F8, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
-        &self,
-        cpu: V::Cpu,
-        ray: &Ray,
-        stats: &mut S,
-        filter: &mut F,
-    ) -> Option<WorldHit> {
-        let ray = &ray.raised_t_min();
+    fn run<V: F8, const FAR: bool>(self, cpu: V::Cpu) -> Option<WorldHit> {
+        let ray = &self.ray.raised_t_min();
         let mut best = WorldHit::none(ray.t_max);
-        if self.walkable() {
-            self.closest_from::<V, B, S, F>(cpu, ray, 0, &mut best, stats, filter);
+        if self.world.walkable() {
+            self.world
+                .search_from::<V, A, B, S, F>(cpu, ray, 0, &mut best, self.stats, self.filter);
         }
         best.found()
-    }
-
-    #[inline(always)]
-    fn any<V: F8, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
-        &self,
-        cpu: V::Cpu,
-        ray: &Ray,
-        stats: &mut S,
-        filter: &mut F,
-    ) -> bool {
-        self.walkable() && self.any_from::<V, B, S, F>(cpu, &ray.raised_t_min(), 0, stats, filter)
     }
 }
 
 impl<P: Primitive> RayQuery for World<P> {
     type Hit = WorldHit;
 
-    fn closest_hit_with<B: BoxTest, S: Stats, F: Filter<WorldHit>>(
+    fn trace_with<A: Ask, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
         &self,
         ray: &Ray,
         stats: &mut S,
         filter: &mut F,
     ) -> Option<WorldHit> {
-        match self.top.kernels {
-            #[cfg(target_arch = "x86_64")]
-            // SAFETY: `cpu` proves the CPU has AVX2 and FMA (only detection makes one).
-            Kernels::Avx2(cpu) => unsafe {
-                avx2::closest::<P, B, S, F>(self, cpu, ray, stats, filter)
-            },
-            _ => self.closest::<f32x8, B, S, F>((), ray, stats, filter),
-        }
+        let kernel = Trace::<P, A, B, S, F> {
+            world: self,
+            ray,
+            stats,
+            filter,
+            ask: PhantomData,
+        };
+        dispatch::run(self.top.kernels, false, kernel)
     }
 
-    fn any_hit_with<B: BoxTest, S: Stats, F: Filter<WorldHit>>(
-        &self,
-        ray: &Ray,
-        stats: &mut S,
-        filter: &mut F,
-    ) -> bool {
-        match self.top.kernels {
-            #[cfg(target_arch = "x86_64")]
-            // SAFETY: as above.
-            Kernels::Avx2(cpu) => unsafe { avx2::any::<P, B, S, F>(self, cpu, ray, stats, filter) },
-            _ => self.any::<f32x8, B, S, F>((), ray, stats, filter),
-        }
-    }
-
-    fn closest_hit_packet_with<B: BoxTest, S: Stats, F: Filter<WorldHit>>(
+    fn trace_packet_with<A: Ask, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
         &self,
         query: PacketQuery<'_>,
         hits: &mut [Option<WorldHit>],
         stats: &mut S,
         filter: &mut F,
     ) {
-        super::packet::closest_rays::<P, B, S, F>(self, query, hits, stats, filter)
-    }
-
-    fn any_hit_packet_with<B: BoxTest, S: Stats, F: Filter<WorldHit>>(
-        &self,
-        query: PacketQuery<'_>,
-        occluded: &mut [bool],
-        stats: &mut S,
-        filter: &mut F,
-    ) {
-        super::packet::any_rays::<P, B, S, F>(self, query, occluded, stats, filter)
-    }
-}
-
-/// The top-level walks on AVX2 lanes (the geometries' own queries pick their kernels).
-#[cfg(target_arch = "x86_64")]
-mod avx2 {
-    use super::*;
-    use crate::isa::Avx2Cpu;
-    use crate::traverse::lane8::Avx;
-
-    /// # Safety
-    /// The CPU must support AVX2 and FMA (as `cpu` proves).
-    #[target_feature(enable = "avx2,fma")]
-    pub(super) unsafe fn closest<P: Primitive, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
-        world: &World<P>,
-        cpu: Avx2Cpu,
-        ray: &Ray,
-        stats: &mut S,
-        filter: &mut F,
-    ) -> Option<WorldHit> {
-        world.closest::<Avx, B, S, F>(cpu, ray, stats, filter)
-    }
-
-    /// # Safety
-    /// The CPU must support AVX2 and FMA (as `cpu` proves).
-    #[target_feature(enable = "avx2,fma")]
-    pub(super) unsafe fn any<P: Primitive, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
-        world: &World<P>,
-        cpu: Avx2Cpu,
-        ray: &Ray,
-        stats: &mut S,
-        filter: &mut F,
-    ) -> bool {
-        world.any::<Avx, B, S, F>(cpu, ray, stats, filter)
+        super::packet::trace_rays::<P, A, B, S, F>(self, query, hits, stats, filter)
     }
 }

@@ -13,21 +13,31 @@ use quiver_scenes::accel::SceneBvh;
 use quiver_scenes::scene::tessellate::DEFAULT_RESOLUTION;
 use quiver_scenes::Scene;
 
-#[inline(never)]
-fn single<Q: RayQuery>(q: &Q, eye: &[Ray], shadow: &[Ray]) -> usize {
-    let c = eye.iter().filter(|r| q.closest_hit(r).is_some()).count();
-    c + shadow.iter().filter(|r| q.any_hit(r)).count()
+#[inline(always)]
+fn closest<Q: RayQuery>(q: &Q, eye: &[Ray]) -> usize {
+    eye.iter().filter(|r| q.closest_hit(r).is_some()).count()
 }
 
-#[inline(never)]
-fn packets<Q: RayQuery>(q: &Q, eye: &[Ray], shadow: &[Ray]) -> usize {
+#[inline(always)]
+fn any<Q: RayQuery>(q: &Q, shadow: &[Ray]) -> usize {
+    shadow.iter().filter(|r| q.any_hit(r)).count()
+}
+
+#[inline(always)]
+fn closest_packets<Q: RayQuery>(q: &Q, eye: &[Ray]) -> usize {
     let mut out = [None; 64];
-    let mut occ = [false; 64];
     let mut n = 0;
     for p in eye.chunks(64) {
         q.closest_hit_packet(p, &mut out[..p.len()]);
         n += out[..p.len()].iter().filter(|h| h.is_some()).count();
     }
+    n
+}
+
+#[inline(always)]
+fn any_packets<Q: RayQuery>(q: &Q, shadow: &[Ray]) -> usize {
+    let mut occ = [false; 64];
+    let mut n = 0;
     for p in shadow.chunks(64) {
         q.any_hit_packet(p, &mut occ[..p.len()]);
         n += occ[..p.len()].iter().filter(|&&h| h).count();
@@ -35,27 +45,43 @@ fn packets<Q: RayQuery>(q: &Q, eye: &[Ray], shadow: &[Ray]) -> usize {
     n
 }
 
+/// Each kernel twice, closest hit (eye rays) and any hit (shadow rays), each in a function of
+/// its own with a body of its own (so the linker does not fold kernels of one type together).
 macro_rules! kernels {
-    ($($name:ident($f:ident);)*) => {
+    ($($closest:ident, $any:ident, $name:ident($c:ident, $a:ident);)*) => {
         $(
             #[inline(never)]
+            fn $closest<Q: RayQuery>(q: &Q, eye: &[Ray]) -> usize {
+                std::hint::black_box(stringify!($closest));
+                $c(q, eye)
+            }
+            #[inline(never)]
+            fn $any<Q: RayQuery>(q: &Q, shadow: &[Ray]) -> usize {
+                std::hint::black_box(stringify!($any));
+                $a(q, shadow)
+            }
             fn $name<Q: RayQuery>(q: &Q, eye: &[Ray], shadow: &[Ray]) -> usize {
-                // A body of its own, so the linker does not fold kernels of one type together.
-                std::hint::black_box(stringify!($name));
-                $f(q, eye, shadow)
+                $closest(q, eye) + $any(q, shadow)
             }
         )*
     };
 }
 
 kernels! {
-    k_bvh8_single(single); k_bvh8_packets(packets);
-    k_bvh4_single(single); k_bvh4_packets(packets);
-    k_qbvh4_single(single); k_qbvh4_packets(packets);
-    k_bvh2_dfs_single(single); k_bvh2_compact_single(single);
-    k_watertight_single(single); k_watertight_packets(packets);
-    k_mixed_single(single); k_mixed_packets(packets);
-    k_world_single(single); k_world_packets(packets);
+    k_bvh8_closest, k_bvh8_any, bvh8_single(closest, any);
+    k_bvh8_closest_packets, k_bvh8_any_packets, bvh8_packets(closest_packets, any_packets);
+    k_bvh4_closest, k_bvh4_any, bvh4_single(closest, any);
+    k_bvh4_closest_packets, k_bvh4_any_packets, bvh4_packets(closest_packets, any_packets);
+    k_qbvh4_closest, k_qbvh4_any, qbvh4_single(closest, any);
+    k_qbvh4_closest_packets, k_qbvh4_any_packets, qbvh4_packets(closest_packets, any_packets);
+    k_bvh2_dfs_closest, k_bvh2_dfs_any, bvh2_dfs_single(closest, any);
+    k_bvh2_compact_closest, k_bvh2_compact_any, bvh2_compact_single(closest, any);
+    k_watertight_closest, k_watertight_any, watertight_single(closest, any);
+    k_watertight_closest_packets, k_watertight_any_packets, watertight_packets(closest_packets, any_packets);
+    k_mixed_closest, k_mixed_any, mixed_single(closest, any);
+    k_mixed_closest_packets, k_mixed_any_packets, mixed_packets(closest_packets, any_packets);
+    k_world_closest, k_world_any, world_single(closest, any);
+    k_world_closest_packets, k_world_any_packets, world_packets(closest_packets, any_packets);
 }
 
 #[inline(never)]
@@ -91,24 +117,24 @@ fn main() {
     let tile_shadow = rays::shadow_rays(&default, &tiles, &[light]);
     let mut total = 0;
     let of = |l: &str| BuildOptions::default().layout(l.parse::<Layout>().expect("layout"));
-    total += k_bvh8_single(&default, &eye, &shadow);
-    total += k_bvh8_packets(&default, &tiles, &tile_shadow);
+    total += bvh8_single(&default, &eye, &shadow);
+    total += bvh8_packets(&default, &tiles, &tile_shadow);
     total += k_bvh8_counted(&default, &eye, &shadow);
     total += k_bvh8_filtered(&default, &eye, &shadow);
     let b4 = of("bvh4-dfs").build(&tris);
-    total += k_bvh4_single(&b4, &eye, &shadow);
-    total += k_bvh4_packets(&b4, &tiles, &tile_shadow);
+    total += bvh4_single(&b4, &eye, &shadow);
+    total += bvh4_packets(&b4, &tiles, &tile_shadow);
     let q4 = of("bvh4-quant").build(&tris);
-    total += k_qbvh4_single(&q4, &eye, &shadow);
-    total += k_qbvh4_packets(&q4, &tiles, &tile_shadow);
+    total += qbvh4_single(&q4, &eye, &shadow);
+    total += qbvh4_packets(&q4, &tiles, &tile_shadow);
     let b2 = of("bvh2-dfs").build(&tris);
-    total += k_bvh2_dfs_single(&b2, &eye, &shadow);
+    total += bvh2_dfs_single(&b2, &eye, &shadow);
     let b2c = of("bvh2-compact").build(&tris);
-    total += k_bvh2_compact_single(&b2c, &eye, &shadow);
+    total += bvh2_compact_single(&b2c, &eye, &shadow);
     let wt: Vec<Watertight> = tris.iter().map(|&t| Watertight(t)).collect();
     let wt = Bvh::new(&wt);
-    total += k_watertight_single(&wt, &eye, &shadow);
-    total += k_watertight_packets(&wt, &tiles, &tile_shadow);
+    total += watertight_single(&wt, &eye, &shadow);
+    total += watertight_packets(&wt, &tiles, &tile_shadow);
 
     let balls = Scene::load("balls3").expect("scene");
     let mixed = SceneBvh::build(&balls, &BuildOptions::default());
@@ -117,8 +143,8 @@ fn main() {
     let blight = balls.lights.first().map_or(balls.camera.from, |l| l.pos);
     let bshadow = rays::shadow_rays(&mixed, &beye, &[blight]);
     let btshadow = rays::shadow_rays(&mixed, &btiles, &[blight]);
-    total += k_mixed_single(&mixed, &beye, &bshadow);
-    total += k_mixed_packets(&mixed, &btiles, &btshadow);
+    total += mixed_single(&mixed, &beye, &bshadow);
+    total += mixed_packets(&mixed, &btiles, &btshadow);
 
     let lattice = Scene::load("lattice4").expect("scene");
     let world = SceneBvh::build_instanced(&lattice, DEFAULT_RESOLUTION, &BuildOptions::default())
@@ -128,8 +154,8 @@ fn main() {
     let llight = lattice.lights.first().map_or(lattice.camera.from, |l| l.pos);
     let lshadow = rays::shadow_rays(&world, &leye, &[llight]);
     let ltshadow = rays::shadow_rays(&world, &ltiles, &[llight]);
-    total += k_world_single(&world, &leye, &lshadow);
-    total += k_world_packets(&world, &ltiles, &ltshadow);
+    total += world_single(&world, &leye, &lshadow);
+    total += world_packets(&world, &ltiles, &ltshadow);
     total += k_world_filtered(&world, &leye, &lshadow);
     println!("kernel_counts: {total} answers (teapot12 {} tris, {} eye rays a scene)", tris.len(), eye.len());
 }

@@ -27,7 +27,7 @@
 use crate::primitive::{Cone, PatchTriangle, Prim, Sphere};
 use crate::scene::{tessellate, Scene, Shape};
 use glam::{Affine3A, DVec3, Mat3A, Vec3, Vec3A};
-use quiver_rt::traverse::{BoxTest, Filter, PacketQuery, RayQuery, Stats, PACKET_RAYS};
+use quiver_rt::traverse::{Ask, BoxTest, Filter, PacketQuery, RayQuery, Stats, PACKET_RAYS};
 use quiver_rt::{
     BuildOptions, Footprint, GeometryId, Hit, Instance, PrimHit, Ray, Triangle, World, WorldError,
     WorldHit,
@@ -321,7 +321,7 @@ impl<F: Filter<Hit>> Filter<WorldHit> for Flat<'_, F> {
 impl RayQuery for Instanced {
     type Hit = Hit;
 
-    fn closest_hit_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
+    fn trace_with<A: Ask, B: BoxTest, S: Stats, F: Filter<Hit>>(
         &self,
         ray: &Ray,
         stats: &mut S,
@@ -331,27 +331,11 @@ impl RayQuery for Instanced {
             scene: self,
             filter,
         };
-        let h = self.world.closest_hit_with::<B, S, _>(ray, stats, &mut f)?;
+        let h = self.world.trace_with::<A, B, S, _>(ray, stats, &mut f)?;
         Some(self.flat(&h))
     }
 
-    fn any_hit_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
-        &self,
-        ray: &Ray,
-        stats: &mut S,
-        filter: &mut F,
-    ) -> bool {
-        self.world.any_hit_with::<B, S, _>(
-            ray,
-            stats,
-            &mut Flat {
-                scene: self,
-                filter,
-            },
-        )
-    }
-
-    fn closest_hit_packet_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
+    fn trace_packet_with<A: Ask, B: BoxTest, S: Stats, F: Filter<Hit>>(
         &self,
         query: PacketQuery<'_>,
         hits: &mut [Option<Hit>],
@@ -378,29 +362,11 @@ impl RayQuery for Instanced {
                 filter: &mut *filter,
             };
             self.world
-                .closest_hit_packet_with::<B, S, _>(part, found, stats, &mut f);
+                .trace_packet_with::<A, B, S, _>(part, found, stats, &mut f);
             for (h, w) in hits.iter_mut().zip(found.iter()) {
                 *h = w.map(|w| self.flat(&w));
             }
         }
-    }
-
-    fn any_hit_packet_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
-        &self,
-        query: PacketQuery<'_>,
-        occluded: &mut [bool],
-        stats: &mut S,
-        filter: &mut F,
-    ) {
-        self.world.any_hit_packet_with::<B, S, _>(
-            query,
-            occluded,
-            stats,
-            &mut Flat {
-                scene: self,
-                filter,
-            },
-        )
     }
 }
 

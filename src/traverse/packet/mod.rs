@@ -34,7 +34,7 @@ mod query;
 mod walk;
 
 pub(crate) use lanes::{PacketBuilder, RayPacket};
-pub(crate) use query::{any_rays_on, closest_rays_on, in_lanes, InLanes};
+pub(crate) use query::{in_lanes, trace_rays, InLanes};
 pub(crate) use walk::{walk, AloneIn, Visit};
 
 use crate::geometry::Ray;

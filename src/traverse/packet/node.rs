@@ -10,7 +10,7 @@ use crate::traverse::bvh4::{self, Ray4};
 use crate::traverse::bvh8::{self, Ray8};
 use crate::traverse::lane8::F8;
 use crate::traverse::leaves::Leaves;
-use crate::traverse::{BoxTest, Filter, Stats};
+use crate::traverse::{Ask, BoxTest, Filter, Stats};
 
 /// A node format the packet walk runs over. `V` is the lane type of the kernel (portable or
 /// AVX2), which the 8-wide format also tests its boxes with.
@@ -31,9 +31,9 @@ pub(crate) trait PacketNode: Sized {
     fn slot_box(&self, i: usize) -> [f32; 6];
     /// Mask of the children some active ray of the bound may enter.
     fn may_enter<V: F8, B: BoxTest>(&self, cpu: V::Cpu, bound: &Bound) -> u32;
-    /// Closest hit of one ray in the subtree of inner node `root`, improving `best`.
+    /// The search `A` of one ray in the subtree of inner node `root`, improving `best`.
     #[allow(clippy::too_many_arguments)]
-    fn closest_from<V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
+    fn search_from<V: F8, A: Ask, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
         cpu: V::Cpu,
         nodes: &[Self],
         leaves: &Leaves<P>,
@@ -43,16 +43,6 @@ pub(crate) trait PacketNode: Sized {
         stats: &mut S,
         filter: &mut F,
     );
-    /// Whether one ray hits anything in the subtree of inner node `root`.
-    fn any_from<V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
-        cpu: V::Cpu,
-        nodes: &[Self],
-        leaves: &Leaves<P>,
-        ray: &Ray,
-        root: usize,
-        stats: &mut S,
-        filter: &mut F,
-    ) -> bool;
 }
 
 /// The leaf flag shared by both formats' child links.
@@ -95,8 +85,8 @@ impl<N: Node4> PacketNode for N {
 
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
-    fn closest_from<V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
-        cpu: V::Cpu,
+    fn search_from<V: F8, A: Ask, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
+        _: V::Cpu,
         nodes: &[Self],
         leaves: &Leaves<P>,
         ray: &Ray,
@@ -105,22 +95,7 @@ impl<N: Node4> PacketNode for N {
         stats: &mut S,
         filter: &mut F,
     ) {
-        let _ = cpu;
-        bvh4::closest_from::<N, B, P, S, F>(nodes, leaves, ray, root, best, stats, filter)
-    }
-
-    #[inline(always)]
-    fn any_from<V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
-        cpu: V::Cpu,
-        nodes: &[Self],
-        leaves: &Leaves<P>,
-        ray: &Ray,
-        root: usize,
-        stats: &mut S,
-        filter: &mut F,
-    ) -> bool {
-        let _ = cpu;
-        bvh4::any_from::<N, B, P, S, F>(nodes, leaves, ray, root, stats, filter)
+        bvh4::search_from::<N, A, B, P, S, F>(nodes, leaves, ray, root, best, stats, filter)
     }
 }
 
@@ -156,7 +131,7 @@ impl PacketNode for Bvh8Node {
 
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
-    fn closest_from<V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
+    fn search_from<V: F8, A: Ask, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
         cpu: V::Cpu,
         nodes: &[Self],
         leaves: &Leaves<P>,
@@ -166,19 +141,6 @@ impl PacketNode for Bvh8Node {
         stats: &mut S,
         filter: &mut F,
     ) {
-        bvh8::closest_from::<V, B, P, S, F>(cpu, nodes, leaves, ray, root, best, stats, filter)
-    }
-
-    #[inline(always)]
-    fn any_from<V: F8, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
-        cpu: V::Cpu,
-        nodes: &[Self],
-        leaves: &Leaves<P>,
-        ray: &Ray,
-        root: usize,
-        stats: &mut S,
-        filter: &mut F,
-    ) -> bool {
-        bvh8::any_from::<V, B, P, S, F>(cpu, nodes, leaves, ray, root, stats, filter)
+        bvh8::search_from::<V, A, B, P, S, F>(cpu, nodes, leaves, ray, root, best, stats, filter)
     }
 }
