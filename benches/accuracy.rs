@@ -5,10 +5,10 @@
 //! picks the scene (default tetra8, 65,536 triangles). `quiver accuracy` adds the error side.
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use quiver_lab::rays;
 use quiver_rt::intersect::{Exact, Watertight};
 use quiver_rt::traverse::{BoxTest, ConservativeBoxes, FastBoxes, NoFilter, NoStats};
 use quiver_rt::{Bvh, Primitive, Ray, RayQuery, Triangle};
-use quiver_lab::rays;
 use quiver_scenes::Scene;
 use std::time::Duration;
 

@@ -6,9 +6,9 @@
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use obvhs::{bvh2::builder::build_bvh2_from_tris, BvhBuildParams};
+use quiver_lab::obvhs_bridge::{sah_cost as obvhs_sah, triangles as obvhs_tris};
 use quiver_rt::builders::{BuildConfig, Builder};
 use quiver_rt::{BuildOptions, Layout};
-use quiver_lab::obvhs_bridge::{sah_cost as obvhs_sah, triangles as obvhs_tris};
 use quiver_scenes::Scene;
 use std::time::Duration;
 

@@ -8,10 +8,10 @@
 //! measures the same comparison on several scenes, curve and patch mode, in one table.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
-use quiver_rt::traverse::PacketMode;
-use quiver_rt::Bvh;
 use quiver_lab::measure::{trace, trace_packets, Query};
 use quiver_lab::rays;
+use quiver_rt::traverse::PacketMode;
+use quiver_rt::Bvh;
 use quiver_scenes::Scene;
 use std::time::Duration;
 

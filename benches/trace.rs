@@ -6,11 +6,11 @@
 //! `quiver layouts` command measures the same matrix on several scenes in one table.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+use quiver_lab::measure::{trace, Query};
+use quiver_lab::rays;
 use quiver_rt::builders::prim_bounds;
 use quiver_rt::builders::{build, BuildConfig, Builder};
 use quiver_rt::{BuildOptions, Bvh, Layout};
-use quiver_lab::measure::{trace, Query};
-use quiver_lab::rays;
 use quiver_scenes::scene::Scene;
 use std::time::Duration;
 

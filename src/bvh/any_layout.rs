@@ -72,7 +72,9 @@ impl<P: Primitive> AnyLayout<P> {
         filter: &mut F,
     ) -> bool {
         match self {
-            AnyLayout::Bvh8(b) => b.one_ray::<V, A, B, S, F>(kernels, cpu, ray, best, stats, filter),
+            AnyLayout::Bvh8(b) => {
+                b.one_ray::<V, A, B, S, F>(kernels, cpu, ray, best, stats, filter)
+            }
             _ => false,
         }
     }
@@ -92,8 +94,12 @@ impl<P: Primitive> AnyLayout<P> {
         filter: &mut F,
     ) -> bool {
         match self {
-            AnyLayout::Bvh8(b) => b.in_lanes::<V, A, B, S, F>(kernels, cpu, pk, best, stats, filter),
-            AnyLayout::Bvh4(b) => b.in_lanes::<V, A, B, S, F>(kernels, cpu, pk, best, stats, filter),
+            AnyLayout::Bvh8(b) => {
+                b.in_lanes::<V, A, B, S, F>(kernels, cpu, pk, best, stats, filter)
+            }
+            AnyLayout::Bvh4(b) => {
+                b.in_lanes::<V, A, B, S, F>(kernels, cpu, pk, best, stats, filter)
+            }
             AnyLayout::QBvh4(b) => {
                 b.in_lanes::<V, A, B, S, F>(kernels, cpu, pk, best, stats, filter)
             }
@@ -284,7 +290,11 @@ impl<P: Primitive> RayQuery for Scaled<'_, P> {
 
 /// Calls `f(the query for the local rays, their ways back, index of the first)` batch by
 /// batch with the rays brought into `frame`, on the stack.
-fn in_frame(frame: Frame, query: PacketQuery<'_>, mut f: impl FnMut(PacketQuery<'_>, &[Back], usize)) {
+fn in_frame(
+    frame: Frame,
+    query: PacketQuery<'_>,
+    mut f: impl FnMut(PacketQuery<'_>, &[Back], usize),
+) {
     let PacketQuery { rays, active, mode } = query;
     if let Some(a) = active {
         assert_eq!(a.len(), rays.len(), "one active flag per ray");

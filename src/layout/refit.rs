@@ -682,7 +682,10 @@ mod tests {
     }
 
     /// Every layout of `tree`, laid out over `prims` from scratch.
-    fn laid<P: Primitive>(tree: &BuildTree, prims: &[P]) -> Vec<(Layout, crate::bvh::AnyLayout<P>)> {
+    fn laid<P: Primitive>(
+        tree: &BuildTree,
+        prims: &[P],
+    ) -> Vec<(Layout, crate::bvh::AnyLayout<P>)> {
         let tree = tree.refit(&prim_bounds(prims));
         Layout::ALL
             .iter()

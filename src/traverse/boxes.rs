@@ -96,4 +96,3 @@ impl SlabRay {
         (near <= far).then_some(near)
     }
 }
-

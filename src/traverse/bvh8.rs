@@ -298,7 +298,16 @@ where
         let mut best = Hit::none(ray.t_max);
         let leaves = self.bvh.leaves();
         let nodes = &self.bvh.nodes;
-        search::<V, A, B, P, S, F, FAR>(cpu, nodes, &leaves, ray, 0, &mut best, self.stats, self.filter);
+        search::<V, A, B, P, S, F, FAR>(
+            cpu,
+            nodes,
+            &leaves,
+            ray,
+            0,
+            &mut best,
+            self.stats,
+            self.filter,
+        );
         best.found()
     }
 }

@@ -95,7 +95,8 @@ impl<P: Primitive> Leaves<'_, P> {
     ) -> bool {
         if P::LEAF_FORMAT != LeafFormat::Plain && self.far.any() {
             let groups = (self.groups(first, count), first, self.far);
-            let (found, b) = test_far::<A, S, F>(groups, count, ray, P::LEAF_FORMAT, *best, stats, filter);
+            let (found, b) =
+                test_far::<A, S, F>(groups, count, ray, P::LEAF_FORMAT, *best, stats, filter);
             *best = b;
             return found;
         }

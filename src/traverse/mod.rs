@@ -27,8 +27,8 @@ mod stack;
 mod stats;
 mod tri4;
 
-pub use boxes::{BoxTest, ConservativeBoxes, FastBoxes};
 pub(crate) use boxes::{slab_reciprocal, SlabRay};
+pub use boxes::{BoxTest, ConservativeBoxes, FastBoxes};
 pub use packet::{PacketMode, PacketQuery, PACKET_RAYS};
 pub use query::{AnyHit, Ask, ClosestHit, Filter, NoFilter, RayQuery};
 pub(crate) use search::prim_hit;

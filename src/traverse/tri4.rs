@@ -214,7 +214,8 @@ pub(crate) fn test_far<A: Ask, S: Stats, F: Filter<Hit>>(
     filter: &mut F,
 ) -> (bool, Hit) {
     let r = Ray4Tri::new(ray, format);
-    let found = test_groups::<A, S, F, true>(groups, count, ray, &r, format, &mut best, stats, filter);
+    let found =
+        test_groups::<A, S, F, true>(groups, count, ray, &r, format, &mut best, stats, filter);
     (found, best)
 }
 

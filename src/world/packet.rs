@@ -352,7 +352,9 @@ where
                 }
                 if packet {
                     let mut pk = RayPacket::new(rays, on);
-                    world.trace_packet::<V, A, B, S, F>(cpu, rays, &mut pk, &mut best, stats, filter);
+                    world.trace_packet::<V, A, B, S, F>(
+                        cpu, rays, &mut pk, &mut best, stats, filter,
+                    );
                 } else {
                     for i in bits(on) {
                         world.search_from::<V, A, B, S, F>(

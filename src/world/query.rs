@@ -247,8 +247,14 @@ where
         let ray = &self.ray.raised_t_min();
         let mut best = WorldHit::none(ray.t_max);
         if self.world.walkable() {
-            self.world
-                .search_from::<V, A, B, S, F>(cpu, ray, 0, &mut best, self.stats, self.filter);
+            self.world.search_from::<V, A, B, S, F>(
+                cpu,
+                ray,
+                0,
+                &mut best,
+                self.stats,
+                self.filter,
+            );
         }
         best.found()
     }

@@ -2,11 +2,11 @@
 
 use crate::common::{in_pool, tri};
 use glam::Vec3A;
+use quiver_lab::rays;
 use quiver_rt::builders::{
     build, optimize, prim_bounds, BuildConfig, BuildTree, Builder, NodeKind, MAX_DEPTH,
 };
 use quiver_rt::{reference, Aabb, Bvh2, Bvh2Mapping, RayQuery, Triangle};
-use quiver_lab::rays;
 use quiver_scenes::rng::Rng;
 use quiver_scenes::Scene;
 

@@ -4,6 +4,7 @@
 
 use crate::common::packet_answers;
 use glam::Vec3A;
+use quiver_lab::rays::random_rays;
 use quiver_rt::builders::{
     build, prim_bounds, BuildConfig, BuildNode, BuildTree, Builder, NodeKind, TreeError,
 };
@@ -13,7 +14,6 @@ use quiver_rt::{
     reference, Aabb, BuildOptions, Bvh, Bvh2, Bvh2Mapping, Bvh4, Bvh4Mapping, Bvh8, Hit, Isa,
     Layout, LeafFormat, PrimHit, Primitive, QBvh4, Ray, RayQuery, Triangle,
 };
-use quiver_lab::rays::random_rays;
 
 /// The seeded random soup of `n` triangles in the unit cube.
 fn soup(n: usize) -> Vec<Triangle> {

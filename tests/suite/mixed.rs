@@ -3,9 +3,9 @@
 
 use crate::common::reference_hits;
 use glam::Vec3A;
+use quiver_lab::rays;
 use quiver_rt::builders::Builder;
 use quiver_rt::{Aabb, BuildOptions, Layout, Primitive, Ray, RayQuery, Triangle};
-use quiver_lab::rays;
 use quiver_scenes::primitive::{Cone, PatchTriangle, Polygon, Prim, Sphere};
 use quiver_scenes::rng::Rng;
 use rayon::prelude::*;

@@ -3,10 +3,10 @@
 //! line equal `quiver_rt::predict`'s sums in expectation (Cauchy–Crofton), for every builder and
 //! layout. The oracle is the identity; the tolerance is four standard errors of the sample.
 
+use quiver_lab::lines::{isotropic_lines, pierced, Pierce, Sample};
 use quiver_rt::builders::Builder;
 use quiver_rt::predict::{predict, Prediction};
 use quiver_rt::{BuildOptions, Bvh, Layout};
-use quiver_lab::lines::{isotropic_lines, pierced, Pierce, Sample};
 use quiver_scenes::Scene;
 
 fn within(what: &str, scene: &str, s: Sample, predicted: f64) {

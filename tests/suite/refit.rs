@@ -10,14 +10,14 @@
 
 use crate::common::packet_answers;
 use glam::{Affine3A, Quat, Vec3, Vec3A};
+use quiver_lab::oracle::{Answer, Oracle};
+use quiver_lab::rays::random_rays;
+use quiver_lab::worlds::{check as check_world, Placements};
 use quiver_rt::traverse::PacketMode;
 use quiver_rt::{
     reference, BuildOptions, Bvh, GeometryId, Hit, Instance, Isa, Layout, MeshError, Ray, RayQuery,
     RefitError, Triangle, World, WorldError,
 };
-use quiver_lab::oracle::{Answer, Oracle};
-use quiver_lab::rays::random_rays;
-use quiver_lab::worlds::{check as check_world, Placements};
 use quiver_scenes::rng::Rng;
 use quiver_scenes::Scene;
 use rayon::prelude::*;

@@ -3,9 +3,9 @@
 //! oracle: the same scene at scale 1, traced by the same code).
 
 use glam::Vec3A;
+use quiver_lab::rays;
 use quiver_rt::intersect::Watertight;
 use quiver_rt::{BuildOptions, Hit, Layout, Primitive, RayQuery, Triangle};
-use quiver_lab::rays;
 use quiver_scenes::accel::SceneBvh;
 use quiver_scenes::primitive::{Cone, Sphere};
 use quiver_scenes::render::{render, Offset, RenderConfig};

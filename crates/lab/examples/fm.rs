@@ -12,8 +12,8 @@
 //! Meant for `valgrind --tool=callgrind --toggle-collect='fm::trace*'`, whose instruction
 //! counts, unlike times on a shared machine, repeat exactly: the difference between modes is
 //! the features' price per ray.
-use quiver_rt::{BuildOptions, Hit, Ray, RayQuery};
 use quiver_lab::rays;
+use quiver_rt::{BuildOptions, Hit, Ray, RayQuery};
 use quiver_scenes::accel::SceneBvh;
 use quiver_scenes::scene::tessellate::DEFAULT_RESOLUTION;
 use quiver_scenes::Scene;

@@ -5,10 +5,10 @@
 //! target/release/examples/kernel_counts` then `callgrind_annotate --inclusive=yes OUT | grep k_`.
 //! Instruction counts repeat exactly for one binary and input, so two builds' counts compare a
 //! change's cost per kernel on a shared machine. `QUIVER_ISA=portable` runs the portable lanes.
+use quiver_lab::rays;
 use quiver_rt::intersect::Watertight;
 use quiver_rt::traverse::Counters;
 use quiver_rt::{BuildOptions, Bvh, Hit, Layout, Ray, RayQuery, Triangle};
-use quiver_lab::rays;
 use quiver_scenes::accel::SceneBvh;
 use quiver_scenes::scene::tessellate::DEFAULT_RESOLUTION;
 use quiver_scenes::Scene;
@@ -87,27 +87,48 @@ kernels! {
 #[inline(never)]
 fn k_bvh8_counted(q: &Bvh, eye: &[Ray], shadow: &[Ray]) -> usize {
     let mut c = Counters::default();
-    let n = eye.iter().filter(|r| q.closest_hit_counted(r, &mut c).is_some()).count();
-    n + shadow.iter().filter(|r| q.any_hit_counted(r, &mut c)).count() + c.nodes as usize
+    let n = eye
+        .iter()
+        .filter(|r| q.closest_hit_counted(r, &mut c).is_some())
+        .count();
+    n + shadow
+        .iter()
+        .filter(|r| q.any_hit_counted(r, &mut c))
+        .count()
+        + c.nodes as usize
 }
 
 #[inline(never)]
 fn k_bvh8_filtered(q: &Bvh, eye: &[Ray], shadow: &[Ray]) -> usize {
     let accept = |h: &Hit| h.prim % 7 != 3;
-    let n = eye.iter().filter(|r| q.closest_hit_filtered(r, accept).is_some()).count();
-    n + shadow.iter().filter(|r| q.any_hit_filtered(r, accept)).count()
+    let n = eye
+        .iter()
+        .filter(|r| q.closest_hit_filtered(r, accept).is_some())
+        .count();
+    n + shadow
+        .iter()
+        .filter(|r| q.any_hit_filtered(r, accept))
+        .count()
 }
 
 #[inline(never)]
 fn k_world_filtered(q: &SceneBvh, eye: &[Ray], shadow: &[Ray]) -> usize {
     let accept = |h: &Hit| h.prim % 7 != 3;
-    let n = eye.iter().filter(|r| q.closest_hit_filtered(r, accept).is_some()).count();
-    n + shadow.iter().filter(|r| q.any_hit_filtered(r, accept)).count()
+    let n = eye
+        .iter()
+        .filter(|r| q.closest_hit_filtered(r, accept).is_some())
+        .count();
+    n + shadow
+        .iter()
+        .filter(|r| q.any_hit_filtered(r, accept))
+        .count()
 }
 
 fn main() {
     let res = 128;
-    let teapot = Scene::load("teapot12").expect("scene").into_patches(DEFAULT_RESOLUTION);
+    let teapot = Scene::load("teapot12")
+        .expect("scene")
+        .into_patches(DEFAULT_RESOLUTION);
     let tris: Vec<Triangle> = teapot.triangles();
     let eye = rays::camera_rays(&teapot.camera, res);
     let tiles = rays::camera_tiles(&teapot.camera, res, 8);
@@ -151,11 +172,18 @@ fn main() {
         .expect("an instanced world");
     let leye = rays::camera_rays(&lattice.camera, res);
     let ltiles = rays::camera_tiles(&lattice.camera, res, 8);
-    let llight = lattice.lights.first().map_or(lattice.camera.from, |l| l.pos);
+    let llight = lattice
+        .lights
+        .first()
+        .map_or(lattice.camera.from, |l| l.pos);
     let lshadow = rays::shadow_rays(&world, &leye, &[llight]);
     let ltshadow = rays::shadow_rays(&world, &ltiles, &[llight]);
     total += world_single(&world, &leye, &lshadow);
     total += world_packets(&world, &ltiles, &ltshadow);
     total += k_world_filtered(&world, &leye, &lshadow);
-    println!("kernel_counts: {total} answers (teapot12 {} tris, {} eye rays a scene)", tris.len(), eye.len());
+    println!(
+        "kernel_counts: {total} answers (teapot12 {} tris, {} eye rays a scene)",
+        tris.len(),
+        eye.len()
+    );
 }

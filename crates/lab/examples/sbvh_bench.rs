@@ -7,10 +7,10 @@
 //! thread count, with the ratios default / high-quality.
 
 use glam::Vec3A;
-use quiver_rt::builders::BuildConfig;
-use quiver_rt::{BuildOptions, Bvh, Ray, Triangle};
 use quiver_lab::measure::{median_times_interleaved, trace, Query};
 use quiver_lab::rays;
+use quiver_rt::builders::BuildConfig;
+use quiver_rt::{BuildOptions, Bvh, Ray, Triangle};
 use quiver_scenes::Scene;
 use std::time::Instant;
 
@@ -85,7 +85,8 @@ fn main() {
                 built[k] = Some(out);
             }
         }
-        let built: Vec<(Bvh, quiver_rt::builders::BuildTree)> = built.into_iter().flatten().collect();
+        let built: Vec<(Bvh, quiver_rt::builders::BuildTree)> =
+            built.into_iter().flatten().collect();
         let config = BuildConfig::default();
         let bounds = built[0].0.bounds();
         let random: Vec<Ray> = rays::random_rays(&bounds, n_rays, 7);

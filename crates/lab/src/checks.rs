@@ -739,7 +739,11 @@ impl ByteReader<'_> {
 /// arbitrary kinds, links, leaf ranges and index array (mostly invalid); a random shape built
 /// valid (any leaf sizes, empty leaves, chains deeper than the kernels' stacks allow); or a
 /// builder's tree with a few of its links, ranges or indices changed.
-fn fuzz_tree(b: &mut ByteReader<'_>, mode: u8, tris: &[Triangle]) -> quiver_rt::builders::BuildTree {
+fn fuzz_tree(
+    b: &mut ByteReader<'_>,
+    mode: u8,
+    tris: &[Triangle],
+) -> quiver_rt::builders::BuildTree {
     use quiver_rt::builders::{BuildNode, NodeKind};
     let bounds = quiver_rt::builders::prim_bounds(tris);
     let finite: Vec<u32> = (0..tris.len() as u32)

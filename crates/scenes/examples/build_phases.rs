@@ -72,7 +72,10 @@ fn main() {
         });
         let mut h = std::collections::hash_map::DefaultHasher::new();
         std::hash::Hash::hash(bvh8.node_bytes(), &mut h);
-        std::hash::Hash::hash(quiver_rt::bytemuck::cast_slice::<_, u8>(bvh8.groups()), &mut h);
+        std::hash::Hash::hash(
+            quiver_rt::bytemuck::cast_slice::<_, u8>(bvh8.groups()),
+            &mut h,
+        );
         println!(
             "threads {threads}: bvh8 {:016x}",
             std::hash::Hasher::finish(&h)

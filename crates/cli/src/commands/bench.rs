@@ -19,9 +19,6 @@ use obvhs::{
     bvh2::builder::build_bvh2_from_tris, cwbvh::builder::build_cwbvh_from_tris, ray::RayHit,
     BvhBuildParams,
 };
-use quiver_rt::builders::{build, prim_bounds, BuildConfig, Builder};
-use quiver_rt::traverse::PacketMode;
-use quiver_rt::{BuildOptions, Bvh, Layout, RayQuery};
 #[cfg(feature = "embree")]
 use quiver_lab::embree::{EmbreeDevice, EmbreeScene};
 use quiver_lab::measure::{
@@ -30,6 +27,9 @@ use quiver_lab::measure::{
 #[cfg(feature = "tinybvh")]
 use quiver_lab::tinybvh::{TinyBvh, TinyLayout};
 use quiver_lab::{obvhs_bridge, rays};
+use quiver_rt::builders::{build, prim_bounds, BuildConfig, Builder};
+use quiver_rt::traverse::PacketMode;
+use quiver_rt::{BuildOptions, Bvh, Layout, RayQuery};
 use quiver_scenes::scene::tessellate;
 use serde_json::{json, Value};
 #[cfg(feature = "tinybvh")]

@@ -10,10 +10,10 @@ use super::{
 use crate::budget::{self, Estimate};
 use crate::output::{check_outputs, outln, scatter_svg, write_json, write_text, Axes, Point};
 use glam::Vec3A;
-use quiver_rt::builders::{build, prim_bounds, BuildConfig, BuildTree, Builder};
-use quiver_rt::{Aabb, BuildOptions, Bvh, Layout, Ray, Triangle};
 use quiver_lab::measure::{self, median_times_interleaved, Query};
 use quiver_lab::rays;
+use quiver_rt::builders::{build, prim_bounds, BuildConfig, BuildTree, Builder};
+use quiver_rt::{Aabb, BuildOptions, Bvh, Layout, Ray, Triangle};
 use quiver_scenes::scene::tessellate;
 use serde_json::{json, Value};
 use std::path::PathBuf;

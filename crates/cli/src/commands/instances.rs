@@ -9,14 +9,14 @@
 
 use super::{measured_threads, pool, Result};
 use crate::output::{outln, write_json};
-use quiver_rt::traverse::PacketMode;
-use quiver_rt::{Hit, Ray, RayQuery};
 #[cfg(feature = "embree")]
 use quiver_lab::embree::{EmbreeDevice, EmbreeScene};
 use quiver_lab::measure::{
     count_hits, median_times_interleaved, mrays_per_s, trace_packets, Query,
 };
 use quiver_lab::rays;
+use quiver_rt::traverse::PacketMode;
+use quiver_rt::{Hit, Ray, RayQuery};
 use quiver_scenes::accel::SceneBvh;
 use quiver_scenes::instanced::Instanced;
 use quiver_scenes::scene::{tessellate, Scene};

@@ -13,14 +13,14 @@ use super::{
 };
 use crate::budget::{self, Estimate, MIXED_BUILD};
 use crate::output::{check_outputs, out, outln, write_json};
-use quiver_rt::traverse::PacketMode;
-use quiver_rt::{BuildOptions, Layout, Primitive, Triangle};
 #[cfg(feature = "embree")]
 use quiver_lab::embree::EmbreeScene;
 use quiver_lab::measure::{median_times_interleaved, mrays_per_s, trace, trace_packets, Query};
 use quiver_lab::rays;
 #[cfg(feature = "tinybvh")]
 use quiver_lab::tinybvh::{TinyBvh, TinyLayout};
+use quiver_rt::traverse::PacketMode;
+use quiver_rt::{BuildOptions, Layout, Primitive, Triangle};
 use quiver_scenes::scene::tessellate::DEFAULT_RESOLUTION;
 use quiver_scenes::Scene;
 use serde_json::{json, Value};

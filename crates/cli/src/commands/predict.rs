@@ -6,12 +6,12 @@
 use super::{count, parse_builder, parse_layout, pool, thread_count, Result, MAX_RAYS, MAX_REPS};
 use crate::budget::{self, Estimate};
 use crate::output::{check_outputs, out, outln, scatter_svg, write_json, write_text, Axes, Point};
-use quiver_rt::builders::Builder;
-use quiver_rt::predict::Prediction;
-use quiver_rt::{BuildOptions, Bvh, Layout, Ray, Triangle};
 use quiver_lab::lines::{counters_per_ray, isotropic_lines, Pierce, Work};
 use quiver_lab::measure::{self, Query};
 use quiver_lab::rays;
+use quiver_rt::builders::Builder;
+use quiver_rt::predict::Prediction;
+use quiver_rt::{BuildOptions, Bvh, Layout, Ray, Triangle};
 use serde_json::{json, Value};
 use std::path::PathBuf;
 
