@@ -16,6 +16,15 @@ use quiver_scenes::rng::Rng;
 use quiver_scenes::Scene;
 use rayon::prelude::*;
 
+/// What a hit slot holds before a query: a record no query answers, so a slot the query
+/// leaves unwritten shows.
+const STALE: Hit = Hit {
+    t: -1.0,
+    prim: u32::MAX,
+    u: 0.0,
+    v: 0.0,
+};
+
 /// Packet answers of `rays` (with an optional active mask) against the single-ray kernel with
 /// the same box test, for both packet modes that use packets.
 fn check_against_single<P: Primitive, B: BoxTest>(
@@ -25,7 +34,7 @@ fn check_against_single<P: Primitive, B: BoxTest>(
     what: &str,
 ) {
     for mode in [PacketMode::Always, PacketMode::Auto] {
-        let mut hits = vec![Some(Hit::none(0.0)); rays.len()];
+        let mut hits = vec![Some(STALE); rays.len()];
         let mut occluded = vec![true; rays.len()];
         bvh.closest_hit_packet_with::<B, _, _>(
             PacketQuery { rays, active, mode },
@@ -286,7 +295,7 @@ fn inactive_lanes_and_partial_packets_match() {
     }
     // No active ray at all: nothing is traced and every answer is empty.
     let bvh = build(&tris, Layout::Bvh4Dfs);
-    let mut hits = vec![Some(Hit::none(0.0)); 64];
+    let mut hits = vec![Some(STALE); 64];
     let none = vec![false; 64];
     bvh.closest_hit_packet_with::<ConservativeBoxes, _, _>(
         PacketQuery::new(&eye[..64])
