@@ -2,7 +2,8 @@
 //! re-masks instances; when the edit ends, the instances' world boxes are recomputed and the
 //! top-level BVH refit, so the world is never seen half edited.
 
-use super::{check_instance, instance_box, placement, top_level, world_boxes};
+use super::instance::{check_instance, placement};
+use super::top::{instance_box, top_level, world_boxes};
 use super::{Geometry, GeometryId, Placed};
 use super::{World, WorldError};
 use crate::geometry::{Aabb, Triangle};

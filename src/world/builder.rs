@@ -1,0 +1,146 @@
+//! [`WorldBuilder`]: geometries and instances collected, then built into a [`World`].
+
+use super::instance::check_instance;
+use super::top::{top_level, world_boxes, Placed};
+use super::{Geometry, GeometryId, Instance, World, WorldError};
+use crate::bvh::BuildOptions;
+use crate::geometry::{Aabb, Triangle};
+use crate::mesh::{Mesh, MeshError, Positions};
+use crate::primitive::Primitive;
+
+/// Where a world's geometries and instances are collected before [`WorldBuilder::build`].
+///
+/// ```
+/// use quiver_rt::{BuildOptions, Instance, Triangle, World, WorldError};
+/// use quiver_rt::glam::{Affine3A, Vec3A};
+/// let mut b = World::builder();
+/// let g = b.triangles(vec![Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y)]);
+/// b.instance(Instance::of(g).transform(Affine3A::from_scale(Vec3A::ZERO.into())));
+/// let e = b.build(&BuildOptions::default()).unwrap_err();
+/// assert_eq!(e, WorldError::Transform { instance: 0, why: "not invertible" });
+/// ```
+#[derive(Clone, Debug)]
+pub struct WorldBuilder<P = Triangle> {
+    sources: Vec<Source<P>>,
+    instances: Vec<Instance>,
+    /// The first mesh whose indices did not check out, reported by `build`.
+    bad_mesh: Option<(usize, MeshError)>,
+}
+
+/// A geometry before its BVH is built.
+#[derive(Clone, Debug)]
+enum Source<P> {
+    Triangles(Vec<Triangle>),
+    Prims(Vec<P>),
+}
+
+impl<P> Default for WorldBuilder<P> {
+    fn default() -> Self {
+        WorldBuilder {
+            sources: Vec::new(),
+            instances: Vec::new(),
+            bad_mesh: None,
+        }
+    }
+}
+
+impl<P: Primitive> WorldBuilder<P> {
+    /// An empty builder: no geometries, no instances.
+    pub fn new() -> Self {
+        WorldBuilder::default()
+    }
+
+    /// Adds an indexed triangle mesh as a geometry (read now: the buffers need not outlive
+    /// the call). An index past the vertices is reported by [`WorldBuilder::build`], naming
+    /// the geometry; it is also returned here.
+    ///
+    /// # Errors
+    /// [`MeshError`] when an index names no vertex.
+    pub fn mesh<'v>(
+        &mut self,
+        positions: impl Into<Positions<'v>>,
+        indices: &[[u32; 3]],
+    ) -> Result<GeometryId, MeshError> {
+        let id = GeometryId(self.sources.len() as u32);
+        match Mesh::new(positions.into(), indices) {
+            Ok(mesh) => {
+                let tris = (0..indices.len() as u32)
+                    .map(|i| mesh.triangle(i))
+                    .collect();
+                self.sources.push(Source::Triangles(tris));
+                Ok(id)
+            }
+            Err(e) => {
+                // Keeps the numbering of the geometries after it; `build` reports the error.
+                self.sources.push(Source::Triangles(Vec::new()));
+                self.bad_mesh.get_or_insert((id.0 as usize, e.clone()));
+                Err(e)
+            }
+        }
+    }
+
+    /// Adds triangles as a geometry.
+    pub fn triangles(&mut self, tris: Vec<Triangle>) -> GeometryId {
+        self.sources.push(Source::Triangles(tris));
+        GeometryId(self.sources.len() as u32 - 1)
+    }
+
+    /// Adds primitives of the world's type as a geometry.
+    pub fn prims(&mut self, prims: Vec<P>) -> GeometryId {
+        self.sources.push(Source::Prims(prims));
+        GeometryId(self.sources.len() as u32 - 1)
+    }
+
+    /// Adds an instance; returns its index (what [`WorldHit::instance`] reports).
+    pub fn instance(&mut self, instance: Instance) -> u32 {
+        self.instances.push(instance);
+        self.instances.len() as u32 - 1
+    }
+
+    /// Builds every geometry's BVH with `options` (in parallel, on its pool) and the
+    /// top-level BVH over the instances' world boxes (binned SAH, 8-wide nodes, on
+    /// `options`' instruction set). The same builder gives the same world on any pool.
+    ///
+    /// # Errors
+    /// [`WorldError`] for an instance naming no geometry, a transform that is not finite or
+    /// not invertible, a bad mesh, or more than `u32::MAX` instances. An empty world is not
+    /// an error: it is hit by nothing.
+    pub fn build(self, options: &BuildOptions<'_>) -> Result<World<P>, WorldError> {
+        use rayon::prelude::*;
+        if self.instances.len() >= u32::MAX as usize || self.sources.len() >= u32::MAX as usize {
+            return Err(WorldError::TooMany);
+        }
+        if let Some((geometry, error)) = self.bad_mesh {
+            return Err(WorldError::Mesh { geometry, error });
+        }
+        let placements = self
+            .instances
+            .iter()
+            .enumerate()
+            .map(|(i, inst)| check_instance(i, inst, self.sources.len()))
+            .collect::<Result<Vec<_>, _>>()?;
+        let geometries: Vec<Geometry<P>> = options.run(|| {
+            self.sources
+                .into_par_iter()
+                .map(|s| match s {
+                    Source::Triangles(t) => Geometry::Triangles(options.build(&t), t),
+                    Source::Prims(p) => Geometry::Prims(options.build(&p), p),
+                })
+                .collect()
+        });
+        let placed: Vec<Placed> = placements
+            .into_iter()
+            .enumerate()
+            .map(|(i, placement)| Placed::new(i, &self.instances[i], placement))
+            .collect();
+        let boxes = options.run(|| world_boxes(&self.instances, &geometries));
+        let top = options.run(|| top_level(&placed, &boxes, options.chosen_isa()));
+        let bounds = boxes.iter().fold(Aabb::EMPTY, |b, w| b.union(w));
+        Ok(World {
+            geometries,
+            instances: self.instances,
+            top,
+            bounds,
+        })
+    }
+}

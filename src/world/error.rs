@@ -1,0 +1,105 @@
+//! [`WorldError`]: what a world could not be built or edited from.
+
+use crate::bvh::RefitError;
+use crate::mesh::MeshError;
+use std::fmt;
+
+/// What a [`World`] could not be built from: each names the instance or geometry at fault.
+#[derive(Clone, Debug, PartialEq)]
+pub enum WorldError {
+    /// Instance `instance` names geometry `geometry`, but the world has `geometries`.
+    Geometry {
+        /// The instance.
+        instance: usize,
+        /// The geometry it names.
+        geometry: u32,
+        /// How many there are.
+        geometries: usize,
+    },
+    /// Instance `instance`'s transform cannot place a geometry: `why`.
+    Transform {
+        /// The instance.
+        instance: usize,
+        /// Not finite, not invertible (its determinant is zero in f32), or out of f32's range
+        /// to invert.
+        why: &'static str,
+    },
+    /// Geometry `geometry`'s mesh: an index names no vertex, or too many triangles.
+    Mesh {
+        /// The geometry.
+        geometry: usize,
+        /// What was wrong.
+        error: MeshError,
+    },
+    /// More than `u32::MAX` instances or geometries.
+    TooMany,
+    /// An edit named geometry `geometry`, but the world has `geometries`.
+    NoGeometry {
+        /// The geometry named.
+        geometry: u32,
+        /// How many there are.
+        geometries: usize,
+    },
+    /// An edit named instance `instance`, but the world has `instances`.
+    NoInstance {
+        /// The instance named.
+        instance: u32,
+        /// How many there are.
+        instances: usize,
+    },
+    /// An edit gave geometry `geometry` primitives of the other kind: it `holds` triangles
+    /// or the world's own primitive type.
+    GeometryKind {
+        /// The geometry.
+        geometry: u32,
+        /// What it holds: "triangles" or "primitives of the world's type".
+        holds: &'static str,
+    },
+    /// Geometry `geometry` could not be refit to the primitives given.
+    Refit {
+        /// The geometry.
+        geometry: u32,
+        /// Why.
+        error: RefitError,
+    },
+}
+
+impl fmt::Display for WorldError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            WorldError::Geometry {
+                instance,
+                geometry,
+                geometries,
+            } => write!(
+                f,
+                "instance {instance} places geometry {geometry}, but the world has {geometries}"
+            ),
+            WorldError::Transform { instance, why } => {
+                write!(f, "instance {instance}: the transform is {why}")
+            }
+            WorldError::Mesh { geometry, error } => write!(f, "geometry {geometry}: {error}"),
+            WorldError::TooMany => write!(f, "more than 2^32 - 1 instances or geometries"),
+            WorldError::NoGeometry {
+                geometry,
+                geometries,
+            } => write!(
+                f,
+                "geometry {geometry} does not exist: the world has {geometries}"
+            ),
+            WorldError::NoInstance {
+                instance,
+                instances,
+            } => write!(
+                f,
+                "instance {instance} does not exist: the world has {instances}"
+            ),
+            WorldError::GeometryKind { geometry, holds } => {
+                write!(f, "geometry {geometry} holds {holds}, and takes only those")
+            }
+            WorldError::Refit { geometry, error } => write!(f, "geometry {geometry}: {error}"),
+        }
+    }
+}
+
+impl std::error::Error for WorldError {}

@@ -1,0 +1,176 @@
+//! The top level of a world: its per-instance leaf records ([`Placed`]), each instance's world
+//! box, and the 8-wide BVH over them.
+
+use super::{Geometry, Instance};
+use crate::builders::{build, BuildConfig, Builder};
+use crate::geometry::{Aabb, PrimHit, Ray};
+use crate::isa::Isa;
+use crate::layout::{bvh2::leaf_order, Bvh8};
+use crate::primitive::Primitive;
+use glam::{Affine3A, Mat3A, Vec3A, Vec4, Vec4Swizzles};
+
+/// The world box of an object box placed by `m`: the box of its eight transformed corners.
+fn world_box(m: &Affine3A, b: &Aabb) -> Aabb {
+    if b.is_empty() {
+        return Aabb::EMPTY;
+    }
+    let mut out = Aabb::EMPTY;
+    for k in 0..8 {
+        let c = Vec3A::new(
+            if k & 1 == 0 { b.min.x } else { b.max.x },
+            if k & 2 == 0 { b.min.y } else { b.max.y },
+            if k & 4 == 0 { b.min.z } else { b.max.z },
+        );
+        out.grow(m.transform_point3a(c));
+    }
+    // The walk meets the geometry through the inverse transform, the box went through the
+    // forward one: widened by 2^-20 of its coordinates' size, rounding in either cannot cull
+    // a hit the object-space walk would find. In halves, and clamped to the finite range, so
+    // a box reaching toward f32::MAX stays finite (an infinite box would drop the instance):
+    // every point the walk can meet is finite, so the clamped box still holds it.
+    let half = out.min.abs().max(out.max.abs()) * 0.5 + (out.max * 0.5 - out.min * 0.5);
+    let pad = half * (1.0 / (1u32 << 19) as f32);
+    let finite = |v: Vec3A| v.clamp(Vec3A::splat(f32::MIN), Vec3A::splat(f32::MAX));
+    Aabb::new(finite(out.min - pad), finite(out.max + pad))
+}
+
+/// Every instance's world box, in instance order: what the top level is built over. Kept
+/// out of [`Placed`], which the walks read, so a placed instance fills one cache line; the
+/// refit computes them again from the instances ([`Source::bounds`] of `edit::Top`).
+///
+/// [`Source::bounds`]: crate::layout::refit::Source::bounds
+pub(super) fn world_boxes<P: Primitive>(
+    instances: &[Instance],
+    geometries: &[Geometry<P>],
+) -> Vec<Aabb> {
+    use rayon::prelude::*;
+    instances
+        .par_iter()
+        .map(|inst| instance_box(inst, geometries))
+        .collect()
+}
+
+/// The world box of instance `inst` as placed now.
+pub(super) fn instance_box<P: Primitive>(inst: &Instance, geometries: &[Geometry<P>]) -> Aabb {
+    world_box(
+        &inst.transform,
+        &geometries[inst.geometry.0 as usize].bounds(),
+    )
+}
+
+/// The top-level BVH over `placed` (in instance order), whose world boxes are `boxes`:
+/// 8-wide, one instance per leaf (an instance's test is a whole walk of its geometry, far
+/// costlier than a node's). The build drops an instance whose box is not finite.
+///
+/// It keeps no input indices (`prim_ids` empty): the input index of a record is the
+/// instance it names, so they would repeat `Placed::instance` in 4 more bytes an instance.
+/// Only a refit reads them, and `World::refit_top` lends it a copy for the while.
+pub(super) fn top_level(placed: &[Placed], boxes: &[Aabb], isa: Isa) -> Bvh8<Placed> {
+    let config = BuildConfig {
+        max_leaf_size: 1,
+        ..BuildConfig::default()
+    };
+    let tree = build(boxes, &config, Builder::Binned);
+    let mut top = Bvh8::from_leaf_prims(&tree, leaf_order(&tree, placed).into(), isa, &config);
+    debug_assert!(top
+        .prims
+        .iter()
+        .map(|p| p.instance)
+        .eq(top.prim_ids.iter().copied()));
+    top.prim_ids = Vec::new();
+    top
+}
+
+/// An instance as the walks read it, in top-level leaf order: one cache line, so a leaf's
+/// instance costs the walk one miss. Its world box is not kept (the walks never read it:
+/// the top level's nodes hold it); builds and refits compute it from the [`Instance`].
+#[derive(Clone, Debug)]
+#[repr(C, align(64))]
+pub(crate) struct Placed {
+    /// World to object space, packed into 48 bytes: `to_object[j]` holds column `j` of the
+    /// linear part in lanes 0..3 and the translation's component `j` in lane 3 (read through
+    /// [`Placed::world_to_object`], or lane by lane by the packet transform).
+    pub(crate) to_object: [[f32; 4]; 3],
+    pub(crate) geometry: u32,
+    pub(crate) mask: u32,
+    /// Its index among the instances.
+    pub(crate) instance: u32,
+    /// The identity transform: rays go in as they are.
+    pub(crate) identity: bool,
+}
+
+// One line per instance: a record that grew past it would cost every instance entry a
+// second miss and the world's memory target (issue 26) its margin.
+const _: () = assert!(std::mem::size_of::<Placed>() == 64);
+
+impl Placed {
+    /// Instance `index` (`inst`, with its checked `placement`).
+    pub(super) fn new(
+        index: usize,
+        inst: &Instance,
+        (world_to_object, identity): (Affine3A, bool),
+    ) -> Placed {
+        let (m, t) = (world_to_object.matrix3, world_to_object.translation);
+        let col = |c: Vec3A, t: f32| [c.x, c.y, c.z, t];
+        Placed {
+            to_object: [col(m.x_axis, t.x), col(m.y_axis, t.y), col(m.z_axis, t.z)],
+            geometry: inst.geometry.0,
+            mask: inst.mask,
+            instance: index as u32,
+            identity,
+        }
+    }
+
+    /// World to object space: the inverse transform the instance was placed with, the same
+    /// floats in the same lanes, so glam's products run as they did on it. Each vector is
+    /// built from its three floats (lane 3 a copy of lane 2, as [`Vec3A::new`] makes it):
+    /// lane 3 then repeats lane 2's arithmetic, and never multiplies a translation
+    /// component, which may be subnormal (an assist per multiply, ~100x its cost) or make a
+    /// subnormal product.
+    #[inline(always)]
+    pub(crate) fn world_to_object(&self) -> Affine3A {
+        // Whole columns loaded and shuffled in registers (a load and a shuffle a column, two
+        // shuffles for the translation); element by element, LLVM built each from scalars.
+        let [x, y, z] = self.to_object.map(Vec4::from_array);
+        let col = |c: Vec4| Vec3A::from_vec4(c.xyzz());
+        Affine3A {
+            matrix3: Mat3A::from_cols(col(x), col(y), col(z)),
+            translation: Vec3A::new(x.w, y.w, z.w),
+        }
+    }
+
+    /// `ray` in object space, searching up to `t_max` (the same parameter as in world space).
+    #[inline(always)]
+    pub(crate) fn local(&self, ray: &Ray, t_max: f32) -> Ray {
+        if self.identity {
+            return Ray { t_max, ..*ray };
+        }
+        let to_object = self.world_to_object();
+        Ray {
+            origin: to_object.transform_point3a(ray.origin),
+            dir: to_object.transform_vector3a(ray.dir),
+            t_max,
+            ..*ray
+        }
+    }
+}
+
+/// The top level's primitive, for the layout's sake only: [`Bvh8`] holds it as its leaf
+/// data, which the world's walks read (they test the instance's geometry, never `intersect`).
+///
+/// `bounds` is not called either, so the record keeps no box. No path of `Bvh8<Placed>`
+/// reaches it: the build takes the world boxes from [`world_boxes`] (never `prim_bounds`),
+/// `Bvh8::from_leaf_prims` lays out the tree's boxes (a plain leaf format packs no groups and
+/// reads no primitive's box), `footprint` counts bytes, and the refit asks its source for
+/// every leaf box ([`Source::bounds`](crate::layout::refit::Source::bounds), which
+/// `edit::Top` computes from the instance); nor are the defaults that call it
+/// (`surface_area`, `is_finite`), nor the layout's own queries. A path that did would be a bug,
+/// so it panics rather than give a box.
+impl Primitive for Placed {
+    fn bounds(&self) -> Aabb {
+        unreachable!("a placed instance keeps no box: its world box comes from the instance")
+    }
+    fn intersect(&self, _: &Ray) -> Option<PrimHit> {
+        None
+    }
+}
