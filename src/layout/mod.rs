@@ -17,9 +17,11 @@
 
 pub(crate) mod bvh2;
 pub(crate) mod bvh4;
+mod bvh4_node;
 pub(crate) mod bvh8;
 pub(crate) mod collapse;
 pub(crate) mod order;
+mod qbvh4_node;
 pub(crate) mod refit;
 pub(crate) mod tri4;
 
