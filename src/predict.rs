@@ -33,36 +33,11 @@
 //! assert!(p.leaves <= p.nodes && p.prim_tests >= p.leaves);
 //! ```
 
-use crate::builders::{BuildTree, NodeKind};
-use crate::bvh::{AnyLayout, Bvh};
+use crate::bvh::Bvh;
 use crate::geometry::Aabb;
-use crate::layout::bvh2::{compact_children, Addressing};
-use crate::layout::{Bvh2, Bvh4, Bvh8, Bvh8Node, Node4};
 use crate::primitive::Primitive;
-use crate::world::{Geometry, World};
 
-/// One node as a traversal meets it: its box, the boxes it tests when entered, and the
-/// primitives it tests when it is a leaf.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Piece {
-    /// The box the parent tests before entering this node (for the root, the box of the
-    /// whole tree).
-    pub bounds: Aabb,
-    /// Ray-box tests made when the node is entered (children's boxes for an inner node).
-    pub box_tests: u32,
-    /// Primitives in the leaf; 0 for an inner node.
-    pub prims: u32,
-    /// Whether the node is a leaf.
-    pub leaf: bool,
-}
-
-/// Something whose traversal cost can be predicted: a build tree or a laid-out BVH, seen as
-/// the nodes its walk may enter.
-pub trait Pieces {
-    /// Calls `f` once for every node a traversal can enter, the root first. The root's box is
-    /// the box of the whole tree (every line through it enters the root).
-    fn pieces(&self, f: &mut dyn FnMut(Piece));
-}
+pub use crate::layout::walk::{NodeVisit, WalkNodes};
 
 /// Expected work per isotropic random line through [`Prediction::root`], for a walk that
 /// never stops early (see the module documentation for why these are exact expectations).
@@ -106,9 +81,9 @@ impl Prediction {
 }
 
 /// The prediction for lines through the structure's own root box.
-pub fn predict<T: Pieces + ?Sized>(t: &T) -> Prediction {
+pub fn predict<T: WalkNodes + ?Sized>(t: &T) -> Prediction {
     let mut root = None;
-    t.pieces(&mut |p| {
+    t.walk_nodes(&mut |p| {
         root.get_or_insert(p.bounds);
     });
     predict_within(t, &root.unwrap_or(Aabb::EMPTY))
@@ -120,7 +95,7 @@ pub fn predict<T: Pieces + ?Sized>(t: &T) -> Prediction {
 /// `root`, which is convex, so the identity still holds for boxes that stick out (quantized
 /// boxes rounded outward). A root of zero area (every primitive on one point or line) counts
 /// every node as entered.
-pub fn predict_within<T: Pieces + ?Sized>(t: &T, root: &Aabb) -> Prediction {
+pub fn predict_within<T: WalkNodes + ?Sized>(t: &T, root: &Aabb) -> Prediction {
     let root_area = root.half_area() as f64;
     let mut p = Prediction {
         root: *root,
@@ -130,7 +105,7 @@ pub fn predict_within<T: Pieces + ?Sized>(t: &T, root: &Aabb) -> Prediction {
         box_tests: 0.0,
         prim_tests: 0.0,
     };
-    t.pieces(&mut |piece| {
+    t.walk_nodes(&mut |piece| {
         let clipped = clip(&piece.bounds, root);
         if clipped.is_empty() {
             return;
@@ -182,9 +157,9 @@ pub struct Census {
 /// assert_eq!(binary.inner + 1, binary.leaves); // a binary tree
 /// assert!(wide.inner < binary.inner);
 /// ```
-pub fn census<T: Pieces + ?Sized>(t: &T) -> Census {
+pub fn census<T: WalkNodes + ?Sized>(t: &T) -> Census {
     let mut c = Census::default();
-    t.pieces(&mut |p| {
+    t.walk_nodes(&mut |p| {
         if p.leaf {
             c.leaves += 1;
             c.empty_leaves += usize::from(p.prims == 0);
@@ -198,177 +173,6 @@ pub fn census<T: Pieces + ?Sized>(t: &T) -> Census {
 
 fn clip(b: &Aabb, to: &Aabb) -> Aabb {
     Aabb::new(b.min.max(to.min), b.max.min(to.max))
-}
-
-impl Pieces for BuildTree {
-    /// The binary tree as the binary walk meets it: the root's box is tested once, then each
-    /// inner node tests both children's boxes.
-    fn pieces(&self, f: &mut dyn FnMut(Piece)) {
-        for (i, n) in self.nodes.iter().enumerate() {
-            let root_test = u32::from(i == 0);
-            f(match n.kind {
-                NodeKind::Inner { .. } => Piece {
-                    bounds: n.bounds,
-                    box_tests: 2 + root_test,
-                    prims: 0,
-                    leaf: false,
-                },
-                NodeKind::Leaf { count, .. } => Piece {
-                    bounds: n.bounds,
-                    box_tests: root_test,
-                    prims: count,
-                    leaf: true,
-                },
-            });
-        }
-    }
-}
-
-impl<P: Primitive> Pieces for Bvh2<P> {
-    /// Walked from the root by the mapping's child rule, so padding slots are left out.
-    fn pieces(&self, f: &mut dyn FnMut(Piece)) {
-        let addressing = self.mapping.addressing();
-        let mut stack = vec![0usize];
-        while let Some(i) = stack.pop() {
-            let n = &self.nodes[i];
-            let root_test = u32::from(i == 0);
-            if n.is_leaf() {
-                f(Piece {
-                    bounds: n.bounds(),
-                    box_tests: root_test,
-                    prims: n.prim_count(),
-                    leaf: true,
-                });
-                continue;
-            }
-            f(Piece {
-                bounds: n.bounds(),
-                box_tests: 2 + root_test,
-                prims: 0,
-                leaf: false,
-            });
-            let (l, r) = match addressing {
-                Addressing::DepthFirst => (i + 1, n.link as usize),
-                Addressing::Explicit => (n.link as usize, n.count as usize),
-                Addressing::Compact if n.count == 0 => compact_children(i, n.link),
-                Addressing::Compact => (n.link as usize, n.count as usize),
-            };
-            stack.push(r);
-            stack.push(l);
-        }
-    }
-}
-
-/// A wide walk: the root node is entered by every ray and tests all `W` slots; a child slot
-/// is entered when its box is hit. `slot(node, i)` gives child `i`'s box, its (index, count)
-/// pair and whether it is a leaf; empty slots (empty boxes) are skipped.
-fn wide_pieces(
-    width: u32,
-    slots: impl Fn(usize) -> Vec<(Aabb, u32, u32, bool)>,
-    f: &mut dyn FnMut(Piece),
-) {
-    let root_box = slots(0)
-        .iter()
-        .filter(|s| !s.0.is_empty())
-        .fold(Aabb::EMPTY, |a, s| a.union(&s.0));
-    f(Piece {
-        bounds: root_box,
-        box_tests: width,
-        prims: 0,
-        leaf: false,
-    });
-    let mut stack = vec![0usize];
-    while let Some(i) = stack.pop() {
-        for (bounds, child, count, leaf) in slots(i) {
-            if bounds.is_empty() || (leaf && count == 0) {
-                continue;
-            }
-            f(Piece {
-                bounds,
-                box_tests: if leaf { 0 } else { width },
-                prims: count,
-                leaf,
-            });
-            if !leaf {
-                stack.push(child as usize);
-            }
-        }
-    }
-}
-
-impl<P: Primitive, N: Node4> Pieces for Bvh4<P, N> {
-    fn pieces(&self, f: &mut dyn FnMut(Piece)) {
-        let slots = |i: usize| {
-            let n = &self.nodes[i];
-            let planes = n.planes().map(|r| r.to_array());
-            (0..4)
-                .map(|k| {
-                    let b = Aabb::new(
-                        [planes[0][k], planes[1][k], planes[2][k]].into(),
-                        [planes[3][k], planes[4][k], planes[5][k]].into(),
-                    );
-                    let (c, count) = n.child(k);
-                    let leaf = count & crate::layout::Bvh4Node::LEAF != 0;
-                    (b, c, count & !crate::layout::Bvh4Node::LEAF, leaf)
-                })
-                .collect()
-        };
-        wide_pieces(4, slots, f);
-    }
-}
-
-impl<P: Primitive> Pieces for Bvh8<P> {
-    fn pieces(&self, f: &mut dyn FnMut(Piece)) {
-        let slots = |i: usize| {
-            let n = &self.nodes[i];
-            (0..8)
-                .map(|k| {
-                    let p = &n.planes;
-                    let b = Aabb::new(
-                        [p[0][k], p[1][k], p[2][k]].into(),
-                        [p[3][k], p[4][k], p[5][k]].into(),
-                    );
-                    let leaf = n.count[k] & Bvh8Node::LEAF != 0;
-                    (b, n.child[k], n.count[k] & !Bvh8Node::LEAF, leaf)
-                })
-                .collect()
-        };
-        wide_pieces(8, slots, f);
-    }
-}
-
-impl<P: Primitive> Pieces for AnyLayout<P> {
-    fn pieces(&self, f: &mut dyn FnMut(Piece)) {
-        match self {
-            AnyLayout::Bvh2(b) => b.pieces(f),
-            AnyLayout::Bvh4(b) => b.pieces(f),
-            AnyLayout::QBvh4(b) => b.pieces(f),
-            AnyLayout::Bvh8(b) => b.pieces(f),
-        }
-    }
-}
-
-/// The nodes a world's walks can enter: its top level's, then each geometry's once (a census
-/// of the structure; a ray's walk enters a geometry's once per instance it meets).
-impl<P: Primitive> Pieces for World<P> {
-    fn pieces(&self, f: &mut dyn FnMut(Piece)) {
-        self.top().pieces(f);
-        for g in self.geometries() {
-            match g {
-                Geometry::Triangles(b, _) => b.pieces(f),
-                Geometry::Prims(b, _) => b.pieces(f),
-            }
-        }
-    }
-}
-
-impl<P: Primitive> Pieces for Bvh<P> {
-    /// The layout's own nodes, in the frame the BVH was built in (see [`Bvh::predict_within`]
-    /// for lines given in world units).
-    fn pieces(&self, f: &mut dyn FnMut(Piece)) {
-        // A frame scales every box by one power of two, which leaves area ratios alone.
-        self.layout().0.pieces(f)
-    }
 }
 
 impl<P: Primitive> Bvh<P> {

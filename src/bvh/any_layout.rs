@@ -7,6 +7,7 @@ use crate::builders::{BuildConfig, BuildTree};
 use crate::frame::{Back, Frame};
 use crate::geometry::{Hit, Ray};
 use crate::isa::{Isa, Kernels};
+use crate::layout::walk::{NodeVisit, WalkNodes};
 use crate::layout::{
     Bvh2, Bvh2Mapping, Bvh4, Bvh4Mapping, Bvh8, Footprint, Layout, LeafPrims, QBvh4,
 };
@@ -312,5 +313,16 @@ fn in_frame(
             mode,
         };
         f(local, &backs[..batch.len()], at);
+    }
+}
+
+impl<P: Primitive> WalkNodes for AnyLayout<P> {
+    fn walk_nodes(&self, f: &mut dyn FnMut(NodeVisit)) {
+        match self {
+            AnyLayout::Bvh2(b) => b.walk_nodes(f),
+            AnyLayout::Bvh4(b) => b.walk_nodes(f),
+            AnyLayout::QBvh4(b) => b.walk_nodes(f),
+            AnyLayout::Bvh8(b) => b.walk_nodes(f),
+        }
     }
 }

@@ -14,6 +14,7 @@ use crate::builders::{prim_bounds, BuildTree, TreeError};
 use crate::frame::Frame;
 use crate::geometry::{Aabb, Hit, Ray, Triangle};
 use crate::isa::{Isa, Kernels};
+use crate::layout::walk::{NodeVisit, WalkNodes};
 use crate::layout::{bvh2::leaf_order, Footprint};
 use crate::mesh::{MeshError, Positions};
 use crate::primitive::Primitive;
@@ -278,6 +279,15 @@ impl<P: Primitive> RayQuery for Bvh<P> {
         }
         self.layout
             .trace_packet_with::<A, B, S, F>(query, hits, stats, filter)
+    }
+}
+
+impl<P: Primitive> WalkNodes for Bvh<P> {
+    /// The layout's own nodes, in the frame the BVH was built in (see [`Bvh::predict_within`]
+    /// for lines given in world units).
+    fn walk_nodes(&self, f: &mut dyn FnMut(NodeVisit)) {
+        // A frame scales every box by one power of two, which leaves area ratios alone.
+        self.layout().0.walk_nodes(f)
     }
 }
 

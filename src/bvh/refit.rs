@@ -7,8 +7,8 @@ use super::Bvh;
 use crate::frame::{Frame, Sizes};
 use crate::geometry::{Aabb, Triangle};
 use crate::layout::refit::Source;
+use crate::layout::walk::WalkNodes;
 use crate::mesh::{Mesh, MeshError, Positions};
-use crate::predict::Pieces;
 use crate::primitive::Primitive;
 use rayon::prelude::*;
 use std::fmt;
@@ -282,7 +282,7 @@ impl<P: Primitive> Bvh<P> {
     pub fn sah_cost(&self) -> f64 {
         let mut root = None;
         let mut cost = 0.0f64;
-        self.pieces(&mut |p| {
+        self.walk_nodes(&mut |p| {
             let r = *root.get_or_insert(p.bounds.half_area_f64());
             let a = if r > 0.0 {
                 p.bounds.half_area_f64() / r

@@ -24,6 +24,7 @@ pub(crate) mod order;
 mod qbvh4_node;
 pub(crate) mod refit;
 pub(crate) mod tri4;
+pub(crate) mod walk;
 
 pub use bvh2::{Bvh2, Bvh2Mapping, Bvh2Node};
 pub use bvh4::{Bvh4, Bvh4Mapping, Bvh4Node, Node4, QBvh4, QBvh4Node};

@@ -64,6 +64,7 @@ pub use hit::WorldHit;
 pub use instance::{GeometryId, Instance};
 
 use crate::geometry::{unit_or_zero, Aabb, PrimHit, Ray, Triangle};
+use crate::layout::walk::{NodeVisit, WalkNodes};
 use crate::layout::{Bvh8, Footprint};
 use crate::primitive::Primitive;
 use glam::{Mat3A, Vec3A};
@@ -164,6 +165,20 @@ impl<P: Primitive> World<P> {
                 }
             },
         )
+    }
+}
+
+/// The nodes a world's walks can enter: its top level's, then each geometry's once (a census
+/// of the structure; a ray's walk enters a geometry's once per instance it meets).
+impl<P: Primitive> WalkNodes for World<P> {
+    fn walk_nodes(&self, f: &mut dyn FnMut(NodeVisit)) {
+        self.top().walk_nodes(f);
+        for g in self.geometries() {
+            match g {
+                Geometry::Triangles(b, _) => b.walk_nodes(f),
+                Geometry::Prims(b, _) => b.walk_nodes(f),
+            }
+        }
     }
 }
 

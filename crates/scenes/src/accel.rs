@@ -17,7 +17,7 @@ use crate::scene::Scene;
 use glam::Vec3A;
 use quiver_rt::builders::BuildTree;
 use quiver_rt::layout::Footprint;
-use quiver_rt::predict::{Piece, Pieces};
+use quiver_rt::predict::{NodeVisit, WalkNodes};
 use quiver_rt::traverse::NoStats;
 use quiver_rt::traverse::{Ask, BoxTest, ClosestHit, Filter, PacketQuery, RayQuery, Stats};
 use quiver_rt::{BuildOptions, Bvh, Hit, PrimHit, Primitive, Ray, Triangle};
@@ -263,14 +263,14 @@ impl SceneBvh {
     }
 }
 
-impl Pieces for SceneBvh {
+impl WalkNodes for SceneBvh {
     /// The traversed layout's nodes (see `quiver_rt::predict`).
-    fn pieces(&self, f: &mut dyn FnMut(Piece)) {
+    fn walk_nodes(&self, f: &mut dyn FnMut(NodeVisit)) {
         match &self.kind {
-            Kind::Triangles(b, ..) => b.pieces(f),
-            Kind::Mixed(b, _) => b.pieces(f),
-            Kind::Instanced(i) => i.world().pieces(f),
-            Kind::Record(inner, _) => inner.pieces(f),
+            Kind::Triangles(b, ..) => b.walk_nodes(f),
+            Kind::Mixed(b, _) => b.walk_nodes(f),
+            Kind::Instanced(i) => i.world().walk_nodes(f),
+            Kind::Record(inner, _) => inner.walk_nodes(f),
         }
     }
 }
