@@ -3,7 +3,7 @@
 //! registered temporary and then ends the process by the same signal, so the shell still sees
 //! "killed by SIGINT". A SIGKILL cannot be caught: the temporaries it leaves carry the dead
 //! process's id in their name, and the next run writing the same file sweeps them
-//! (`output::sweep_stale`).
+//! (`output::file::sweep_stale`).
 //!
 //! SIGXFSZ (a write past `ulimit -f`) is ignored instead, so such a write fails with an error
 //! (`File too large`) that the normal error path reports and cleans up after.
