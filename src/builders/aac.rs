@@ -57,7 +57,7 @@ pub(super) fn build(
 ) -> (Vec<BuildNode>, Vec<u32>) {
     let (order, codes) = sorted(bounds, &idx, curve);
     let mut links = Links::singletons(order, bounds);
-    let job = Job {
+    let job = Clustering {
         codes: &codes,
         boxes: &links.bounds,
         setting,
@@ -109,13 +109,13 @@ struct Part {
     children: Vec<[Ref; 2]>,
 }
 
-struct Job<'a> {
+struct Clustering<'a> {
     codes: &'a [u64],
     boxes: &'a [Aabb],
     setting: Setting,
 }
 
-impl Job<'_> {
+impl Clustering<'_> {
     /// Clusters the units `lo..hi` (sorted by code), split by their codes' bits.
     fn subtree(&self, lo: usize, hi: usize) -> Part {
         let n = hi - lo;

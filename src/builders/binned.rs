@@ -6,7 +6,7 @@ use super::recurse::{
     build_tree, par_partition_into, partition_into, take_split, Ctx, Partition, Ref, Splitter,
     CHUNK,
 };
-use super::{model_score, split_beats_leaf, BuildConfig, BuildNode, Side};
+use super::{model_score, split_beats_leaf, BuildConfig, BuildNode, SplitSide};
 use crate::geometry::Aabb;
 use glam::{UVec3, Vec3A};
 use rayon::prelude::*;
@@ -301,7 +301,7 @@ fn best_plane_model(
             if left.0.count == 0 || left.0.count == total {
                 continue;
             }
-            let side = |(bin, a): (Bin, f32)| Side {
+            let side = |(bin, a): (Bin, f32)| SplitSide {
                 half_area: bin.bounds.half_area(),
                 count: bin.count as usize,
                 prim_area: a,

@@ -73,7 +73,7 @@ impl std::str::FromStr for CostModel {
 
 /// One side of a candidate split as the cost models see it.
 #[derive(Clone, Copy, Debug)]
-pub(crate) struct Side {
+pub(crate) struct SplitSide {
     /// Half the surface area of the side's box.
     pub half_area: f32,
     /// Primitives on the side.
@@ -82,7 +82,7 @@ pub(crate) struct Side {
     pub prim_area: f32,
 }
 
-impl Side {
+impl SplitSide {
     /// APSA: the chance that a ray crossing the box hits one of the primitives.
     fn hit_chance(&self) -> f32 {
         if self.half_area > 0.0 {
@@ -101,8 +101,8 @@ impl Side {
 pub(crate) fn model_score(
     config: &BuildConfig,
     parent_area: f32,
-    l: &Side,
-    r: &Side,
+    l: &SplitSide,
+    r: &SplitSide,
 ) -> (f32, f32) {
     let (nl, nr) = (config.tests(l.count), config.tests(r.count));
     let sah = l.half_area * nl + r.half_area * nr;
@@ -120,7 +120,7 @@ pub(crate) fn model_score(
             } else {
                 1.0
             };
-            let p = |s: &Side| {
+            let p = |s: &SplitSide| {
                 if parent_area > 0.0 {
                     s.half_area / parent_area
                 } else {

@@ -41,7 +41,7 @@ pub(super) fn build(
         .par_iter()
         .map(|&k| (k & ((1u64 << id_bits) - 1)) as u32)
         .collect();
-    let job = Job {
+    let job = MortonSplit {
         bounds,
         config,
         id_bits,
@@ -95,14 +95,14 @@ fn spread(x: u64) -> u64 {
     x
 }
 
-struct Job<'a> {
+struct MortonSplit<'a> {
     bounds: &'a [Aabb],
     config: &'a BuildConfig,
     id_bits: u32,
     id_mask: u64,
 }
 
-impl Job<'_> {
+impl MortonSplit<'_> {
     /// Builds the subtree over `keys` (positions `first..` of the sorted order); returns it,
     /// its box and its SAH cost (in units of half area).
     fn node(&self, keys: &[u64], first: u32) -> (Piece, Aabb, f32) {
@@ -127,7 +127,7 @@ impl Job<'_> {
         }
     }
 
-    /// [`Job::node`] on this thread: the subtree's nodes appended to `out` in preorder,
+    /// [`MortonSplit::node`] on this thread: the subtree's nodes appended to `out` in preorder,
     /// links counted from the start of `out`.
     fn serial(&self, keys: &[u64], first: u32, out: &mut Vec<BuildNode>) -> (Aabb, f32) {
         let n = keys.len();

@@ -40,7 +40,7 @@ mod tree;
 pub use builder::Builder;
 pub use config::{BuildConfig, GROUP_TEST_COST};
 pub use cost::CostModel;
-pub(crate) use cost::{model_score, split_beats_leaf, Side};
+pub(crate) use cost::{model_score, split_beats_leaf, SplitSide};
 pub(crate) use split::{bounds_of, median_split, widest_axis};
 pub(crate) use tree::MEDIAN_DEPTH;
 pub use tree::{BuildNode, BuildTree, NodeKind, TreeError, TreeStats, MAX_DEPTH};

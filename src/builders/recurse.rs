@@ -140,7 +140,7 @@ pub(crate) fn build_tree<S: Splitter>(
     // the OS, not a copy of `refs`.
     let mut spare: Vec<Ref> = crate::mem::zeroed_vec(refs.len());
     let mut order = idx;
-    let job = Job {
+    let job = TopDown {
         splitter,
         ctx: &ctx,
     };
@@ -175,7 +175,7 @@ pub(crate) fn serial_subtree<S: Splitter>(
         config,
         areas: None,
     };
-    let job = Job {
+    let job = TopDown {
         splitter,
         ctx: &ctx,
     };
@@ -266,7 +266,7 @@ impl Piece {
     }
 }
 
-struct Job<'a, S> {
+struct TopDown<'a, S> {
     splitter: &'a S,
     ctx: &'a Ctx<'a>,
 }
@@ -317,7 +317,7 @@ impl<'r> Work<'r> {
     }
 }
 
-impl<S: Splitter> Job<'_, S> {
+impl<S: Splitter> TopDown<'_, S> {
     /// Builds the subtree of `w`, its large children as tasks of their own.
     fn node(&self, mut w: Work) -> Piece {
         let n = w.refs.len();
@@ -336,7 +336,7 @@ impl<S: Splitter> Job<'_, S> {
         Piece::join(bounds, left, right)
     }
 
-    /// [`Job::node`] on this thread, appending the subtree's nodes to `out` in preorder.
+    /// [`TopDown::node`] on this thread, appending the subtree's nodes to `out` in preorder.
     fn serial(&self, mut w: Work, out: &mut Vec<BuildNode>) {
         let split = match self.split_or_leaf(&mut w) {
             Ok(s) => s,
@@ -464,7 +464,7 @@ fn scatter<F>(src: &[Ref], l: &mut [Ref], r: &mut [Ref], goes_left: &F) -> (Aabb
 where
     F: Fn(Vec3A) -> bool,
 {
-    let mut sides = [Side::new(l), Side::new(r)];
+    let mut sides = [PartitionOut::new(l), PartitionOut::new(r)];
     by_side(
         src,
         |x| goes_left(x.center()),
@@ -516,15 +516,15 @@ const BLOCK: usize = 64;
 
 /// One side of a partition being written: its output, how much is written, and the
 /// centroid bounds of what is.
-struct Side<'a> {
+struct PartitionOut<'a> {
     out: &'a mut [Ref],
     at: usize,
     centroids: Aabb,
 }
 
-impl<'a> Side<'a> {
+impl<'a> PartitionOut<'a> {
     fn new(out: &'a mut [Ref]) -> Self {
-        Side {
+        PartitionOut {
             out,
             at: 0,
             centroids: Aabb::EMPTY,

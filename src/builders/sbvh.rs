@@ -194,7 +194,7 @@ pub(crate) fn build(
         .map(|&i| Ref::new(&bounds[i as usize], i))
         .collect();
     let root = union_par(&refs);
-    let job = Job {
+    let job = SplitBuild {
         config,
         clip,
         min_overlap: ALPHA * root.half_area(),
@@ -202,7 +202,7 @@ pub(crate) fn build(
     let budget = (n as f64 * BUDGET).floor() as usize;
     let mut out = Out::default();
     let cent = centroids(&refs);
-    let side = Side {
+    let side = NodeRefs {
         refs,
         bounds: root,
         cent,
@@ -277,15 +277,15 @@ fn centroids(refs: &[Ref]) -> Aabb {
 
 /// A node's references with their box and centroid box. A split grows its sides' boxes as
 /// it pushes the references, so no pass over a child's references recomputes them.
-struct Side {
+struct NodeRefs {
     refs: Vec<Ref>,
     bounds: Aabb,
     cent: Aabb,
 }
 
-impl Side {
-    fn with_capacity(n: usize) -> Side {
-        Side {
+impl NodeRefs {
+    fn with_capacity(n: usize) -> NodeRefs {
+        NodeRefs {
             refs: Vec::with_capacity(n),
             bounds: Aabb::EMPTY,
             cent: Aabb::EMPTY,
@@ -293,9 +293,9 @@ impl Side {
     }
 
     /// `refs` with their boxes computed by a pass over them.
-    fn of(refs: Vec<Ref>) -> Side {
+    fn of(refs: Vec<Ref>) -> NodeRefs {
         let (bounds, cent) = (union(&refs), centroids(&refs));
-        Side { refs, bounds, cent }
+        NodeRefs { refs, bounds, cent }
     }
 
     #[inline]
@@ -312,23 +312,23 @@ impl Side {
 
 /// A node's two sides after a split.
 struct Children {
-    left: Side,
-    right: Side,
+    left: NodeRefs,
+    right: NodeRefs,
     /// References made by duplication (`left.len() + right.len() - n`).
     dups: usize,
 }
 
-struct Job<'a> {
+struct SplitBuild<'a> {
     config: &'a BuildConfig,
     clip: Clip<'a>,
     /// `ALPHA` × the root's half area.
     min_overlap: f32,
 }
 
-impl Job<'_> {
+impl SplitBuild<'_> {
     /// Builds the subtree over `side` (`budget` extra references allowed).
-    fn node(&self, side: Side, budget: usize, depth: usize, out: &mut Out) {
-        let Side {
+    fn node(&self, side: NodeRefs, budget: usize, depth: usize, out: &mut Out) {
+        let NodeRefs {
             mut refs,
             bounds,
             cent,
@@ -421,7 +421,10 @@ impl Job<'_> {
                 if !take_split(self.config, node.half_area(), o.cost, n) {
                     return None;
                 }
-                let mut sides = [Side::with_capacity(o.nl), Side::with_capacity(n - o.nl)];
+                let mut sides = [
+                    NodeRefs::with_capacity(o.nl),
+                    NodeRefs::with_capacity(n - o.nl),
+                ];
                 let goes_left = |r: &Ref| o.map.bin(r.center()[o.axis], o.axis) < o.bin;
                 by_side(refs, goes_left, |l, r| sides[!l as usize].push(*r));
                 let [left, right] = sides;
@@ -514,8 +517,8 @@ impl Job<'_> {
         let (axis, p) = (s.grid.axis, s.grid.plane(s.bin));
         let (mut lbox, mut rbox) = (s.lbox, s.rbox);
         let (mut nl, mut nr) = (s.nl as f32, s.nr as f32);
-        let mut left = Side::with_capacity(s.nl);
-        let mut right = Side::with_capacity(s.nr);
+        let mut left = NodeRefs::with_capacity(s.nl);
+        let mut right = NodeRefs::with_capacity(s.nr);
         for r in refs {
             let b = r.bounds();
             let (first, last) = (s.grid.bin(b.min[axis]), s.grid.bin(b.max[axis]));
@@ -679,8 +682,8 @@ fn median(refs: &mut Vec<Ref>) -> Children {
     });
     let right = refs.split_off(refs.len() / 2);
     Children {
-        left: Side::of(std::mem::take(refs)),
-        right: Side::of(right),
+        left: NodeRefs::of(std::mem::take(refs)),
+        right: NodeRefs::of(right),
         dups: 0,
     }
 }

@@ -3,7 +3,7 @@
 //! binned builder is measured against.
 
 use super::recurse::{build_tree, refs_bounds, sort_on, take_split, Ctx, Partition, Ref, Splitter};
-use super::{model_score, BuildConfig, BuildNode, Side};
+use super::{model_score, BuildConfig, BuildNode, SplitSide};
 use crate::geometry::Aabb;
 
 pub(super) fn build(
@@ -59,12 +59,12 @@ impl Splitter for Sweep {
                     continue;
                 }
                 let (score, w) = if ctx.areas.is_some() {
-                    let l = Side {
+                    let l = SplitSide {
                         half_area: left.half_area(),
                         count: j,
                         prim_area: left_area,
                     };
-                    let r = Side {
+                    let r = SplitSide {
                         half_area: right_side[j].0,
                         count: n - j,
                         prim_area: right_side[j].1,

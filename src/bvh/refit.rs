@@ -6,7 +6,7 @@ use super::any_layout::AnyLayout;
 use super::Bvh;
 use crate::frame::{Frame, Sizes};
 use crate::geometry::{Aabb, Triangle};
-use crate::layout::refit::Source;
+use crate::layout::refit::RefitInput;
 use crate::layout::walk::WalkNodes;
 use crate::mesh::{Mesh, MeshError, Positions};
 use crate::primitive::Primitive;
@@ -74,13 +74,13 @@ impl From<MeshError> for RefitError {
 
 /// The new input as a refit reads it: primitive `i` from `get`, brought into `frame`;
 /// `slice`, where the input is one, to prefetch from.
-struct Input<'s, P, G> {
+struct MovedPrims<'s, P, G> {
     get: G,
     frame: Frame,
     slice: Option<&'s [P]>,
 }
 
-impl<P: Primitive, G: Fn(u32) -> P + Sync> Source<P> for Input<'_, P, G> {
+impl<P: Primitive, G: Fn(u32) -> P + Sync> RefitInput<P> for MovedPrims<'_, P, G> {
     #[inline]
     fn prefetch(&self, id: u32) {
         if let Some(s) = self.slice {
@@ -160,7 +160,7 @@ impl<P: Primitive> AnyLayout<P> {
         }
     }
 
-    fn refit<S: Source<P>>(&mut self, src: &S) {
+    fn refit<S: RefitInput<P>>(&mut self, src: &S) {
         match self {
             AnyLayout::Bvh2(b) => b.refit(src),
             AnyLayout::Bvh4(b) => b.refit(src),
@@ -366,7 +366,7 @@ impl<P: Primitive> Bvh<P> {
         // Moving into or out of a scaled frame only changes the units the boxes are
         // recomputed in.
         self.frame = frame;
-        self.layout.refit(&Input { get, frame, slice });
+        self.layout.refit(&MovedPrims { get, frame, slice });
         self.bounds = summary.all;
         Ok(())
     }

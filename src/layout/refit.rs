@@ -1,6 +1,6 @@
 //! Refitting a laid-out BVH in place: the same tree and node order over primitives that moved.
 //!
-//! The primitives come from a [`Source`] by their input index. A layout with plain leaves
+//! The primitives come from a [`RefitInput`] by their input index. A layout with plain leaves
 //! refreshes its leaf-order copy of the primitives; a wide layout over a triangle format,
 //! which keeps no copy, repacks its SIMD triangle groups ([`Tri4`]) lane by lane straight from
 //! the source (each lane names its input index); every layout recomputes every box bottom-up: a leaf's box is the
@@ -26,7 +26,7 @@ use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 /// Where a refit takes its new primitives: by input index, in the layout's own frame.
-pub(crate) trait Source<P>: Sync {
+pub(crate) trait RefitInput<P>: Sync {
     /// Primitive `id` of the new input.
     fn get(&self, id: u32) -> P;
 
@@ -59,7 +59,7 @@ const TASK_NODES: usize = 256;
 const TASK_PRIMS: usize = 4096;
 
 /// Refreshes the leaf-order copy: `prims[k]` is input primitive `ids[k]`.
-fn refresh_prims<P: Primitive, S: Source<P>>(prims: &mut [P], ids: &[u32], src: &S) {
+fn refresh_prims<P: Primitive, S: RefitInput<P>>(prims: &mut [P], ids: &[u32], src: &S) {
     prims
         .par_iter_mut()
         .zip(ids.par_iter())
@@ -80,7 +80,7 @@ impl<'a, S> Ctx<'a, S> {
     /// `run` refreshed unless it already is, and the context that reads it as it is.
     fn fresh<P: Primitive>(cx: &Ctx<'a, S>, run: &mut Run<'_, P>) -> Ctx<'a, S>
     where
-        S: Source<P>,
+        S: RefitInput<P>,
     {
         if !cx.fresh {
             for (p, &id) in run.prims.iter_mut().zip(run.ids) {
@@ -108,7 +108,7 @@ impl<'a, S> Ctx<'a, S> {
     #[inline]
     fn leaf<P: Primitive>(&self, prims: &mut [P], ids: &[u32], groups: &mut [Tri4]) -> Aabb
     where
-        S: Source<P>,
+        S: RefitInput<P>,
     {
         let mut b = Aabb::EMPTY;
         if prims.len() != ids.len() {
@@ -274,7 +274,7 @@ impl<'a, P> Run<'a, P> {
 /// holds the node positions from `base` on, `groups` the groups from `gbase` on, `run` the
 /// subtree's primitives (and those after it), which the leaves take in slot order: leaf order.
 #[allow(clippy::too_many_arguments)]
-fn wide_seq<const W: usize, N: WideNode<W>, P: Primitive, S: Source<P>>(
+fn wide_seq<const W: usize, N: WideNode<W>, P: Primitive, S: RefitInput<P>>(
     nodes: &mut [N],
     base: usize,
     groups: &mut [Tri4],
@@ -347,7 +347,7 @@ fn prims_under<const W: usize, N: WideNode<W>>(nodes: &[N]) -> usize {
 /// Refits a depth-first subtree: `nodes` is the whole subtree (its root first, at position
 /// `base`), `groups` all of its SIMD groups (from group `gbase`), `run` its primitives. A
 /// large subtree hands its inner children to parallel tasks, each with its own slices.
-fn wide_dfs<const W: usize, N: WideNode<W>, P: Primitive, S: Source<P>>(
+fn wide_dfs<const W: usize, N: WideNode<W>, P: Primitive, S: RefitInput<P>>(
     nodes: &mut [N],
     base: usize,
     groups: &mut [Tri4],
@@ -446,7 +446,7 @@ fn wide_dfs<const W: usize, N: WideNode<W>, P: Primitive, S: Source<P>>(
 }
 
 /// Runs the tasks, halves in parallel.
-fn run_tasks<const W: usize, N: WideNode<W>, P: Primitive, S: Source<P>>(
+fn run_tasks<const W: usize, N: WideNode<W>, P: Primitive, S: RefitInput<P>>(
     tasks: &mut [Task<'_, N, P>],
     cx: &Ctx<'_, S>,
 ) {
@@ -471,7 +471,7 @@ fn run_tasks<const W: usize, N: WideNode<W>, P: Primitive, S: Source<P>>(
 /// leaf by leaf inside their parallel tasks (one read of each new primitive serves its copy
 /// or its lane, and its leaf's box); the other mappings refresh a copy in parallel first,
 /// then walk the tree once. Also returns whether any SIMD group is far now.
-fn refit_wide<const W: usize, N: WideNode<W>, P: Primitive, S: Source<P>>(
+fn refit_wide<const W: usize, N: WideNode<W>, P: Primitive, S: RefitInput<P>>(
     nodes: &mut [N],
     prims: &mut [P],
     ids: &[u32],
@@ -501,7 +501,7 @@ fn refit_wide<const W: usize, N: WideNode<W>, P: Primitive, S: Source<P>>(
 
 /// The far groups after a refit that found some (`far`), or none: found in a pass of their
 /// own, which the refit's tasks, each filling its own groups, could not share a list for.
-fn far_groups<P: Primitive, S: Source<P>>(far: bool, groups: &[Tri4], src: &S) -> FarGroups {
+fn far_groups<P: Primitive, S: RefitInput<P>>(far: bool, groups: &[Tri4], src: &S) -> FarGroups {
     if !far {
         return FarGroups::default();
     }
@@ -510,7 +510,7 @@ fn far_groups<P: Primitive, S: Source<P>>(far: bool, groups: &[Tri4], src: &S) -
 
 impl<P: Primitive> Bvh8<P> {
     /// Refits in place from `src` (see the [module](self) docs).
-    pub(crate) fn refit<S: Source<P>>(&mut self, src: &S) {
+    pub(crate) fn refit<S: RefitInput<P>>(&mut self, src: &S) {
         let far;
         (self.bounds, far) = refit_wide::<8, _, _, _>(
             &mut self.nodes,
@@ -526,7 +526,7 @@ impl<P: Primitive> Bvh8<P> {
 
 impl<P: Primitive, N: Node4> Bvh4<P, N> {
     /// Refits in place from `src`, quantized nodes encoded again (see the [module](self) docs).
-    pub(crate) fn refit<S: Source<P>>(&mut self, src: &S) {
+    pub(crate) fn refit<S: RefitInput<P>>(&mut self, src: &S) {
         let far;
         (self.bounds, far) = refit_wide::<4, _, _, _>(
             &mut self.nodes,
@@ -549,7 +549,7 @@ fn set_box(n: &mut Bvh2Node, b: &Aabb) {
 /// The box of a plain leaf: `count` primitives of the (refreshed) leaf-order copy from
 /// `first`, whose input indices `ids` holds at the same positions.
 #[inline]
-fn plain_leaf<P: Primitive, S: Source<P>>(
+fn plain_leaf<P: Primitive, S: RefitInput<P>>(
     prims: &[P],
     ids: &[u32],
     src: &S,
@@ -566,7 +566,7 @@ fn plain_leaf<P: Primitive, S: Source<P>>(
 /// Refits a depth-first binary subtree (`nodes` from position `base`, the root first) over
 /// its primitives (`run`, from leaf-order position `pbase`), each refreshed by its leaf; the
 /// two children of a large subtree in parallel.
-fn bvh2_dfs<P: Primitive, S: Source<P>>(
+fn bvh2_dfs<P: Primitive, S: RefitInput<P>>(
     nodes: &mut [Bvh2Node],
     base: usize,
     mut run: Run<'_, P>,
@@ -630,7 +630,7 @@ fn bvh2_inner(nodes: &mut [Bvh2Node], at: usize, addressing: Addressing) -> Aabb
 
 impl<P: Primitive> Bvh2<P> {
     /// Refits in place from `src` (see the [module](self) docs).
-    pub(crate) fn refit<S: Source<P>>(&mut self, src: &S) {
+    pub(crate) fn refit<S: RefitInput<P>>(&mut self, src: &S) {
         if self.mapping == Bvh2Mapping::DepthFirst {
             let run = Run {
                 prims: &mut self.prims,
@@ -675,7 +675,7 @@ mod tests {
     /// The new primitives straight from a slice.
     struct Slice<'a, P>(&'a [P]);
 
-    impl<P: Primitive> Source<P> for Slice<'_, P> {
+    impl<P: Primitive> RefitInput<P> for Slice<'_, P> {
         fn get(&self, id: u32) -> P {
             self.0[id as usize].clone()
         }

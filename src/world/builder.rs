@@ -1,7 +1,7 @@
 //! [`WorldBuilder`]: geometries and instances collected, then built into a [`World`].
 
 use super::instance::check_instance;
-use super::top::{top_level, world_boxes, Placed};
+use super::top::{top_level, world_boxes, InstanceLeaf};
 use super::{Geometry, GeometryId, Instance, World, WorldError};
 use crate::bvh::BuildOptions;
 use crate::geometry::{Aabb, Triangle};
@@ -21,7 +21,7 @@ use crate::primitive::Primitive;
 /// ```
 #[derive(Clone, Debug)]
 pub struct WorldBuilder<P = Triangle> {
-    sources: Vec<Source<P>>,
+    pending: Vec<PendingGeometry<P>>,
     instances: Vec<Instance>,
     /// The first mesh whose indices did not check out, reported by `build`.
     bad_mesh: Option<(usize, MeshError)>,
@@ -29,7 +29,7 @@ pub struct WorldBuilder<P = Triangle> {
 
 /// A geometry before its BVH is built.
 #[derive(Clone, Debug)]
-enum Source<P> {
+enum PendingGeometry<P> {
     Triangles(Vec<Triangle>),
     Prims(Vec<P>),
 }
@@ -37,7 +37,7 @@ enum Source<P> {
 impl<P> Default for WorldBuilder<P> {
     fn default() -> Self {
         WorldBuilder {
-            sources: Vec::new(),
+            pending: Vec::new(),
             instances: Vec::new(),
             bad_mesh: None,
         }
@@ -61,18 +61,18 @@ impl<P: Primitive> WorldBuilder<P> {
         positions: impl Into<Positions<'v>>,
         indices: &[[u32; 3]],
     ) -> Result<GeometryId, MeshError> {
-        let id = GeometryId(self.sources.len() as u32);
+        let id = GeometryId(self.pending.len() as u32);
         match Mesh::new(positions.into(), indices) {
             Ok(mesh) => {
                 let tris = (0..indices.len() as u32)
                     .map(|i| mesh.triangle(i))
                     .collect();
-                self.sources.push(Source::Triangles(tris));
+                self.pending.push(PendingGeometry::Triangles(tris));
                 Ok(id)
             }
             Err(e) => {
                 // Keeps the numbering of the geometries after it; `build` reports the error.
-                self.sources.push(Source::Triangles(Vec::new()));
+                self.pending.push(PendingGeometry::Triangles(Vec::new()));
                 self.bad_mesh.get_or_insert((id.0 as usize, e.clone()));
                 Err(e)
             }
@@ -81,14 +81,14 @@ impl<P: Primitive> WorldBuilder<P> {
 
     /// Adds triangles as a geometry.
     pub fn triangles(&mut self, tris: Vec<Triangle>) -> GeometryId {
-        self.sources.push(Source::Triangles(tris));
-        GeometryId(self.sources.len() as u32 - 1)
+        self.pending.push(PendingGeometry::Triangles(tris));
+        GeometryId(self.pending.len() as u32 - 1)
     }
 
     /// Adds primitives of the world's type as a geometry.
     pub fn prims(&mut self, prims: Vec<P>) -> GeometryId {
-        self.sources.push(Source::Prims(prims));
-        GeometryId(self.sources.len() as u32 - 1)
+        self.pending.push(PendingGeometry::Prims(prims));
+        GeometryId(self.pending.len() as u32 - 1)
     }
 
     /// Adds an instance; returns its index (what [`WorldHit::instance`] reports).
@@ -107,7 +107,7 @@ impl<P: Primitive> WorldBuilder<P> {
     /// an error: it is hit by nothing.
     pub fn build(self, options: &BuildOptions<'_>) -> Result<World<P>, WorldError> {
         use rayon::prelude::*;
-        if self.instances.len() >= u32::MAX as usize || self.sources.len() >= u32::MAX as usize {
+        if self.instances.len() >= u32::MAX as usize || self.pending.len() >= u32::MAX as usize {
             return Err(WorldError::TooMany);
         }
         if let Some((geometry, error)) = self.bad_mesh {
@@ -117,21 +117,21 @@ impl<P: Primitive> WorldBuilder<P> {
             .instances
             .iter()
             .enumerate()
-            .map(|(i, inst)| check_instance(i, inst, self.sources.len()))
+            .map(|(i, inst)| check_instance(i, inst, self.pending.len()))
             .collect::<Result<Vec<_>, _>>()?;
         let geometries: Vec<Geometry<P>> = options.run(|| {
-            self.sources
+            self.pending
                 .into_par_iter()
                 .map(|s| match s {
-                    Source::Triangles(t) => Geometry::Triangles(options.build(&t), t),
-                    Source::Prims(p) => Geometry::Prims(options.build(&p), p),
+                    PendingGeometry::Triangles(t) => Geometry::Triangles(options.build(&t), t),
+                    PendingGeometry::Prims(p) => Geometry::Prims(options.build(&p), p),
                 })
                 .collect()
         });
-        let placed: Vec<Placed> = placements
+        let placed: Vec<InstanceLeaf> = placements
             .into_iter()
             .enumerate()
-            .map(|(i, placement)| Placed::new(i, &self.instances[i], placement))
+            .map(|(i, placement)| InstanceLeaf::new(i, &self.instances[i], placement))
             .collect();
         let boxes = options.run(|| world_boxes(&self.instances, &geometries));
         let top = options.run(|| top_level(&placed, &boxes, options.chosen_isa()));

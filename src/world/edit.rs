@@ -4,10 +4,10 @@
 
 use super::instance::{check_instance, placement};
 use super::top::{instance_box, top_level, world_boxes};
-use super::{Geometry, GeometryId, Placed};
+use super::{Geometry, GeometryId, InstanceLeaf};
 use super::{World, WorldError};
 use crate::geometry::{Aabb, Triangle};
-use crate::layout::refit::Source;
+use crate::layout::refit::RefitInput;
 use crate::mesh::{Mesh, Positions};
 use crate::primitive::Primitive;
 use glam::Affine3A;
@@ -250,7 +250,7 @@ impl<P: Primitive> Drop for WorldEdit<'_, P> {
 }
 
 /// The top level's new primitives: each instance as placed now.
-struct Top<'a, P> {
+struct InstancesNow<'a, P> {
     instances: &'a [super::Instance],
     geometries: &'a [Geometry<P>],
     /// Which instances changed (empty: none).
@@ -259,13 +259,13 @@ struct Top<'a, P> {
     lost: AtomicBool,
 }
 
-impl<P: Primitive> Source<Placed> for Top<'_, P> {
-    fn get(&self, id: u32) -> Placed {
+impl<P: Primitive> RefitInput<InstanceLeaf> for InstancesNow<'_, P> {
+    fn get(&self, id: u32) -> InstanceLeaf {
         let inst = &self.instances[id as usize];
-        Placed::new(id as usize, inst, placement(&inst.transform))
+        InstanceLeaf::new(id as usize, inst, placement(&inst.transform))
     }
 
-    fn refresh(&self, id: u32, p: &mut Placed) {
+    fn refresh(&self, id: u32, p: &mut InstanceLeaf) {
         if self.moved_instances.get(id as usize) == Some(&true) {
             *p = self.get(id);
         }
@@ -275,7 +275,7 @@ impl<P: Primitive> Source<Placed> for Top<'_, P> {
     /// the record keeps none (it fills one line without), so the refit computes it for every
     /// instance, moved or not (eight corners transformed: small beside the refit's walk of
     /// the nodes, and a refit geometry needs no flag of its own).
-    fn bounds(&self, id: u32, _: &Placed) -> Aabb {
+    fn bounds(&self, id: u32, _: &InstanceLeaf) -> Aabb {
         let b = instance_box(&self.instances[id as usize], self.geometries);
         if !b.is_finite() {
             self.lost.store(true, Ordering::Relaxed);
@@ -289,7 +289,7 @@ impl<P: Primitive> World<P> {
     /// instead when an instance's box went out of f32's range or came back: the build leaves
     /// those out).
     fn refit_top(&mut self, moved_instances: &[bool]) {
-        let src = Top {
+        let src = InstancesNow {
             instances: &self.instances,
             geometries: &self.geometries,
             moved_instances,
@@ -313,7 +313,7 @@ impl<P: Primitive> World<P> {
                 rebuild = (0..n).any(|i| !in_top[i] && boxes[i].is_finite());
             }
             if rebuild {
-                let placed: Vec<Placed> =
+                let placed: Vec<InstanceLeaf> =
                     (0..n as u32).into_par_iter().map(|i| src.get(i)).collect();
                 self.top = top_level(&placed, &boxes, self.top.isa());
             }

@@ -68,14 +68,14 @@ use crate::layout::walk::{NodeVisit, WalkNodes};
 use crate::layout::{Bvh8, Footprint};
 use crate::primitive::Primitive;
 use glam::{Mat3A, Vec3A};
-use top::Placed;
+use top::InstanceLeaf;
 
 /// Geometries placed by instances under one top-level BVH (see the [module](self) docs).
 #[derive(Clone, Debug)]
 pub struct World<P = Triangle> {
     geometries: Vec<Geometry<P>>,
     instances: Vec<Instance>,
-    top: Bvh8<Placed>,
+    top: Bvh8<InstanceLeaf>,
     bounds: Aabb,
 }
 
@@ -138,7 +138,7 @@ impl<P: Primitive> World<P> {
     }
 
     /// The top-level BVH, for readers inside the crate (the cost predictor).
-    pub(crate) fn top(&self) -> &Bvh8<Placed> {
+    pub(crate) fn top(&self) -> &Bvh8<InstanceLeaf> {
         &self.top
     }
 

@@ -8,7 +8,7 @@
 //! come apart, and incoherent ones, go on ray by ray through the single-ray walk.
 
 use super::query::InInstance;
-use super::{Geometry, Placed, World, WorldHit};
+use super::{Geometry, InstanceLeaf, World, WorldHit};
 use crate::geometry::{Hit, Ray};
 use crate::isa::Kernels;
 use crate::layout::Bvh8Node;
@@ -26,7 +26,7 @@ use std::marker::PhantomData;
 /// The rays of one packet that see instance `p`: those of `live` whose mask shares a bit with
 /// the instance's. `uniform` is the packet's mask when every ray has the same one.
 #[inline(always)]
-fn seeing(rays: &[Ray], live: u64, uniform: Option<u32>, p: &Placed) -> u64 {
+fn seeing(rays: &[Ray], live: u64, uniform: Option<u32>, p: &InstanceLeaf) -> u64 {
     match uniform {
         Some(m) if m & p.mask != 0 => live,
         Some(_) => 0,
@@ -45,7 +45,12 @@ fn uniform_mask(rays: &[Ray]) -> Option<u32> {
 /// Chunk `k` of packet `pk` in instance `p`'s object space, in lanes `V`: its origin and
 /// direction lanes transformed (an instance placed as it is takes them as they are).
 #[inline(always)]
-fn chunk_to_object<V: F8>(cpu: V::Cpu, p: &Placed, pk: &RayPacket, k: usize) -> ([V; 3], [V; 3]) {
+fn chunk_to_object<V: F8>(
+    cpu: V::Cpu,
+    p: &InstanceLeaf,
+    pk: &RayPacket,
+    k: usize,
+) -> ([V; 3], [V; 3]) {
     let (o, d) = (&pk.rays.o, &pk.rays.d);
     let lanes = |x: &[Lanes; 3]| {
         [
@@ -58,7 +63,7 @@ fn chunk_to_object<V: F8>(cpu: V::Cpu, p: &Placed, pk: &RayPacket, k: usize) -> 
     if p.identity {
         return (wo, wd);
     }
-    // The floats of `Placed::world_to_object`, each broadcast straight from the record:
+    // The floats of `InstanceLeaf::world_to_object`, each broadcast straight from the record:
     // column `j` of the linear part in lanes 0..3 of `to_object[j]`, translation component
     // `a` in lane 3 of `to_object[a]`.
     let [cx, cy, cz] = &p.to_object;
@@ -82,7 +87,7 @@ fn chunk_to_object<V: F8>(cpu: V::Cpu, p: &Placed, pk: &RayPacket, k: usize) -> 
 /// The rays `m` of packet `pk` in instance `p`'s object space, as a packet of their own in
 /// `out`, each searching over its interval so far.
 #[inline(always)]
-fn local_packet<V: F8>(cpu: V::Cpu, p: &Placed, pk: &RayPacket, m: u64, out: &mut RayPacket) {
+fn local_packet<V: F8>(cpu: V::Cpu, p: &InstanceLeaf, pk: &RayPacket, m: u64, out: &mut RayPacket) {
     let mut b = PacketBuilder::<V>::over(cpu, out);
     for k in 0..CHUNKS {
         let lanes = (m >> (LANES * k)) as u32 & 0xFF;
@@ -128,7 +133,7 @@ impl<P: Primitive> Geometry<P> {
 #[inline(always)]
 fn local_rays<V: F8>(
     cpu: V::Cpu,
-    p: &Placed,
+    p: &InstanceLeaf,
     pk: &RayPacket,
     rays: &[Ray],
     m: u64,

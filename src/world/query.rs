@@ -2,7 +2,7 @@
 //! enters (its mask shares a bit with the ray's), the ray brought into object space and the
 //! instance's geometry asked with the nearest hit so far as its limit.
 
-use super::{Geometry, Placed, World, WorldHit};
+use super::{Geometry, InstanceLeaf, World, WorldHit};
 use crate::geometry::{Hit, Ray};
 use crate::isa::Kernels;
 use crate::primitive::Primitive;
@@ -121,7 +121,7 @@ impl<P: Primitive> World<P> {
     pub(super) fn search_in<V: F8, A: Ask, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
         &self,
         cpu: V::Cpu,
-        p: &Placed,
+        p: &InstanceLeaf,
         ray: &Ray,
         best: &mut WorldHit,
         stats: &mut S,

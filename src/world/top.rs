@@ -1,4 +1,4 @@
-//! The top level of a world: its per-instance leaf records ([`Placed`]), each instance's world
+//! The top level of a world: its per-instance leaf records ([`InstanceLeaf`]), each instance's world
 //! box, and the 8-wide BVH over them.
 
 use super::{Geometry, Instance};
@@ -35,10 +35,10 @@ fn world_box(m: &Affine3A, b: &Aabb) -> Aabb {
 }
 
 /// Every instance's world box, in instance order: what the top level is built over. Kept
-/// out of [`Placed`], which the walks read, so a placed instance fills one cache line; the
-/// refit computes them again from the instances ([`Source::bounds`] of `edit::Top`).
+/// out of [`InstanceLeaf`], which the walks read, so a placed instance fills one cache line; the
+/// refit computes them again from the instances ([`RefitInput::bounds`] of `edit::InstancesNow`).
 ///
-/// [`Source::bounds`]: crate::layout::refit::Source::bounds
+/// [`RefitInput::bounds`]: crate::layout::refit::RefitInput::bounds
 pub(super) fn world_boxes<P: Primitive>(
     instances: &[Instance],
     geometries: &[Geometry<P>],
@@ -63,9 +63,9 @@ pub(super) fn instance_box<P: Primitive>(inst: &Instance, geometries: &[Geometry
 /// costlier than a node's). The build drops an instance whose box is not finite.
 ///
 /// It keeps no input indices (`prim_ids` empty): the input index of a record is the
-/// instance it names, so they would repeat `Placed::instance` in 4 more bytes an instance.
+/// instance it names, so they would repeat `InstanceLeaf::instance` in 4 more bytes an instance.
 /// Only a refit reads them, and `World::refit_top` lends it a copy for the while.
-pub(super) fn top_level(placed: &[Placed], boxes: &[Aabb], isa: Isa) -> Bvh8<Placed> {
+pub(super) fn top_level(placed: &[InstanceLeaf], boxes: &[Aabb], isa: Isa) -> Bvh8<InstanceLeaf> {
     let config = BuildConfig {
         max_leaf_size: 1,
         ..BuildConfig::default()
@@ -86,10 +86,10 @@ pub(super) fn top_level(placed: &[Placed], boxes: &[Aabb], isa: Isa) -> Bvh8<Pla
 /// the top level's nodes hold it); builds and refits compute it from the [`Instance`].
 #[derive(Clone, Debug)]
 #[repr(C, align(64))]
-pub(crate) struct Placed {
+pub(crate) struct InstanceLeaf {
     /// World to object space, packed into 48 bytes: `to_object[j]` holds column `j` of the
     /// linear part in lanes 0..3 and the translation's component `j` in lane 3 (read through
-    /// [`Placed::world_to_object`], or lane by lane by the packet transform).
+    /// [`InstanceLeaf::world_to_object`], or lane by lane by the packet transform).
     pub(crate) to_object: [[f32; 4]; 3],
     pub(crate) geometry: u32,
     pub(crate) mask: u32,
@@ -101,18 +101,18 @@ pub(crate) struct Placed {
 
 // One line per instance: a record that grew past it would cost every instance entry a
 // second miss and the world's memory target (issue 26) its margin.
-const _: () = assert!(std::mem::size_of::<Placed>() == 64);
+const _: () = assert!(std::mem::size_of::<InstanceLeaf>() == 64);
 
-impl Placed {
+impl InstanceLeaf {
     /// Instance `index` (`inst`, with its checked `placement`).
     pub(super) fn new(
         index: usize,
         inst: &Instance,
         (world_to_object, identity): (Affine3A, bool),
-    ) -> Placed {
+    ) -> InstanceLeaf {
         let (m, t) = (world_to_object.matrix3, world_to_object.translation);
         let col = |c: Vec3A, t: f32| [c.x, c.y, c.z, t];
-        Placed {
+        InstanceLeaf {
             to_object: [col(m.x_axis, t.x), col(m.y_axis, t.y), col(m.z_axis, t.z)],
             geometry: inst.geometry.0,
             mask: inst.mask,
@@ -158,15 +158,15 @@ impl Placed {
 /// The top level's primitive, for the layout's sake only: [`Bvh8`] holds it as its leaf
 /// data, which the world's walks read (they test the instance's geometry, never `intersect`).
 ///
-/// `bounds` is not called either, so the record keeps no box. No path of `Bvh8<Placed>`
+/// `bounds` is not called either, so the record keeps no box. No path of `Bvh8<InstanceLeaf>`
 /// reaches it: the build takes the world boxes from [`world_boxes`] (never `prim_bounds`),
 /// `Bvh8::from_leaf_prims` lays out the tree's boxes (a plain leaf format packs no groups and
 /// reads no primitive's box), `footprint` counts bytes, and the refit asks its source for
-/// every leaf box ([`Source::bounds`](crate::layout::refit::Source::bounds), which
-/// `edit::Top` computes from the instance); nor are the defaults that call it
+/// every leaf box ([`RefitInput::bounds`](crate::layout::refit::RefitInput::bounds), which
+/// `edit::InstancesNow` computes from the instance); nor are the defaults that call it
 /// (`surface_area`, `is_finite`), nor the layout's own queries. A path that did would be a bug,
 /// so it panics rather than give a box.
-impl Primitive for Placed {
+impl Primitive for InstanceLeaf {
     fn bounds(&self) -> Aabb {
         unreachable!("a placed instance keeps no box: its world box comes from the instance")
     }

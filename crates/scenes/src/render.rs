@@ -370,13 +370,13 @@ fn render_with<W: Work>(
     ];
     // Per band: its pixel rows, their digests, its eye rays' node counts (each `None` where
     // there are none) and its two edge rows.
-    let mut jobs: Vec<Job> = Vec::with_capacity(bands);
+    let mut jobs: Vec<BandOutputs> = Vec::with_capacity(bands);
     {
         let mut pixels = rgb.chunks_mut(TILE * res.max(1));
         let mut rows = digests.chunks_mut(TILE);
         let mut nodes = eye_nodes.chunks_mut(TILE * n);
         for edge in edges.chunks_mut(2 * n) {
-            jobs.push(Job {
+            jobs.push(BandOutputs {
                 pixels: pixels.next(),
                 digests: rows.next(),
                 eye_nodes: nodes.next(),
@@ -488,7 +488,7 @@ fn render_with<W: Work>(
 type Seam<'a> = (usize, Option<&'a mut [[u8; 3]]>, &'a mut u64);
 
 /// One band's share of the render's outputs (see `render_with`).
-struct Job<'a> {
+struct BandOutputs<'a> {
     /// Its [`TILE`] pixel rows (the last holds the seam with the next band), if kept.
     pixels: Option<&'a mut [[u8; 3]]>,
     digests: Option<&'a mut [u64]>,
