@@ -1,4 +1,4 @@
-//! Watertight probe: `cargo run --release -p quiver-lab --example wt -- KERNEL SCENE RAYS REPS`
+//! Watertight probe: `cargo run --release -p quiver-lab --example watertight_probe -- KERNEL SCENE RAYS REPS`
 //! traces RAYS incoherent rays (the accuracy study's) through SCENE as triangles on one thread,
 //! closest then any hit, with KERNEL `fast` (fast triangles, plain boxes) or `water`
 //! (watertight triangles, conservative boxes), or `fast-conservative` / `water-plain`, and prints the fastest round's Mrays/s of each;

@@ -1,4 +1,4 @@
-//! Render probe: `cargo run --release --example rp -- SCENE RES REPS [LAYOUT]` renders the
+//! Render probe: `cargo run --release -p quiver-lab --example render_probe -- SCENE RES REPS [LAYOUT]` renders the
 //! scene (curve mode) with packets off and on, alternating, one thread, and prints the
 //! fastest and median trace time of each and their ratio. A fifth argument `off` or `on`
 //! renders in that mode only (for profiling one side).

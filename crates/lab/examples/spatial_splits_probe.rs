@@ -1,5 +1,5 @@
 //! The high-quality preset (spatial splits) against the default build:
-//! `cargo run --release -p quiver-lab --example sbvh_bench -- [--reps N] [--res R] [--rays N]
+//! `cargo run --release -p quiver-lab --example spatial_splits_probe -- [--reps N] [--res R] [--rays N]
 //! SCENE...` with generator names, mesh files or `slivers` (long, thin, crossing triangles).
 //! Per scene, in one run: the median build time of each preset (builds interleaved), the SAH
 //! cost of each tree and laid-out BVH, the references, and the median time of eye rays (an

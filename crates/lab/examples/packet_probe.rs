@@ -1,4 +1,4 @@
-//! Packet probe: `cargo run --release --example pk -- SCENE LAYOUT SIZE REPS` traces the
+//! Packet probe: `cargo run --release -p quiver-lab --example packet_probe -- SCENE LAYOUT SIZE REPS` traces the
 //! scene's 512² eye rays (patch mode, as triangles) in 8×8 tiles on one thread: with the
 //! packet kernel in packets of SIZE rays (8, 16, 32 or 64; 0 = single rays), REPS rounds,
 //! and prints the fastest round's Mrays/s. For quick A/B runs and profiling; the tables come

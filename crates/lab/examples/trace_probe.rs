@@ -1,11 +1,11 @@
-//! Trace probe: `cargo run --release -p quiver-lab --example tr -- SCENE REPS [RAYS]` builds
+//! Trace probe: `cargo run --release -p quiver-lab --example trace_probe -- SCENE REPS [RAYS]` builds
 //! the default BVH over SCENE (a generator name or a mesh file, as triangles) and traces, on
 //! one thread, its 512² eye rays, shadow rays from their hits toward the first light, and RAYS
 //! incoherent rays (default 200,000), REPS rounds each, interleaved; prints the fastest
 //! round's Mrays/s of each. The fastest round is what a busy machine perturbs least: for
 //! quick A/B runs of two builds; the tables come from `quiver bench`. Environment knobs for
-//! trying build settings: `TR_LEAF` (largest leaf), `TR_BINS`, `TR_CT` (the SAH's node cost)
-//! and `TR_BUILDER` (a `quiver_rt::builders::Builder` name, e.g. `sbvh` or `sweep`).
+//! trying build settings: `LEAF` (largest leaf), `BINS`, `NODE_COST` (the SAH's node cost)
+//! and `BUILDER` (a `quiver_rt::builders::Builder` name, e.g. `sbvh` or `sweep`).
 use quiver_rt::{Bvh, RayQuery};
 use quiver_scenes::scene::tessellate::DEFAULT_RESOLUTION;
 use quiver_scenes::Scene;
@@ -22,18 +22,18 @@ fn main() {
     let tris = scene.triangles();
     let env = |k: &str| std::env::var(k).ok().map(|v| v.parse::<f32>().expect(k));
     let mut config = quiver_rt::builders::BuildConfig::default();
-    if let Some(v) = env("TR_LEAF") {
+    if let Some(v) = env("LEAF") {
         config.max_leaf_size = v as usize;
     }
-    if let Some(v) = env("TR_BINS") {
+    if let Some(v) = env("BINS") {
         config.bins = v as usize;
     }
-    if let Some(v) = env("TR_CT") {
+    if let Some(v) = env("NODE_COST") {
         config.traversal_cost = v;
     }
     let mut options = quiver_rt::BuildOptions::default().config(config);
-    if let Ok(name) = std::env::var("TR_BUILDER") {
-        options = options.builder(name.parse().expect("TR_BUILDER"));
+    if let Ok(name) = std::env::var("BUILDER") {
+        options = options.builder(name.parse().expect("BUILDER"));
     }
     let bvh: Bvh = options.build(&tris);
     let eye = quiver_lab::rays::camera_rays(&scene.camera, 512);

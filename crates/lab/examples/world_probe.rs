@@ -1,4 +1,4 @@
-//! Filter and mask price probe: `cargo run --release -p quiver-lab --example fm -- SCENE MODE`
+//! Filter and mask price probe: `cargo run --release -p quiver-lab --example world_probe -- SCENE MODE`
 //! builds SCENE (an SPD generator name) as instances of unit shapes, the world `quiver bench
 //! --instanced` measures, and traces its 256² eye rays (closest hit) and their shadow rays
 //! (any hit) once, in MODE: `plain` (no filter, default masks), `filter` (a filter that
@@ -7,9 +7,9 @@
 //! same through the flattened patch scene), `packets50` (the packets 50 times), `plain20` and
 //! `flat` (the plain rays 20 times, through the world and through the flattened patch scene,
 //! for `perf record`), `counts` (nodes, boxes, leaves and primitives a ray, instanced beside
-//! flattened) or `none` (builds only). `FM_BUILDER=NAME` builds the world with that builder
+//! flattened) or `none` (builds only). `BUILDER=NAME` builds the world with that builder
 //! (a `quiver_rt::builders::Builder` name, e.g. `sbvh` or `sweep`) instead of the default.
-//! Meant for `valgrind --tool=callgrind --toggle-collect='fm::trace*'`, whose instruction
+//! Meant for `valgrind --tool=callgrind --toggle-collect='world_probe::trace*'`, whose instruction
 //! counts, unlike times on a shared machine, repeat exactly: the difference between modes is
 //! the features' price per ray.
 use quiver_lab::rays;
@@ -56,8 +56,8 @@ fn main() {
     let mode = a.get(2).map_or("plain", |s| s.as_str());
     let scene = Scene::load(name).expect("scene");
     let mut opts = BuildOptions::default();
-    if let Ok(name) = std::env::var("FM_BUILDER") {
-        opts = opts.builder(name.parse().expect("FM_BUILDER"));
+    if let Ok(name) = std::env::var("BUILDER") {
+        opts = opts.builder(name.parse().expect("BUILDER"));
     }
     let q =
         SceneBvh::build_instanced(&scene, DEFAULT_RESOLUTION, &opts).expect("an instanced world");
