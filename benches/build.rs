@@ -8,7 +8,7 @@ use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use obvhs::{bvh2::builder::build_bvh2_from_tris, BvhBuildParams};
 use quiver_lab::obvhs_bridge::{sah_cost as obvhs_sah, triangles as obvhs_tris};
 use quiver_rt::builders::{BuildConfig, Builder};
-use quiver_rt::{BuildOptions, Layout};
+use quiver_rt::{BuildOptions, Bvh, Layout};
 use quiver_scenes::Scene;
 use std::time::Duration;
 
@@ -41,13 +41,16 @@ fn bench_builds(c: &mut Criterion) {
                     .builder(builder)
                     .layout(Layout::Bvh2Dfs)
                     .thread_pool(&pool);
-                let sah = options.build_with_tree(tris).1.sah_cost(&config);
+                let sah = Bvh::build_with_tree(tris, &options)
+                    .unwrap()
+                    .1
+                    .sah_cost(&config);
                 println!(
                     "{name} ({} tris) quiver {builder} threads {threads}: SAH cost {sah:.3}",
                     tris.len()
                 );
                 let id = BenchmarkId::new(format!("quiver-{builder}/{threads}t"), name);
-                group.bench_function(id, |b| b.iter(|| options.build_with_tree(tris)));
+                group.bench_function(id, |b| b.iter(|| Bvh::build_with_tree(tris, &options)));
             }
             let medium = BvhBuildParams::medium_build();
             let sah = pool.install(|| {

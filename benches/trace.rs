@@ -22,7 +22,8 @@ fn bench_layouts(c: &mut Criterion) {
         &prim_bounds(&tris),
         &BuildConfig::default(),
         Builder::Binned,
-    );
+    )
+    .unwrap();
     let sets = [
         ("random", rays::random_rays(&scene.bounds(), 100_000, 7)),
         ("camera", rays::camera_rays(&scene.camera, 256)),

@@ -12,7 +12,7 @@ const SHADOW: u32 = 0b10;
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut scene = World::builder();
     // A ground quad, placed once at the identity (no transform work when traced).
-    let ground = scene.mesh(
+    let ground = scene.add_mesh(
         &[
             [-50.0, 0.0, -50.0],
             [50.0, 0.0, -50.0],
@@ -21,11 +21,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ],
         &[[0, 2, 1], [0, 3, 2]],
     )?;
-    scene.instance(Instance::of(ground).mask(CAMERA | SHADOW));
+    scene.add_instance(Instance::of(ground).mask(CAMERA | SHADOW));
     // A "tree": an octahedron of 8 triangles, planted 400 times, scaled and turned. The mesh
     // is stored once; each instance is a transform, a mask and the renderer's own id.
     let r = 1.0f32;
-    let tree = scene.mesh(
+    let tree = scene.add_mesh(
         &[
             [r, 1.0, 0.0],
             [-r, 1.0, 0.0],
@@ -54,7 +54,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         );
         // Every fifth tree casts no shadow: shadow rays carry only the SHADOW bit.
         let mask = if i % 5 == 0 { CAMERA } else { CAMERA | SHADOW };
-        scene.instance(Instance::of(tree).transform(place).mask(mask).id(i));
+        scene.add_instance(Instance::of(tree).transform(place).mask(mask).user_id(i));
     }
     let world = scene.build(&BuildOptions::default())?;
 
@@ -64,9 +64,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let normal = world.normal(&ray, &hit).unwrap_or(Vec3A::ZERO);
         println!(
             "instance {} (tree {}), mesh {}, triangle {}, t = {:.3}, normal {normal:.2}",
-            hit.instance,
-            world.instance(hit.instance).id,
-            hit.geometry,
+            hit.instance.0,
+            world.instance(hit.instance).user_id,
+            hit.geometry.0,
             hit.prim,
             hit.t
         );
@@ -74,7 +74,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 
     // An alpha test: the upper half of every tree's triangles is "transparent" (u + v > 0.5
     // stands in for a texture lookup). A rejected candidate is skipped and the ray goes on.
-    let alpha = |h: &WorldHit| h.geometry != tree.0 || h.u + h.v <= 0.5;
+    let alpha = |h: &WorldHit| h.geometry != tree || h.u + h.v <= 0.5;
     let filtered = world.closest_hit_filtered(&ray, alpha);
     println!(
         "with the alpha test: {:?}",

@@ -6,6 +6,7 @@
 //! SSE2 on x86-64, NEON on aarch64, scalar elsewhere) run everywhere else. Both compute every
 //! float the same way, operation for operation, so they return bit-identical answers.
 
+use crate::names::{by_name, ParseError};
 use std::fmt;
 
 /// The kernels a BVH traverses with.
@@ -24,9 +25,6 @@ pub enum Isa {
     /// bit-identical to the portable kernels').
     Avx2,
 }
-
-/// The environment variable that forces an instruction set: `portable` or `avx2`.
-pub const ISA_ENV: &str = "QUIVER_ISA";
 
 /// Proof that this CPU runs AVX2 and FMA instructions. Its field is private to this module and
 /// [`Avx2Cpu::detect`], which asks the CPU, is its only constructor: a value exists only
@@ -71,12 +69,20 @@ impl Kernels {
 }
 
 impl Isa {
+    /// The environment variable that forces an instruction set, `QUIVER_ISA`: `portable` or
+    /// `avx2` (see [`Isa::detect`]).
+    ///
+    /// ```
+    /// assert_eq!(quiver_rt::Isa::ENV, "QUIVER_ISA");
+    /// ```
+    pub const ENV: &'static str = "QUIVER_ISA";
+
     /// Every instruction set, portable first.
     pub const ALL: [Isa; 2] = [Isa::Portable, Isa::Avx2];
 
-    /// The best instruction set this CPU runs, unless [`ISA_ENV`] says `portable` (or
+    /// The best instruction set this CPU runs, unless [`Isa::ENV`] says `portable` (or
     /// `avx2`, which is honoured only where supported). Read when a BVH is built. A value of
-    /// [`ISA_ENV`] that names no instruction set is ignored here; [`Isa::from_env`] reports it
+    /// [`Isa::ENV`] that names no instruction set is ignored here; [`Isa::from_env`] reports it
     /// (the `quiver` command refuses to start with one).
     pub fn detect() -> Isa {
         match Isa::from_env() {
@@ -85,23 +91,29 @@ impl Isa {
         }
     }
 
-    /// What [`ISA_ENV`] asks for: `None` when it is unset or empty, an error naming the value
-    /// and the accepted ones when it names no instruction set.
+    /// What [`Isa::ENV`] asks for: `None` when it is unset or empty, an error naming the
+    /// value and the accepted ones when it names no instruction set.
     ///
     /// ```
     /// use quiver_rt::Isa;
     /// assert_eq!("portable".parse::<Isa>(), Ok(Isa::Portable));
-    /// assert!("Portable".parse::<Isa>().unwrap_err().contains("portable, avx2"));
+    /// assert_eq!("Portable".parse::<Isa>().unwrap_err().expected, ["portable", "avx2"]);
     /// ```
-    pub fn from_env() -> Result<Option<Isa>, String> {
-        match std::env::var(ISA_ENV) {
-            Err(std::env::VarError::NotPresent) => Ok(None),
-            Err(std::env::VarError::NotUnicode(v)) => {
-                Err(format!("{ISA_ENV}={v:?}: expected one of portable, avx2"))
-            }
-            Ok(v) if v.is_empty() => Ok(None),
-            Ok(v) => v.parse().map(Some).map_err(|e| format!("{ISA_ENV}: {e}")),
-        }
+    ///
+    /// # Errors
+    /// [`ParseError`] (its `what` names the variable) when the value names no instruction
+    /// set.
+    pub fn from_env() -> Result<Option<Isa>, ParseError> {
+        let given = match std::env::var(Isa::ENV) {
+            Err(std::env::VarError::NotPresent) => return Ok(None),
+            Err(std::env::VarError::NotUnicode(v)) => v.to_string_lossy().into_owned(),
+            Ok(v) if v.is_empty() => return Ok(None),
+            Ok(v) => v,
+        };
+        given.parse().map(Some).map_err(|e: ParseError| ParseError {
+            what: "instruction set in QUIVER_ISA",
+            ..e
+        })
     }
 
     /// The best instruction set this CPU runs.
@@ -140,14 +152,11 @@ impl Isa {
 }
 
 impl std::str::FromStr for Isa {
-    type Err = String;
+    type Err = ParseError;
 
     /// An instruction set by its [`Isa::name`]; the error lists the names.
-    fn from_str(s: &str) -> Result<Self, String> {
-        Isa::ALL
-            .into_iter()
-            .find(|i| i.name() == s)
-            .ok_or_else(|| format!("unknown instruction set '{s}': expected one of portable, avx2"))
+    fn from_str(s: &str) -> Result<Self, ParseError> {
+        by_name(s, &Isa::ALL, Isa::name, "instruction set")
     }
 }
 

@@ -50,6 +50,7 @@ pub mod layout;
 mod mask;
 mod mem;
 mod mesh;
+mod names;
 pub mod predict;
 pub mod primitive;
 mod rng;
@@ -58,14 +59,44 @@ mod testing;
 pub mod traverse;
 pub mod world;
 
+// The crate root names what a renderer meets first; the layouts' types, the builders'
+// parameters and the traversal's type parameters live in their modules.
+pub use builders::{BuildError, TreeError};
 pub use bvh::{BuildOptions, Bvh, RefitError};
 pub use geometry::{Aabb, Hit, PrimHit, Ray, Triangle};
-pub use isa::{Isa, ISA_ENV};
-pub use layout::{
-    Bvh2, Bvh2Mapping, Bvh2Node, Bvh4, Bvh4Mapping, Bvh4Node, Bvh8, Bvh8Node, Footprint, Layout,
-    Node4, QBvh4, QBvh4Node, Tri4,
-};
+pub use isa::Isa;
+pub use layout::{Footprint, Layout};
 pub use mesh::{MeshError, Positions};
-pub use primitive::{LeafFormat, Primitive};
+pub use names::ParseError;
+pub use primitive::Primitive;
 pub use traverse::{reference, RayQuery};
-pub use world::{Geometry, GeometryId, Instance, World, WorldBuilder, WorldError, WorldHit};
+pub use world::{GeometryId, Instance, InstanceId, World, WorldBuilder, WorldError, WorldHit};
+
+/// What a renderer needs in one import: `use quiver_rt::prelude::*;` brings the BVH and its
+/// build options, the layouts' names, rays, triangles and hits, the query trait, worlds with
+/// their instances and ids, and every error a build, refit or world can return.
+///
+/// ```
+/// use quiver_rt::prelude::*;
+/// use quiver_rt::glam::Vec3A;
+/// let tris = [Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y)];
+/// let bvh = Bvh::build(&tris, &BuildOptions::fast().layout(Layout::Bvh4Dfs))?;
+/// let hit: Option<Hit> = bvh.closest_hit(&Ray::new(Vec3A::new(0.2, 0.2, 1.0), -Vec3A::Z));
+/// assert_eq!(hit.map(|h| h.prim), Some(0));
+///
+/// let mut scene = WorldBuilder::new();
+/// let g: GeometryId = scene.add_triangles(tris.to_vec());
+/// let i: InstanceId = scene.add_instance(Instance::of(g));
+/// let world: World = scene.build(&BuildOptions::default())?;
+/// let hit: Option<WorldHit> = world.closest_hit(&Ray::new(Vec3A::new(0.2, 0.2, 1.0), -Vec3A::Z));
+/// assert_eq!(hit.map(|h| h.instance), Some(i));
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+pub mod prelude {
+    pub use crate::builders::Builder;
+    pub use crate::{
+        Aabb, BuildError, BuildOptions, Bvh, GeometryId, Hit, Instance, InstanceId, Layout,
+        MeshError, Positions, PrimHit, Primitive, Ray, RayQuery, RefitError, TreeError, Triangle,
+        World, WorldBuilder, WorldError, WorldHit,
+    };
+}

@@ -18,7 +18,7 @@
 //!
 //! ```
 //! use quiver_rt::predict::predict;
-//! use quiver_rt::{BuildOptions, Layout, Triangle};
+//! use quiver_rt::{BuildOptions, Bvh, Layout, Triangle};
 //! use glam::Vec3A;
 //! let tris: Vec<Triangle> = (0..64)
 //!     .map(|i| {
@@ -26,7 +26,7 @@
 //!         Triangle::new(o, o + Vec3A::X, o + Vec3A::Y)
 //!     })
 //!     .collect();
-//! let (bvh, tree) = BuildOptions::default().layout(Layout::Bvh2Dfs).build_with_tree(&tris);
+//! let (bvh, tree) = Bvh::build_with_tree(&tris, &BuildOptions::default().layout(Layout::Bvh2Dfs)).unwrap();
 //! let (p, q) = (predict(&tree), predict(&bvh));
 //! // The binary layout holds the build tree's nodes: the same sums.
 //! assert!((p.nodes - q.nodes).abs() < 1e-9 && p.nodes >= 1.0);
@@ -67,10 +67,10 @@ impl Prediction {
     ///
     /// ```
     /// use quiver_rt::predict::predict;
-    /// use quiver_rt::{BuildOptions, Triangle};
+    /// use quiver_rt::{BuildOptions, Bvh, Triangle};
     /// use glam::Vec3A;
     /// let tris = vec![Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y)];
-    /// let (_, tree) = BuildOptions::default().build_with_tree(&tris);
+    /// let (_, tree) = Bvh::build_with_tree(&tris, &BuildOptions::default()).unwrap();
     /// let p = predict(&tree);
     /// // One leaf holding one triangle, entered by every line: W = 2·A(B).
     /// assert_eq!(p.aronov(0.0), 2.0);
@@ -146,12 +146,12 @@ pub struct Census {
 ///
 /// ```
 /// use quiver_rt::predict::census;
-/// use quiver_rt::{BuildOptions, Layout, Triangle};
+/// use quiver_rt::{BuildOptions, Bvh, Layout, Triangle};
 /// use glam::Vec3A;
 /// let tris: Vec<Triangle> = (0..100)
 ///     .map(|i| Triangle::new(Vec3A::splat(i as f32), Vec3A::X, Vec3A::Y))
 ///     .collect();
-/// let (bvh, tree) = BuildOptions::default().layout(Layout::Bvh4Dfs).build_with_tree(&tris);
+/// let (bvh, tree) = Bvh::build_with_tree(&tris, &BuildOptions::default().layout(Layout::Bvh4Dfs)).unwrap();
 /// let (binary, wide) = (census(&tree), census(&bvh));
 /// assert_eq!((binary.references, wide.references), (100, 100));
 /// assert_eq!(binary.inner + 1, binary.leaves); // a binary tree
@@ -181,12 +181,12 @@ impl<P: Primitive> Bvh<P> {
     ///
     /// ```
     /// use quiver_rt::predict::predict;
-    /// use quiver_rt::{BuildOptions, Layout, Triangle};
+    /// use quiver_rt::{BuildOptions, Bvh, Layout, Triangle};
     /// use glam::Vec3A;
     /// let tris: Vec<Triangle> = (0..50)
     ///     .map(|i| Triangle::new(Vec3A::splat(i as f32), Vec3A::X, Vec3A::Y))
     ///     .collect();
-    /// let (bvh, tree) = BuildOptions::default().layout(Layout::Bvh8Dfs).build_with_tree(&tris);
+    /// let (bvh, tree) = Bvh::build_with_tree(&tris, &BuildOptions::default().layout(Layout::Bvh8Dfs)).unwrap();
     /// let p = bvh.predict_within(&tree.nodes[0].bounds);
     /// assert!(p.nodes >= 1.0 && p.box_tests >= 8.0);
     /// ```

@@ -1,6 +1,6 @@
 //! The builder registry: [`Builder`], every algorithm by name.
 
-use super::config::by_name;
+use crate::names::{by_name, ParseError};
 use std::fmt;
 
 /// Which algorithm builds the tree.
@@ -119,10 +119,10 @@ impl fmt::Display for Builder {
 }
 
 impl std::str::FromStr for Builder {
-    type Err = String;
+    type Err = ParseError;
 
     /// A builder by its [`Builder::name`]; the error lists the names.
-    fn from_str(s: &str) -> Result<Self, String> {
+    fn from_str(s: &str) -> Result<Self, ParseError> {
         by_name(s, &Builder::ALL, Builder::name, "builder")
     }
 }

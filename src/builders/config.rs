@@ -1,6 +1,8 @@
-//! [`BuildConfig`]: the settings every builder shares, and how a bad one is named.
+//! [`BuildConfig`]: the settings every builder shares, and [`ConfigError`], how a bad one is
+//! named.
 
 use super::CostModel;
+use std::fmt;
 
 /// Settings shared by the builders.
 #[derive(Clone, Debug, PartialEq)]
@@ -49,35 +51,40 @@ impl Default for BuildConfig {
 }
 
 impl BuildConfig {
-    /// Whether the settings are in range, and if not which one is wrong: what [`super::build`]
-    /// checks before it starts, for callers that take settings from users.
+    /// Whether the settings are in range, and if not which one is wrong: what every build
+    /// checks before it starts (a build with a bad setting returns this error, never panics).
     ///
     /// ```
-    /// use quiver_rt::builders::BuildConfig;
-    /// assert!(BuildConfig::default().check().is_ok());
+    /// use quiver_rt::builders::{BuildConfig, ConfigError};
+    /// assert_eq!(BuildConfig::default().check(), Ok(()));
     /// let bad = BuildConfig { bins: 1, ..BuildConfig::default() };
-    /// assert!(bad.check().unwrap_err().contains("bins"));
+    /// assert_eq!(bad.check(), Err(ConfigError::Bins { bins: 1 }));
+    /// assert_eq!(bad.check().unwrap_err().to_string(), "bins must be in 2..=1024, got 1");
     /// ```
-    pub fn check(&self) -> Result<(), String> {
+    ///
+    /// # Errors
+    /// [`ConfigError`] naming the first setting out of range: `bins` outside 2..=1024,
+    /// `max_leaf_size` 0, a negative or non-finite SAH cost, a `leaf_group` above 64.
+    pub fn check(&self) -> Result<(), ConfigError> {
         if !(2..=1024).contains(&self.bins) {
-            return Err(format!("bins must be in 2..=1024, got {}", self.bins));
+            return Err(ConfigError::Bins { bins: self.bins });
         }
         if self.max_leaf_size < 1 {
-            return Err("max_leaf_size must be at least 1, got 0".into());
+            return Err(ConfigError::MaxLeafSize);
         }
-        for (name, c) in [
+        for (field, value) in [
             ("traversal_cost", self.traversal_cost),
             ("intersection_cost", self.intersection_cost),
         ] {
-            if !(c.is_finite() && c >= 0.0) {
-                return Err(format!("{name} must be a finite number >= 0, got {c}"));
+            if !(value.is_finite() && value >= 0.0) {
+                return Err(ConfigError::Cost { field, value });
             }
         }
         if self.leaf_group > MAX_LEAF_GROUP {
-            return Err(format!(
-                "leaf_group must be at most {MAX_LEAF_GROUP}, got {}",
-                self.leaf_group
-            ));
+            return Err(ConfigError::LeafGroup {
+                leaf_group: self.leaf_group,
+                max: MAX_LEAF_GROUP,
+            });
         }
         Ok(())
     }
@@ -107,18 +114,49 @@ impl BuildConfig {
 /// The widest leaf group [`BuildConfig::check`] accepts.
 const MAX_LEAF_GROUP: usize = 64;
 
-/// The item of `all` called `s`; the error names `what` and lists the names.
-pub(super) fn by_name<T: Copy>(
-    s: &str,
-    all: &[T],
-    name: fn(T) -> &'static str,
-    what: &str,
-) -> Result<T, String> {
-    all.iter().copied().find(|&x| name(x) == s).ok_or_else(|| {
-        let names: Vec<&str> = all.iter().map(|&x| name(x)).collect();
-        format!("unknown {what} '{s}': expected one of {}", names.join(", "))
-    })
+/// A [`BuildConfig`] setting out of range ([`BuildConfig::check`]): each names the setting
+/// and the value given.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ConfigError {
+    /// `bins` outside 2..=1024.
+    Bins {
+        /// The value given.
+        bins: usize,
+    },
+    /// `max_leaf_size` 0: a leaf must hold at least one primitive.
+    MaxLeafSize,
+    /// A SAH cost (`traversal_cost` or `intersection_cost`) negative or not finite.
+    Cost {
+        /// Which cost.
+        field: &'static str,
+        /// The value given.
+        value: f32,
+    },
+    /// `leaf_group` above `max`.
+    LeafGroup {
+        /// The value given.
+        leaf_group: usize,
+        /// The widest group accepted.
+        max: usize,
+    },
 }
+
+impl fmt::Display for ConfigError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ConfigError::Bins { bins } => write!(f, "bins must be in 2..=1024, got {bins}"),
+            ConfigError::MaxLeafSize => write!(f, "max_leaf_size must be at least 1, got 0"),
+            ConfigError::Cost { field, value } => {
+                write!(f, "{field} must be a finite number >= 0, got {value}")
+            }
+            ConfigError::LeafGroup { leaf_group, max } => {
+                write!(f, "leaf_group must be at most {max}, got {leaf_group}")
+            }
+        }
+    }
+}
+
+impl std::error::Error for ConfigError {}
 
 #[cfg(test)]
 mod tests {

@@ -1,8 +1,8 @@
 //! How a candidate split is scored: [`CostModel`] (the SAH and Moulin and Dutré's
 //! ray-termination variants), and the split-or-leaf test every top-down builder makes.
 
-use super::config::by_name;
 use super::BuildConfig;
+use crate::names::{by_name, ParseError};
 use std::fmt;
 
 /// The cost a builder minimises when it picks a split, for both builders.
@@ -63,10 +63,10 @@ impl fmt::Display for CostModel {
 }
 
 impl std::str::FromStr for CostModel {
-    type Err = String;
+    type Err = ParseError;
 
     /// A cost model by its [`CostModel::name`]; the error lists the names.
-    fn from_str(s: &str) -> Result<Self, String> {
+    fn from_str(s: &str) -> Result<Self, ParseError> {
         by_name(s, &CostModel::ALL, CostModel::name, "cost model")
     }
 }

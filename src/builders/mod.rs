@@ -15,8 +15,8 @@
 //! let boxes: Vec<Aabb> = (0..100)
 //!     .map(|i| Aabb::new(Vec3A::splat(i as f32), Vec3A::splat(i as f32 + 0.5)))
 //!     .collect();
-//! let tree = build(&boxes, &BuildConfig::default(), Builder::Binned);
-//! tree.validate(&boxes, &BuildConfig::default()).unwrap();
+//! let tree = build(&boxes, &BuildConfig::default(), Builder::Binned).unwrap();
+//! assert_eq!(tree.check(&boxes, &BuildConfig::default()), Ok(()));
 //! assert!(tree.sah_cost(&BuildConfig::default()) > 0.0);
 //! ```
 
@@ -27,6 +27,7 @@ mod builder;
 mod cluster;
 mod config;
 mod cost;
+mod error;
 mod insertion;
 mod lbvh;
 mod morton;
@@ -38,9 +39,10 @@ mod sweep;
 mod tree;
 
 pub use builder::Builder;
-pub use config::{BuildConfig, GROUP_TEST_COST};
+pub use config::{BuildConfig, ConfigError, GROUP_TEST_COST};
 pub use cost::CostModel;
 pub(crate) use cost::{model_score, split_beats_leaf, SplitSide};
+pub use error::BuildError;
 pub(crate) use split::{bounds_of, median_split, widest_axis};
 pub(crate) use tree::MEDIAN_DEPTH;
 pub use tree::{BuildNode, BuildTree, NodeKind, TreeError, TreeStats, MAX_DEPTH};
@@ -55,10 +57,13 @@ use crate::primitive::Primitive;
 /// the SAH needs each primitive's surface area: here it is taken from its box (see
 /// [`build_with_areas`] to give the real ones).
 ///
-/// # Panics
-/// When [`BuildConfig::check`] finds a setting out of range (call it first to report the
-/// error instead).
-pub fn build(bounds: &[Aabb], config: &BuildConfig, builder: Builder) -> BuildTree {
+/// # Errors
+/// [`BuildError::Config`] when [`BuildConfig::check`] finds a setting out of range.
+pub fn build(
+    bounds: &[Aabb],
+    config: &BuildConfig,
+    builder: Builder,
+) -> Result<BuildTree, BuildError> {
     build_with_areas(bounds, None, config, builder)
 }
 
@@ -67,8 +72,9 @@ pub fn build(bounds: &[Aabb], config: &BuildConfig, builder: Builder) -> BuildTr
 /// primitive's box's half surface area stands in (a flat primitive's two sides, exact for a
 /// right triangle spanning its box's largest face, more otherwise).
 ///
-/// # Panics
-/// As [`build`], and when `areas` is given with another length than `bounds`.
+/// # Errors
+/// As [`build`], and [`BuildError::AreaCount`] when `areas` is given with another length
+/// than `bounds`.
 ///
 /// ```
 /// use quiver_rt::builders::{build_with_areas, BuildConfig, Builder, CostModel};
@@ -79,15 +85,15 @@ pub fn build(bounds: &[Aabb], config: &BuildConfig, builder: Builder) -> BuildTr
 ///     .collect();
 /// let areas = vec![0.1; 100];
 /// let config = BuildConfig { cost_model: CostModel::Rtsah, ..BuildConfig::default() };
-/// let tree = build_with_areas(&boxes, Some(&areas), &config, Builder::Sweep);
-/// tree.validate(&boxes, &config).unwrap();
+/// let tree = build_with_areas(&boxes, Some(&areas), &config, Builder::Sweep).unwrap();
+/// assert_eq!(tree.check(&boxes, &config), Ok(()));
 /// ```
 pub fn build_with_areas(
     bounds: &[Aabb],
     areas: Option<&[f32]>,
     config: &BuildConfig,
     builder: Builder,
-) -> BuildTree {
+) -> Result<BuildTree, BuildError> {
     build_clipped(bounds, areas, config, builder, None)
 }
 
@@ -111,12 +117,13 @@ pub(crate) fn build_clipped(
     config: &BuildConfig,
     builder: Builder,
     triangles: Option<Triangles<'_>>,
-) -> BuildTree {
-    if let Err(e) = config.check() {
-        panic!("BuildConfig: {e}");
-    }
-    if let Some(a) = areas {
-        assert_eq!(a.len(), bounds.len(), "one surface area per primitive");
+) -> Result<BuildTree, BuildError> {
+    config.check()?;
+    if let Some(a) = areas.filter(|a| a.len() != bounds.len()) {
+        return Err(BuildError::AreaCount {
+            areas: a.len(),
+            prims: bounds.len(),
+        });
     }
     let indices: Vec<u32> = {
         use rayon::prelude::*;
@@ -147,11 +154,11 @@ pub(crate) fn build_clipped(
         let clip = triangles.map_or(sbvh::Clip::Boxes, sbvh::Clip::Triangles);
         build_finite(bounds, areas, indices, config, builder, clip)
     };
-    BuildTree {
+    Ok(BuildTree {
         nodes,
         prim_indices,
         dropped,
-    }
+    })
 }
 
 /// The chosen builder over the finite primitives `indices` (at least one). `areas` feeds the
@@ -220,26 +227,34 @@ fn build_finite(
 ///     })
 ///     .collect();
 /// let config = BuildConfig::default();
-/// let tree = build(&boxes, &config, Builder::Binned);
-/// let better = optimize(&tree, &boxes, &config);
-/// better.validate(&boxes, &config).unwrap();
+/// let tree = build(&boxes, &config, Builder::Binned).unwrap();
+/// let better = optimize(&tree, &boxes, &config).unwrap();
+/// assert_eq!(better.check(&boxes, &config), Ok(()));
 /// assert!(better.sah_cost(&config) <= tree.sah_cost(&config) * 1.0001);
 /// ```
 ///
 /// A tree that names a primitive in several leaves ([`Builder::Sbvh`]) is returned as it is:
 /// the optimisation moves whole primitives, and merging leaves could name one twice in a leaf.
-pub fn optimize(tree: &BuildTree, bounds: &[Aabb], config: &BuildConfig) -> BuildTree {
+///
+/// # Errors
+/// [`ConfigError`] when [`BuildConfig::check`] finds a setting out of range.
+pub fn optimize(
+    tree: &BuildTree,
+    bounds: &[Aabb],
+    config: &BuildConfig,
+) -> Result<BuildTree, ConfigError> {
+    config.check()?;
     if tree.prim_indices.is_empty() || tree.prim_indices.len() + tree.dropped > bounds.len() {
-        return tree.clone();
+        return Ok(tree.clone());
     }
     let mut links = cluster::from_build_tree(&tree.nodes, &tree.prim_indices);
     insertion::optimize(&mut links);
     let (nodes, prim_indices) = links.into_build_tree(bounds, config);
-    BuildTree {
+    Ok(BuildTree {
         nodes,
         prim_indices,
         dropped: tree.dropped,
-    }
+    })
 }
 
 /// One bounding box per primitive, the builders' input (computed in parallel). A primitive

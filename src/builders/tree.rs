@@ -1,5 +1,6 @@
 //! [`BuildTree`], every builder's output: a binary tree of boxes over ranges of a primitive
-//! index array, with its shape statistics, SAH cost and invariant check.
+//! index array, with its shape statistics, SAH cost and its one checker ([`BuildTree::check`],
+//! [`TreeError`]).
 
 use super::BuildConfig;
 use crate::geometry::Aabb;
@@ -70,8 +71,9 @@ pub(crate) const MEDIAN_DEPTH: usize = 48;
 /// The deepest tree any builder makes for up to 2^32 primitives; traversal stacks use it.
 pub const MAX_DEPTH: usize = MEDIAN_DEPTH + 33;
 
-/// Why a [`BuildTree`] cannot be laid out over a primitive slice (see [`BuildTree::check`]):
-/// each names the node, slot or primitive at fault.
+/// What is wrong with a [`BuildTree`] ([`BuildTree::check`]), or why it cannot be laid out
+/// over a primitive slice ([`crate::Bvh::from_tree`]): each names the node, slot or primitive
+/// at fault.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum TreeError {
     /// The tree has no nodes (an empty build has one empty leaf).
@@ -131,14 +133,31 @@ pub enum TreeError {
         /// The primitive.
         prim: usize,
     },
-    /// Leaf `node` holds `count` primitives, more than the layout stores (`max`).
+    /// Leaf `node` holds `count` primitives, more than allowed (`max`: the layout's limit,
+    /// or the configuration's `max_leaf_size`).
     LeafSize {
         /// The leaf.
         node: usize,
         /// Its primitives.
         count: u32,
-        /// The layout's limit.
+        /// The limit.
         max: u32,
+    },
+    /// Inner node `node`'s box does not contain the box of its child `child`.
+    NodeBox {
+        /// The inner node.
+        node: usize,
+        /// The child.
+        child: u32,
+    },
+    /// Leaf `node`'s box does not hold primitive `prim`: a primitive only this leaf names
+    /// must lie inside its box, one several leaves name (a spatial split's pieces) must meet
+    /// each of their boxes.
+    LeafBox {
+        /// The leaf.
+        node: usize,
+        /// The primitive.
+        prim: u32,
     },
 }
 
@@ -189,8 +208,14 @@ impl fmt::Display for TreeError {
             }
             TreeError::LeafSize { node, count, max } => write!(
                 f,
-                "leaf {node} holds {count} primitives; this layout stores at most {max}"
+                "leaf {node} holds {count} primitives, more than the {max} allowed"
             ),
+            TreeError::NodeBox { node, child } => {
+                write!(f, "node {node}'s box does not contain its child {child}'s")
+            }
+            TreeError::LeafBox { node, prim } => {
+                write!(f, "leaf {node}'s box does not hold its primitive {prim}")
+            }
         }
     }
 }
@@ -269,28 +294,10 @@ impl BuildTree {
             .sum()
     }
 
-    /// Checks that this tree can be laid out over the primitives with boxes `bounds` (one per
-    /// input primitive) and traversed safely: nodes in depth-first preorder (root at 0, each
-    /// left child right after its parent), no deeper than [`MAX_DEPTH`], leaves covering the
-    /// index array in order, every finite primitive named and nothing else, and the
-    /// primitives named plus `dropped` equal to `bounds.len()`. Boxes are not checked: the layouts
-    /// recompute them from the primitives. What [`crate::Bvh::from_tree`] and every layout's
-    /// `from_tree` check before they lay a tree out.
-    ///
-    /// A primitive may be named by several leaves (a spatial split's pieces, see
-    /// [`super::Builder::Sbvh`]) but by one leaf only once; it then counts once towards
-    /// `bounds.len()`.
-    ///
-    /// ```
-    /// use quiver_rt::builders::{build, BuildConfig, Builder, TreeError};
-    /// use quiver_rt::Aabb;
-    /// use glam::Vec3A;
-    /// let boxes: Vec<Aabb> = (0..10).map(|i| Aabb::new(Vec3A::splat(i as f32), Vec3A::splat(i as f32 + 0.5))).collect();
-    /// let tree = build(&boxes, &BuildConfig::default(), Builder::Binned);
-    /// assert_eq!(tree.check(&boxes), Ok(()));
-    /// assert!(matches!(tree.check(&boxes[..9]), Err(TreeError::PrimCount { tree: 10, prims: 9 })));
-    /// ```
-    pub fn check(&self, bounds: &[Aabb]) -> Result<(), TreeError> {
+    /// The structure [`BuildTree::check`] checks, boxes and leaf sizes aside: what
+    /// [`crate::Bvh::from_tree`] and every layout's `from_tree` need before they lay a tree
+    /// out (they recompute the boxes from the primitives, and cap leaves by their own limit).
+    pub(crate) fn check_structure(&self, bounds: &[Aabb]) -> Result<(), TreeError> {
         if self.nodes.is_empty() {
             return Err(TreeError::NoNodes);
         }
@@ -435,94 +442,81 @@ impl BuildTree {
         Ok(())
     }
 
-    /// Checks the invariants every build must keep, given the boxes and configuration it was
-    /// built from: everything [`BuildTree::check`] checks (preorder, depth, leaf ranges,
-    /// primitive references), and every node reachable exactly once from the root, every finite primitive
-    /// referenced (and no other), no leaf above `config.max_leaf_size`, every
-    /// parent box containing its children, every leaf box containing the primitives only it
-    /// names and meeting those several leaves name (the pieces of a spatial split, whose
-    /// union only the geometry can check).
-    /// Returns a description of the first violation.
-    pub fn validate(&self, bounds: &[Aabb], config: &BuildConfig) -> Result<(), String> {
-        self.check(bounds).map_err(|e| e.to_string())?;
-        let mut seen_node = vec![false; self.nodes.len()];
+    /// Checks that this tree is one quiver's builders could have made over the primitives with
+    /// boxes `bounds` (one per input primitive) and `config`, and so can be laid out and
+    /// traversed safely:
+    ///
+    /// - nodes in depth-first preorder (root at 0, each left child right after its parent),
+    ///   every node reached once from the root, none deeper than [`MAX_DEPTH`];
+    /// - leaves covering the index array in order; every finite primitive named, nothing
+    ///   else, and the primitives named plus `dropped` equal to `bounds.len()` (a primitive
+    ///   may be named by several leaves, a spatial split's pieces, see
+    ///   [`super::Builder::Sbvh`], but by one leaf only once; it then counts once);
+    /// - no leaf above `config.max_leaf_size`;
+    /// - every inner box containing its children's, every leaf box containing the primitives
+    ///   only it names and meeting those several leaves name (whose union only the geometry
+    ///   can check).
+    ///
+    /// [`crate::Bvh::from_tree`] checks the first two for a tree from elsewhere (it
+    /// recomputes the boxes, and caps leaves by the layout's own limit).
+    ///
+    /// ```
+    /// use quiver_rt::builders::{build, BuildConfig, Builder, TreeError};
+    /// use quiver_rt::Aabb;
+    /// use glam::Vec3A;
+    /// let boxes: Vec<Aabb> = (0..10).map(|i| Aabb::new(Vec3A::splat(i as f32), Vec3A::splat(i as f32 + 0.5))).collect();
+    /// let config = BuildConfig::default();
+    /// let tree = build(&boxes, &config, Builder::Binned).unwrap();
+    /// assert_eq!(tree.check(&boxes, &config), Ok(()));
+    /// assert!(matches!(tree.check(&boxes[..9], &config), Err(TreeError::PrimCount { tree: 10, prims: 9 })));
+    /// // Ten copies of one box: no split separates them, so the leaves hold several.
+    /// let same = vec![boxes[0]; 10];
+    /// let tree = build(&same, &config, Builder::Binned).unwrap();
+    /// let singles = BuildConfig { max_leaf_size: 1, ..config };
+    /// assert!(matches!(tree.check(&same, &singles), Err(TreeError::LeafSize { max: 1, .. })));
+    /// ```
+    ///
+    /// # Errors
+    /// The first [`TreeError`] found.
+    pub fn check(&self, bounds: &[Aabb], config: &BuildConfig) -> Result<(), TreeError> {
+        self.check_structure(bounds)?;
+        self.check_leaf_size(config.max_leaf_size.min(u32::MAX as usize) as u32)?;
         // How many leaves name each primitive, and the last of them.
         let mut named = vec![(0u32, 0usize); bounds.len()];
-        let mut refs = 0usize;
-        let mut stack = vec![0usize];
-        while let Some(i) = stack.pop() {
-            let node = self
-                .nodes
-                .get(i)
-                .ok_or(format!("child index {i} out of range"))?;
-            if std::mem::replace(&mut seen_node[i], true) {
-                return Err(format!("node {i} reached twice"));
-            }
+        for (i, node) in self.nodes.iter().enumerate() {
             match node.kind {
                 NodeKind::Inner { left, right } => {
-                    for c in [left as usize, right as usize] {
-                        let child = self
-                            .nodes
-                            .get(c)
-                            .ok_or(format!("node {i}: child {c} out of range"))?;
-                        if !node.bounds.contains(&child.bounds) {
-                            return Err(format!("node {i} does not contain child {c}"));
+                    for c in [left, right] {
+                        if !node.bounds.contains(&self.nodes[c as usize].bounds) {
+                            return Err(TreeError::NodeBox { node: i, child: c });
                         }
-                        stack.push(c);
                     }
                 }
                 NodeKind::Leaf { first, count } => {
-                    if count as usize > config.max_leaf_size {
-                        return Err(format!("leaf {i} holds {count} > {}", config.max_leaf_size));
-                    }
-                    let range = first as usize..(first + count) as usize;
-                    let ids = self
-                        .prim_indices
-                        .get(range)
-                        .ok_or(format!("leaf {i}: range out of bounds"))?;
-                    for &p in ids {
-                        let pb = bounds
-                            .get(p as usize)
-                            .ok_or(format!("leaf {i}: primitive {p} out of range"))?;
+                    let range = first as usize..first as usize + count as usize;
+                    for &p in &self.prim_indices[range] {
+                        let pb = &bounds[p as usize];
                         let common = Aabb {
                             min: node.bounds.min.max(pb.min),
                             max: node.bounds.max.min(pb.max),
                         };
                         if common.is_empty() {
-                            return Err(format!("leaf {i} does not meet primitive {p}"));
+                            return Err(TreeError::LeafBox { node: i, prim: p });
                         }
                         let n = &mut named[p as usize];
                         *n = (n.0 + 1, i);
-                        refs += 1;
                     }
                 }
             }
         }
-        if let Some(i) = seen_node.iter().position(|&s| !s) {
-            return Err(format!("node {i} unreachable"));
-        }
-        let mut distinct = 0;
-        for (p, b) in bounds.iter().enumerate() {
-            let (times, leaf) = named[p];
-            if b.is_finite() != (times > 0) {
-                return Err(format!(
-                    "primitive {p} (finite: {}) referenced {times} times",
-                    b.is_finite(),
-                ));
+        // Named once, it was never split: its leaf holds all of it.
+        for (p, &(times, leaf)) in named.iter().enumerate() {
+            if times == 1 && !self.nodes[leaf].bounds.contains(&bounds[p]) {
+                return Err(TreeError::LeafBox {
+                    node: leaf,
+                    prim: p as u32,
+                });
             }
-            // Named once, it was never split: its leaf holds all of it.
-            if times == 1 && !self.nodes[leaf].bounds.contains(b) {
-                return Err(format!("leaf {leaf} does not contain primitive {p}"));
-            }
-            distinct += (times > 0) as usize;
-        }
-        if refs != self.prim_indices.len() || distinct + self.dropped != bounds.len() {
-            return Err(format!(
-                "{refs} references, {} indices, {} dropped, {} primitives",
-                self.prim_indices.len(),
-                self.dropped,
-                bounds.len()
-            ));
         }
         Ok(())
     }

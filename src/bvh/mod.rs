@@ -3,6 +3,7 @@
 //! pool), from a primitive slice or an indexed mesh.
 
 mod any_layout;
+mod build;
 mod options;
 mod refit;
 
@@ -10,7 +11,7 @@ pub(crate) use any_layout::AnyLayout;
 pub use options::BuildOptions;
 pub use refit::RefitError;
 
-use crate::builders::{prim_bounds, BuildTree, TreeError};
+use crate::builders::{prim_bounds, BuildError, BuildTree, TreeError};
 use crate::frame::Frame;
 use crate::geometry::{Aabb, Hit, Ray, Triangle};
 use crate::isa::{Isa, Kernels};
@@ -38,7 +39,7 @@ use options::frame_prims;
 /// let default = Bvh::new(&tris);
 /// assert_eq!(default.closest_hit(&ray).map(|h| h.prim), Some(7));
 /// for layout in Layout::ALL {
-///     let bvh = BuildOptions::default().layout(layout).build(&tris);
+///     let bvh = Bvh::build(&tris, &BuildOptions::default().layout(layout)).unwrap();
 ///     assert_eq!(bvh.closest_hit(&ray), reference::closest_hit(&tris, &ray));
 /// }
 /// ```
@@ -98,14 +99,22 @@ impl<P: Primitive> Bvh<P> {
     /// Builds over `prims` with the default [`BuildOptions`]: binned SAH, leaves of up to 8,
     /// the default layout (`bvh8-dfs`), on the current rayon thread pool. Hits report each
     /// primitive's index in `prims`.
+    ///
+    /// ```
+    /// use quiver_rt::{Bvh, Ray, RayQuery, Triangle};
+    /// use glam::Vec3A;
+    /// let bvh = Bvh::new(&[Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y)]);
+    /// assert!(bvh.any_hit(&Ray::new(Vec3A::new(0.2, 0.2, 1.0), -Vec3A::Z)));
+    /// ```
     pub fn new(prims: &[P]) -> Self {
-        BuildOptions::default().build(prims)
+        Bvh::build(prims, &BuildOptions::default()).expect("the default options are in range")
     }
 
     /// Lays out a built tree over `prims` (the build's input) with `options`' layout,
     /// instruction set and leaf settings (the builder is not used: the tree is built). The
-    /// tree is checked first ([`BuildTree::check`]) and its boxes recomputed from `prims`, so
-    /// a tree quiver accepts can never make a query panic, loop, or miss a primitive.
+    /// tree's structure is checked first (as [`BuildTree::check`] checks it: preorder, depth,
+    /// leaf ranges, primitive references) and its boxes recomputed from `prims`, so a tree
+    /// quiver accepts can never make a query panic, loop, or miss a primitive.
     ///
     /// ```
     /// use quiver_rt::builders::TreeError;
@@ -115,7 +124,7 @@ impl<P: Primitive> Bvh<P> {
     ///     .map(|i| Triangle::new(Vec3A::new(i as f32, 0.0, 0.0), Vec3A::new(i as f32 + 1.0, 0.0, 0.0), Vec3A::new(i as f32, 1.0, 0.0)))
     ///     .collect();
     /// let four = BuildOptions::default().max_leaf_size(4);
-    /// let (_, tree) = four.build_with_tree(&tris);
+    /// let (_, tree) = Bvh::build_with_tree(&tris, &four).unwrap();
     /// let again = Bvh::from_tree(&tree, &tris, &four.clone().layout(Layout::Bvh2Dfs)).unwrap();
     /// let ray = Ray::new(Vec3A::new(7.2, 0.3, 1.0), -Vec3A::Z);
     /// assert_eq!(again.closest_hit(&ray).map(|h| h.prim), Some(7));
@@ -136,7 +145,7 @@ impl<P: Primitive> Bvh<P> {
         options: &BuildOptions<'_>,
     ) -> Result<Self, TreeError> {
         let bounds = prim_bounds(prims);
-        tree.check(&bounds)?;
+        tree.check_structure(&bounds)?;
         // What the layout's leaf counts can hold (the 8-wide collapse merges leaves only up to
         // the options' leaf size, which it caps the same way).
         tree.check_leaf_size(match options.layout {
@@ -232,7 +241,11 @@ impl Bvh {
         positions: impl Into<Positions<'v>>,
         indices: &[[u32; 3]],
     ) -> Result<Self, MeshError> {
-        BuildOptions::default().build_mesh(positions, indices)
+        match Bvh::build_mesh(positions, indices, &BuildOptions::default()) {
+            Ok(bvh) => Ok(bvh),
+            Err(BuildError::Mesh(e)) => Err(e),
+            Err(e) => unreachable!("the default options are in range: {e}"),
+        }
     }
 }
 
@@ -312,8 +325,9 @@ mod tests {
         }
         for layout in Layout::ALL {
             let options = BuildOptions::default().layout(layout);
-            let (from_tris, t1) = options.build_with_tree(&tris);
-            let (from_mesh, t2) = options.build_mesh_with_tree(&positions, &indices).unwrap();
+            let (from_tris, t1) = Bvh::build_with_tree(&tris, &options).unwrap();
+            let (from_mesh, t2) =
+                Bvh::build_mesh_with_tree(&positions, &indices, &options).unwrap();
             assert_eq!(t1, t2, "{layout}");
             assert_eq!(from_tris.footprint(), from_mesh.footprint(), "{layout}");
             for i in 0..200 {
@@ -338,14 +352,13 @@ mod tests {
         // 70,000 copies of one triangle cannot be split; with leaves of up to 100,000 they
         // made one leaf, more than the layout's 16-bit count holds.
         let tris = vec![crate::Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y); 70_000];
-        let (bvh, tree) = BuildOptions::default()
+        let quant = BuildOptions::default()
             .layout(Layout::Bvh4Quant)
-            .max_leaf_size(100_000)
-            .build_with_tree(&tris);
+            .max_leaf_size(100_000);
+        let (bvh, tree) = Bvh::build_with_tree(&tris, &quant).unwrap();
         assert!(tree.stats().max_leaf <= 65535);
-        let (_, uncapped) = BuildOptions::default()
-            .max_leaf_size(100_000)
-            .build_with_tree(&tris);
+        let (_, uncapped) =
+            Bvh::build_with_tree(&tris, &BuildOptions::default().max_leaf_size(100_000)).unwrap();
         assert!(
             uncapped.stats().max_leaf > 65535,
             "the case is the one that overflowed"
@@ -368,9 +381,8 @@ mod tests {
         let indices: Vec<[u32; 3]> = (0..tris.len() as u32)
             .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
             .collect();
-        let (big, tree) = BuildOptions::default()
-            .build_mesh_with_tree(&positions, &indices)
-            .unwrap();
+        let (big, tree) =
+            Bvh::build_mesh_with_tree(&positions, &indices, &BuildOptions::default()).unwrap();
         assert!(!big.frame.is_identity());
         let unit = Bvh::new(&tris);
         for i in 0..200 {
@@ -381,7 +393,7 @@ mod tests {
         }
         // The tree is told in the caller's units: its boxes hold the world triangles.
         let world: Vec<Triangle> = tris.iter().map(|t| t.scaled(s).unwrap()).collect();
-        tree.validate(&prim_bounds(&world), &BuildConfig::default())
+        tree.check(&prim_bounds(&world), &BuildConfig::default())
             .unwrap();
     }
 
@@ -414,12 +426,10 @@ mod tests {
             .num_threads(2)
             .build()
             .unwrap();
-        let (_, a) = BuildOptions::default()
-            .thread_pool(&one)
-            .build_with_tree(&tris);
-        let (_, b) = BuildOptions::default()
-            .thread_pool(&two)
-            .build_with_tree(&tris);
+        let (_, a) =
+            Bvh::build_with_tree(&tris, &BuildOptions::default().thread_pool(&one)).unwrap();
+        let (_, b) =
+            Bvh::build_with_tree(&tris, &BuildOptions::default().thread_pool(&two)).unwrap();
         assert_eq!(a, b);
         assert_eq!(one.install(rayon::current_num_threads), 1);
     }

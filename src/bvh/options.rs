@@ -1,35 +1,41 @@
 //! [`BuildOptions`]: how a [`Bvh`] is built (builder, layout, leaf size, bins, costs, thread
-//! pool, instruction set), with presets, from a primitive slice or an indexed mesh.
+//! pool, instruction set), with the presets on one axis (fast, default, high quality) and the
+//! layout a separate choice.
 
 use super::any_layout::{lay_out, AnyLayout};
-use super::Bvh;
-use crate::builders::{build_clipped, BuildConfig, BuildTree, Builder, CostModel, Triangles};
+use crate::builders::{BuildConfig, BuildTree, Builder, CostModel};
 use crate::frame::Frame;
 use crate::isa::Isa;
 use crate::layout::{Layout, LeafPrims};
-use crate::mesh::{Mesh, MeshError, Positions};
 use crate::primitive::{LeafFormat, Primitive};
-use crate::Triangle;
 use rayon::ThreadPool;
 
+#[cfg(doc)]
+use super::Bvh;
+
 /// How to build a [`Bvh`]: which builder, which layout, the build settings and the thread
-/// pool. Plain data with chainable setters; [`BuildOptions::default`] is what [`Bvh::new`]
-/// uses, [`BuildOptions::fast`], [`BuildOptions::quality`], [`BuildOptions::high_quality`]
-/// and [`BuildOptions::compact`] are presets.
+/// pool. Plain data with chainable setters, given to [`Bvh::build`], [`Bvh::build_mesh`] and
+/// [`crate::WorldBuilder::build`]. The presets are one axis, from quick builds to fast
+/// traces: [`BuildOptions::fast`], [`BuildOptions::default`] (what [`Bvh::new`] uses) and
+/// [`BuildOptions::high_quality`]; the layout is a separate choice ([`BuildOptions::layout`]),
+/// and so is any other builder ([`BuildOptions::builder`], e.g. the full-sweep SAH).
 ///
 /// ```
-/// use quiver_rt::{builders::Builder, BuildOptions, Layout, Triangle};
+/// use quiver_rt::{builders::Builder, BuildOptions, Bvh, Layout, Triangle};
 /// use glam::Vec3A;
 /// let tris = vec![Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y); 100];
 /// let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
-/// let (bvh, tree) = BuildOptions::default()
+/// let options = BuildOptions::default()
 ///     .builder(Builder::Sweep)
 ///     .layout(Layout::Bvh2Subtree)
 ///     .max_leaf_size(4)
-///     .thread_pool(&pool)
-///     .build_with_tree(&tris);
+///     .thread_pool(&pool);
+/// let (bvh, tree) = Bvh::build_with_tree(&tris, &options).unwrap();
 /// assert!(tree.stats().max_leaf <= 4);
 /// assert!(bvh.footprint().nodes >= tree.stats().nodes);
+/// // Half the node bytes of the default layout: a layout, not a preset.
+/// let compact = Bvh::build(&tris, &BuildOptions::default().layout(Layout::Bvh4Quant)).unwrap();
+/// assert!(compact.footprint().node_bytes < Bvh::new(&tris).footprint().node_bytes);
 /// ```
 #[derive(Clone, Debug, Default)]
 pub struct BuildOptions<'p> {
@@ -50,22 +56,13 @@ pub struct BuildOptions<'p> {
 }
 
 impl BuildOptions<'static> {
-    /// The full-sweep SAH builder (every primitive boundary a candidate plane): the best tree
-    /// quiver builds, several times slower to build than the binned default.
-    pub fn quality() -> Self {
-        BuildOptions {
-            builder: Builder::Sweep,
-            ..Default::default()
-        }
-    }
-
     /// The fast preset, for scenes rebuilt every frame: the linear BVH ([`Builder::Lbvh`]),
     /// one Morton sort and a split per node found by binary search. It builds several times
-    /// faster than the default binned SAH, and its tree costs more to trace (see the README's
-    /// preset table for both, measured).
+    /// faster than the default binned SAH, and its tree costs more to trace (both measured in
+    /// the repository's docs/builds-and-presets.md).
     ///
     /// ```
-    /// use quiver_rt::{BuildOptions, Ray, RayQuery, Triangle};
+    /// use quiver_rt::{BuildOptions, Bvh, Ray, RayQuery, Triangle};
     /// use glam::Vec3A;
     /// let tris: Vec<Triangle> = (0..50)
     ///     .map(|i| {
@@ -73,7 +70,7 @@ impl BuildOptions<'static> {
     ///         Triangle::new(o, o + Vec3A::X, o + Vec3A::Y)
     ///     })
     ///     .collect();
-    /// let bvh = BuildOptions::fast().build(&tris);
+    /// let bvh = Bvh::build(&tris, &BuildOptions::fast()).unwrap();
     /// let ray = Ray::new(Vec3A::new(7.25, 0.5, 1.0), -Vec3A::Z);
     /// assert_eq!(bvh.closest_hit(&ray).map(|h| h.prim), Some(7));
     /// ```
@@ -89,13 +86,13 @@ impl BuildOptions<'static> {
     /// are cut at split planes instead of stretching boxes over their neighbours. The tree
     /// holds up to 1.3 references per primitive (a split triangle sits in several leaves;
     /// hits still name it once, by its index in the input). Builds take 3.1 to 4.1 times the
-    /// default's (README, "Spatial splits"); traces were faster where triangles are long or
+    /// default's (docs/spatial-splits.md); traces were faster where triangles are long or
     /// overlap (1.14 to 1.44 times on eye rays), and at most 5% slower elsewhere. A refit
     /// keeps the tree but boxes whole primitives, losing the spatial splits' tightness:
     /// rebuild after large motion.
     ///
     /// ```
-    /// use quiver_rt::{reference, BuildOptions, Ray, RayQuery, Triangle};
+    /// use quiver_rt::{reference, BuildOptions, Bvh, Ray, RayQuery, Triangle};
     /// use glam::Vec3A;
     /// // Long slivers crossing each other, one above the other: spatial splits cut them.
     /// let tris: Vec<Triangle> = (0..64)
@@ -105,7 +102,7 @@ impl BuildOptions<'static> {
     ///         Triangle::new(Vec3A::new(0.0, y, z), far, far + Vec3A::Y * 0.05)
     ///     })
     ///     .collect();
-    /// let (bvh, tree) = BuildOptions::high_quality().build_with_tree(&tris);
+    /// let (bvh, tree) = Bvh::build_with_tree(&tris, &BuildOptions::high_quality()).unwrap();
     /// assert!(tree.prim_indices.len() <= tris.len() * 13 / 10);
     /// for i in 0..100 {
     ///     let ray = Ray::new(Vec3A::new(i as f32 * 0.1, 3.2, -1.0), Vec3A::Z);
@@ -115,15 +112,6 @@ impl BuildOptions<'static> {
     pub fn high_quality() -> Self {
         BuildOptions {
             builder: Builder::Sbvh,
-            ..Default::default()
-        }
-    }
-
-    /// The quantized 4-wide layout: 64-byte nodes, half the node memory of the default
-    /// layout, for large scenes.
-    pub fn compact() -> Self {
-        BuildOptions {
-            layout: Layout::Bvh4Quant,
             ..Default::default()
         }
     }
@@ -184,121 +172,9 @@ impl<'p> BuildOptions<'p> {
         }
     }
 
-    /// Builds a BVH over `prims`; hits report each primitive's index in `prims`.
-    ///
-    /// # Panics
-    /// When [`BuildConfig::check`] finds a setting out of range: `bins` outside 2..=1024,
-    /// `max_leaf_size` 0, or a negative or non-finite SAH cost.
-    pub fn build<P: Primitive>(&self, prims: &[P]) -> Bvh<P> {
-        self.build_with_tree(prims).0
-    }
-
-    /// [`BuildOptions::build`], also returning the binary build tree (for SAH cost, tree
-    /// statistics, or laying the same tree out again with [`Bvh::from_tree`]).
-    ///
-    /// # Panics
-    /// As [`BuildOptions::build`].
-    pub fn build_with_tree<P: Primitive>(&self, prims: &[P]) -> (Bvh<P>, BuildTree) {
-        self.run(|| {
-            let (bounds, frame) = Frame::bounds(prims.len(), |i| {
-                crate::isa::prefetch_stream(prims, i);
-                prims[i].bounds()
-            });
-            let local = frame_prims(frame, prims);
-            // A type that cannot be scaled stays in its own units.
-            let frame = if local.is_some() {
-                frame
-            } else {
-                Frame::default()
-            };
-            let in_frame = local.as_deref().unwrap_or(prims);
-            // The triangle a spatial split clips is the one the kernels test.
-            let get = |i: u32| match P::LEAF_FORMAT {
-                LeafFormat::Plain => None,
-                _ => in_frame[i as usize].triangle(),
-            };
-            let soon = |i: u32| crate::isa::prefetch_at(in_frame, i as usize);
-            let tri = Triangles {
-                get: &get,
-                soon: &soon,
-            };
-            let tree = build_clipped(
-                &frame.boxes(&bounds),
-                self.areas(in_frame).as_deref(),
-                &self.effective_config::<P>(),
-                self.builder,
-                Some(tri),
-            );
-            let nodes = self.lay_out(&tree, LeafPrims::Slice(in_frame));
-            let tree = frame.world_tree(tree, &bounds);
-            (Bvh::of(nodes, frame, &tree, prims.len()), tree)
-        })
-    }
-
-    /// Builds a BVH over an indexed triangle mesh (see [`Bvh::from_mesh`]).
-    ///
-    /// # Errors
-    /// [`MeshError`] when an index names no vertex, or there are more than `u32::MAX`
-    /// triangles.
-    ///
-    /// # Panics
-    /// As [`BuildOptions::build`].
-    pub fn build_mesh<'v>(
-        &self,
-        positions: impl Into<Positions<'v>>,
-        indices: &[[u32; 3]],
-    ) -> Result<Bvh, MeshError> {
-        Ok(self.build_mesh_with_tree(positions, indices)?.0)
-    }
-
-    /// [`BuildOptions::build_mesh`], also returning the build tree.
-    ///
-    /// # Errors
-    /// As [`BuildOptions::build_mesh`].
-    ///
-    /// # Panics
-    /// As [`BuildOptions::build`].
-    pub fn build_mesh_with_tree<'v>(
-        &self,
-        positions: impl Into<Positions<'v>>,
-        indices: &[[u32; 3]],
-    ) -> Result<(Bvh, BuildTree), MeshError> {
-        let mesh = Mesh::new(positions.into(), indices)?;
-        Ok(self.run(|| {
-            use rayon::prelude::*;
-            let (bounds, frame) = mesh.bounds();
-            let framed = |i: u32| match frame.is_identity() {
-                true => mesh.triangle(i),
-                false => frame.prim(&mesh.triangle(i)).expect("triangles scale"),
-            };
-            // Surface areas only for a cost model that weighs them.
-            let areas: Option<Vec<f32>> = (self.config.cost_model != CostModel::Sah).then(|| {
-                (0..bounds.len() as u32)
-                    .into_par_iter()
-                    .map(|i| framed(i).surface_area())
-                    .collect()
-            });
-            let get = |i: u32| Some(framed(i));
-            let tri = Triangles {
-                get: &get,
-                soon: &|_| {},
-            };
-            let tree = build_clipped(
-                &frame.boxes(&bounds),
-                areas.as_deref(),
-                &self.effective_config::<Triangle>(),
-                self.builder,
-                Some(tri),
-            );
-            let nodes = self.lay_out(&tree, LeafPrims::Input(&framed));
-            let tree = frame.world_tree(tree, &bounds);
-            (Bvh::of(nodes, frame, &tree, indices.len()), tree)
-        }))
-    }
-
     /// Each primitive's surface area (in the build's frame), for a cost model that weighs
     /// them; `None` for the SAH, which does not.
-    fn areas<P: Primitive>(&self, prims: &[P]) -> Option<Vec<f32>> {
+    pub(crate) fn areas<P: Primitive>(&self, prims: &[P]) -> Option<Vec<f32>> {
         use rayon::prelude::*;
         (self.config.cost_model != CostModel::Sah)
             .then(|| prims.par_iter().map(|p| p.surface_area()).collect())

@@ -271,12 +271,12 @@ impl<P: Primitive> Bvh<P> {
     ///
     /// ```
     /// use quiver_rt::builders::BuildConfig;
-    /// use quiver_rt::{BuildOptions, Layout, Triangle};
+    /// use quiver_rt::{BuildOptions, Bvh, Layout, Triangle};
     /// use glam::Vec3A;
     /// let tris: Vec<Triangle> = (0..64)
     ///     .map(|i| Triangle::new(Vec3A::splat(i as f32), Vec3A::splat(i as f32) + Vec3A::X, Vec3A::Y))
     ///     .collect();
-    /// let (bvh, tree) = BuildOptions::default().layout(Layout::Bvh2Dfs).build_with_tree(&tris);
+    /// let (bvh, tree) = Bvh::build_with_tree(&tris, &BuildOptions::default().layout(Layout::Bvh2Dfs)).unwrap();
     /// assert_eq!(bvh.sah_cost(), tree.sah_cost(&BuildConfig::default()));
     /// ```
     pub fn sah_cost(&self) -> f64 {

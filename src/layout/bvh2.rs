@@ -131,10 +131,11 @@ impl Bvh2Mapping {
 /// into leaf order so a leaf is a contiguous run the intersector reads directly.
 ///
 /// ```
-/// use quiver_rt::{BuildOptions, Bvh2, Bvh2Mapping, Ray, RayQuery, Triangle};
+/// use quiver_rt::layout::{Bvh2, Bvh2Mapping};
+/// use quiver_rt::{BuildOptions, Bvh, Ray, RayQuery, Triangle};
 /// use glam::Vec3A;
 /// let tris = vec![Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y)];
-/// let (_, tree) = BuildOptions::default().build_with_tree(&tris);
+/// let (_, tree) = Bvh::build_with_tree(&tris, &BuildOptions::default()).unwrap();
 /// let bvh = Bvh2::from_tree(&tree, &tris, Bvh2Mapping::DepthFirst).unwrap();
 /// let hit = bvh.closest_hit(&Ray::new(Vec3A::new(0.2, 0.2, 1.0), -Vec3A::Z)).unwrap();
 /// assert_eq!((hit.prim, hit.t), (0, 1.0));
@@ -158,7 +159,8 @@ impl<P: Primitive> Bvh2<P> {
     ///
     /// ```
     /// use quiver_rt::builders::{build, prim_bounds, BuildConfig, Builder};
-    /// use quiver_rt::{Bvh2, Bvh2Mapping, Ray, RayQuery, Triangle};
+    /// use quiver_rt::layout::{Bvh2, Bvh2Mapping};
+    /// use quiver_rt::{Ray, RayQuery, Triangle};
     /// use glam::Vec3A;
     /// let tris: Vec<Triangle> = (0..64)
     ///     .map(|i| {
@@ -166,7 +168,7 @@ impl<P: Primitive> Bvh2<P> {
     ///         Triangle::new(o, o + Vec3A::X, o + Vec3A::Y)
     ///     })
     ///     .collect();
-    /// let tree = build(&prim_bounds(&tris), &BuildConfig::default(), Builder::Binned);
+    /// let tree = build(&prim_bounds(&tris), &BuildConfig::default(), Builder::Binned).unwrap();
     /// let dfs = Bvh2::from_tree(&tree, &tris, Bvh2Mapping::DepthFirst).unwrap();
     /// let sub = Bvh2::from_tree(&tree, &tris, Bvh2Mapping::Subtree).unwrap();
     /// let ray = Ray::new(Vec3A::new(3.2, 5.1, 1.0), -Vec3A::Z);

@@ -93,7 +93,8 @@ mod sealed {
 /// default type parameter does not pick the node format in an expression.)
 ///
 /// ```
-/// use quiver_rt::{reference, BuildOptions, Bvh4, Bvh4Mapping, Isa, QBvh4, Ray, RayQuery, Triangle};
+/// use quiver_rt::layout::{Bvh4, Bvh4Mapping, QBvh4};
+/// use quiver_rt::{reference, BuildOptions, Bvh, Isa, Ray, RayQuery, Triangle};
 /// use glam::Vec3A;
 /// let tris: Vec<Triangle> = (0..100)
 ///     .map(|i| {
@@ -101,7 +102,7 @@ mod sealed {
 ///         Triangle::new(o, o + Vec3A::X, o + Vec3A::Y)
 ///     })
 ///     .collect();
-/// let (_, tree) = BuildOptions::default().build_with_tree(&tris);
+/// let (_, tree) = Bvh::build_with_tree(&tris, &BuildOptions::default()).unwrap();
 /// let exact: Bvh4 = Bvh4::from_tree(&tree, &tris, Bvh4Mapping::DepthFirst, Isa::detect()).unwrap();
 /// let quantized: QBvh4 = QBvh4::from_tree(&tree, &tris, Bvh4Mapping::Subtree, Isa::Portable).unwrap();
 /// let ray = Ray::new(Vec3A::new(41.2, 0.3, 1.0), -Vec3A::Z);
@@ -115,7 +116,8 @@ mod sealed {
 /// be set afterwards except through that check:
 ///
 /// ```compile_fail
-/// use quiver_rt::{Bvh4, Isa, Triangle};
+/// use quiver_rt::layout::Bvh4;
+/// use quiver_rt::{Isa, Triangle};
 /// fn force(bvh: &mut Bvh4) {
 ///     bvh.isa = Isa::Avx2; // private: only `with_isa`, which asks the CPU, changes it
 /// }

@@ -52,7 +52,8 @@ impl Bvh8Node {
 /// instruction set chosen when it was built ([`Isa`]).
 ///
 /// ```
-/// use quiver_rt::{reference, BuildOptions, Bvh8, Isa, Layout, Ray, RayQuery, Triangle};
+/// use quiver_rt::layout::Bvh8;
+/// use quiver_rt::{reference, BuildOptions, Bvh, Isa, Layout, Ray, RayQuery, Triangle};
 /// use glam::Vec3A;
 /// let tris: Vec<Triangle> = (0..300)
 ///     .map(|i| {
@@ -62,10 +63,10 @@ impl Bvh8Node {
 ///     .collect();
 /// let ray = Ray::new(Vec3A::new(7.2, 3.3, 1.0), -Vec3A::Z);
 /// for isa in Isa::ALL {
-///     let bvh = BuildOptions::default().layout(Layout::Bvh8Dfs).isa(isa).build(&tris);
+///     let bvh = Bvh::build(&tris, &BuildOptions::default().layout(Layout::Bvh8Dfs).isa(isa)).unwrap();
 ///     assert_eq!(bvh.closest_hit(&ray), reference::closest_hit(&tris, &ray));
 /// }
-/// let (_, tree) = BuildOptions::default().build_with_tree(&tris);
+/// let (_, tree) = Bvh::build_with_tree(&tris, &BuildOptions::default()).unwrap();
 /// let bvh: Bvh8 = Bvh8::from_tree(&tree, &tris, &Default::default(), Isa::detect()).unwrap();
 /// assert_eq!(bvh.prim_ids().len(), 300);
 /// ```
@@ -74,7 +75,8 @@ impl Bvh8Node {
 /// be set afterwards except through that check:
 ///
 /// ```compile_fail
-/// use quiver_rt::{Bvh8, Isa};
+/// use quiver_rt::layout::Bvh8;
+/// use quiver_rt::Isa;
 /// fn force(bvh: &mut Bvh8) {
 ///     bvh.isa = Isa::Avx2; // private: only `with_isa`, which asks the CPU, changes it
 /// }

@@ -459,7 +459,8 @@ mod tests {
         assert_eq!(wide[0].kids[0], Child::Leaf { first: 0, count: 3 });
         assert_eq!(wide[0].kids[1..], [Child::Empty; 3]);
         let empty =
-            crate::builders::build(&[], &Default::default(), crate::builders::Builder::Binned);
+            crate::builders::build(&[], &Default::default(), crate::builders::Builder::Binned)
+                .unwrap();
         let wide = collapse::<4>(&empty);
         assert_eq!(wide.len(), 1);
         assert_eq!(wide[0].kids, [Child::Empty; 4]);
@@ -472,7 +473,8 @@ mod tests {
             &bounds,
             &Default::default(),
             crate::builders::Builder::Binned,
-        );
+        )
+        .unwrap();
         let wide = collapse::<4>(&tree);
         check_cover(&wide, tree.prim_indices.len(), tree.stats().max_leaf as u32);
         assert_greedy_fill(&wide);
@@ -501,7 +503,8 @@ mod tests {
             &crate::testing::soup_bounds(3000, 2),
             &Default::default(),
             crate::builders::Builder::Binned,
-        );
+        )
+        .unwrap();
         let wide = collapse::<8>(&tree);
         assert_greedy_fill(&wide);
         let mut leaves = 0;
@@ -575,7 +578,8 @@ mod tests {
                 &bounds,
                 &Default::default(),
                 crate::builders::Builder::Binned,
-            );
+            )
+            .unwrap();
             for max_leaf in [1usize, 4, 8] {
                 let dp = collapse_sah::<8>(&tree, max_leaf, 1.0, |n| n as f32);
                 let limit = max_leaf.max(tree.stats().max_leaf) as u32;
@@ -615,7 +619,8 @@ mod tests {
             &bounds,
             &Default::default(),
             crate::builders::Builder::Binned,
-        );
+        )
+        .unwrap();
         for leaf_cost in [1.0, f32::NAN] {
             let wide = collapse_sah::<8>(&tree, 8, 1.0, |n| leaf_cost * n as f32);
             check_cover(&wide, 40, 8.max(tree.stats().max_leaf as u32));
@@ -639,7 +644,8 @@ mod tests {
             max_leaf_size: 1,
             ..Default::default()
         };
-        let tree = crate::builders::build(&bounds, &config, crate::builders::Builder::Binned);
+        let tree =
+            crate::builders::build(&bounds, &config, crate::builders::Builder::Binned).unwrap();
         let dp = collapse_sah::<8>(&tree, 1, 1.0, |n| n as f32);
         check_cover(&dp, 64, 1);
         assert_eq!(dp.len(), 9, "a root and eight full nodes");

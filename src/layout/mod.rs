@@ -32,6 +32,7 @@ pub use bvh8::{Bvh8, Bvh8Node};
 pub use tri4::Tri4;
 
 use crate::builders::{prim_bounds, BuildTree, TreeError};
+use crate::names::{by_name, ParseError};
 use crate::primitive::Primitive;
 use std::fmt;
 use std::str::FromStr;
@@ -131,21 +132,17 @@ impl fmt::Display for Layout {
 }
 
 impl FromStr for Layout {
-    type Err = String;
+    type Err = ParseError;
 
+    /// A layout by its [`Layout::name`]; the error lists the names.
+    ///
     /// ```
     /// use quiver_rt::layout::Layout;
     /// assert_eq!("bvh4-quant".parse::<Layout>(), Ok(Layout::Bvh4Quant));
-    /// assert!("bvh3".parse::<Layout>().unwrap_err().contains("bvh2-dfs"));
+    /// assert!("bvh3".parse::<Layout>().unwrap_err().expected.contains(&"bvh2-dfs"));
     /// ```
-    fn from_str(s: &str) -> Result<Self, String> {
-        Layout::ALL
-            .into_iter()
-            .find(|l| l.name() == s)
-            .ok_or_else(|| {
-                let names: Vec<&str> = Layout::ALL.iter().map(|l| l.name()).collect();
-                format!("unknown layout '{s}': expected one of {}", names.join(", "))
-            })
+    fn from_str(s: &str) -> Result<Self, ParseError> {
+        by_name(s, &Layout::ALL, Layout::name, "layout")
     }
 }
 
@@ -201,14 +198,14 @@ impl<P> From<Vec<P>> for LeafPrims<'_, P> {
     }
 }
 
-/// `tree` checked against `prims` ([`BuildTree::check`]) with its boxes recomputed from them,
+/// `tree` checked against `prims` (the structure [`BuildTree::check`] checks) with its boxes recomputed from them,
 /// and the primitives in its leaf order: what every layout's `from_tree` lays out.
 pub(crate) fn checked<P: Primitive>(
     tree: &BuildTree,
     prims: &[P],
 ) -> Result<(BuildTree, Vec<P>), TreeError> {
     let bounds = prim_bounds(prims);
-    tree.check(&bounds)?;
+    tree.check_structure(&bounds)?;
     Ok((tree.refit(&bounds), bvh2::leaf_order(tree, prims)))
 }
 
@@ -245,7 +242,7 @@ mod tests {
     use crate::bvh::BuildOptions;
     use crate::intersect::Watertight;
     use crate::testing::soup;
-    use crate::{Isa, Primitive};
+    use crate::{Bvh, Isa, Primitive};
     use std::mem::size_of;
 
     /// One layout's footprint against the formats' sizes: `copy` primitives kept in leaf
@@ -263,7 +260,7 @@ mod tests {
     /// primitives and ids beside its nodes.
     fn keeps<P: Primitive>(prims: &[P]) {
         let n = prims.len();
-        let (_, tree) = BuildOptions::default().build_with_tree(prims);
+        let (_, tree) = Bvh::build_with_tree(prims, &BuildOptions::default()).unwrap();
         let config = Default::default();
         let isa = Isa::detect();
         let b2 = Bvh2::from_tree(&tree, prims, Bvh2Mapping::DepthFirst).unwrap();

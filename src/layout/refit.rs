@@ -669,7 +669,7 @@ mod tests {
     use crate::layout::bvh2::leaf_order;
     use crate::layout::Layout;
     use crate::testing::soup;
-    use crate::Triangle;
+    use crate::{Bvh, Triangle};
     use glam::Vec3A;
 
     /// The new primitives straight from a slice.
@@ -754,7 +754,7 @@ mod tests {
         let b = moved(&a, 0.05);
         for builder_leaf in [1usize, 8] {
             let options = BuildOptions::default().max_leaf_size(builder_leaf);
-            let (_, tree) = options.build_with_tree(&a);
+            let (_, tree) = Bvh::build_with_tree(&a, &options).unwrap();
             for threads in [1, 2] {
                 let pool = rayon::ThreadPoolBuilder::new()
                     .num_threads(threads)
@@ -778,7 +778,7 @@ mod tests {
     fn a_refit_binary_layout_is_the_fresh_layout_of_the_new_primitives() {
         let a = soup(2000, 3);
         let b = moved(&a, 0.2);
-        let (_, tree) = BuildOptions::default().build_with_tree(&a);
+        let (_, tree) = Bvh::build_with_tree(&a, &BuildOptions::default()).unwrap();
         for ((layout, mut l), (_, fresh)) in laid(&tree, &a).into_iter().zip(laid(&tree, &b)) {
             if !matches!(l, crate::bvh::AnyLayout::Bvh2(_)) || layout == Layout::Bvh2SubtreePage {
                 continue;
@@ -796,7 +796,7 @@ mod tests {
     fn a_refit_to_a_scaled_scene_is_its_fresh_layout_in_every_layout() {
         let a = soup(20_000, 5);
         let b: Vec<Triangle> = a.iter().map(|t| t.scaled(2.0).unwrap()).collect();
-        let (_, tree) = BuildOptions::default().build_with_tree(&a);
+        let (_, tree) = Bvh::build_with_tree(&a, &BuildOptions::default()).unwrap();
         for ((layout, mut l), (_, fresh)) in laid(&tree, &a).into_iter().zip(laid(&tree, &b)) {
             refit(&mut l, &b);
             assert_eq!(bytes(&l), bytes(&fresh), "{layout}: fast triangles");

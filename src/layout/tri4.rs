@@ -29,9 +29,10 @@ use glam::{Mat4, Vec3A, Vec4};
 ///
 /// ```
 /// use quiver_rt::glam::Vec3A;
-/// use quiver_rt::{BuildOptions, Bvh8, Isa, Triangle};
+/// use quiver_rt::layout::Bvh8;
+/// use quiver_rt::{BuildOptions, Bvh, Isa, Triangle};
 /// let tris = [Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y); 3];
-/// let (_, tree) = BuildOptions::default().build_with_tree(&tris);
+/// let (_, tree) = Bvh::build_with_tree(&tris, &BuildOptions::default()).unwrap();
 /// let bvh: Bvh8 = Bvh8::from_tree(&tree, &tris, &Default::default(), Isa::detect()).unwrap();
 /// let g = &bvh.groups()[0];
 /// assert_eq!(std::mem::size_of_val(g), 160);

@@ -31,7 +31,7 @@ use glam::Vec3A;
 /// Two coincident squares, hit at the same distance: the lower index wins in every layout.
 ///
 /// ```
-/// use quiver_rt::{reference, Aabb, BuildOptions, Layout, PrimHit, Primitive, Ray, RayQuery};
+/// use quiver_rt::{reference, Aabb, BuildOptions, Bvh, Layout, PrimHit, Primitive, Ray, RayQuery};
 /// use glam::Vec3A;
 ///
 /// /// An axis-aligned unit square in the plane `z = z`.
@@ -54,7 +54,7 @@ use glam::Vec3A;
 /// let squares = [Square { z: 1.0 }, Square { z: 0.0 }, Square { z: 0.0 }];
 /// let ray = Ray::new(Vec3A::new(0.5, 0.5, -1.0), Vec3A::Z);
 /// for layout in Layout::ALL {
-///     let bvh = BuildOptions::default().layout(layout).build(&squares);
+///     let bvh = Bvh::build(&squares, &BuildOptions::default().layout(layout)).unwrap();
 ///     let hit = bvh.closest_hit(&ray).unwrap();
 ///     assert_eq!((hit.prim, hit.t), (1, 1.0)); // 1 and 2 tie at t = 1: the lower index
 ///     assert_eq!(Some(hit), reference::closest_hit(&squares, &ray));
@@ -103,7 +103,8 @@ pub trait Primitive: Clone + Send + Sync {
     /// keeps `Plain` and does so in `intersect`.
     ///
     /// ```
-    /// use quiver_rt::{reference, Aabb, Bvh, LeafFormat, PrimHit, Primitive, Ray, RayQuery, Triangle};
+    /// use quiver_rt::primitive::LeafFormat;
+    /// use quiver_rt::{reference, Aabb, Bvh, PrimHit, Primitive, Ray, RayQuery, Triangle};
     /// use glam::Vec3A;
     ///
     /// /// A triangle carrying a material: tested as its triangle.

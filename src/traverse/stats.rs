@@ -41,11 +41,11 @@ impl Stats for NoStats {
 /// Counts of one ray's traversal, or (added up) of many.
 ///
 /// ```
-/// use quiver_rt::{BuildOptions, Layout, Ray, RayQuery, Triangle};
+/// use quiver_rt::{BuildOptions, Bvh, Layout, Ray, RayQuery, Triangle};
 /// use quiver_rt::traverse::Counters;
 /// use glam::Vec3A;
 /// let tris = vec![Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y)];
-/// let bvh = BuildOptions::default().layout(Layout::Bvh2Dfs).build(&tris);
+/// let bvh = Bvh::build(&tris, &BuildOptions::default().layout(Layout::Bvh2Dfs)).unwrap();
 /// let mut c = Counters::default();
 /// bvh.closest_hit_counted(&Ray::new(Vec3A::new(0.2, 0.2, 1.0), -Vec3A::Z), &mut c);
 /// assert_eq!((c.nodes, c.leaves, c.prim_tests, c.empty_leaves), (1, 1, 1, 0));

@@ -2,8 +2,8 @@
 
 use super::instance::check_instance;
 use super::top::{top_level, world_boxes, InstanceLeaf};
-use super::{Geometry, GeometryId, Instance, World, WorldError};
-use crate::bvh::BuildOptions;
+use super::{Geometry, GeometryId, Instance, InstanceId, World, WorldError};
+use crate::bvh::{BuildOptions, Bvh};
 use crate::geometry::{Aabb, Triangle};
 use crate::mesh::{Mesh, MeshError, Positions};
 use crate::primitive::Primitive;
@@ -14,8 +14,8 @@ use crate::primitive::Primitive;
 /// use quiver_rt::{BuildOptions, Instance, Triangle, World, WorldError};
 /// use quiver_rt::glam::{Affine3A, Vec3A};
 /// let mut b = World::builder();
-/// let g = b.triangles(vec![Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y)]);
-/// b.instance(Instance::of(g).transform(Affine3A::from_scale(Vec3A::ZERO.into())));
+/// let g = b.add_triangles(vec![Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y)]);
+/// b.add_instance(Instance::of(g).transform(Affine3A::from_scale(Vec3A::ZERO.into())));
 /// let e = b.build(&BuildOptions::default()).unwrap_err();
 /// assert_eq!(e, WorldError::Transform { instance: 0, why: "not invertible" });
 /// ```
@@ -56,7 +56,7 @@ impl<P: Primitive> WorldBuilder<P> {
     ///
     /// # Errors
     /// [`MeshError`] when an index names no vertex.
-    pub fn mesh<'v>(
+    pub fn add_mesh<'v>(
         &mut self,
         positions: impl Into<Positions<'v>>,
         indices: &[[u32; 3]],
@@ -80,21 +80,22 @@ impl<P: Primitive> WorldBuilder<P> {
     }
 
     /// Adds triangles as a geometry.
-    pub fn triangles(&mut self, tris: Vec<Triangle>) -> GeometryId {
+    pub fn add_triangles(&mut self, tris: Vec<Triangle>) -> GeometryId {
         self.pending.push(PendingGeometry::Triangles(tris));
         GeometryId(self.pending.len() as u32 - 1)
     }
 
     /// Adds primitives of the world's type as a geometry.
-    pub fn prims(&mut self, prims: Vec<P>) -> GeometryId {
+    pub fn add_prims(&mut self, prims: Vec<P>) -> GeometryId {
         self.pending.push(PendingGeometry::Prims(prims));
         GeometryId(self.pending.len() as u32 - 1)
     }
 
-    /// Adds an instance; returns its index (what [`WorldHit::instance`] reports).
-    pub fn instance(&mut self, instance: Instance) -> u32 {
+    /// Adds an instance; returns its id, the index [`WorldHit::instance`](super::WorldHit)
+    /// reports.
+    pub fn add_instance(&mut self, instance: Instance) -> InstanceId {
         self.instances.push(instance);
-        self.instances.len() as u32 - 1
+        InstanceId(self.instances.len() as u32 - 1)
     }
 
     /// Builds every geometry's BVH with `options` (in parallel, on its pool) and the
@@ -102,11 +103,12 @@ impl<P: Primitive> WorldBuilder<P> {
     /// `options`' instruction set). The same builder gives the same world on any pool.
     ///
     /// # Errors
-    /// [`WorldError`] for an instance naming no geometry, a transform that is not finite or
-    /// not invertible, a bad mesh, or more than `u32::MAX` instances. An empty world is not
-    /// an error: it is hit by nothing.
+    /// [`WorldError`] for a build setting out of range ([`WorldError::Config`]), an instance
+    /// naming no geometry, a transform that is not finite or not invertible, a bad mesh, or
+    /// more than `u32::MAX` instances. An empty world is not an error: it is hit by nothing.
     pub fn build(self, options: &BuildOptions<'_>) -> Result<World<P>, WorldError> {
         use rayon::prelude::*;
+        options.config.check().map_err(WorldError::Config)?;
         if self.instances.len() >= u32::MAX as usize || self.pending.len() >= u32::MAX as usize {
             return Err(WorldError::TooMany);
         }
@@ -123,8 +125,8 @@ impl<P: Primitive> WorldBuilder<P> {
             self.pending
                 .into_par_iter()
                 .map(|s| match s {
-                    PendingGeometry::Triangles(t) => Geometry::Triangles(options.build(&t), t),
-                    PendingGeometry::Prims(p) => Geometry::Prims(options.build(&p), p),
+                    PendingGeometry::Triangles(t) => Geometry::Triangles(checked(&t, options), t),
+                    PendingGeometry::Prims(p) => Geometry::Prims(checked(&p, options), p),
                 })
                 .collect()
         });
@@ -143,4 +145,9 @@ impl<P: Primitive> WorldBuilder<P> {
             bounds,
         })
     }
+}
+
+/// The BVH over `prims` with `options`, whose settings were checked.
+fn checked<Q: Primitive>(prims: &[Q], options: &BuildOptions<'_>) -> Bvh<Q> {
+    Bvh::build(prims, options).expect("the settings were checked")
 }

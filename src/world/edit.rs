@@ -4,7 +4,7 @@
 
 use super::instance::{check_instance, placement};
 use super::top::{instance_box, top_level, world_boxes};
-use super::{Geometry, GeometryId, InstanceLeaf};
+use super::{Geometry, GeometryId, InstanceId, InstanceLeaf};
 use super::{World, WorldError};
 use crate::geometry::{Aabb, Triangle};
 use crate::layout::refit::RefitInput;
@@ -30,31 +30,31 @@ use std::sync::atomic::{AtomicBool, Ordering};
 ///
 /// ```
 /// use quiver_rt::glam::{Affine3A, Vec3A};
-/// use quiver_rt::{BuildOptions, Instance, Ray, RayQuery, World};
+/// use quiver_rt::{BuildOptions, Instance, InstanceId, Ray, RayQuery, World};
 /// let indices = [[0, 1, 2], [0, 2, 3]];
 /// let square = |z: f32| [[0.0, 0.0, z], [1.0, 0.0, z], [1.0, 1.0, z], [0.0, 1.0, z]];
 /// let mut b = World::builder();
-/// let g = b.mesh(&square(0.0), &indices).unwrap();
-/// b.instance(Instance::of(g));
-/// let moving = b.instance(Instance::of(g).transform(Affine3A::from_translation(Vec3A::X.into())));
+/// let g = b.add_mesh(&square(0.0), &indices).unwrap();
+/// b.add_instance(Instance::of(g));
+/// let moving = b.add_instance(Instance::of(g).transform(Affine3A::from_translation(Vec3A::X.into())));
 /// let mut world = b.build(&BuildOptions::default()).unwrap();
 /// let ray = Ray::new(Vec3A::new(1.5, 0.5, 1.0), -Vec3A::Z);
-/// assert_eq!(world.closest_hit(&ray).map(|h| (h.instance, h.t)), Some((1, 1.0)));
+/// assert_eq!(world.closest_hit(&ray).map(|h| (h.instance, h.t)), Some((moving, 1.0)));
 ///
 /// // Next frame: the mesh sinks by 1, the second instance slides away.
 /// let mut edit = world.edit();
-/// edit.mesh(g, &square(-1.0), &indices).unwrap();
-/// edit.transform(moving, Affine3A::from_translation(Vec3A::new(3.0, 0.0, 0.0).into()))
+/// edit.refit_mesh(g, &square(-1.0), &indices).unwrap();
+/// edit.set_transform(moving, Affine3A::from_translation(Vec3A::new(3.0, 0.0, 0.0).into()))
 ///     .unwrap();
 /// edit.commit();
 /// assert_eq!(world.closest_hit(&ray), None);
 /// let ray = Ray::new(Vec3A::new(3.5, 0.5, 1.0), -Vec3A::Z);
-/// assert_eq!(world.closest_hit(&ray).map(|h| (h.instance, h.t)), Some((1, 2.0)));
+/// assert_eq!(world.closest_hit(&ray).map(|h| (h.instance, h.t)), Some((moving, 2.0)));
 ///
 /// // A refused change names what was wrong and changes nothing.
 /// let mut edit = world.edit();
-/// assert!(edit.mesh(g, &square(0.0)[..2], &indices).is_err());
-/// assert!(edit.transform(7, Affine3A::IDENTITY).is_err());
+/// assert!(edit.refit_mesh(g, &square(0.0)[..2], &indices).is_err());
+/// assert!(edit.set_transform(InstanceId(7), Affine3A::IDENTITY).is_err());
 /// ```
 #[must_use = "the top level is refit when the edit ends"]
 pub struct WorldEdit<'w, P: Primitive = Triangle> {
@@ -97,14 +97,18 @@ impl<P: Primitive> WorldEdit<'_, P> {
             })
     }
 
-    /// Refits triangle geometry `geometry` (added by [`super::WorldBuilder::triangles`]) to
-    /// `tris`: its triangles, moved, in the same order.
+    /// Refits triangle geometry `geometry` (added by [`super::WorldBuilder::add_triangles`])
+    /// to `tris`: its triangles, moved, in the same order.
     ///
     /// # Errors
     /// [`WorldError::NoGeometry`], [`WorldError::GeometryKind`] for a geometry of the world's
     /// own primitive type or [`WorldError::Refit`] with [`Bvh::refit`](crate::Bvh::refit)'s
     /// reason.
-    pub fn triangles(&mut self, geometry: GeometryId, tris: &[Triangle]) -> Result<(), WorldError> {
+    pub fn refit_triangles(
+        &mut self,
+        geometry: GeometryId,
+        tris: &[Triangle],
+    ) -> Result<(), WorldError> {
         let done = match self.geometry(geometry)? {
             Geometry::Triangles(bvh, kept) => {
                 bvh.refit(tris).map_err(|error| WorldError::Refit {
@@ -119,13 +123,13 @@ impl<P: Primitive> WorldEdit<'_, P> {
         self.refit(done)
     }
 
-    /// Refits mesh geometry `geometry` (added by [`super::WorldBuilder::mesh`]) to new vertex
+    /// Refits mesh geometry `geometry` (added by [`super::WorldBuilder::add_mesh`]) to new vertex
     /// positions for the same triangles ([`Bvh::refit_mesh`](crate::Bvh::refit_mesh)).
     ///
     /// # Errors
-    /// As [`WorldEdit::triangles`]; a bad index is a [`WorldError::Refit`] naming the mesh
-    /// error.
-    pub fn mesh<'v>(
+    /// As [`WorldEdit::refit_triangles`]; a bad index is a [`WorldError::Refit`] naming the
+    /// mesh error.
+    pub fn refit_mesh<'v>(
         &mut self,
         geometry: GeometryId,
         positions: impl Into<Positions<'v>>,
@@ -153,11 +157,13 @@ impl<P: Primitive> WorldEdit<'_, P> {
     }
 
     /// Refits geometry `geometry` of the world's primitive type (added by
-    /// [`super::WorldBuilder::prims`]) to `prims`: its primitives, moved, in the same order.
+    /// [`super::WorldBuilder::add_prims`]) to `prims`: its primitives, moved, in the same
+    /// order.
     ///
     /// # Errors
-    /// As [`WorldEdit::triangles`], [`WorldError::GeometryKind`] for a triangle geometry.
-    pub fn prims(&mut self, geometry: GeometryId, prims: &[P]) -> Result<(), WorldError> {
+    /// As [`WorldEdit::refit_triangles`], [`WorldError::GeometryKind`] for a triangle
+    /// geometry.
+    pub fn refit_prims(&mut self, geometry: GeometryId, prims: &[P]) -> Result<(), WorldError> {
         let done = match self.geometry(geometry)? {
             Geometry::Prims(bvh, kept) => {
                 bvh.refit(prims).map_err(|error| WorldError::Refit {
@@ -186,7 +192,7 @@ impl<P: Primitive> WorldEdit<'_, P> {
     /// instance.
     fn instance(
         &mut self,
-        i: u32,
+        InstanceId(i): InstanceId,
         change: impl FnOnce(&mut super::Instance),
     ) -> Result<(), WorldError> {
         let n = self.world.instances.len();
@@ -209,7 +215,11 @@ impl<P: Primitive> WorldEdit<'_, P> {
     /// # Errors
     /// [`WorldError::NoInstance`], or [`WorldError::Transform`] for a transform that is not
     /// finite or not invertible, as [`super::WorldBuilder::build`] refuses.
-    pub fn transform(&mut self, instance: u32, transform: Affine3A) -> Result<(), WorldError> {
+    pub fn set_transform(
+        &mut self,
+        instance: InstanceId,
+        transform: Affine3A,
+    ) -> Result<(), WorldError> {
         self.instance(instance, |i| i.transform = transform)
     }
 
@@ -217,7 +227,7 @@ impl<P: Primitive> WorldEdit<'_, P> {
     ///
     /// # Errors
     /// [`WorldError::NoInstance`].
-    pub fn mask(&mut self, instance: u32, mask: u32) -> Result<(), WorldError> {
+    pub fn set_mask(&mut self, instance: InstanceId, mask: u32) -> Result<(), WorldError> {
         self.instance(instance, |i| i.mask = mask)
     }
 

@@ -1,5 +1,6 @@
 //! [`WorldError`]: what a world could not be built or edited from.
 
+use crate::builders::ConfigError;
 use crate::bvh::RefitError;
 use crate::mesh::MeshError;
 use std::fmt;
@@ -7,6 +8,9 @@ use std::fmt;
 /// What a [`World`] could not be built from: each names the instance or geometry at fault.
 #[derive(Clone, Debug, PartialEq)]
 pub enum WorldError {
+    /// A setting of the build options' [`BuildConfig`](crate::builders::BuildConfig) is out
+    /// of range.
+    Config(ConfigError),
     /// Instance `instance` names geometry `geometry`, but the world has `geometries`.
     Geometry {
         /// The instance.
@@ -67,6 +71,7 @@ pub enum WorldError {
 impl fmt::Display for WorldError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
+            WorldError::Config(e) => write!(f, "build settings: {e}"),
             WorldError::Geometry {
                 instance,
                 geometry,

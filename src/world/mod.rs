@@ -26,24 +26,24 @@
 //! let positions = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]];
 //! let indices = [[0, 1, 2], [0, 2, 3]];
 //! let mut builder = World::builder();
-//! let square = builder.mesh(&positions, &indices).unwrap();
-//! builder.instance(Instance::of(square).mask(0b01).id(10));
-//! builder.instance(
+//! let square = builder.add_mesh(&positions, &indices).unwrap();
+//! let near = builder.add_instance(Instance::of(square).mask(0b01).user_id(10));
+//! let far = builder.add_instance(
 //!     Instance::of(square)
 //!         .transform(Affine3A::from_translation(Vec3A::new(0.0, 0.0, -2.0).into()))
 //!         .mask(0b10)
-//!         .id(11),
+//!         .user_id(11),
 //! );
 //! let world = builder.build(&BuildOptions::default()).unwrap();
 //!
 //! let ray = Ray::new(Vec3A::new(0.25, 0.75, 1.0), -Vec3A::Z);
 //! let hit = world.closest_hit(&ray).unwrap();
-//! assert_eq!((hit.instance, hit.geometry, hit.prim, hit.t), (0, 0, 1, 1.0));
-//! assert_eq!(world.instance(hit.instance).id, 10);
+//! assert_eq!((hit.instance, hit.geometry, hit.prim, hit.t), (near, square, 1, 1.0));
+//! assert_eq!(world.instance(hit.instance).user_id, 10);
 //! assert_eq!(world.normal(&ray, &hit), Some(Vec3A::Z));
 //! // A ray that sees only mask 0b10 passes the first square and meets the second.
 //! let hit = world.closest_hit(&ray.with_mask(0b10)).unwrap();
-//! assert_eq!((hit.instance, hit.t), (1, 3.0));
+//! assert_eq!((hit.instance, hit.t), (far, 3.0));
 //! ```
 
 mod builder;
@@ -61,7 +61,7 @@ pub use edit::WorldEdit;
 pub use error::WorldError;
 pub use geometry::Geometry;
 pub use hit::WorldHit;
-pub use instance::{GeometryId, Instance};
+pub use instance::{GeometryId, Instance, InstanceId};
 
 use crate::geometry::{unit_or_zero, Aabb, PrimHit, Ray, Triangle};
 use crate::layout::walk::{NodeVisit, WalkNodes};
@@ -88,12 +88,12 @@ impl World {
 }
 
 impl<P: Primitive> World<P> {
-    /// Instance `i` as it was added.
+    /// Instance `i` as it was added (or last edited).
     ///
     /// # Panics
-    /// When `i` is not an instance index (a hit's `instance` always is).
-    pub fn instance(&self, i: u32) -> &Instance {
-        &self.instances[i as usize]
+    /// When `i` is not one of the world's instances (a hit's `instance` always is).
+    pub fn instance(&self, i: InstanceId) -> &Instance {
+        &self.instances[i.0 as usize]
     }
 
     /// Every instance, in the order added.
@@ -116,8 +116,8 @@ impl<P: Primitive> World<P> {
     /// where the primitive type gives no normal
     /// ([`Primitive::geometric_normal`]).
     pub fn normal(&self, ray: &Ray, hit: &WorldHit) -> Option<Vec3A> {
-        let inst = self.instances.get(hit.instance as usize)?;
-        let g = self.geometries.get(hit.geometry as usize)?;
+        let inst = self.instances.get(hit.instance.0 as usize)?;
+        let g = self.geometries.get(hit.geometry.0 as usize)?;
         let to_object = inst.transform.inverse();
         let at = to_object.transform_point3a(ray.at(hit.t));
         let local = PrimHit {
@@ -198,10 +198,10 @@ mod tests {
                 .build()
                 .unwrap();
             let mut b = World::builder();
-            let g = b.triangles(tris.clone());
+            let g = b.add_triangles(tris.clone());
             for i in 0..500 {
                 let at = Vec3A::new((i % 23) as f32, (i / 23) as f32, (i % 7) as f32);
-                b.instance(Instance::of(g).transform(Affine3A::from_translation(at.into())));
+                b.add_instance(Instance::of(g).transform(Affine3A::from_translation(at.into())));
             }
             b.build(&BuildOptions::default().thread_pool(&pool))
                 .unwrap()

@@ -2,7 +2,7 @@
 //! enters (its mask shares a bit with the ray's), the ray brought into object space and the
 //! instance's geometry asked with the nearest hit so far as its limit.
 
-use super::{Geometry, InstanceLeaf, World, WorldHit};
+use super::{Geometry, GeometryId, InstanceId, InstanceLeaf, World, WorldHit};
 use crate::geometry::{Hit, Ray};
 use crate::isa::Kernels;
 use crate::primitive::Primitive;
@@ -33,8 +33,8 @@ impl<F> InInstance<'_, F> {
     pub(super) fn hit(&self, h: &Hit) -> WorldHit {
         WorldHit {
             t: h.t,
-            instance: self.instance,
-            geometry: self.geometry,
+            instance: InstanceId(self.instance),
+            geometry: GeometryId(self.geometry),
             prim: h.prim,
             u: h.u,
             v: h.v,

@@ -70,7 +70,8 @@ pub(super) fn top_level(placed: &[InstanceLeaf], boxes: &[Aabb], isa: Isa) -> Bv
         max_leaf_size: 1,
         ..BuildConfig::default()
     };
-    let tree = build(boxes, &config, Builder::Binned);
+    let tree =
+        build(boxes, &config, Builder::Binned).expect("the top level's settings are in range");
     let mut top = Bvh8::from_leaf_prims(&tree, leaf_order(&tree, placed).into(), isa, &config);
     debug_assert!(top
         .prims

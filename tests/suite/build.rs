@@ -6,7 +6,8 @@ use quiver_lab::rays;
 use quiver_rt::builders::{
     build, optimize, prim_bounds, BuildConfig, BuildTree, Builder, NodeKind, MAX_DEPTH,
 };
-use quiver_rt::{reference, Aabb, Bvh2, Bvh2Mapping, RayQuery, Triangle};
+use quiver_rt::layout::{Bvh2, Bvh2Mapping};
+use quiver_rt::{reference, Aabb, Bvh, RayQuery, Triangle};
 use quiver_scenes::rng::Rng;
 use quiver_scenes::Scene;
 
@@ -27,9 +28,9 @@ fn same_tree_for_one_and_two_threads() {
         let binned = |b: &Builder| matches!(b, Builder::Binned | Builder::BinnedOpt);
         let builders = BUILDERS.into_iter().filter(|b| *b != Builder::Sbvh);
         for builder in builders.filter(|b| horizontal_threshold == 1 << 16 || binned(b)) {
-            let one = in_pool(1, || build(&bounds, &config, builder));
-            let two = in_pool(2, || build(&bounds, &config, builder));
-            one.validate(&bounds, &config).unwrap();
+            let one = in_pool(1, || build(&bounds, &config, builder).unwrap());
+            let two = in_pool(2, || build(&bounds, &config, builder).unwrap());
+            one.check(&bounds, &config).unwrap();
             assert!(
                 one == two,
                 "{builder}: trees differ between 1 and 2 threads"
@@ -47,7 +48,7 @@ fn horizontal_and_vertical_give_the_same_tree() {
             horizontal_threshold,
             ..BuildConfig::default()
         };
-        in_pool(2, || build(&bounds, &config, Builder::Binned))
+        in_pool(2, || build(&bounds, &config, Builder::Binned).unwrap())
     };
     assert!(
         build_with(usize::MAX) == build_with(64),
@@ -66,8 +67,8 @@ fn check_degenerate(name: &str, tris: &[Triangle]) -> Vec<BuildTree> {
             ..BuildConfig::default()
         };
         for builder in BUILDERS {
-            let tree = build(&bounds, &config, builder);
-            tree.validate(&bounds, &config)
+            let tree = build(&bounds, &config, builder).unwrap();
+            tree.check(&bounds, &config)
                 .unwrap_or_else(|e| panic!("{name} {builder} leaf {max_leaf_size}: {e}"));
             assert!(
                 tree.stats().depth <= MAX_DEPTH,
@@ -233,7 +234,7 @@ fn sah_cost_matches_hand_computation() {
             intersection_cost: 2.0,
             ..BuildConfig::default()
         };
-        let tree = build(&boxes, &config, builder);
+        let tree = build(&boxes, &config, builder).unwrap();
         assert_eq!(
             tree.stats().leaves,
             2,
@@ -256,7 +257,7 @@ fn sah_leaf_decision() {
             ..BuildConfig::default()
         };
         assert_eq!(
-            build(&overlapping, &costly, builder).nodes.len(),
+            build(&overlapping, &costly, builder).unwrap().nodes.len(),
             1,
             "{builder}"
         );
@@ -264,14 +265,21 @@ fn sah_leaf_decision() {
             traversal_cost: 0.0,
             ..BuildConfig::default()
         };
-        assert_eq!(build(&apart, &free, builder).stats().leaves, 4, "{builder}");
+        assert_eq!(
+            build(&apart, &free, builder).unwrap().stats().leaves,
+            4,
+            "{builder}"
+        );
         // The maximum leaf size wins over the SAH.
         let tiny_leaves = BuildConfig {
             max_leaf_size: 1,
             ..costly
         };
         assert_eq!(
-            build(&overlapping, &tiny_leaves, builder).stats().leaves,
+            build(&overlapping, &tiny_leaves, builder)
+                .unwrap()
+                .stats()
+                .leaves,
             4,
             "{builder}"
         );
@@ -287,8 +295,12 @@ fn binned_sah_within_3_percent_of_sweep() {
     for name in ["tetra7", "soup20000"] {
         let scene = Scene::load(name).unwrap();
         let bounds = prim_bounds(&scene.triangles());
-        let binned = build(&bounds, &config, Builder::Binned).sah_cost(&config);
-        let sweep = build(&bounds, &config, Builder::Sweep).sah_cost(&config);
+        let binned = build(&bounds, &config, Builder::Binned)
+            .unwrap()
+            .sah_cost(&config);
+        let sweep = build(&bounds, &config, Builder::Sweep)
+            .unwrap()
+            .sah_cost(&config);
         println!(
             "{name}: binned {binned:.3} sweep {sweep:.3} ratio {:.4}",
             binned / sweep
@@ -320,11 +332,11 @@ fn cost_models_build_valid_trees_independent_of_threads() {
         for builder in [Builder::Binned, Builder::Sweep] {
             let at = |threads| {
                 in_pool(threads, || {
-                    build_with_areas(&bounds, Some(&areas), &config, builder)
+                    build_with_areas(&bounds, Some(&areas), &config, builder).unwrap()
                 })
             };
             let one = at(1);
-            one.validate(&bounds, &config)
+            one.check(&bounds, &config)
                 .unwrap_or_else(|e| panic!("{cost_model} {builder}: {e}"));
             assert!(one == at(2), "{cost_model} {builder}: 1 vs 2 threads");
             assert!(one == at(3), "{cost_model} {builder}: 1 vs 3 threads");
@@ -343,19 +355,20 @@ fn rtsah_without_occlusion_is_the_sah() {
     let zeros = vec![0.0; bounds.len()];
     let ones = vec![1.0; bounds.len()];
     for builder in [Builder::Binned, Builder::Sweep] {
-        let sah = build(&bounds, &BuildConfig::default(), builder);
+        let sah = build(&bounds, &BuildConfig::default(), builder).unwrap();
         let rtsah = BuildConfig {
             cost_model: CostModel::Rtsah,
             ..BuildConfig::default()
         };
         assert!(
-            build_with_areas(&bounds, Some(&zeros), &rtsah, builder) == sah,
+            build_with_areas(&bounds, Some(&zeros), &rtsah, builder).unwrap() == sah,
             "{builder}: RTSAH with no occlusion differs from the SAH"
         );
-        let with_areas = build_with_areas(&bounds, Some(&ones), &BuildConfig::default(), builder);
+        let with_areas =
+            build_with_areas(&bounds, Some(&ones), &BuildConfig::default(), builder).unwrap();
         assert!(with_areas == sah, "{builder}: the SAH read the areas");
         // Occluding primitives do change it (else the model would be dead weight).
-        assert!(build_with_areas(&bounds, Some(&ones), &rtsah, builder) != sah);
+        assert!(build_with_areas(&bounds, Some(&ones), &rtsah, builder).unwrap() != sah);
     }
 }
 
@@ -371,10 +384,10 @@ fn optimisation_never_raises_the_cost() {
         let tris = Scene::load(name).unwrap().triangles();
         let bounds = prim_bounds(&tris);
         for builder in BUILDERS {
-            let tree = build(&bounds, &config, builder);
-            let better = optimize(&tree, &bounds, &config);
+            let tree = build(&bounds, &config, builder).unwrap();
+            let better = optimize(&tree, &bounds, &config).unwrap();
             better
-                .validate(&bounds, &config)
+                .check(&bounds, &config)
                 .unwrap_or_else(|e| panic!("{name} {builder}: {e}"));
             let (before, after) = (tree.sah_cost(&config), better.sah_cost(&config));
             assert!(
@@ -445,9 +458,9 @@ fn leaves_counted_in_groups_split_only_where_the_group_cost_pays() {
     };
     assert_eq!(grouped.tests(5), 2.0 * quiver_rt::builders::GROUP_TEST_COST);
     for builder in [Builder::Binned, Builder::Sweep] {
-        let one = build(&bounds, &single, builder);
-        let four = build(&bounds, &grouped, builder);
-        four.validate(&bounds, &grouped)
+        let one = build(&bounds, &single, builder).unwrap();
+        let four = build(&bounds, &grouped, builder).unwrap();
+        four.check(&bounds, &grouped)
             .unwrap_or_else(|e| panic!("{builder}: {e}"));
         let (s1, s4) = (
             optional_splits_that_pay(&one, &single, &format!("{builder} single")),
@@ -463,9 +476,8 @@ fn leaves_counted_in_groups_split_only_where_the_group_cost_pays() {
         );
     }
     let leaves = |layout| {
-        quiver_rt::BuildOptions::default()
-            .layout(layout)
-            .build_with_tree(&tris)
+        Bvh::build_with_tree(&tris, &quiver_rt::BuildOptions::default().layout(layout))
+            .unwrap()
             .1
             .stats()
             .leaves

@@ -24,7 +24,7 @@ pub fn in_pool<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
 
 /// A BVH over `prims` in `layout`, every other option default.
 pub fn build<P: Primitive>(prims: &[P], layout: Layout) -> Bvh<P> {
-    BuildOptions::default().layout(layout).build(prims)
+    Bvh::build(prims, &BuildOptions::default().layout(layout)).unwrap()
 }
 
 /// The brute-force reference's closest hit for every ray (in parallel).

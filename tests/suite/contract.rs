@@ -9,10 +9,12 @@ use quiver_rt::builders::{
     build, prim_bounds, BuildConfig, BuildNode, BuildTree, Builder, NodeKind, TreeError,
 };
 use quiver_rt::intersect::Watertight;
+use quiver_rt::layout::{Bvh2, Bvh2Mapping, Bvh4, Bvh4Mapping, Bvh8, QBvh4};
+use quiver_rt::primitive::LeafFormat;
 use quiver_rt::traverse::{ConservativeBoxes, NoStats, PacketMode, PacketQuery};
 use quiver_rt::{
-    reference, Aabb, BuildOptions, Bvh, Bvh2, Bvh2Mapping, Bvh4, Bvh4Mapping, Bvh8, Hit, Isa,
-    Layout, LeafFormat, PrimHit, Primitive, QBvh4, Ray, RayQuery, Triangle,
+    reference, Aabb, BuildOptions, Bvh, Hit, Isa, Layout, PrimHit, Primitive, Ray, RayQuery,
+    Triangle,
 };
 
 /// The seeded random soup of `n` triangles in the unit cube.
@@ -118,7 +120,7 @@ fn check_everywhere<P: Primitive>(prims: &[P], rays: &[Ray], want: &[Option<Hit>
     );
     for layout in Layout::ALL {
         for isa in Isa::ALL {
-            let bvh = BuildOptions::default().layout(layout).isa(isa).build(prims);
+            let bvh = Bvh::build(prims, &BuildOptions::default().layout(layout).isa(isa)).unwrap();
             if bvh.isa() != isa && layout == Layout::Bvh8Dfs {
                 continue;
             }
@@ -257,7 +259,7 @@ fn lay_out_everywhere(tree: &BuildTree, tris: &[Triangle]) -> Vec<Result<(), Tre
 fn trees_from_outside_are_checked_not_trusted() {
     let tris = soup(300);
     let bounds = prim_bounds(&tris);
-    let tree = build(&bounds, &BuildConfig::default(), Builder::Binned);
+    let tree = build(&bounds, &BuildConfig::default(), Builder::Binned).unwrap();
 
     // Fewer or more primitives than the tree was built for.
     for n in [299, 301] {
@@ -352,7 +354,7 @@ fn from_tree_keeps_the_callers_options() {
     // the 8-wide collapse may merge leaves only up to the caller's leaf size.
     let tris = soup(2000);
     let four = BuildOptions::default().max_leaf_size(4).isa(Isa::Portable);
-    let (built, tree) = four.build_with_tree(&tris);
+    let (built, tree) = Bvh::build_with_tree(&tris, &four).unwrap();
     let again = Bvh::from_tree(&tree, &tris, &four).unwrap();
     assert_eq!(again.footprint(), built.footprint());
     assert_eq!(again.isa(), Isa::Portable);
@@ -385,7 +387,7 @@ fn a_filter_answers_as_if_the_rejected_candidates_were_not_there() {
     let mut asked = 0usize;
     for layout in Layout::ALL {
         for isa in Isa::ALL {
-            let bvh = BuildOptions::default().layout(layout).isa(isa).build(&tris);
+            let bvh = Bvh::build(&tris, &BuildOptions::default().layout(layout).isa(isa)).unwrap();
             if bvh.isa() != isa && layout == Layout::Bvh8Dfs {
                 continue;
             }

@@ -163,7 +163,7 @@ fn check_layouts(tris: &[Triangle], sets: &[RaySet], what: &str) {
     let bounds = prim_bounds(tris);
     let mut worst = Worst::default();
     for builder in Builder::ALL {
-        let tree = build(&bounds, &BuildConfig::default(), builder);
+        let tree = build(&bounds, &BuildConfig::default(), builder).unwrap();
         for layout in Layout::ALL {
             let options = BuildOptions::default().layout(layout);
             each_isa(
@@ -364,7 +364,7 @@ fn watertight_leaves_match_the_oracle_and_the_scalar_watertight_test() {
     assert!(aimed.hit_fraction() > 0.5);
     let mut worst = Worst::default();
     for layout in Layout::ALL {
-        let laid_out = BuildOptions::default().layout(layout).build(&wt);
+        let laid_out = Bvh::build(&wt, &BuildOptions::default().layout(layout)).unwrap();
         each_isa(&laid_out, |bvh, isa| {
             for set in [&random, &aimed] {
                 worst = worst.max(check(bvh, set, &format!("watertight {layout} {isa}")));

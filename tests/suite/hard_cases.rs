@@ -451,8 +451,8 @@ fn negative_and_nan_t_min_count_as_zero() {
         }
         // A world of the same triangles.
         let mut world = quiver_rt::WorldBuilder::<Triangle>::new();
-        let g = world.triangles(tris.to_vec());
-        world.instance(quiver_rt::Instance::of(g));
+        let g = world.add_triangles(tris.to_vec());
+        world.add_instance(quiver_rt::Instance::of(g));
         let world = world.build(&quiver_rt::BuildOptions::default()).unwrap();
         assert_eq!(
             world.closest_hit(&ray).map(|h| h.t),

@@ -9,7 +9,7 @@
 use crate::common::in_pool;
 use quiver_rt::predict::census;
 use quiver_rt::traverse::{ConservativeBoxes, NoFilter, NoStats};
-use quiver_rt::{BuildOptions, Layout, RayQuery};
+use quiver_rt::{BuildOptions, Bvh, Layout, RayQuery};
 use quiver_scenes::accel::SceneBvh;
 use quiver_scenes::render::{render, RenderConfig};
 use quiver_scenes::scene::Scene;
@@ -20,7 +20,7 @@ fn recorded_queries_match_the_render_and_havrans_inequalities() {
     for name in ["balls1", "mount2", "rings1", "gears1"] {
         let scene = Scene::load(name).unwrap();
         let layout = Layout::Bvh4Dfs;
-        let bvh = SceneBvh::build(&scene, &BuildOptions::default().layout(layout));
+        let bvh = SceneBvh::build(&scene, &BuildOptions::default().layout(layout)).unwrap();
         let rec = bvh.clone().recording();
         let config = RenderConfig {
             res: 48,
@@ -81,7 +81,7 @@ fn recorded_queries_match_the_render_and_havrans_inequalities() {
         );
         let c = census(&bvh);
         assert_eq!(c.references, bvh.primitives(), "{name}: N_ER");
-        let (_, tree) = BuildOptions::default().build_with_tree(&scene.prims().0);
+        let (_, tree) = Bvh::build_with_tree(&scene.prims().0, &BuildOptions::default()).unwrap();
         let b = census(&tree);
         assert_eq!(b.leaves, b.inner + 1, "{name}: binary census");
     }

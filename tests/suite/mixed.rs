@@ -5,7 +5,7 @@ use crate::common::reference_hits;
 use glam::Vec3A;
 use quiver_lab::rays;
 use quiver_rt::builders::Builder;
-use quiver_rt::{Aabb, BuildOptions, Layout, Primitive, Ray, RayQuery, Triangle};
+use quiver_rt::{Aabb, BuildOptions, Bvh, Layout, Primitive, Ray, RayQuery, Triangle};
 use quiver_scenes::primitive::{Cone, PatchTriangle, Polygon, Prim, Sphere};
 use quiver_scenes::rng::Rng;
 use rayon::prelude::*;
@@ -71,10 +71,11 @@ fn every_layout_matches_the_reference_on_mixed_primitives() {
     assert!(hits > rays.len() / 20, "only {hits} hits");
     for builder in Builder::ALL {
         for layout in Layout::ALL {
-            let bvh = BuildOptions::default()
-                .builder(builder)
-                .layout(layout)
-                .build(&prims);
+            let bvh = Bvh::build(
+                &prims,
+                &BuildOptions::default().builder(builder).layout(layout),
+            )
+            .unwrap();
             rays.par_iter()
                 .zip(&want)
                 .enumerate()

@@ -139,12 +139,12 @@ fn packets_match_on_every_instruction_set_and_leaf_format() {
         for layout in WIDE {
             for isa in Isa::ALL {
                 let options = BuildOptions::default().layout(layout).isa(isa);
-                let bvh = options.build(&tris);
+                let bvh = Bvh::build(&tris, &options).unwrap();
                 let shadow = shadow_rays(&bvh, &scene, &eye);
                 let what = format!("{spec} {layout} {isa:?}");
                 check(&bvh, &tris, &eye, None, &format!("{what} eye"));
                 check(&bvh, &tris, &shadow, None, &format!("{what} shadow"));
-                let bvh = options.build(&tight);
+                let bvh = Bvh::build(&tight, &options).unwrap();
                 check(&bvh, &tight, &eye, None, &format!("{what} watertight eye"));
                 check(
                     &bvh,

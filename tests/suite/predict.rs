@@ -51,9 +51,8 @@ fn crofton_prediction_matches_pierced_lines() {
         let tris = Scene::load(scene).unwrap().triangles();
         let ghosts = Pierce::of(&tris);
         for builder in Builder::ALL {
-            let (_, tree) = BuildOptions::default()
-                .builder(builder)
-                .build_with_tree(&tris);
+            let (_, tree) =
+                Bvh::build_with_tree(&tris, &BuildOptions::default().builder(builder)).unwrap();
             let root = tree.nodes[0].bounds;
             let lines = isotropic_lines(&root, 40_000, 17);
             let ghost2 = Bvh::from_tree(

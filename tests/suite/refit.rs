@@ -15,8 +15,8 @@ use quiver_lab::rays::random_rays;
 use quiver_lab::worlds::{check as check_world, Placements};
 use quiver_rt::traverse::PacketMode;
 use quiver_rt::{
-    reference, BuildOptions, Bvh, GeometryId, Hit, Instance, Isa, Layout, MeshError, Ray, RayQuery,
-    RefitError, Triangle, World, WorldError,
+    reference, BuildOptions, Bvh, GeometryId, Hit, Instance, InstanceId, Isa, Layout, MeshError,
+    Ray, RayQuery, RefitError, Triangle, World, WorldError,
 };
 use quiver_scenes::rng::Rng;
 use quiver_scenes::Scene;
@@ -233,10 +233,8 @@ fn isas(layout: Layout) -> Vec<Isa> {
     Isa::ALL
         .into_iter()
         .filter(|&isa| {
-            BuildOptions::default()
-                .layout(layout)
-                .isa(isa)
-                .build(&tri)
+            Bvh::build(&tri, &BuildOptions::default().layout(layout).isa(isa))
+                .unwrap()
                 .isa()
                 == isa
         })
@@ -271,10 +269,9 @@ fn every_layout_refit_through_a_bunnys_poses_answers_as_fresh_layouts_and_the_or
     for layout in Layout::ALL {
         for isa in isas(layout) {
             let options = BuildOptions::default().layout(layout).isa(isa);
-            let (mut bvh, tree) = options.build_with_tree(&tris_a);
-            let (mut from_mesh, mesh_tree) = options
-                .build_mesh_with_tree(&a.positions, &a.indices)
-                .unwrap();
+            let (mut bvh, tree) = Bvh::build_with_tree(&tris_a, &options).unwrap();
+            let (mut from_mesh, mesh_tree) =
+                Bvh::build_mesh_with_tree(&a.positions, &a.indices, &options).unwrap();
             assert_eq!(tree, mesh_tree);
             let (built, footprint) = (bvh.sah_cost(), bvh.footprint());
             for (name, m, tris, rays) in &poses {
@@ -315,7 +312,7 @@ fn a_refit_answers_alike_on_any_pool() {
         8,
     );
     for layout in Layout::ALL {
-        let mut one = BuildOptions::default().layout(layout).build(&a.tris());
+        let mut one = Bvh::build(&a.tris(), &BuildOptions::default().layout(layout)).unwrap();
         let mut two = one.clone();
         crate::common::in_pool(1, || one.refit(&b)).unwrap();
         crate::common::in_pool(2, || two.refit(&b)).unwrap();
@@ -339,7 +336,7 @@ fn refits_it_cannot_make_are_errors_that_change_nothing() {
     let answers =
         |bvh: &Bvh| -> Vec<Option<Hit>> { probe.iter().map(|r| bvh.closest_hit(r)).collect() };
     for layout in Layout::ALL {
-        let mut bvh = BuildOptions::default().layout(layout).build(&tris);
+        let mut bvh = Bvh::build(&tris, &BuildOptions::default().layout(layout)).unwrap();
         let before = answers(&bvh);
         let cost = bvh.sah_cost();
         let refused = |bvh: &mut Bvh, got: Result<(), RefitError>, want: RefitError| {
@@ -384,7 +381,7 @@ fn refits_it_cannot_make_are_errors_that_change_nothing() {
     // A triangle the build dropped (non-finite) must stay so; those it holds, finite.
     let mut dropping = tris.clone();
     dropping[5].v[2].z = f32::NAN;
-    let (mut bvh, tree) = BuildOptions::default().build_with_tree(&dropping);
+    let (mut bvh, tree) = Bvh::build_with_tree(&dropping, &BuildOptions::default()).unwrap();
     assert_eq!(tree.dropped, 1);
     let wave = poses(&a).swap_remove(0).1.tris();
     let mut still = wave.clone();
@@ -474,17 +471,19 @@ fn edit_to(world: &mut World, a: &Placements, b: &Placements) {
             let indices: Vec<[u32; 3]> = (0..tris.len() as u32)
                 .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
                 .collect();
-            edit.mesh(GeometryId(1), &positions, &indices).unwrap();
+            edit.refit_mesh(GeometryId(1), &positions, &indices)
+                .unwrap();
         } else {
-            edit.triangles(GeometryId(g as u32), tris).unwrap();
+            edit.refit_triangles(GeometryId(g as u32), tris).unwrap();
         }
     }
     for (i, (old, new)) in a.instances.iter().zip(&b.instances).enumerate() {
         if old.transform != new.transform {
-            edit.transform(i as u32, new.transform).unwrap();
+            edit.set_transform(InstanceId(i as u32), new.transform)
+                .unwrap();
         }
         if old.mask != new.mask {
-            edit.mask(i as u32, new.mask).unwrap();
+            edit.set_mask(InstanceId(i as u32), new.mask).unwrap();
         }
     }
     edit.commit();
@@ -582,7 +581,10 @@ fn an_instance_moved_out_of_range_and_back_answers_as_fresh_worlds() {
     }
     let hit = Ray::new(Vec3A::new(3.2, 0.2, 1.0), -Vec3A::Z);
     edit_to(&mut world, &far, &near);
-    assert_eq!(world.closest_hit(&hit).map(|h| h.instance), Some(3));
+    assert_eq!(
+        world.closest_hit(&hit).map(|h| h.instance),
+        Some(InstanceId(3))
+    );
 }
 
 #[test]
@@ -595,14 +597,14 @@ fn world_edits_it_cannot_make_are_errors_that_change_nothing() {
     {
         let mut edit = world.edit();
         assert_eq!(
-            edit.triangles(GeometryId(9), &a.geometries[0]),
+            edit.refit_triangles(GeometryId(9), &a.geometries[0]),
             Err(WorldError::NoGeometry {
                 geometry: 9,
                 geometries: 3
             })
         );
         assert_eq!(
-            edit.triangles(GeometryId(0), &a.geometries[0][1..]),
+            edit.refit_triangles(GeometryId(0), &a.geometries[0][1..]),
             Err(WorldError::Refit {
                 geometry: 0,
                 error: RefitError::Count {
@@ -612,25 +614,28 @@ fn world_edits_it_cannot_make_are_errors_that_change_nothing() {
             })
         );
         assert!(matches!(
-            edit.mesh(GeometryId(1), &[[0.0; 3]; 2], &[[0, 1, 2]; 80]),
+            edit.refit_mesh(GeometryId(1), &[[0.0; 3]; 2], &[[0, 1, 2]; 80]),
             Err(WorldError::Refit { geometry: 1, .. })
         ));
         assert_eq!(
-            edit.transform(40, Affine3A::IDENTITY),
+            edit.set_transform(InstanceId(40), Affine3A::IDENTITY),
             Err(WorldError::NoInstance {
                 instance: 40,
                 instances: 40
             })
         );
         assert_eq!(
-            edit.transform(2, Affine3A::from_scale(Vec3::new(1.0, 0.0, 1.0))),
+            edit.set_transform(
+                InstanceId(2),
+                Affine3A::from_scale(Vec3::new(1.0, 0.0, 1.0))
+            ),
             Err(WorldError::Transform {
                 instance: 2,
                 why: "not invertible"
             })
         );
         assert_eq!(
-            edit.mask(41, 0),
+            edit.set_mask(InstanceId(41), 0),
             Err(WorldError::NoInstance {
                 instance: 41,
                 instances: 40
@@ -642,11 +647,11 @@ fn world_edits_it_cannot_make_are_errors_that_change_nothing() {
     }
     // A geometry of the world's own type takes only those.
     let mut builder = quiver_rt::WorldBuilder::<Triangle>::new();
-    let g = builder.prims(a.geometries[0].clone());
-    builder.instance(Instance::of(g));
+    let g = builder.add_prims(a.geometries[0].clone());
+    builder.add_instance(Instance::of(g));
     let mut prims = builder.build(&BuildOptions::default()).unwrap();
     let mut edit = prims.edit();
-    let e = edit.triangles(g, &a.geometries[0]).unwrap_err();
+    let e = edit.refit_triangles(g, &a.geometries[0]).unwrap_err();
     assert_eq!(
         e,
         WorldError::GeometryKind {
@@ -655,5 +660,5 @@ fn world_edits_it_cannot_make_are_errors_that_change_nothing() {
         }
     );
     assert!(e.to_string().contains("geometry 0"));
-    edit.prims(g, &a.geometries[0]).unwrap();
+    edit.refit_prims(g, &a.geometries[0]).unwrap();
 }

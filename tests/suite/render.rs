@@ -26,7 +26,7 @@ fn run_with(
     packets: bool,
 ) -> quiver_scenes::render::Rendered {
     in_pool(threads, || {
-        let bvh = SceneBvh::build(scene, &BuildOptions::default().layout(layout));
+        let bvh = SceneBvh::build(scene, &BuildOptions::default().layout(layout)).unwrap();
         let config = RenderConfig {
             res,
             two_sided: scene.two_sided_materials(),
@@ -229,7 +229,7 @@ fn flattened_and_instanced(
         packets,
         ..RenderConfig::default()
     };
-    let flat = SceneBvh::build_triangles(&patched, &options);
+    let flat = SceneBvh::build_triangles(&patched, &options).unwrap();
     let inst = SceneBvh::build_instanced(&scene, DEFAULT_RESOLUTION, &options).unwrap();
     assert_eq!(
         inst.primitives(),

@@ -108,7 +108,7 @@ fn sbvh_gives_the_oracles_hits_in_every_layout_and_isa() {
     let water: Vec<Watertight> = tris.iter().map(|&t| Watertight(t)).collect();
     for layout in Layout::ALL {
         let options = BuildOptions::high_quality().layout(layout);
-        let (bvh, tree) = options.build_with_tree(&tris);
+        let (bvh, tree) = Bvh::build_with_tree(&tris, &options).unwrap();
         // The scene must make the builder split triangles, or this tests nothing new (at
         // least one in twenty: the spatial pass skips nodes below 64 references since the
         // cheaper binning, so 3000 slivers hold fewer pieces than the one in ten they did).
@@ -118,8 +118,8 @@ fn sbvh_gives_the_oracles_hits_in_every_layout_and_isa() {
             tree.prim_indices.len(),
             tris.len()
         );
-        tree.validate(&prim_bounds(&tris), &options.config).unwrap();
-        let water_bvh = options.build(&water);
+        tree.check(&prim_bounds(&tris), &options.config).unwrap();
+        let water_bvh = Bvh::build(&water, &options).unwrap();
         for isa in Isa::ALL {
             let bvh = bvh.clone().with_isa(isa);
             if bvh.isa() != isa {
@@ -140,7 +140,8 @@ fn sbvh_gives_the_oracles_hits_in_every_layout_and_isa() {
         let indices: Vec<[u32; 3]> = (0..tris.len() as u32)
             .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
             .collect();
-        let (mesh_bvh, mesh_tree) = options.build_mesh_with_tree(&positions, &indices).unwrap();
+        let (mesh_bvh, mesh_tree) =
+            Bvh::build_mesh_with_tree(&positions, &indices, &options).unwrap();
         assert_eq!(mesh_tree, tree, "{layout}");
         against_oracle(&mesh_bvh, &tris, &rays, &oracle, &format!("{layout} mesh"));
     }
@@ -153,8 +154,8 @@ fn sbvh_over_boxes_is_valid_and_answers_through_from_tree() {
     let tris = slivers(2000, 3);
     let bounds = prim_bounds(&tris);
     let config = BuildConfig::default();
-    let tree = build(&bounds, &config, Builder::Sbvh);
-    tree.validate(&bounds, &config).unwrap();
+    let tree = build(&bounds, &config, Builder::Sbvh).unwrap();
+    tree.check(&bounds, &config).unwrap();
     assert!(tree.prim_indices.len() > tris.len());
     assert!(tree.prim_indices.len() <= budget(tris.len()));
     let rays = rays_for(&tris, 5000, 4);
@@ -184,7 +185,7 @@ fn sbvh_references_stay_within_the_budget() {
     for (what, tris) in [("spanning", spanning), ("slivers", slivers(20_000, 5))] {
         for leaf in [1, 4, 8] {
             let options = BuildOptions::high_quality().max_leaf_size(leaf);
-            let (_, tree) = options.build_with_tree(&tris);
+            let (_, tree) = Bvh::build_with_tree(&tris, &options).unwrap();
             let (refs, max) = (tree.prim_indices.len(), budget(tris.len()));
             println!(
                 "{what}, leaves of {leaf}: {refs} references for {}",
@@ -195,8 +196,8 @@ fn sbvh_references_stay_within_the_budget() {
                 "{what} {leaf}: {refs} references, budget {max}"
             );
             assert!(refs > tris.len(), "{what} {leaf}: no spatial split taken");
-            tree.validate(&prim_bounds(&tris), &options.config).unwrap();
-            let boxes = build(&prim_bounds(&tris), &options.config, Builder::Sbvh);
+            tree.check(&prim_bounds(&tris), &options.config).unwrap();
+            let boxes = build(&prim_bounds(&tris), &options.config, Builder::Sbvh).unwrap();
             assert!(boxes.prim_indices.len() <= max, "{what} {leaf}: boxes");
         }
     }
@@ -207,14 +208,14 @@ fn sbvh_tree_is_the_same_on_one_and_two_threads() {
     // Large enough for parallel binning (32k references) and parallel subtrees.
     let tris = slivers(60_000, 7);
     let options = BuildOptions::high_quality();
-    let one: BuildTree = in_pool(1, || options.build_with_tree(&tris).1);
-    let two: BuildTree = in_pool(2, || options.build_with_tree(&tris).1);
+    let one: BuildTree = in_pool(1, || Bvh::build_with_tree(&tris, &options).unwrap().1);
+    let two: BuildTree = in_pool(2, || Bvh::build_with_tree(&tris, &options).unwrap().1);
     assert!(one.prim_indices.len() > tris.len());
     assert_eq!(one, two);
     let bounds = prim_bounds(&tris);
     let config = BuildConfig::default();
-    let one = in_pool(1, || build(&bounds, &config, Builder::Sbvh));
-    let two = in_pool(2, || build(&bounds, &config, Builder::Sbvh));
+    let one = in_pool(1, || build(&bounds, &config, Builder::Sbvh).unwrap());
+    let two = in_pool(2, || build(&bounds, &config, Builder::Sbvh).unwrap());
     assert_eq!(one, two);
 }
 
@@ -229,8 +230,8 @@ fn sbvh_tree_costs_less_than_the_binned_tree_on_long_triangles() {
     for (n, seed) in [(5000, 11), (40_000, 12)] {
         let tris = slivers(n, seed);
         let config = BuildConfig::default();
-        let (_, binned) = BuildOptions::default().build_with_tree(&tris);
-        let (_, sbvh) = BuildOptions::high_quality().build_with_tree(&tris);
+        let (_, binned) = Bvh::build_with_tree(&tris, &BuildOptions::default()).unwrap();
+        let (_, sbvh) = Bvh::build_with_tree(&tris, &BuildOptions::high_quality()).unwrap();
         let (b, s) = (binned.sah_cost(&config), sbvh.sah_cost(&config));
         println!("{n} slivers: SAH cost binned {b:.1}, sbvh {s:.1}");
         assert!(s <= b, "{n}: sbvh {s} > binned {b}");
@@ -254,7 +255,7 @@ fn refit_of_an_sbvh_is_correct_and_never_tighter() {
     let at_rest = Oracle::new(&tris).closest_hits(&rays);
     let now = Oracle::new(&moved).closest_hits(&rays);
     for layout in Layout::ALL {
-        let mut bvh = BuildOptions::high_quality().layout(layout).build(&tris);
+        let mut bvh = Bvh::build(&tris, &BuildOptions::high_quality().layout(layout)).unwrap();
         let built = bvh.sah_cost();
         bvh.refit(&tris).unwrap();
         assert!(bvh.sah_cost() >= built, "{layout}");

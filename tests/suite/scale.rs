@@ -5,7 +5,7 @@
 use glam::Vec3A;
 use quiver_lab::rays;
 use quiver_rt::intersect::Watertight;
-use quiver_rt::{BuildOptions, Hit, Layout, Primitive, RayQuery, Triangle};
+use quiver_rt::{BuildOptions, Bvh, Hit, Layout, Primitive, RayQuery, Triangle};
 use quiver_scenes::accel::SceneBvh;
 use quiver_scenes::primitive::{Cone, Sphere};
 use quiver_scenes::render::{render, Offset, RenderConfig};
@@ -99,7 +99,7 @@ fn eye_hits_match<P: Primitive>(scene: &Scene, wrap: fn(Triangle) -> P) {
     let eye = rays::camera_rays(&scene.camera, 24);
     for layout in Layout::ALL {
         let want: Vec<Option<Hit>> = {
-            let bvh = BuildOptions::default().layout(layout).build(&base);
+            let bvh = Bvh::build(&base, &BuildOptions::default().layout(layout)).unwrap();
             eye.iter().map(|r| bvh.closest_hit(r)).collect()
         };
         assert!(
@@ -110,7 +110,7 @@ fn eye_hits_match<P: Primitive>(scene: &Scene, wrap: fn(Triangle) -> P) {
         for j in EXPONENTS.map(Factor::Ten) {
             let prims: Vec<P> = tris.iter().map(|t| wrap(scale_tri(t, j))).collect();
             let camera = scale_scene(scene, j).camera;
-            let bvh = BuildOptions::default().layout(layout).build(&prims);
+            let bvh = Bvh::build(&prims, &BuildOptions::default().layout(layout)).unwrap();
             for (i, (r, w)) in rays::camera_rays(&camera, 24).iter().zip(&want).enumerate() {
                 let got = bvh.closest_hit(r);
                 let at = format!("{} {layout} {j} ray {i}: {got:?} vs {w:?}", scene.name);
@@ -159,9 +159,9 @@ fn renders_match(scene: &Scene, patches: bool) {
         let run_in = |s: &Scene, layout: Layout| {
             let options = BuildOptions::default().layout(layout);
             let bvh = if patches {
-                SceneBvh::build_triangles(s, &options)
+                SceneBvh::build_triangles(s, &options).unwrap()
             } else {
-                SceneBvh::build(s, &options)
+                SceneBvh::build(s, &options).unwrap()
             };
             render(s, &bvh, &config, &|_| {})
         };
@@ -262,8 +262,15 @@ fn one_triangle_at_the_edge_of_f32() {
             }
             for layout in Layout::ALL {
                 let options = BuildOptions::default().layout(layout);
-                assert_eq!(options.build(&tris).closest_hit(&ray), fast, "{s} {layout}");
-                let w = options.build(&wt).closest_hit(&ray).map(|h| h.t);
+                assert_eq!(
+                    Bvh::build(&tris, &options).unwrap().closest_hit(&ray),
+                    fast,
+                    "{s} {layout}"
+                );
+                let w = Bvh::build(&wt, &options)
+                    .unwrap()
+                    .closest_hit(&ray)
+                    .map(|h| h.t);
                 let err = (w.unwrap_or(f32::NAN) as f64 - want).abs() / want;
                 assert!(err <= 1e-5, "{s} {layout} watertight: {w:?}, oracle {want}");
             }
@@ -298,12 +305,11 @@ fn huge_scenes_build_valid_trees_with_finite_costs() {
         for tris in [grid(s), mixed] {
             let bounds = prim_bounds(&tris);
             for builder in Builder::ALL {
-                let (_, tree) = BuildOptions::default()
-                    .builder(builder)
-                    .build_with_tree(&tris);
-                let raw = build(&bounds, &config, builder);
+                let (_, tree) =
+                    Bvh::build_with_tree(&tris, &BuildOptions::default().builder(builder)).unwrap();
+                let raw = build(&bounds, &config, builder).unwrap();
                 for (how, tree) in [("options", tree), ("boxes", raw)] {
-                    tree.validate(&bounds, &config)
+                    tree.check(&bounds, &config)
                         .unwrap_or_else(|e| panic!("{s} {builder:?} {how}: {e}"));
                     let cost = tree.sah_cost(&config);
                     assert!(cost.is_finite(), "{s} {builder:?} {how}: cost {cost}");
@@ -434,7 +440,7 @@ fn mixed_scales_in_one_bvh_answer_as_the_scalar_tests() {
     fn check<P: Primitive>(prims: &[P], rays: &[Ray], want: &[Option<Hit>], what: &str) {
         let occluded: Vec<bool> = rays.iter().map(|r| reference::any_hit(prims, r)).collect();
         for layout in Layout::ALL {
-            let laid_out = BuildOptions::default().layout(layout).build(prims);
+            let laid_out = Bvh::build(prims, &BuildOptions::default().layout(layout)).unwrap();
             each_isa(&laid_out, |bvh, isa| {
                 let at = format!("{what} {layout} {isa}");
                 for (i, ray) in rays.iter().enumerate() {
@@ -468,8 +474,8 @@ fn mixed_scales_in_one_bvh_answer_as_the_scalar_tests() {
     // triangle's box overflowed to infinity and the world dropped the whole instance.
     for layout in Layout::ALL {
         let mut b = quiver_rt::World::builder();
-        let g = b.triangles(tris.clone());
-        b.instance(quiver_rt::Instance::of(g));
+        let g = b.add_triangles(tris.clone());
+        b.add_instance(quiver_rt::Instance::of(g));
         let world = b
             .build(&BuildOptions::default().layout(layout))
             .expect("a world");
@@ -501,7 +507,7 @@ fn mixed_scales_in_one_bvh_answer_as_the_scalar_tests() {
         .map(|r| reference::closest_hit(&home, r))
         .collect();
     for layout in crate::common::WIDE {
-        let mut bvh = BuildOptions::default().layout(layout).build(&home);
+        let mut bvh = Bvh::build(&home, &BuildOptions::default().layout(layout)).unwrap();
         for (prims, want, what) in [
             (&tris, &want, "refit far"),
             (&home, &want_home, "refit home"),

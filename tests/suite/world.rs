@@ -9,8 +9,8 @@ use quiver_lab::oracle::Oracle;
 use quiver_lab::rays::random_rays;
 use quiver_rt::traverse::{ConservativeBoxes, NoStats, PacketMode, PacketQuery};
 use quiver_rt::{
-    reference, Aabb, BuildOptions, GeometryId, Hit, Instance, Isa, Layout, Ray, RayQuery, Triangle,
-    World, WorldError, WorldHit,
+    reference, Aabb, BuildOptions, GeometryId, Hit, Instance, InstanceId, Isa, Layout, Ray,
+    RayQuery, Triangle, World, WorldError, WorldHit,
 };
 use quiver_scenes::rng::Rng;
 use quiver_scenes::Scene;
@@ -48,7 +48,7 @@ pub(crate) fn setup(seed: u64) -> Setup {
             Instance::of(GeometryId(i % 3))
                 .transform(transform)
                 .mask([0b01, 0b10, 0b11, u32::MAX][i as usize % 4])
-                .id(1000 + i),
+                .user_id(1000 + i),
         );
     }
     Setup {
@@ -137,7 +137,7 @@ fn masks_hide_instances_as_if_they_were_not_there() {
             check(&answers[i], got, &names)
                 .unwrap_or_else(|e| panic!("mask {ray_mask:b} ray {i}: {e}"));
             if let Some(h) = got {
-                assert_ne!(s.instances[h.instance as usize].mask & ray_mask, 0);
+                assert_ne!(s.instances[h.instance.0 as usize].mask & ray_mask, 0);
             }
         }
     }
@@ -175,7 +175,7 @@ fn filters_skip_rejected_candidates_as_if_those_triangles_were_not_there() {
     let mut asked = 0;
     for layout in [Layout::Bvh8Dfs, Layout::Bvh2Dfs, Layout::Bvh4Quant] {
         let world = s.world(&BuildOptions::default().layout(layout));
-        let keep = |h: &WorldHit| !reject(h.instance, h.prim);
+        let keep = |h: &WorldHit| !reject(h.instance.0, h.prim);
         let mut hits = vec![None; rays.len()];
         let mut occluded = vec![false; rays.len()];
         let mut counted = |h: &WorldHit| {
@@ -222,7 +222,7 @@ fn normals_are_the_flattened_triangles_normals() {
         };
         let k = names
             .iter()
-            .position(|&n| n == (h.instance, h.geometry, h.prim))
+            .position(|&n| n == (h.instance.0, h.geometry.0, h.prim))
             .unwrap();
         let t = &flat[k];
         let want = (t.v[1] - t.v[0]).cross(t.v[2] - t.v[0]).normalize();
@@ -239,8 +239,8 @@ fn bad_worlds_are_errors_and_odd_ones_answer_right() {
     let options = BuildOptions::default();
     let one = |inst: Instance| {
         let mut b = World::builder();
-        b.triangles(vec![tri]);
-        b.instance(inst);
+        b.add_triangles(vec![tri]);
+        b.add_instance(inst);
         b.build(&options)
     };
     let g = GeometryId(0);
@@ -277,8 +277,8 @@ fn bad_worlds_are_errors_and_odd_ones_answer_right() {
         assert!(e.to_string().contains("instance 0"));
     }
     let mut b = World::builder();
-    assert!(b.mesh(&[[0.0; 3]; 3], &[[0, 1, 5]]).is_err());
-    b.instance(Instance::of(g));
+    assert!(b.add_mesh(&[[0.0; 3]; 3], &[[0, 1, 5]]).is_err());
+    b.add_instance(Instance::of(g));
     assert!(matches!(
         b.build(&options),
         Err(WorldError::Mesh { geometry: 0, .. })
@@ -288,11 +288,11 @@ fn bad_worlds_are_errors_and_odd_ones_answer_right() {
     let ray = Ray::new(Vec3A::new(0.2, 0.2, 1.0), -Vec3A::Z);
     let empty = World::builder().build(&options).unwrap();
     let mut unplaced = World::builder();
-    unplaced.triangles(vec![tri]);
+    unplaced.add_triangles(vec![tri]);
     let unplaced = unplaced.build(&options).unwrap();
     let mut nothing = World::builder();
-    let e = nothing.triangles(Vec::new());
-    nothing.instance(Instance::of(e));
+    let e = nothing.add_triangles(Vec::new());
+    nothing.add_instance(Instance::of(e));
     let nothing = nothing.build(&options).unwrap();
     for w in [&empty, &unplaced, &nothing] {
         assert_eq!(w.closest_hit(&ray), None);
@@ -300,8 +300,8 @@ fn bad_worlds_are_errors_and_odd_ones_answer_right() {
         let mut hits = vec![
             Some(WorldHit {
                 t: 0.0,
-                instance: 9,
-                geometry: 9,
+                instance: InstanceId(9),
+                geometry: GeometryId(9),
                 prim: 9,
                 u: 0.0,
                 v: 0.0
@@ -318,7 +318,7 @@ fn a_million_instances_of_one_triangle_answer_like_brute_force() {
     let tri = Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y);
     let mut rng = Rng::new(5);
     let mut b = World::builder();
-    let g = b.triangles(vec![tri]);
+    let g = b.add_triangles(vec![tri]);
     let mut flat = Vec::new();
     for _ in 0..1_000_000 {
         let at = Vec3::from(rng.in_box(Vec3A::splat(-100.0), Vec3A::splat(100.0)));
@@ -327,7 +327,7 @@ fn a_million_instances_of_one_triangle_answer_like_brute_force() {
             Quat::from_rotation_y(at.x),
             at,
         );
-        b.instance(Instance::of(g).transform(m));
+        b.add_instance(Instance::of(g).transform(m));
         flat.push(Triangle::new(
             m.transform_point3a(tri.v[0]),
             m.transform_point3a(tri.v[1]),
@@ -344,7 +344,7 @@ fn a_million_instances_of_one_triangle_answer_like_brute_force() {
         let got = world.closest_hit(r);
         a.check(got.map(|h| Hit {
             t: h.t,
-            prim: h.instance,
+            prim: h.instance.0,
             u: h.u,
             v: h.v,
         }))
@@ -353,7 +353,7 @@ fn a_million_instances_of_one_triangle_answer_like_brute_force() {
         // And like quiver's own reference over the flattened triangles, where decidable.
         if a.is_decidable() {
             assert_eq!(
-                got.map(|h| h.instance),
+                got.map(|h| h.instance.0),
                 reference::closest_hit(&flat, r).map(|h| h.prim)
             );
         }
@@ -443,8 +443,8 @@ fn obj_groups_are_the_geometries_of_one_world() {
         let mut named = 0;
         for (ray, answer) in rays.iter().zip(&answers) {
             let got = world.closest_hit(ray).map(|h| {
-                assert_eq!(h.geometry, h.instance);
-                let part = match world.instance(h.instance).id {
+                assert_eq!(h.geometry.0, h.instance.0);
+                let part = match world.instance(h.instance).user_id {
                     u32::MAX => 0,
                     group => group as usize + first,
                 };

@@ -74,7 +74,7 @@ fn main() -> ExitCode {
     // A misspelt QUIVER_ISA would otherwise be ignored and the run measured on other kernels
     // than the user asked for.
     if let Err(e) = quiver_rt::Isa::from_env() {
-        return fail(&e);
+        return fail(&e.to_string());
     }
     budget::set_limit(cli.max_memory);
     let result = match cli.command {

@@ -142,15 +142,15 @@ fn main() {
     total += bvh8_packets(&default, &tiles, &tile_shadow);
     total += k_bvh8_counted(&default, &eye, &shadow);
     total += k_bvh8_filtered(&default, &eye, &shadow);
-    let b4 = of("bvh4-dfs").build(&tris);
+    let b4 = Bvh::build(&tris, &of("bvh4-dfs")).unwrap();
     total += bvh4_single(&b4, &eye, &shadow);
     total += bvh4_packets(&b4, &tiles, &tile_shadow);
-    let q4 = of("bvh4-quant").build(&tris);
+    let q4 = Bvh::build(&tris, &of("bvh4-quant")).unwrap();
     total += qbvh4_single(&q4, &eye, &shadow);
     total += qbvh4_packets(&q4, &tiles, &tile_shadow);
-    let b2 = of("bvh2-dfs").build(&tris);
+    let b2 = Bvh::build(&tris, &of("bvh2-dfs")).unwrap();
     total += bvh2_dfs_single(&b2, &eye, &shadow);
-    let b2c = of("bvh2-compact").build(&tris);
+    let b2c = Bvh::build(&tris, &of("bvh2-compact")).unwrap();
     total += bvh2_compact_single(&b2c, &eye, &shadow);
     let wt: Vec<Watertight> = tris.iter().map(|&t| Watertight(t)).collect();
     let wt = Bvh::new(&wt);
@@ -158,7 +158,7 @@ fn main() {
     total += watertight_packets(&wt, &tiles, &tile_shadow);
 
     let balls = Scene::load("balls3").expect("scene");
-    let mixed = SceneBvh::build(&balls, &BuildOptions::default());
+    let mixed = SceneBvh::build(&balls, &BuildOptions::default()).unwrap();
     let beye = rays::camera_rays(&balls.camera, res);
     let btiles = rays::camera_tiles(&balls.camera, res, 8);
     let blight = balls.lights.first().map_or(balls.camera.from, |l| l.pos);

@@ -4,7 +4,7 @@
 //! and prints the fastest round's Mrays/s. For quick A/B runs and profiling; the tables come
 //! from `quiver packets`.
 use quiver_rt::traverse::{FastBoxes, NoFilter, NoStats, PacketMode, PacketQuery};
-use quiver_rt::{BuildOptions, Layout, RayQuery};
+use quiver_rt::{BuildOptions, Bvh, Layout, RayQuery};
 use quiver_scenes::scene::tessellate::DEFAULT_RESOLUTION;
 use quiver_scenes::Scene;
 use std::time::Instant;
@@ -22,9 +22,7 @@ fn main() {
     let scene = Scene::load(name)
         .expect("scene")
         .into_patches(DEFAULT_RESOLUTION);
-    let bvh = BuildOptions::default()
-        .layout(layout)
-        .build(&scene.triangles());
+    let bvh = Bvh::build(&scene.triangles(), &BuildOptions::default().layout(layout)).unwrap();
     let eye = quiver_lab::rays::camera_tiles(&scene.camera, 512, 8);
     let mut out = vec![None; eye.len()];
     let mut best = f64::MAX;

@@ -25,7 +25,7 @@ fn main() {
         .build()
         .unwrap();
     pool.install(|| {
-        let bvh = SceneBvh::build(&scene, &BuildOptions::default().layout(layout));
+        let bvh = SceneBvh::build(&scene, &BuildOptions::default().layout(layout)).unwrap();
         let mut times = [vec![], vec![]];
         let mut total = 0;
         for _ in 0..reps {

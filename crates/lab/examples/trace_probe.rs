@@ -35,7 +35,7 @@ fn main() {
     if let Ok(name) = std::env::var("BUILDER") {
         options = options.builder(name.parse().expect("BUILDER"));
     }
-    let bvh: Bvh = options.build(&tris);
+    let bvh: Bvh = Bvh::build(&tris, &options).unwrap();
     let eye = quiver_lab::rays::camera_rays(&scene.camera, 512);
     let light = scene.lights.first().map_or(scene.camera.from, |l| l.pos);
     let shadow = quiver_lab::rays::shadow_rays(&bvh, &eye, &[light]);

@@ -67,7 +67,7 @@ fn main() {
     // The same scene flattened to world-space triangles, for the modes that compare.
     let flattened = || {
         let patched = scene.clone().into_patches(DEFAULT_RESOLUTION);
-        SceneBvh::build_triangles(&patched, &BuildOptions::default())
+        SceneBvh::build_triangles(&patched, &BuildOptions::default()).unwrap()
     };
     let mask = |v: &[Ray]| v.iter().map(|r| r.with_mask(0b1)).collect::<Vec<_>>();
     let hits = match mode {

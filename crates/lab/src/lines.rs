@@ -28,8 +28,9 @@
 //! ```
 
 use glam::Vec3A;
+use quiver_rt::primitive::LeafFormat;
 use quiver_rt::traverse::Counters;
-use quiver_rt::{Aabb, LeafFormat, PrimHit, Primitive, Ray, RayQuery, Triangle};
+use quiver_rt::{Aabb, PrimHit, Primitive, Ray, RayQuery, Triangle};
 use quiver_scenes::rng::Rng;
 use rayon::prelude::*;
 use std::marker::PhantomData;

@@ -45,13 +45,13 @@ impl Placements {
                 let indices: Vec<[u32; 3]> = (0..tris.len() as u32)
                     .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
                     .collect();
-                b.mesh(&positions, &indices).unwrap();
+                b.add_mesh(&positions, &indices).unwrap();
             } else {
-                b.triangles(tris.clone());
+                b.add_triangles(tris.clone());
             }
         }
         for inst in &self.instances {
-            b.instance(*inst);
+            b.add_instance(*inst);
         }
         b.build(options).unwrap()
     }
@@ -128,7 +128,7 @@ pub fn check(
     let as_flat = got.map(|h| {
         let k = names
             .iter()
-            .position(|&n| n == (h.instance, h.geometry, h.prim))
+            .position(|&n| n == (h.instance.0, h.geometry.0, h.prim))
             .expect("a hit names a triangle of the flattened scene");
         Hit {
             t: h.t,

@@ -60,7 +60,7 @@ fn main() {
         };
         let builder: Builder =
             std::env::var("BUILDER").map_or(Builder::Binned, |b| b.parse().unwrap());
-        let tree = pool.install(|| build(&prim_bounds(&tris), &config, builder));
+        let tree = pool.install(|| build(&prim_bounds(&tris), &config, builder).unwrap());
         println!(
             "threads {threads}: tree {:016x}, SAH {:.3}, {:?}",
             fingerprint(&tree),
@@ -68,7 +68,8 @@ fn main() {
             tree.stats()
         );
         let bvh8 = pool.install(|| {
-            quiver_rt::Bvh8::from_tree(&tree, &tris, &config, quiver_rt::Isa::detect()).unwrap()
+            quiver_rt::layout::Bvh8::from_tree(&tree, &tris, &config, quiver_rt::Isa::detect())
+                .unwrap()
         });
         let mut h = std::collections::hash_map::DefaultHasher::new();
         std::hash::Hash::hash(bvh8.node_bytes(), &mut h);
@@ -85,10 +86,11 @@ fn main() {
         for _ in 0..reps {
             pool.install(|| {
                 let (bounds, mb) = ms(|| prim_bounds(&tris));
-                let (tree, mt) = ms(|| build(&bounds, &config, builder));
+                let (tree, mt) = ms(|| build(&bounds, &config, builder).unwrap());
                 let (bvh, ml) = ms(|| Bvh::from_tree(&tree, &tris, &options).unwrap());
                 drop(bvh);
-                let (mut bvh, ma) = ms(|| options.clone().builder(builder).build(&tris));
+                let with_builder = options.clone().builder(builder);
+                let (mut bvh, ma) = ms(|| Bvh::build(&tris, &with_builder).unwrap());
                 let (refit, mr) = ms(|| bvh.refit(&tris));
                 refit.unwrap();
                 drop(bvh);

@@ -6,7 +6,7 @@
 //! use quiver_rt::{BuildOptions, RayQuery};
 //! use quiver_scenes::{accel::SceneBvh, Scene};
 //! let scene = Scene::load("tetra3").unwrap();
-//! let bvh = SceneBvh::build(&scene, &BuildOptions::default());
+//! let bvh = SceneBvh::build(&scene, &BuildOptions::default()).unwrap();
 //! let hit = bvh.closest_hit(&scene.camera.ray(0.0, 0.0)).unwrap();
 //! assert!((bvh.object_of(hit.prim) as usize) < scene.objects.len());
 //! ```
@@ -20,7 +20,7 @@ use quiver_rt::layout::Footprint;
 use quiver_rt::predict::{NodeVisit, WalkNodes};
 use quiver_rt::traverse::NoStats;
 use quiver_rt::traverse::{Ask, BoxTest, ClosestHit, Filter, PacketQuery, RayQuery, Stats};
-use quiver_rt::{BuildOptions, Bvh, Hit, PrimHit, Primitive, Ray, Triangle};
+use quiver_rt::{BuildError, BuildOptions, Bvh, Hit, PrimHit, Primitive, Ray, Triangle};
 use std::sync::Mutex;
 
 /// The BVH of one scene.
@@ -77,47 +77,52 @@ pub struct Traced {
 impl SceneBvh {
     /// Builds over the scene's primitives: triangles when every object is one, the mixed
     /// path otherwise.
-    pub fn build(scene: &Scene, options: &BuildOptions) -> SceneBvh {
-        Self::build_with_tree(scene, options).0
+    ///
+    /// # Errors
+    /// [`BuildError`] for a setting of `options` out of range.
+    pub fn build(scene: &Scene, options: &BuildOptions) -> Result<SceneBvh, BuildError> {
+        Ok(Self::build_with_tree(scene, options)?.0)
     }
 
     /// [`SceneBvh::build`], also returning the build tree.
-    pub fn build_with_tree(scene: &Scene, options: &BuildOptions) -> (SceneBvh, BuildTree) {
+    ///
+    /// # Errors
+    /// As [`SceneBvh::build`].
+    pub fn build_with_tree(
+        scene: &Scene,
+        options: &BuildOptions,
+    ) -> Result<(SceneBvh, BuildTree), BuildError> {
         if scene.is_all_triangles() {
             Self::build_triangles_with_tree(scene, options)
         } else {
             let (prims, owner) = scene.prims();
-            let (bvh, tree) = options.build_with_tree(&prims);
-            (
-                SceneBvh {
-                    kind: Kind::Mixed(bvh, prims),
-                    owner,
-                },
-                tree,
-            )
+            let (bvh, tree) = Bvh::build_with_tree(&prims, options)?;
+            let kind = Kind::Mixed(bvh, prims);
+            Ok((SceneBvh { kind, owner }, tree))
         }
     }
 
     /// Builds over triangles only (patch mode): polygons triangulated, patches kept as
     /// triangles with their vertex normals for smooth shading, spheres and cones tessellated.
-    pub fn build_triangles(scene: &Scene, options: &BuildOptions) -> SceneBvh {
-        Self::build_triangles_with_tree(scene, options).0
+    ///
+    /// # Errors
+    /// As [`SceneBvh::build`].
+    pub fn build_triangles(scene: &Scene, options: &BuildOptions) -> Result<SceneBvh, BuildError> {
+        Ok(Self::build_triangles_with_tree(scene, options)?.0)
     }
 
     /// [`SceneBvh::build_triangles`], also returning the build tree.
+    ///
+    /// # Errors
+    /// As [`SceneBvh::build`].
     pub fn build_triangles_with_tree(
         scene: &Scene,
         options: &BuildOptions,
-    ) -> (SceneBvh, BuildTree) {
+    ) -> Result<(SceneBvh, BuildTree), BuildError> {
         let (tris, owner, normals) = scene.triangles_with_normals();
-        let (bvh, tree) = options.build_with_tree(&tris);
-        (
-            SceneBvh {
-                kind: Kind::Triangles(bvh, tris, normals),
-                owner,
-            },
-            tree,
-        )
+        let (bvh, tree) = Bvh::build_with_tree(&tris, options)?;
+        let kind = Kind::Triangles(bvh, tris, normals);
+        Ok((SceneBvh { kind, owner }, tree))
     }
 
     /// The scene (in curve mode) in patch mode at `resolution`, with its spheres and cones
@@ -205,7 +210,7 @@ impl SceneBvh {
     /// use quiver_rt::{BuildOptions, RayQuery};
     /// use quiver_scenes::{accel::SceneBvh, Scene};
     /// let scene = Scene::load("tetra3").unwrap();
-    /// let rec = SceneBvh::build(&scene, &BuildOptions::default()).recording();
+    /// let rec = SceneBvh::build(&scene, &BuildOptions::default()).unwrap().recording();
     /// let ray = scene.camera.ray(0.0, 0.0);
     /// let hit = rec.closest_hit(&ray);
     /// let traced = rec.recorded();

@@ -29,8 +29,8 @@ use crate::scene::{tessellate, Scene, Shape};
 use glam::{Affine3A, DVec3, Mat3A, Vec3, Vec3A};
 use quiver_rt::traverse::{Ask, BoxTest, Filter, PacketQuery, RayQuery, Stats, PACKET_RAYS};
 use quiver_rt::{
-    BuildOptions, Footprint, GeometryId, Hit, Instance, PrimHit, Ray, Triangle, World, WorldError,
-    WorldHit,
+    BuildOptions, Footprint, GeometryId, Hit, Instance, InstanceId, PrimHit, Ray, Triangle, World,
+    WorldError, WorldHit,
 };
 
 /// Distinct cone radius ratios that get a unit shape of their own; cones of further ratios
@@ -189,18 +189,22 @@ impl Instanced {
             .chain(std::iter::once(sphere.tris.len() as u64))
             .chain(cones.iter().map(|(_, s)| s.tris.len() as u64))
             .collect();
-        b.triangles(world_tris);
-        b.triangles(sphere.tris);
+        b.add_triangles(world_tris);
+        b.add_triangles(sphere.tris);
         let mut normals = vec![world_normals, sphere.normals];
         for (_, s) in cones {
-            b.triangles(s.tris);
+            b.add_triangles(s.tris);
             normals.push(s.normals);
         }
-        b.instance(Instance::of(GeometryId(0)));
+        b.add_instance(Instance::of(GeometryId(0)));
         let mut starts = vec![0u64, counts[0]];
         let mut object = vec![u32::MAX];
         for &(obj, k, m) in &placed {
-            b.instance(Instance::of(GeometryId(1 + k as u32)).transform(m).id(obj));
+            b.add_instance(
+                Instance::of(GeometryId(1 + k as u32))
+                    .transform(m)
+                    .user_id(obj),
+            );
             starts.push(starts.last().unwrap() + counts[1 + k]);
             object.push(obj);
         }
@@ -245,7 +249,7 @@ impl Instanced {
     fn flat(&self, h: &WorldHit) -> Hit {
         Hit {
             t: h.t,
-            prim: (self.starts[h.instance as usize] + h.prim as u64) as u32,
+            prim: (self.starts[h.instance.0 as usize] + h.prim as u64) as u32,
             u: h.u,
             v: h.v,
         }
@@ -255,11 +259,11 @@ impl Instanced {
     /// and the instance.
     fn triangle(&self, prim: u32) -> (Triangle, Option<[Vec3A; 3]>, &Instance) {
         let (i, p) = self.split(prim);
-        let inst = self.world.instance(i as u32);
+        let inst = self.world.instance(InstanceId(i as u32));
         let g = inst.geometry.0 as usize;
         let tri = match &self.world.geometries()[g] {
-            quiver_rt::Geometry::Triangles(_, t) => t[p as usize],
-            quiver_rt::Geometry::Prims(_, t) => t[p as usize],
+            quiver_rt::world::Geometry::Triangles(_, t) => t[p as usize],
+            quiver_rt::world::Geometry::Prims(_, t) => t[p as usize],
         };
         (tri, self.normals[g][p as usize], inst)
     }
@@ -411,13 +415,13 @@ pub fn grouped(scene: &Scene, options: &BuildOptions) -> Result<World, WorldErro
         for c in &mut covered[range.clone()] {
             *c = true;
         }
-        let geometry = b.triangles(triangles_of(&mut range.into_iter()));
-        b.instance(Instance::of(geometry).id(g as u32));
+        let geometry = b.add_triangles(triangles_of(&mut range.into_iter()));
+        b.add_instance(Instance::of(geometry).user_id(g as u32));
     }
     if covered.iter().any(|c| !c) {
         let rest = triangles_of(&mut (0..covered.len()).filter(|&i| !covered[i]));
-        let geometry = b.triangles(rest);
-        b.instance(Instance::of(geometry).id(u32::MAX));
+        let geometry = b.add_triangles(rest);
+        b.add_instance(Instance::of(geometry).user_id(u32::MAX));
     }
     b.build(options)
 }

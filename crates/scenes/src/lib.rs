@@ -7,7 +7,7 @@
 //! use quiver_rt::{BuildOptions, RayQuery};
 //! use quiver_scenes::{accel::SceneBvh, Scene};
 //! let scene = Scene::load("balls2").unwrap(); // 91 spheres and a floor polygon
-//! let bvh = SceneBvh::build(&scene, &BuildOptions::default());
+//! let bvh = SceneBvh::build(&scene, &BuildOptions::default()).unwrap();
 //! let ray = scene.camera.ray(0.0, 0.0);
 //! let hit = bvh.closest_hit(&ray).unwrap();
 //! let object = &scene.objects[bvh.object_of(hit.prim) as usize];

@@ -13,7 +13,7 @@
 //! use quiver_scenes::render::{render, RenderConfig};
 //! use quiver_scenes::{accel::SceneBvh, Scene};
 //! let scene = Scene::load("tetra3").unwrap();
-//! let bvh = SceneBvh::build(&scene, &BuildOptions::default());
+//! let bvh = SceneBvh::build(&scene, &BuildOptions::default()).unwrap();
 //! let out = render(&scene, &bvh, &RenderConfig { res: 16, ..Default::default() }, &|_| {});
 //! assert_eq!(out.rays.eye, 17 * 17);
 //! assert_eq!(out.rays.refract, 0); // tetra has no transmitters
@@ -958,7 +958,7 @@ mod tests {
     #[test]
     fn band_pixels_equal_the_full_corner_buffer() {
         let scene = Scene::load("teapot3").unwrap();
-        let bvh = SceneBvh::build(&scene, &BuildOptions::default());
+        let bvh = SceneBvh::build(&scene, &BuildOptions::default()).unwrap();
         let mut digests = Vec::new();
         for res in (1..=18).chain([23, 24, 25, 40, 63, 64, 65]) {
             for packets in [false, true] {
@@ -998,7 +998,7 @@ mod tests {
     #[test]
     fn eye_nodes_only_when_asked() {
         let scene = Scene::load("tetra2").unwrap();
-        let bvh = SceneBvh::build(&scene, &BuildOptions::default());
+        let bvh = SceneBvh::build(&scene, &BuildOptions::default()).unwrap();
         for eye_nodes in [false, true] {
             let config = RenderConfig {
                 res: 20,

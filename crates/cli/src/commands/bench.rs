@@ -29,7 +29,7 @@ use quiver_lab::tinybvh::{TinyBvh, TinyLayout};
 use quiver_lab::{obvhs_bridge, rays};
 use quiver_rt::builders::{build, prim_bounds, BuildConfig, Builder};
 use quiver_rt::traverse::PacketMode;
-use quiver_rt::{BuildOptions, Bvh, Layout, RayQuery};
+use quiver_rt::{BuildError, BuildOptions, Bvh, Layout, RayQuery};
 use quiver_scenes::scene::tessellate;
 use serde_json::{json, Value};
 #[cfg(feature = "tinybvh")]
@@ -192,10 +192,11 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
             // its tree's SAH cost; beside the default's, a refit to the moved triangles (the
             // same tree, every box recomputed).
             for (preset, options) in presets() {
-                p.install(|| -> std::result::Result<(), quiver_rt::RefitError> {
-                    drop(options.build(&tris));
-                    let ((mut bvh, tree), ms) =
-                        median_time(args.reps, || options.build_with_tree(&tris));
+                p.install(|| -> std::result::Result<(), String> {
+                    drop(Bvh::build(&tris, &options).map_err(|e| e.to_string())?);
+                    // The presets' settings are in range: the first build said so.
+                    let build = || Bvh::build_with_tree(&tris, &options).expect("in range");
+                    let ((mut bvh, tree), ms) = median_time(args.reps, build);
                     let mut r = row(
                         "quiver",
                         &format!("{}+{}", options.builder.name(), options.layout.name()),
@@ -207,7 +208,8 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
                     );
                     r["preset"] = json!(preset);
                     if preset == "default" {
-                        r["refit_ms"] = json!(super::refit_ms(&mut bvh, &tris, &moved, args.reps)?);
+                        let refit = super::refit_ms(&mut bvh, &tris, &moved, args.reps);
+                        r["refit_ms"] = json!(refit.map_err(|e| e.to_string())?);
                     }
                     rows.push(r);
                     Ok(())
@@ -215,8 +217,9 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
             }
             p.install(|| {
                 let options = BuildOptions::default().layout(Layout::Bvh2Dfs);
-                let _ = options.build(&tris);
-                let ((_, tree), ms) = time(|| options.build_with_tree(&tris));
+                let build = || Bvh::build_with_tree(&tris, &options).expect("default settings");
+                let _ = build();
+                let ((_, tree), ms) = time(build);
                 rows.push(row(
                     "quiver",
                     "binned+bvh2-dfs",
@@ -302,6 +305,7 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
             ..config.clone()
         };
         let [one, four] = [1, 4].map(|g| build(&boxes, &grouped(g), Builder::Binned));
+        let [one, four] = [one?, four?];
         let bvhs = KERNELS
             .iter()
             .map(|&l| {
@@ -319,9 +323,9 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
             .filter(|(name, _)| *name != "default")
             .map(|(_, o)| {
                 let kernel = format!("{}/{}", o.layout.name(), o.builder.name());
-                (kernel, o.build(&tris))
+                Ok((kernel, Bvh::build(&tris, &o)?))
             })
-            .collect();
+            .collect::<std::result::Result<_, BuildError>>()?;
         #[cfg(feature = "tinybvh")]
         let tiny: Vec<TinyBvh> = TINY
             .iter()

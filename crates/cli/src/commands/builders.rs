@@ -206,8 +206,11 @@ pub(crate) fn run(args: BuildersArgs) -> Result<()> {
             let mut builds = Vec::new();
             let mut trees = Vec::new();
             for (p, &t) in pools.iter().zip(&threads) {
-                let (tree, real, user) =
-                    p.install(|| time_builds(args.build_reps, || build(&bounds, &config, builder)));
+                let (tree, real, user) = p.install(|| {
+                    time_builds(args.build_reps, || {
+                        build(&bounds, &config, builder).expect("the default settings are in range")
+                    })
+                });
                 builds.push((t, real, user));
                 trees.push(tree);
             }

@@ -95,7 +95,8 @@ pub(crate) fn run(args: CostsArgs) -> Result<()> {
     for scene in &loaded {
         let tris = scene.triangles();
         // The rays come from the SAH tree, so every model answers the same rays.
-        let base = pool.install(|| BuildOptions::default().layout(args.layout).build(&tris));
+        let base =
+            pool.install(|| Bvh::build(&tris, &BuildOptions::default().layout(args.layout)))?;
         let eye = rays::camera_rays(&scene.camera, args.res);
         let lights: Vec<_> = scene.lights.iter().take(1).map(|l| l.pos).collect();
         let sets: [(&str, Query, Vec<Ray>); 3] = [
@@ -121,7 +122,7 @@ pub(crate) fn run(args: CostsArgs) -> Result<()> {
                     .cost_model(model)
                     .thread_pool(&pool);
                 let start = Instant::now();
-                let (bvh, tree) = options.build_with_tree(&tris);
+                let (bvh, tree) = Bvh::build_with_tree(&tris, &options)?;
                 let ms = start.elapsed().as_secs_f64() * 1e3;
                 builds.push((tree.sah_cost(&BuildConfig::default()), ms, tree.nodes.len()));
                 bvhs.push(bvh);

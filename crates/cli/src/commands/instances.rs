@@ -121,6 +121,7 @@ pub(crate) fn run(s: Settings) -> Result<()> {
         let patched = scene.clone().into_patches(res);
         let tris = patched.triangles();
         let (flat, flat_ms) = ms(|| SceneBvh::build_triangles(&patched, &options));
+        let flat = flat?;
         let (inst, inst_ms) = ms(|| SceneBvh::build_instanced(scene, res, &options));
         let inst = inst?;
         let (world_ms, world) = {

@@ -106,7 +106,7 @@ pub(crate) fn run(args: LayoutsArgs) -> Result<()> {
     let mut sizes = Vec::new();
     for (name, scene) in &loaded {
         let tris = scene.triangles();
-        let tree = build(&prim_bounds(&tris), &config, Builder::Binned);
+        let tree = build(&prim_bounds(&tris), &config, Builder::Binned)?;
         let sets = [
             ("random", rays::random_rays(&scene.bounds(), args.rays, 7)),
             ("camera", rays::camera_rays(&scene.camera, args.res)),

@@ -15,7 +15,7 @@ pub(crate) mod render;
 
 use crate::budget;
 use quiver_rt::builders::{BuildTree, Builder};
-use quiver_rt::{BuildOptions, Bvh, Layout, Triangle};
+use quiver_rt::{BuildOptions, Bvh, Layout, ParseError, Triangle};
 use quiver_scenes::accel::SceneBvh;
 use quiver_scenes::scene::{
     tessellate, Census, LoadOptions, NonFinite, Scene, SceneError, GENERATORS,
@@ -208,12 +208,12 @@ pub(crate) fn measured_threads(asked: &[u16]) -> Vec<usize> {
 }
 
 /// `--layout` by name.
-pub(crate) fn parse_layout(s: &str) -> std::result::Result<Layout, String> {
+pub(crate) fn parse_layout(s: &str) -> std::result::Result<Layout, ParseError> {
     s.parse()
 }
 
 /// `--builder` by name.
-pub(crate) fn parse_builder(s: &str) -> std::result::Result<Builder, String> {
+pub(crate) fn parse_builder(s: &str) -> std::result::Result<Builder, ParseError> {
     s.parse()
 }
 
@@ -386,6 +386,6 @@ fn load_and_build_as(
         SceneBvh::build_triangles_with_tree(&scene, options)
     } else {
         SceneBvh::build_with_tree(&scene, options)
-    };
+    }?;
     Ok((scene, bvh, Some(tree), start.elapsed().as_secs_f64() * 1e3))
 }

@@ -20,7 +20,7 @@ use quiver_lab::rays;
 #[cfg(feature = "tinybvh")]
 use quiver_lab::tinybvh::{TinyBvh, TinyLayout};
 use quiver_rt::traverse::PacketMode;
-use quiver_rt::{BuildOptions, Layout, Primitive, Triangle};
+use quiver_rt::{BuildOptions, Bvh, Layout, Primitive, Triangle};
 use quiver_scenes::scene::tessellate::DEFAULT_RESOLUTION;
 use quiver_scenes::Scene;
 use serde_json::{json, Value};
@@ -220,7 +220,7 @@ fn measure<P: Primitive>(
     thread_counts: &[usize],
     rows: &mut Vec<Value>,
 ) -> Result<()> {
-    let bvh = BuildOptions::default().layout(args.layout).build(prims);
+    let bvh = Bvh::build(prims, &BuildOptions::default().layout(args.layout))?;
     let eye = rays::camera_tiles(&scene.camera, args.res as usize, 8);
     let lights: Vec<_> = scene.lights.iter().map(|l| l.pos).collect();
     let shadow = rays::shadow_rays(&bvh, &eye, &lights);

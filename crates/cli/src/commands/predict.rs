@@ -157,7 +157,7 @@ pub(crate) fn run(args: PredictArgs) -> Result<()> {
         let ghosts = Pierce::of(&tris);
         for &builder in &builders {
             let options = BuildOptions::default().builder(builder);
-            let (_, tree) = count_pool.install(|| options.build_with_tree(&tris));
+            let (_, tree) = count_pool.install(|| Bvh::build_with_tree(&tris, &options))?;
             let root = tree.nodes[0].bounds;
             let objects = object_area(&tris, &root);
             let lines = isotropic_lines(&root, args.lines, 11);
