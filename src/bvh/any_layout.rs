@@ -9,7 +9,7 @@ use crate::geometry::{Hit, Ray};
 use crate::isa::{Isa, Kernels};
 use crate::layout::walk::{NodeVisit, WalkNodes};
 use crate::layout::{
-    Bvh2, Bvh2Mapping, Bvh4, Bvh4Mapping, Bvh8, Footprint, Layout, LeafPrims, QBvh4,
+    Bvh2, Bvh2Mapping, Bvh4, Bvh4Mapping, Bvh8, Footprint, Inputs, Layout, LeafPrims, QBvh4,
 };
 use crate::primitive::Primitive;
 use crate::traverse::lane8::F8;
@@ -115,6 +115,7 @@ pub(crate) fn lay_out<P: Primitive>(
     layout: Layout,
     tree: &BuildTree,
     prims: LeafPrims<P>,
+    inputs: Inputs,
     isa: Isa,
     config: &BuildConfig,
 ) -> AnyLayout<P> {
@@ -131,6 +132,7 @@ pub(crate) fn lay_out<P: Primitive>(
                 tree,
                 prims,
                 Bvh4Mapping::DepthFirst,
+                inputs,
                 isa,
             ))
         }
@@ -139,6 +141,7 @@ pub(crate) fn lay_out<P: Primitive>(
                 tree,
                 prims,
                 Bvh4Mapping::Subtree,
+                inputs,
                 isa,
             ))
         }
@@ -147,15 +150,19 @@ pub(crate) fn lay_out<P: Primitive>(
                 tree,
                 prims,
                 Bvh4Mapping::DepthFirst,
+                inputs,
                 isa,
             ))
         }
-        Layout::Bvh8Dfs => return AnyLayout::Bvh8(Bvh8::from_leaf_prims(tree, prims, isa, config)),
+        Layout::Bvh8Dfs => {
+            return AnyLayout::Bvh8(Bvh8::from_leaf_prims(tree, prims, inputs, isa, config))
+        }
     };
     AnyLayout::Bvh2(Bvh2::from_leaf_prims(
         tree,
         prims.into_ordered(&tree.prim_indices),
         bvh2,
+        inputs,
     ))
 }
 

@@ -6,7 +6,7 @@ use super::options::frame_prims;
 use super::{BuildOptions, Bvh};
 use crate::builders::{build_clipped, BuildError, BuildTree, CostModel, Triangles};
 use crate::frame::Frame;
-use crate::layout::LeafPrims;
+use crate::layout::{Inputs, LeafPrims};
 use crate::mesh::{Mesh, Positions};
 use crate::primitive::{LeafFormat, Primitive};
 use crate::Triangle;
@@ -89,9 +89,10 @@ impl<P: Primitive> Bvh<P> {
                 options.builder,
                 Some(tri),
             )?;
-            let nodes = options.lay_out(&tree, LeafPrims::Slice(in_frame));
+            let inputs = Inputs::of(&tree, prims.len());
+            let nodes = options.lay_out(&tree, LeafPrims::Slice(in_frame), inputs);
             let tree = frame.world_tree(tree, &bounds);
-            Ok((Bvh::of(nodes, frame, &tree, prims.len()), tree))
+            Ok((Bvh::of(nodes, frame, &tree), tree))
         })
     }
 }
@@ -161,9 +162,10 @@ impl Bvh {
                 options.builder,
                 Some(tri),
             )?;
-            let nodes = options.lay_out(&tree, LeafPrims::Input(&framed));
+            let inputs = Inputs::of(&tree, indices.len());
+            let nodes = options.lay_out(&tree, LeafPrims::Input(&framed), inputs);
             let tree = frame.world_tree(tree, &bounds);
-            Ok((Bvh::of(nodes, frame, &tree, indices.len()), tree))
+            Ok((Bvh::of(nodes, frame, &tree), tree))
         })
     }
 }

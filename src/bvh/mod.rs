@@ -7,16 +7,16 @@ mod build;
 mod options;
 mod refit;
 
+pub use crate::layout::moved::RefitError;
 pub(crate) use any_layout::AnyLayout;
 pub use options::BuildOptions;
-pub use refit::RefitError;
 
 use crate::builders::{prim_bounds, BuildError, BuildTree, TreeError};
 use crate::frame::Frame;
 use crate::geometry::{Aabb, Hit, Ray, Triangle};
 use crate::isa::{Isa, Kernels};
 use crate::layout::walk::{NodeVisit, WalkNodes};
-use crate::layout::{bvh2::leaf_order, Footprint};
+use crate::layout::{bvh2::leaf_order, Footprint, Inputs};
 use crate::mesh::{MeshError, Positions};
 use crate::primitive::Primitive;
 use crate::traverse::lane8::F8;
@@ -52,25 +52,15 @@ pub struct Bvh<P = Triangle> {
     frame: Frame,
     /// Every primitive's box, in the caller's units.
     bounds: Aabb,
-    /// The primitives the BVH was built over, those the build dropped included: what a refit
-    /// must be given.
-    len: usize,
-    /// The primitives the tree holds (`len` less those dropped), each counted once however
-    /// many leaves hold a piece of it.
-    held: usize,
 }
 
 impl<P> Bvh<P> {
-    /// A BVH over `nodes`, whose tree (in the caller's units) is `tree`, built over `len`
-    /// input primitives (not the tree's reference count, which counts a spatially split
-    /// primitive once per leaf holding it).
-    fn of(layout: AnyLayout<P>, frame: Frame, tree: &BuildTree, len: usize) -> Self {
+    /// A BVH over `layout`, whose tree (in the caller's units) is `tree`.
+    fn of(layout: AnyLayout<P>, frame: Frame, tree: &BuildTree) -> Self {
         Bvh {
             layout,
             frame,
             bounds: tree.nodes.first().map_or(Aabb::EMPTY, |n| n.bounds),
-            len,
-            held: len - tree.dropped,
         }
     }
 
@@ -154,17 +144,21 @@ impl<P: Primitive> Bvh<P> {
         })?;
         let world = tree.refit(&bounds);
         let frame = Frame::for_prims(&bounds);
+        let inputs = Inputs::of(tree, prims.len());
         let (layout, frame) = options.run(|| match frame_prims(frame, prims) {
-            Some(local) => (
-                options.lay_out(&tree.refit(&prim_bounds(&local)), leaf_order(tree, &local)),
-                frame,
-            ),
+            Some(local) => {
+                let tree = tree.refit(&prim_bounds(&local));
+                (
+                    options.lay_out(&tree, leaf_order(&tree, &local), inputs),
+                    frame,
+                )
+            }
             None => (
-                options.lay_out(&world, leaf_order(tree, prims)),
+                options.lay_out(&world, leaf_order(tree, prims), inputs),
                 Frame::default(),
             ),
         });
-        Ok(Bvh::of(layout, frame, &world, prims.len()))
+        Ok(Bvh::of(layout, frame, &world))
     }
 
     /// The instruction set queries run on: the BVH's own for 8-wide nodes (all queries) and

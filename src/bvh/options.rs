@@ -6,7 +6,7 @@ use super::any_layout::{lay_out, AnyLayout};
 use crate::builders::{BuildConfig, BuildTree, Builder, CostModel};
 use crate::frame::Frame;
 use crate::isa::Isa;
-use crate::layout::{Layout, LeafPrims};
+use crate::layout::{Inputs, Layout, LeafPrims};
 use crate::primitive::{LeafFormat, Primitive};
 use rayon::ThreadPool;
 
@@ -203,11 +203,13 @@ impl<'p> BuildOptions<'p> {
         &self,
         tree: &BuildTree,
         prims: impl Into<LeafPrims<'i, P>>,
+        inputs: Inputs,
     ) -> AnyLayout<P> {
         lay_out(
             self.layout,
             tree,
             prims.into(),
+            inputs,
             self.chosen_isa(),
             &self.effective_config::<P>(),
         )

@@ -4,150 +4,15 @@
 
 use super::any_layout::AnyLayout;
 use super::Bvh;
-use crate::frame::{Frame, Sizes};
-use crate::geometry::{Aabb, Triangle};
+use crate::frame::Frame;
+use crate::geometry::Triangle;
+use crate::layout::moved::{check_moved, MovedPrims, RefitError};
 use crate::layout::refit::RefitInput;
-use crate::layout::walk::WalkNodes;
-use crate::mesh::{Mesh, MeshError, Positions};
+use crate::layout::walk::sah_cost;
+use crate::layout::Inputs;
+use crate::mesh::{Mesh, Positions};
 use crate::primitive::Primitive;
 use rayon::prelude::*;
-use std::fmt;
-
-/// Why a [`Bvh::refit`] or [`Bvh::refit_mesh`] refused its input. The BVH is left as it was.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub enum RefitError {
-    /// `given` primitives (or mesh triangles) for a BVH built over `expected`: a refit takes
-    /// the build's primitives, moved, in the same order.
-    Count {
-        /// The primitives the BVH was built over (any it dropped included).
-        expected: usize,
-        /// The primitives given.
-        given: usize,
-    },
-    /// Primitive `prim` has a non-finite coordinate. The build drops such primitives; a refit
-    /// keeps the tree's primitives, so one the tree holds cannot become non-finite (rebuild to
-    /// leave it out).
-    NonFinite {
-        /// Its index in the input.
-        prim: usize,
-    },
-    /// Primitive `prim` is finite, but the build left it out (it had a non-finite coordinate
-    /// then): a refit cannot add it to the tree (rebuild to include it).
-    NotInTree {
-        /// Its index in the input.
-        prim: usize,
-    },
-    /// An index of the new mesh names no vertex.
-    Mesh(MeshError),
-}
-
-impl fmt::Display for RefitError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            RefitError::Count { expected, given } => write!(
-                f,
-                "{given} primitives given to refit a BVH built over {expected}: a refit takes \
-                 the same primitives, moved, in the same order"
-            ),
-            RefitError::NonFinite { prim } => write!(
-                f,
-                "primitive {prim} has a non-finite coordinate: the tree holds it, and a refit \
-                 cannot drop it (rebuild to leave it out)"
-            ),
-            RefitError::NotInTree { prim } => write!(
-                f,
-                "primitive {prim} is finite, but the build left it out for a non-finite \
-                 coordinate: a refit cannot add it (rebuild to include it)"
-            ),
-            RefitError::Mesh(e) => write!(f, "the new mesh: {e}"),
-        }
-    }
-}
-
-impl std::error::Error for RefitError {}
-
-impl From<MeshError> for RefitError {
-    fn from(e: MeshError) -> Self {
-        RefitError::Mesh(e)
-    }
-}
-
-/// The new input as a refit reads it: primitive `i` from `get`, brought into `frame`;
-/// `slice`, where the input is one, to prefetch from.
-struct MovedPrims<'s, P, G> {
-    get: G,
-    frame: Frame,
-    slice: Option<&'s [P]>,
-}
-
-impl<P: Primitive, G: Fn(u32) -> P + Sync> RefitInput<P> for MovedPrims<'_, P, G> {
-    #[inline]
-    fn prefetch(&self, id: u32) {
-        if let Some(s) = self.slice {
-            crate::isa::prefetch_at(s, id as usize);
-        }
-    }
-
-    #[inline]
-    fn get(&self, id: u32) -> P {
-        let p = (self.get)(id);
-        if self.frame.is_identity() {
-            p
-        } else {
-            // Every primitive was checked to scale before this frame was chosen.
-            self.frame.prim(&p).unwrap_or(p)
-        }
-    }
-}
-
-/// One pass over the new input's boxes: how many are finite, the first that is not, their
-/// union, and what the frame depends on. Every step is exact, so any grouping of a parallel
-/// reduction gives the same summary.
-#[derive(Clone, Copy, Debug)]
-struct Summary {
-    finite: usize,
-    first_bad: usize,
-    all: Aabb,
-    sizes: Sizes,
-}
-
-impl Default for Summary {
-    fn default() -> Self {
-        Summary {
-            finite: 0,
-            first_bad: usize::MAX,
-            all: Aabb::EMPTY,
-            sizes: Sizes::default(),
-        }
-    }
-}
-
-impl Summary {
-    /// The summary of primitives `range`, whose boxes `boxes_of` gives.
-    fn of(range: std::ops::Range<usize>, boxes_of: impl Fn(usize) -> Aabb) -> Summary {
-        let mut s = Summary::default();
-        for i in range {
-            let b = boxes_of(i);
-            if b.is_finite() {
-                s.finite += 1;
-                s.all = s.all.union(&b);
-                s.sizes.add_finite(&b);
-            } else {
-                s.first_bad = s.first_bad.min(i);
-            }
-        }
-        s
-    }
-
-    fn merge(self, o: Summary) -> Summary {
-        Summary {
-            finite: self.finite + o.finite,
-            first_bad: self.first_bad.min(o.first_bad),
-            all: self.all.union(&o.all),
-            sizes: self.sizes.merge(o.sizes),
-        }
-    }
-}
 
 impl<P: Primitive> AnyLayout<P> {
     /// For each primitive in leaf order, its index in the input.
@@ -160,12 +25,22 @@ impl<P: Primitive> AnyLayout<P> {
         }
     }
 
-    fn refit<S: RefitInput<P>>(&mut self, src: &S) {
+    /// What the layout was built over.
+    pub(crate) fn inputs(&self) -> Inputs {
         match self {
-            AnyLayout::Bvh2(b) => b.refit(src),
-            AnyLayout::Bvh4(b) => b.refit(src),
-            AnyLayout::QBvh4(b) => b.refit(src),
-            AnyLayout::Bvh8(b) => b.refit(src),
+            AnyLayout::Bvh2(b) => b.inputs,
+            AnyLayout::Bvh4(b) => b.inputs,
+            AnyLayout::QBvh4(b) => b.inputs,
+            AnyLayout::Bvh8(b) => b.inputs,
+        }
+    }
+
+    fn refit_from<S: RefitInput<P>>(&mut self, src: &S) {
+        match self {
+            AnyLayout::Bvh2(b) => b.refit_from(src),
+            AnyLayout::Bvh4(b) => b.refit_from(src),
+            AnyLayout::QBvh4(b) => b.refit_from(src),
+            AnyLayout::Bvh8(b) => b.refit_from(src),
         }
     }
 }
@@ -280,18 +155,7 @@ impl<P: Primitive> Bvh<P> {
     /// assert_eq!(bvh.sah_cost(), tree.sah_cost(&BuildConfig::default()));
     /// ```
     pub fn sah_cost(&self) -> f64 {
-        let mut root = None;
-        let mut cost = 0.0f64;
-        self.walk_nodes(&mut |p| {
-            let r = *root.get_or_insert(p.bounds.half_area_f64());
-            let a = if r > 0.0 {
-                p.bounds.half_area_f64() / r
-            } else {
-                1.0
-            };
-            cost += if p.leaf { a * p.prims as f64 } else { a };
-        });
-        cost
+        sah_cost(self)
     }
 
     /// The refit over `n` primitives, primitive `i` being `get(i)` (`slice[i]`, where they
@@ -302,57 +166,7 @@ impl<P: Primitive> Bvh<P> {
         slice: Option<&[P]>,
         get: G,
     ) -> Result<(), RefitError> {
-        if n != self.len {
-            return Err(RefitError::Count {
-                expected: self.len,
-                given: n,
-            });
-        }
-        let boxes_of = |i: usize| {
-            if let Some(s) = slice {
-                crate::isa::prefetch_stream(s, i);
-            }
-            get(i as u32).bounds()
-        };
-        // In chunks, each a plain loop with its summary in registers.
-        const CHUNK: usize = 8192;
-        let summary = (0..n.div_ceil(CHUNK))
-            .into_par_iter()
-            .map(|c| Summary::of(c * CHUNK..n.min((c + 1) * CHUNK), boxes_of))
-            .reduce(Summary::default, Summary::merge);
-        // A primitive the build split spatially is held more than once: count it once.
-        let distinct = self.held;
-        let held = self.layout.prim_ids();
-        if distinct == n {
-            if summary.first_bad != usize::MAX {
-                return Err(RefitError::NonFinite {
-                    prim: summary.first_bad,
-                });
-            }
-        } else if summary.finite != distinct
-            || held
-                .par_iter()
-                .with_min_len(4096)
-                .any(|&id| !boxes_of(id as usize).is_finite())
-        {
-            // The build dropped some: those must stay non-finite and the rest finite. Only
-            // now is it worth knowing which primitives the tree holds, to name the first
-            // that changed.
-            let mut in_tree = vec![false; n];
-            for &id in held {
-                in_tree[id as usize] = true;
-            }
-            let changed = (0..n)
-                .into_par_iter()
-                .find_first(|&i| boxes_of(i).is_finite() != in_tree[i]);
-            if let Some(prim) = changed {
-                return Err(if in_tree[prim] {
-                    RefitError::NonFinite { prim }
-                } else {
-                    RefitError::NotInTree { prim }
-                });
-            }
-        }
+        let summary = check_moved(self.layout.inputs(), self.layout.prim_ids(), n, slice, &get)?;
         // The frame a build over these primitives would choose (a type that cannot be scaled
         // keeps its own units).
         let mut frame = summary.sizes.frame();
@@ -366,7 +180,7 @@ impl<P: Primitive> Bvh<P> {
         // Moving into or out of a scaled frame only changes the units the boxes are
         // recomputed in.
         self.frame = frame;
-        self.layout.refit(&MovedPrims { get, frame, slice });
+        self.layout.refit_from(&MovedPrims { get, frame, slice });
         self.bounds = summary.all;
         Ok(())
     }
@@ -401,9 +215,10 @@ impl Bvh<Triangle> {
         positions: impl Into<Positions<'v>>,
         indices: &[[u32; 3]],
     ) -> Result<(), RefitError> {
-        if indices.len() != self.len {
+        let expected = self.layout.inputs().len;
+        if indices.len() != expected {
             return Err(RefitError::Count {
-                expected: self.len,
+                expected,
                 given: indices.len(),
             });
         }

@@ -1,6 +1,9 @@
+use super::moved::{check_moved, MovedPrims, RefitError};
 use super::order::{self, Shape, HOLE};
-use super::Footprint;
+use super::walk::sah_cost;
+use super::{Footprint, Inputs};
 use crate::builders::{BuildTree, NodeKind, TreeError};
+use crate::frame::Frame;
 use crate::geometry::{Aabb, Triangle};
 use crate::primitive::Primitive;
 use bytemuck::{Pod, Zeroable};
@@ -151,6 +154,8 @@ pub struct Bvh2<P = Triangle> {
     pub(crate) prim_ids: Vec<u32>,
     /// How the nodes are ordered and linked.
     pub(crate) mapping: Bvh2Mapping,
+    /// What the layout was built over.
+    pub(crate) inputs: Inputs,
 }
 
 impl<P: Primitive> Bvh2<P> {
@@ -186,14 +191,15 @@ impl<P: Primitive> Bvh2<P> {
         prims: &[P],
         mapping: Bvh2Mapping,
     ) -> Result<Self, TreeError> {
+        let inputs = Inputs::of(tree, prims.len());
         let (tree, prims) = super::checked(tree, prims)?;
         tree.check_leaf_size(Bvh2Node::LEAF - 1)?;
-        Ok(Self::from_leaf_prims(&tree, prims, mapping))
+        Ok(Self::from_leaf_prims(&tree, prims, mapping, inputs))
     }
 
     /// The build tree is already in preorder with each left child right after its parent, so
     /// the depth-first layout is a straight (parallel) conversion.
-    fn depth_first(tree: &BuildTree, prims: Vec<P>) -> Self {
+    fn depth_first(tree: &BuildTree, prims: Vec<P>, inputs: Inputs) -> Self {
         use rayon::prelude::*;
         let nodes = tree
             .nodes
@@ -215,13 +221,19 @@ impl<P: Primitive> Bvh2<P> {
             prims,
             prim_ids: tree.prim_indices.clone(),
             mapping: Bvh2Mapping::DepthFirst,
+            inputs,
         }
     }
 
     /// Lays out a checked tree with the primitives already in its leaf order.
-    pub(crate) fn from_leaf_prims(tree: &BuildTree, prims: Vec<P>, mapping: Bvh2Mapping) -> Self {
+    pub(crate) fn from_leaf_prims(
+        tree: &BuildTree,
+        prims: Vec<P>,
+        mapping: Bvh2Mapping,
+        inputs: Inputs,
+    ) -> Self {
         if mapping == Bvh2Mapping::DepthFirst {
-            return Bvh2::depth_first(tree, prims);
+            return Bvh2::depth_first(tree, prims, inputs);
         }
         let shape = Shape {
             kids: tree
@@ -268,7 +280,31 @@ impl<P: Primitive> Bvh2<P> {
             prims,
             prim_ids: tree.prim_indices.clone(),
             mapping,
+            inputs,
         }
+    }
+
+    /// Refits the layout to `prims`: the primitives it was laid out over, moved, in the same
+    /// order (as [`crate::Bvh::refit`], in the caller's units). The tree and node order stay;
+    /// every box is recomputed bottom-up in place.
+    ///
+    /// # Errors
+    /// [`RefitError`] as [`crate::Bvh::refit`]; nothing is changed then.
+    pub fn refit(&mut self, prims: &[P]) -> Result<(), RefitError> {
+        let get = |i: u32| prims[i as usize].clone();
+        check_moved(self.inputs, &self.prim_ids, prims.len(), Some(prims), &get)?;
+        self.refit_from(&MovedPrims {
+            get,
+            frame: Frame::default(),
+            slice: Some(prims),
+        });
+        Ok(())
+    }
+
+    /// The SAH cost of the nodes the walk enters, with unit costs (as [`crate::Bvh::sah_cost`]):
+    /// compare it after a refit with its value after the build to judge when to rebuild.
+    pub fn sah_cost(&self) -> f64 {
+        sah_cost(self)
     }
 
     /// What the nodes and leaves occupy (padding slots included).

@@ -4,10 +4,13 @@
 //! frame, 64 bytes: one cache line, in `qbvh4_node.rs`).
 
 use super::collapse::{self, collapse, Child};
+use super::moved::{check_moved, MovedPrims, RefitError};
 use super::order::{self, Shape, HOLE};
 use super::tri4::{self, FarGroups, Tri4};
-use super::{Footprint, LeafPrims};
+use super::walk::sah_cost;
+use super::{Footprint, Inputs, LeafPrims};
 use crate::builders::{BuildTree, TreeError};
+use crate::frame::Frame;
 use crate::geometry::{Aabb, Triangle};
 use crate::isa::{Isa, Kernels};
 use crate::primitive::Primitive;
@@ -142,6 +145,8 @@ pub struct Bvh4<P = Triangle, N = Bvh4Node> {
     pub(crate) kernels: Kernels,
     /// Every primitive's box.
     pub(crate) bounds: Aabb,
+    /// What the layout was built over.
+    pub(crate) inputs: Inputs,
 }
 
 /// A 4-wide BVH with quantized 64-byte nodes ([`QBvh4Node`]).
@@ -162,9 +167,16 @@ impl<P: Primitive, N: Node4> Bvh4<P, N> {
         mapping: Bvh4Mapping,
         isa: Isa,
     ) -> Result<Self, TreeError> {
+        let inputs = Inputs::of(tree, prims.len());
         let (tree, prims) = super::checked(tree, prims)?;
         tree.check_leaf_size(N::MAX_LEAF)?;
-        Ok(Self::from_leaf_prims(&tree, prims.into(), mapping, isa))
+        Ok(Self::from_leaf_prims(
+            &tree,
+            prims.into(),
+            mapping,
+            inputs,
+            isa,
+        ))
     }
 
     /// The same BVH with packet queries on `isa` (or [`Isa::Portable`] where unsupported).
@@ -183,6 +195,7 @@ impl<P: Primitive, N: Node4> Bvh4<P, N> {
         tree: &BuildTree,
         prims: LeafPrims<P>,
         mapping: Bvh4Mapping,
+        inputs: Inputs,
         isa: Isa,
     ) -> Self {
         let mut wide = collapse(tree);
@@ -209,7 +222,31 @@ impl<P: Primitive, N: Node4> Bvh4<P, N> {
             mapping,
             kernels: Kernels::new(isa),
             bounds: tree.nodes[0].bounds,
+            inputs,
         }
+    }
+
+    /// Refits the layout to `prims`: the primitives it was laid out over, moved, in the same
+    /// order (as [`crate::Bvh::refit`], in the caller's units). The tree and node order stay;
+    /// every box is recomputed bottom-up in place.
+    ///
+    /// # Errors
+    /// [`RefitError`] as [`crate::Bvh::refit`]; nothing is changed then.
+    pub fn refit(&mut self, prims: &[P]) -> Result<(), RefitError> {
+        let get = |i: u32| prims[i as usize].clone();
+        check_moved(self.inputs, &self.prim_ids, prims.len(), Some(prims), &get)?;
+        self.refit_from(&MovedPrims {
+            get,
+            frame: Frame::default(),
+            slice: Some(prims),
+        });
+        Ok(())
+    }
+
+    /// The SAH cost of the nodes the walk enters, with unit costs (as [`crate::Bvh::sah_cost`]):
+    /// compare it after a refit with its value after the build to judge when to rebuild.
+    pub fn sah_cost(&self) -> f64 {
+        sah_cost(self)
     }
 
     /// What the nodes and the leaf data the kernels read occupy (the SIMD groups, where

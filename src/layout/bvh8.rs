@@ -2,9 +2,12 @@
 //! in one 8-lane slab test (one AVX2 instruction per step on the AVX2 path).
 
 use super::collapse::{collapse_sah, Wide};
+use super::moved::{check_moved, MovedPrims, RefitError};
 use super::tri4::{self, FarGroups, Tri4};
-use super::{Footprint, LeafPrims};
+use super::walk::sah_cost;
+use super::{Footprint, Inputs, LeafPrims};
 use crate::builders::{BuildConfig, BuildTree, TreeError};
+use crate::frame::Frame;
 use crate::geometry::Aabb;
 use crate::geometry::Triangle;
 use crate::isa::{Isa, Kernels};
@@ -100,6 +103,8 @@ pub struct Bvh8<P = Triangle> {
     pub(crate) kernels: Kernels,
     /// Every primitive's box.
     pub(crate) bounds: Aabb,
+    /// What the layout was built over.
+    pub(crate) inputs: Inputs,
 }
 
 impl<P: Primitive> Bvh8<P> {
@@ -117,15 +122,23 @@ impl<P: Primitive> Bvh8<P> {
         config: &BuildConfig,
         isa: Isa,
     ) -> Result<Self, TreeError> {
+        let inputs = Inputs::of(tree, prims.len());
         let (tree, prims) = super::checked(tree, prims)?;
         tree.check_leaf_size(Bvh8Node::LEAF - 1)?;
-        Ok(Self::from_leaf_prims(&tree, prims.into(), isa, config))
+        Ok(Self::from_leaf_prims(
+            &tree,
+            prims.into(),
+            inputs,
+            isa,
+            config,
+        ))
     }
 
     /// Lays out a checked tree with the primitives already in its leaf order.
     pub(crate) fn from_leaf_prims(
         tree: &BuildTree,
         prims: LeafPrims<P>,
+        inputs: Inputs,
         isa: Isa,
         config: &BuildConfig,
     ) -> Self {
@@ -152,7 +165,31 @@ impl<P: Primitive> Bvh8<P> {
             tri4: groups,
             kernels: Kernels::new(isa),
             bounds: tree.nodes[0].bounds,
+            inputs,
         }
+    }
+
+    /// Refits the layout to `prims`: the primitives it was laid out over, moved, in the same
+    /// order (as [`crate::Bvh::refit`], in the caller's units). The tree and node order stay;
+    /// every box is recomputed bottom-up in place.
+    ///
+    /// # Errors
+    /// [`RefitError`] as [`crate::Bvh::refit`]; nothing is changed then.
+    pub fn refit(&mut self, prims: &[P]) -> Result<(), RefitError> {
+        let get = |i: u32| prims[i as usize].clone();
+        check_moved(self.inputs, &self.prim_ids, prims.len(), Some(prims), &get)?;
+        self.refit_from(&MovedPrims {
+            get,
+            frame: Frame::default(),
+            slice: Some(prims),
+        });
+        Ok(())
+    }
+
+    /// The SAH cost of the nodes the walk enters, with unit costs (as [`crate::Bvh::sah_cost`]):
+    /// compare it after a refit with its value after the build to judge when to rebuild.
+    pub fn sah_cost(&self) -> f64 {
+        sah_cost(self)
     }
 
     /// The same BVH traversed with `isa` (or [`Isa::Portable`] where unsupported).

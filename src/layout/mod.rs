@@ -20,6 +20,7 @@ pub(crate) mod bvh4;
 mod bvh4_node;
 pub(crate) mod bvh8;
 pub(crate) mod collapse;
+pub(crate) mod moved;
 pub(crate) mod order;
 mod qbvh4_node;
 pub(crate) mod refit;
@@ -207,6 +208,27 @@ pub(crate) fn checked<P: Primitive>(
     let bounds = prim_bounds(prims);
     tree.check_structure(&bounds)?;
     Ok((tree.refit(&bounds), bvh2::leaf_order(tree, prims)))
+}
+
+/// How many primitives a layout was built over (those the build dropped included), and how
+/// many of them its tree holds (each once, however many leaves name a piece of it): what a
+/// refit checks the moved primitives against.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct Inputs {
+    /// The primitives given to the build.
+    pub(crate) len: usize,
+    /// Those the tree holds: `len` less the dropped.
+    pub(crate) held: usize,
+}
+
+impl Inputs {
+    /// The inputs of `tree`, built over `len` primitives.
+    pub(crate) fn of(tree: &BuildTree, len: usize) -> Inputs {
+        Inputs {
+            len,
+            held: len - tree.dropped,
+        }
+    }
 }
 
 /// What a laid-out BVH occupies in memory.

@@ -510,7 +510,7 @@ fn far_groups<P: Primitive, S: RefitInput<P>>(far: bool, groups: &[Tri4], src: &
 
 impl<P: Primitive> Bvh8<P> {
     /// Refits in place from `src` (see the [module](self) docs).
-    pub(crate) fn refit<S: RefitInput<P>>(&mut self, src: &S) {
+    pub(crate) fn refit_from<S: RefitInput<P>>(&mut self, src: &S) {
         let far;
         (self.bounds, far) = refit_wide::<8, _, _, _>(
             &mut self.nodes,
@@ -526,7 +526,7 @@ impl<P: Primitive> Bvh8<P> {
 
 impl<P: Primitive, N: Node4> Bvh4<P, N> {
     /// Refits in place from `src`, quantized nodes encoded again (see the [module](self) docs).
-    pub(crate) fn refit<S: RefitInput<P>>(&mut self, src: &S) {
+    pub(crate) fn refit_from<S: RefitInput<P>>(&mut self, src: &S) {
         let far;
         (self.bounds, far) = refit_wide::<4, _, _, _>(
             &mut self.nodes,
@@ -630,7 +630,7 @@ fn bvh2_inner(nodes: &mut [Bvh2Node], at: usize, addressing: Addressing) -> Aabb
 
 impl<P: Primitive> Bvh2<P> {
     /// Refits in place from `src` (see the [module](self) docs).
-    pub(crate) fn refit<S: RefitInput<P>>(&mut self, src: &S) {
+    pub(crate) fn refit_from<S: RefitInput<P>>(&mut self, src: &S) {
         if self.mapping == Bvh2Mapping::DepthFirst {
             let run = Run {
                 prims: &mut self.prims,
@@ -691,7 +691,8 @@ mod tests {
             .iter()
             .map(|&l| {
                 let options = BuildOptions::default().layout(l);
-                (l, options.lay_out(&tree, leaf_order(&tree, prims)))
+                let inputs = crate::layout::Inputs::of(&tree, prims.len());
+                (l, options.lay_out(&tree, leaf_order(&tree, prims), inputs))
             })
             .collect()
     }
@@ -699,10 +700,10 @@ mod tests {
     fn refit<P: Primitive>(l: &mut crate::bvh::AnyLayout<P>, prims: &[P]) {
         let src = Slice(prims);
         match l {
-            crate::bvh::AnyLayout::Bvh2(b) => b.refit(&src),
-            crate::bvh::AnyLayout::Bvh4(b) => b.refit(&src),
-            crate::bvh::AnyLayout::QBvh4(b) => b.refit(&src),
-            crate::bvh::AnyLayout::Bvh8(b) => b.refit(&src),
+            crate::bvh::AnyLayout::Bvh2(b) => b.refit_from(&src),
+            crate::bvh::AnyLayout::Bvh4(b) => b.refit_from(&src),
+            crate::bvh::AnyLayout::QBvh4(b) => b.refit_from(&src),
+            crate::bvh::AnyLayout::Bvh8(b) => b.refit_from(&src),
         }
     }
 

@@ -8,6 +8,23 @@ use crate::builders::{BuildTree, NodeKind};
 use crate::geometry::Aabb;
 use crate::primitive::Primitive;
 
+/// The SAH cost of what `t`'s walk enters, with unit costs: `Σ A(inner)/A(root) +
+/// Σ A(leaf)·n(leaf)/A(root)`, in f64 (every node counts once when the root has no area).
+pub(crate) fn sah_cost<T: WalkNodes + ?Sized>(t: &T) -> f64 {
+    let mut root = None;
+    let mut cost = 0.0f64;
+    t.walk_nodes(&mut |p| {
+        let r = *root.get_or_insert(p.bounds.half_area_f64());
+        let a = if r > 0.0 {
+            p.bounds.half_area_f64() / r
+        } else {
+            1.0
+        };
+        cost += if p.leaf { a * p.prims as f64 } else { a };
+    });
+    cost
+}
+
 /// One node as a traversal meets it: its box, the boxes it tests when entered, and the
 /// primitives it tests when it is a leaf.
 #[derive(Clone, Copy, Debug, PartialEq)]

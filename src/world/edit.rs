@@ -308,7 +308,7 @@ impl<P: Primitive> World<P> {
         // The refit walks the leaves with their input indices, which the top level does not
         // keep (`top_level`): each record's instance is its index.
         self.top.prim_ids = self.top.prims.iter().map(|p| p.instance).collect();
-        self.top.refit(&src);
+        self.top.refit_from(&src);
         self.top.prim_ids = Vec::new();
         let n = src.instances.len();
         let mut rebuild = src.lost.load(Ordering::Relaxed);

@@ -5,7 +5,7 @@ use super::{Geometry, Instance};
 use crate::builders::{build, BuildConfig, Builder};
 use crate::geometry::{Aabb, PrimHit, Ray};
 use crate::isa::Isa;
-use crate::layout::{bvh2::leaf_order, Bvh8};
+use crate::layout::{bvh2::leaf_order, Bvh8, Inputs};
 use crate::primitive::Primitive;
 use glam::{Affine3A, Mat3A, Vec3A, Vec4, Vec4Swizzles};
 
@@ -72,7 +72,9 @@ pub(super) fn top_level(placed: &[InstanceLeaf], boxes: &[Aabb], isa: Isa) -> Bv
     };
     let tree =
         build(boxes, &config, Builder::Binned).expect("the top level's settings are in range");
-    let mut top = Bvh8::from_leaf_prims(&tree, leaf_order(&tree, placed).into(), isa, &config);
+    let inputs = Inputs::of(&tree, placed.len());
+    let leaves = leaf_order(&tree, placed).into();
+    let mut top = Bvh8::from_leaf_prims(&tree, leaves, inputs, isa, &config);
     debug_assert!(top
         .prims
         .iter()
