@@ -277,6 +277,32 @@ unsafe extern "C" fn count_memory(user_ptr: *mut c_void, bytes: isize, _post: bo
 /// The device, the error slot its callback writes to and the byte count its memory monitor
 /// keeps: both must outlive the device, and scenes keep the device alive, so all live behind
 /// one `Arc`.
+/// What went wrong in Embree or its bridge: the call (or step) and what Embree said.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct EmbreeError {
+    /// The Embree call or bridge step that failed.
+    pub call: String,
+    /// Embree's message (its error name and code where it gave no message), or the bridge's.
+    pub message: String,
+}
+
+impl EmbreeError {
+    fn new(call: &str, message: impl Into<String>) -> EmbreeError {
+        EmbreeError {
+            call: call.to_string(),
+            message: message.into(),
+        }
+    }
+}
+
+impl std::fmt::Display for EmbreeError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "Embree: {}: {}", self.call, self.message)
+    }
+}
+
+impl std::error::Error for EmbreeError {}
+
 struct Device {
     raw: RTCDevice,
     last_error: Box<Mutex<Option<String>>>,
@@ -290,13 +316,16 @@ unsafe impl Sync for Device {}
 
 impl Device {
     /// `Err` with Embree's code and message if anything failed since the last check.
-    fn check(&self, what: &str) -> Result<(), String> {
+    fn check(&self, what: &str) -> Result<(), EmbreeError> {
         let code = unsafe { rtcGetDeviceError(self.raw) };
         let message = self.last_error.lock().ok().and_then(|mut m| m.take());
         match (code, message) {
             (RTC_ERROR_NONE, None) => Ok(()),
-            (_, Some(m)) => Err(format!("Embree: {what}: {m}")),
-            (code, None) => Err(format!("Embree: {what}: {} ({code})", error_name(code))),
+            (_, Some(m)) => Err(EmbreeError::new(what, m)),
+            (code, None) => Err(EmbreeError::new(
+                what,
+                format!("{} ({code})", error_name(code)),
+            )),
         }
     }
 }
@@ -318,7 +347,7 @@ pub struct EmbreeDevice {
 
 impl EmbreeDevice {
     /// A device with Embree's default configuration: builds use all hardware threads.
-    pub fn new() -> Result<Self, String> {
+    pub fn new() -> Result<Self, EmbreeError> {
         Self::with_config(None)
     }
 
@@ -326,7 +355,7 @@ impl EmbreeDevice {
     /// string; 0 means all hardware threads). Embree's TBB scheduler is process-wide and takes
     /// the largest count of all live devices, so a 1-thread build only runs on 1 thread while
     /// no device with more threads exists.
-    pub fn with_threads(threads: usize) -> Result<Self, String> {
+    pub fn with_threads(threads: usize) -> Result<Self, EmbreeError> {
         Self::with_config(Some(&format!("threads={threads}")))
     }
 
@@ -334,7 +363,7 @@ impl EmbreeDevice {
     /// `QUIVER_EMBREE_CONFIG` holds appended: e.g. `isa=avx2` to run Embree's AVX2 kernels on
     /// a CPU where it would pick its AVX-512 ones (as quiver has none), which README's
     /// comparisons name where they use it.
-    fn with_config(config: Option<&str>) -> Result<Self, String> {
+    fn with_config(config: Option<&str>) -> Result<Self, EmbreeError> {
         let extra = std::env::var("QUIVER_EMBREE_CONFIG").ok();
         let config = match (config, extra.as_deref()) {
             (Some(c), Some(e)) => Some(format!("{c},{e}")),
@@ -343,15 +372,15 @@ impl EmbreeDevice {
         let config = config
             .map(CString::new)
             .transpose()
-            .map_err(|e| format!("Embree: configuration string: {e}"))?;
+            .map_err(|e| EmbreeError::new("configuration string", e.to_string()))?;
         let config_ptr = config.as_ref().map_or(std::ptr::null(), |c| c.as_ptr());
         let raw = unsafe { rtcNewDevice(config_ptr) };
         if raw.is_null() {
             // Without a device there is no callback and no message, only the code.
             let code = unsafe { rtcGetDeviceError(std::ptr::null_mut()) };
-            return Err(format!(
-                "Embree: rtcNewDevice failed: {} ({code})",
-                error_name(code)
+            return Err(EmbreeError::new(
+                "rtcNewDevice",
+                format!("failed: {} ({code})", error_name(code)),
             ));
         }
         let device = Device {
@@ -369,7 +398,10 @@ impl EmbreeDevice {
         // Culling back faces would answer a different question than quiver's two-sided test.
         let culling = RTC_DEVICE_PROPERTY_BACKFACE_CULLING_ENABLED;
         if unsafe { rtcGetDeviceProperty(raw, culling) } != 0 {
-            return Err("Embree: this libembree3 culls back faces; quiver's are two-sided".into());
+            return Err(EmbreeError::new(
+                "rtcGetDeviceProperty",
+                "this libembree3 culls back faces; quiver's are two-sided",
+            ));
         }
         Ok(EmbreeDevice {
             inner: Arc::new(device),
@@ -419,7 +451,7 @@ impl Drop for EmbreeScene {
 
 impl EmbreeScene {
     /// Builds over `tris` on a new default device (all hardware threads for the build).
-    pub fn new(tris: &[Triangle]) -> Result<Self, String> {
+    pub fn new(tris: &[Triangle]) -> Result<Self, EmbreeError> {
         Self::on_device(&EmbreeDevice::new()?, tris)
     }
 
@@ -427,22 +459,22 @@ impl EmbreeScene {
     /// three vertices per triangle and a `UINT3` index buffer), Embree's default build quality
     /// (medium) and scene flags, committed. Triangles with non-finite vertices are skipped by
     /// Embree as by quiver.
-    pub fn on_device(device: &EmbreeDevice, tris: &[Triangle]) -> Result<Self, String> {
+    pub fn on_device(device: &EmbreeDevice, tris: &[Triangle]) -> Result<Self, EmbreeError> {
         let dev = &device.inner;
         let vertices = tris
             .len()
             .checked_mul(3)
             .filter(|&n| n <= u32::MAX as usize);
         let Some(vertices) = vertices else {
-            return Err(format!(
-                "Embree: {} triangles exceed 32-bit vertex indices",
-                tris.len()
+            return Err(EmbreeError::new(
+                "vertex buffer",
+                format!("{} triangles exceed 32-bit vertex indices", tris.len()),
             ));
         };
         let raw = unsafe { rtcNewScene(dev.raw) };
         if raw.is_null() {
             dev.check("rtcNewScene")?;
-            return Err("Embree: rtcNewScene returned no scene".into());
+            return Err(EmbreeError::new("rtcNewScene", "returned no scene"));
         }
         // From here on, an early return releases the scene.
         let mut scene = EmbreeScene {
@@ -457,7 +489,7 @@ impl EmbreeScene {
             let geom = unsafe { rtcNewGeometry(dev.raw, RTC_GEOMETRY_TYPE_TRIANGLE) };
             if geom.is_null() {
                 dev.check("rtcNewGeometry")?;
-                return Err("Embree: rtcNewGeometry returned no geometry".into());
+                return Err(EmbreeError::new("rtcNewGeometry", "returned no geometry"));
             }
             let filled = fill_buffers(dev, geom, tris, vertices);
             if filled.is_ok() {
@@ -497,7 +529,7 @@ impl EmbreeScene {
         device: &EmbreeDevice,
         geometries: &[Vec<Triangle>],
         instances: &[(u32, glam::Affine3A, u32)],
-    ) -> Result<Self, String> {
+    ) -> Result<Self, EmbreeError> {
         let dev = &device.inner;
         let before = dev.memory.load(Ordering::Relaxed);
         let placed = geometries
@@ -507,7 +539,7 @@ impl EmbreeScene {
         let raw = unsafe { rtcNewScene(dev.raw) };
         if raw.is_null() {
             dev.check("rtcNewScene")?;
-            return Err("Embree: rtcNewScene returned no scene".into());
+            return Err(EmbreeError::new("rtcNewScene", "returned no scene"));
         }
         let mut scene = EmbreeScene {
             raw,
@@ -518,15 +550,15 @@ impl EmbreeScene {
         };
         for &(g, m, mask) in instances {
             let Some(child) = scene.placed.get(g as usize) else {
-                return Err(format!(
-                    "Embree: an instance of geometry {g} of {}",
-                    geometries.len()
+                return Err(EmbreeError::new(
+                    "instances",
+                    format!("an instance of geometry {g} of {}", geometries.len()),
                 ));
             };
             let geom = unsafe { rtcNewGeometry(dev.raw, RTC_GEOMETRY_TYPE_INSTANCE) };
             if geom.is_null() {
                 dev.check("rtcNewGeometry (instance)")?;
-                return Err("Embree: rtcNewGeometry returned no geometry".into());
+                return Err(EmbreeError::new("rtcNewGeometry", "returned no geometry"));
             }
             let cols = [
                 m.matrix3.x_axis,
@@ -692,7 +724,7 @@ fn fill_buffers(
     geom: RTCGeometry,
     tris: &[Triangle],
     vertices: usize,
-) -> Result<(), String> {
+) -> Result<(), EmbreeError> {
     let vb = unsafe {
         rtcSetNewGeometryBuffer(
             geom,
@@ -716,7 +748,10 @@ fn fill_buffers(
     };
     dev.check("rtcSetNewGeometryBuffer (indices)")?;
     if vb.is_null() || ib.is_null() {
-        return Err("Embree: rtcSetNewGeometryBuffer returned no buffer".into());
+        return Err(EmbreeError::new(
+            "rtcSetNewGeometryBuffer",
+            "returned no buffer",
+        ));
     }
     // SAFETY: Embree allocated `vertices` × 12 and `tris.len()` × 12 bytes, 4-byte aligned
     // (at least 16), for these two buffers.
@@ -947,7 +982,7 @@ mod tests {
         assert!(geom.is_null());
         let err = dev.check("rtcNewGeometry").unwrap_err();
         println!("{err}");
-        assert!(err.contains("invalid geometry type"), "{err}");
+        assert!(err.message.contains("invalid geometry type"), "{err}");
         dev.check("after the error was taken").unwrap();
     }
 }

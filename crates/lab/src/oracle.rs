@@ -423,15 +423,40 @@ impl Answer {
     /// assert!(answer.check(got).is_ok());
     /// assert!(answer.check(None).is_err());
     /// ```
-    pub fn check(&self, got: Option<Hit>) -> Result<(), String> {
+    ///
+    /// # Errors
+    /// [`Mismatch`] naming the kernel's answer and the oracle's.
+    pub fn check(&self, got: Option<Hit>) -> Result<(), Mismatch> {
         match got {
             None if self.may_miss => Ok(()),
-            None => Err(format!("no hit; oracle: {self:?}")),
             Some(h) if self.admissible.iter().any(|a| a.matches(&h)) => Ok(()),
-            Some(h) => Err(format!("{h:?}; oracle: {self:?}")),
+            _ => Err(Mismatch {
+                got,
+                oracle: self.clone(),
+            }),
         }
     }
 }
+
+/// An f32 kernel's answer the oracle does not admit ([`Answer::check`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Mismatch {
+    /// What the kernel answered.
+    pub got: Option<Hit>,
+    /// The oracle's verdict on the ray.
+    pub oracle: Answer,
+}
+
+impl std::fmt::Display for Mismatch {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match &self.got {
+            None => write!(f, "no hit; oracle: {:?}", self.oracle),
+            Some(h) => write!(f, "{h:?}; oracle: {:?}", self.oracle),
+        }
+    }
+}
+
+impl std::error::Error for Mismatch {}
 
 /// The oracle over a set of triangles: f64 copies grouped for culling. Non-finite triangles
 /// are left out (they are invisible to quiver too).

@@ -143,6 +143,33 @@ impl Drop for TinyBvh {
     }
 }
 
+/// A tinybvh tree too deep for tinybvh's walk: a ray may need `need` stack entries, and the
+/// walk has a fixed 256 and does not check them (so it would write past them).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TooDeep {
+    /// The layout built.
+    pub layout: TinyLayout,
+    /// Levels of inner nodes on the deepest path.
+    pub depth: u32,
+    /// Stack entries a ray may need.
+    pub need: u32,
+}
+
+impl std::fmt::Display for TooDeep {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "tinybvh {}: the tree is {} levels deep, so a ray may need {} stack entries, and \
+             tinybvh's walk has {STACK} and does not check them",
+            self.layout.name(),
+            self.depth,
+            self.need
+        )
+    }
+}
+
+impl std::error::Error for TooDeep {}
+
 impl TinyBvh {
     /// Builds `layout` over the finite ones of `tris` with tinybvh's default builder (binned
     /// SAH on its own threads, all hardware threads above 50,000 triangles; not the rayon
@@ -153,7 +180,10 @@ impl TinyBvh {
     ///
     /// # Panics
     /// If there are more than `u32::MAX / 3` triangles, or tinybvh cannot allocate.
-    pub fn new(tris: &[Triangle], layout: TinyLayout) -> Result<TinyBvh, String> {
+    ///
+    /// # Errors
+    /// [`TooDeep`] for a tree a ray could overflow the walk's stack in.
+    pub fn new(tris: &[Triangle], layout: TinyLayout) -> Result<TinyBvh, TooDeep> {
         let ids: Vec<u32> = (0..tris.len() as u32)
             .filter(|&i| tris[i as usize].v.iter().all(|p| p.is_finite()))
             .collect();
@@ -192,11 +222,11 @@ impl TinyBvh {
         let w = layout.width();
         let need = (w - 1) * depth.saturating_sub(1) + w;
         if need > STACK {
-            return Err(format!(
-                "tinybvh {}: the tree is {depth} levels deep, so a ray may need {need} stack \
-                 entries, and tinybvh's walk has {STACK} and does not check them",
-                layout.name()
-            ));
+            return Err(TooDeep {
+                layout,
+                depth,
+                need,
+            });
         }
         Ok(bvh)
     }
@@ -395,8 +425,10 @@ mod tests {
             .err()
             .expect("refused");
         println!("{e}");
+        assert!(e.need > 256, "{e}");
         assert!(
-            e.contains("stack entries, and tinybvh's walk has 256"),
+            e.to_string()
+                .contains("stack entries, and tinybvh's walk has 256"),
             "{e}"
         );
     }

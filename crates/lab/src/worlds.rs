@@ -2,7 +2,7 @@
 //! world tests and the instanced fuzz check judge a [`World`] by (the f64 oracle over the
 //! flattened triangles, its bands widened by the transforms' rounding).
 
-use crate::oracle::Answer;
+use crate::oracle::{Answer, Mismatch};
 use crate::rays::random_rays;
 use glam::Affine3A;
 use quiver_rt::{Aabb, BuildOptions, Hit, Instance, Ray, Triangle, World, WorldHit};
@@ -124,7 +124,7 @@ pub fn check(
     answer: &Answer,
     got: Option<WorldHit>,
     names: &[(u32, u32, u32)],
-) -> Result<(), String> {
+) -> Result<(), Mismatch> {
     let as_flat = got.map(|h| {
         let k = names
             .iter()

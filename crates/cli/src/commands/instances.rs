@@ -55,8 +55,8 @@ fn embree_instanced(world: &quiver_rt::World, device: &EmbreeDevice) -> Result<E
         .geometries()
         .iter()
         .map(|g| match g {
-            quiver_rt::Geometry::Triangles(_, t) => t.clone(),
-            quiver_rt::Geometry::Prims(_, t) => t.clone(),
+            quiver_rt::world::Geometry::Triangles(_, t) => t.clone(),
+            quiver_rt::world::Geometry::Prims(_, t) => t.clone(),
         })
         .collect();
     let instances: Vec<(u32, glam::Affine3A, u32)> = world
