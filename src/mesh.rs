@@ -109,7 +109,7 @@ enum Layout<'a> {
 
 impl<'a> Positions<'a> {
     /// Positions of packed triples.
-    pub fn packed(positions: &'a [[f32; 3]]) -> Self {
+    pub(crate) fn packed(positions: &'a [[f32; 3]]) -> Self {
         Positions(Layout::Packed(positions))
     }
 

@@ -188,7 +188,7 @@ impl<P: Primitive> Bvh<P> {
 
 impl Bvh<Triangle> {
     /// [`Bvh::refit`] for a BVH built from an indexed mesh ([`Bvh::from_mesh`],
-    /// [`crate::BuildOptions::build_mesh`]): new vertex positions for the same triangles,
+    /// [`Bvh::build_mesh`]): new vertex positions for the same triangles,
     /// triangle `i` having corners `positions[indices[i][0]]`, `…[1]]`, `…[2]]` as in the
     /// build. The index buffer must have as many triangles as the build's (it may be the same
     /// buffer, and usually is: only the vertices moved); the vertex count may differ.

@@ -37,18 +37,18 @@ impl Bvh2Node {
 
     /// True for leaves (including the empty leaf of an empty scene).
     #[inline(always)]
-    pub fn is_leaf(&self) -> bool {
+    pub(crate) fn is_leaf(&self) -> bool {
         self.count & Self::LEAF != 0
     }
 
     /// Triangles in a leaf.
     #[inline(always)]
-    pub fn prim_count(&self) -> u32 {
+    pub(crate) fn prim_count(&self) -> u32 {
         self.count & !Self::LEAF
     }
 
     /// The node's box.
-    pub fn bounds(&self) -> Aabb {
+    pub(crate) fn bounds(&self) -> Aabb {
         Aabb::new(self.min.into(), self.max.into())
     }
 
@@ -142,7 +142,7 @@ impl Bvh2Mapping {
 /// let bvh = Bvh2::from_tree(&tree, &tris, Bvh2Mapping::DepthFirst).unwrap();
 /// let hit = bvh.closest_hit(&Ray::new(Vec3A::new(0.2, 0.2, 1.0), -Vec3A::Z)).unwrap();
 /// assert_eq!((hit.prim, hit.t), (0, 1.0));
-/// assert_eq!(bvh.prim_ids(), &[0]);
+/// assert_eq!(bvh.prims(), &tris[..]);
 /// ```
 #[derive(Clone, Debug)]
 pub struct Bvh2<P = Triangle> {
@@ -312,11 +312,6 @@ impl<P: Primitive> Bvh2<P> {
         Footprint::of(&self.nodes, &self.prims, &self.prim_ids)
     }
 
-    /// The nodes, root first, in the order of [`Bvh2::mapping`].
-    pub fn nodes(&self) -> &[Bvh2Node] {
-        &self.nodes
-    }
-
     /// The node array as bytes, as the traversal reads it.
     pub fn node_bytes(&self) -> &[u8] {
         bytemuck::cast_slice(&self.nodes)
@@ -328,13 +323,8 @@ impl<P: Primitive> Bvh2<P> {
     }
 
     /// For each entry of [`Bvh2::prims`], its index in the input (what hits report).
-    pub fn prim_ids(&self) -> &[u32] {
+    pub(crate) fn prim_ids(&self) -> &[u32] {
         &self.prim_ids
-    }
-
-    /// How the nodes are ordered and linked.
-    pub fn mapping(&self) -> Bvh2Mapping {
-        self.mapping
     }
 
     /// The root's box: every primitive's box.

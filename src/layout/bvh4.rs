@@ -134,7 +134,7 @@ pub struct Bvh4<P = Triangle, N = Bvh4Node> {
     /// For each entry of `prims`, its index in the input.
     pub(crate) prim_ids: Vec<u32>,
     /// The leaves as SIMD groups of four triangles, for primitive types with a triangle
-    /// [`crate::LeafFormat`] (empty otherwise); leaf children then index these groups.
+    /// [`crate::primitive::LeafFormat`] (empty otherwise); leaf children then index these groups.
     pub(crate) tri4: Vec<Tri4>,
     /// The groups stored far ([`Tri4`]): where there are any, the leaves take the path that
     /// tests such groups lane by lane (a layout without one never looks).
@@ -265,37 +265,27 @@ impl<P: Primitive, N: Node4> Bvh4<P, N> {
         f
     }
 
-    /// The nodes, root first, in the order of [`Bvh4::mapping`].
-    pub fn nodes(&self) -> &[N] {
-        &self.nodes
-    }
-
     /// The node array as bytes, as the traversal reads it.
     pub fn node_bytes(&self) -> &[u8] {
         bytemuck::cast_slice(&self.nodes)
     }
 
     /// The primitives in leaf order, for plain leaf formats. Empty for triangle formats
-    /// ([`LeafFormat`](crate::LeafFormat)): their leaves are only the SIMD [`groups`](Bvh4::groups), which hold
+    /// ([`LeafFormat`](crate::primitive::LeafFormat)): their leaves are only the SIMD [`groups`](Bvh4::groups), which hold
     /// each triangle and its input index, so the layout keeps no second copy; the primitive
-    /// at leaf position `k` is the input's `prim_ids()[k]`.
+    /// at leaf position `k` is the one the groups name there.
     pub fn prims(&self) -> &[P] {
         &self.prims
     }
 
     /// For each primitive in leaf order, its index in the input (what hits report).
-    pub fn prim_ids(&self) -> &[u32] {
+    pub(crate) fn prim_ids(&self) -> &[u32] {
         &self.prim_ids
     }
 
     /// The leaves as SIMD triangle groups (triangle leaf formats; empty otherwise).
     pub fn groups(&self) -> &[Tri4] {
         &self.tri4
-    }
-
-    /// Node order.
-    pub fn mapping(&self) -> Bvh4Mapping {
-        self.mapping
     }
 
     /// Every primitive's box.

@@ -93,7 +93,7 @@ impl Layout {
     ];
 
     /// Triangles a leaf of this layout tests at once, for primitives with a triangle
-    /// [`crate::LeafFormat`]: 4 for the wide layouts, whose leaves are SIMD groups of four,
+    /// [`crate::primitive::LeafFormat`]: 4 for the wide layouts, whose leaves are SIMD groups of four,
     /// 1 for the binary ones. Plain primitives are tested one by one in every layout.
     ///
     /// ```

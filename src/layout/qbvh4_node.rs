@@ -137,7 +137,8 @@ impl Node4 for QBvh4Node {
 
 impl QBvh4Node {
     /// The decoded box of child `i` (conservative: contains the exact box).
-    pub fn child_bounds(&self, i: usize) -> Aabb {
+    #[cfg(test)]
+    fn child_bounds(&self, i: usize) -> Aabb {
         let mut b = Aabb::EMPTY;
         for a in 0..3 {
             let (o, step) = (self.origin[a], pow2(self.exp[a]));

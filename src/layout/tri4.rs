@@ -1,6 +1,6 @@
 //! SIMD triangle leaves: a leaf's triangles in groups of four, structure of arrays, with the
 //! terms of the triangle test that do not depend on the ray computed once, when the BVH is
-//! laid out ([`crate::LeafFormat`]).
+//! laid out ([`crate::primitive::LeafFormat`]).
 
 use super::collapse::{Child, Wide};
 use super::LeafPrims;

@@ -19,7 +19,7 @@ fn visible<P: Primitive>(p: &P) -> bool {
 
 /// The nearest hit; on equal distance the lowest index. Non-finite primitives are skipped; a
 /// `t_min` below zero or NaN counts as zero (see [`Ray`]).
-/// Each primitive is tested as every kernel tests it (for a triangle [`crate::LeafFormat`],
+/// Each primitive is tested as every kernel tests it (for a triangle [`crate::primitive::LeafFormat`],
 /// as its triangle).
 pub fn closest_hit<P: Primitive>(prims: &[P], ray: &Ray) -> Option<Hit> {
     let ray = &ray.raised_t_min();

@@ -5,7 +5,7 @@ use crate::bvh::RefitError;
 use crate::mesh::MeshError;
 use std::fmt;
 
-/// What a [`World`] could not be built from: each names the instance or geometry at fault.
+/// What a [`World`](super::World) could not be built from or edited to: each names the instance or geometry at fault.
 #[derive(Clone, Debug, PartialEq)]
 pub enum WorldError {
     /// A setting of the build options' [`BuildConfig`](crate::builders::BuildConfig) is out

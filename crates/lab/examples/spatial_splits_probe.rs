@@ -80,7 +80,7 @@ fn main() {
             for (k, p) in presets.iter().enumerate() {
                 built[k] = None;
                 let t = Instant::now();
-                let out = Bvh::build_with_tree(&tris, &p).unwrap();
+                let out = Bvh::build_with_tree(&tris, p).unwrap();
                 build_ms[k].push(t.elapsed().as_secs_f64() * 1e3);
                 built[k] = Some(out);
             }
