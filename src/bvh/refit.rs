@@ -6,7 +6,7 @@ use super::any_layout::AnyLayout;
 use super::Bvh;
 use crate::frame::Frame;
 use crate::geometry::Triangle;
-use crate::layout::moved::{check_moved, MovedPrims, RefitError};
+use crate::layout::moved::{check_moved, MovedPrims, RefitError, RefitTarget};
 use crate::layout::refit::RefitInput;
 use crate::layout::walk::sah_cost;
 use crate::layout::Inputs;
@@ -14,24 +14,22 @@ use crate::mesh::{Mesh, Positions};
 use crate::primitive::Primitive;
 use rayon::prelude::*;
 
-impl<P: Primitive> AnyLayout<P> {
-    /// For each primitive in leaf order, its index in the input.
-    fn prim_ids(&self) -> &[u32] {
+impl<P: Primitive> RefitTarget<P> for AnyLayout<P> {
+    fn inputs(&self) -> Inputs {
         match self {
-            AnyLayout::Bvh2(b) => b.prim_ids(),
-            AnyLayout::Bvh4(b) => b.prim_ids(),
-            AnyLayout::QBvh4(b) => b.prim_ids(),
-            AnyLayout::Bvh8(b) => b.prim_ids(),
+            AnyLayout::Bvh2(b) => b.inputs(),
+            AnyLayout::Bvh4(b) => b.inputs(),
+            AnyLayout::QBvh4(b) => b.inputs(),
+            AnyLayout::Bvh8(b) => b.inputs(),
         }
     }
 
-    /// What the layout was built over.
-    pub(crate) fn inputs(&self) -> Inputs {
+    fn held_ids(&self) -> &[u32] {
         match self {
-            AnyLayout::Bvh2(b) => b.inputs,
-            AnyLayout::Bvh4(b) => b.inputs,
-            AnyLayout::QBvh4(b) => b.inputs,
-            AnyLayout::Bvh8(b) => b.inputs,
+            AnyLayout::Bvh2(b) => b.held_ids(),
+            AnyLayout::Bvh4(b) => b.held_ids(),
+            AnyLayout::QBvh4(b) => b.held_ids(),
+            AnyLayout::Bvh8(b) => b.held_ids(),
         }
     }
 
@@ -166,7 +164,7 @@ impl<P: Primitive> Bvh<P> {
         slice: Option<&[P]>,
         get: G,
     ) -> Result<(), RefitError> {
-        let summary = check_moved(self.layout.inputs(), self.layout.prim_ids(), n, slice, &get)?;
+        let summary = check_moved(self.layout.inputs(), self.layout.held_ids(), n, slice, &get)?;
         // The frame a build over these primitives would choose (a type that cannot be scaled
         // keeps its own units).
         let mut frame = summary.sizes.frame();

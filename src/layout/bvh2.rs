@@ -1,9 +1,8 @@
-use super::moved::{check_moved, MovedPrims, RefitError};
+use super::moved::{refit_unscaled, RefitError};
 use super::order::{self, Shape, HOLE};
 use super::walk::sah_cost;
 use super::{Footprint, Inputs};
 use crate::builders::{BuildTree, NodeKind, TreeError};
-use crate::frame::Frame;
 use crate::geometry::{Aabb, Triangle};
 use crate::primitive::Primitive;
 use bytemuck::{Pod, Zeroable};
@@ -291,14 +290,7 @@ impl<P: Primitive> Bvh2<P> {
     /// # Errors
     /// [`RefitError`] as [`crate::Bvh::refit`]; nothing is changed then.
     pub fn refit(&mut self, prims: &[P]) -> Result<(), RefitError> {
-        let get = |i: u32| prims[i as usize].clone();
-        check_moved(self.inputs, &self.prim_ids, prims.len(), Some(prims), &get)?;
-        self.refit_from(&MovedPrims {
-            get,
-            frame: Frame::default(),
-            slice: Some(prims),
-        });
-        Ok(())
+        refit_unscaled(self, prims)
     }
 
     /// The SAH cost of the nodes the walk enters, with unit costs (as [`crate::Bvh::sah_cost`]):
@@ -320,11 +312,6 @@ impl<P: Primitive> Bvh2<P> {
     /// The primitives in leaf order.
     pub fn prims(&self) -> &[P] {
         &self.prims
-    }
-
-    /// For each entry of [`Bvh2::prims`], its index in the input (what hits report).
-    pub(crate) fn prim_ids(&self) -> &[u32] {
-        &self.prim_ids
     }
 
     /// The root's box: every primitive's box.

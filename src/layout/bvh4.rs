@@ -4,13 +4,12 @@
 //! frame, 64 bytes: one cache line, in `qbvh4_node.rs`).
 
 use super::collapse::{self, collapse, Child};
-use super::moved::{check_moved, MovedPrims, RefitError};
+use super::moved::{refit_unscaled, RefitError};
 use super::order::{self, Shape, HOLE};
 use super::tri4::{self, FarGroups, Tri4};
 use super::walk::sah_cost;
 use super::{Footprint, Inputs, LeafPrims};
 use crate::builders::{BuildTree, TreeError};
-use crate::frame::Frame;
 use crate::geometry::{Aabb, Triangle};
 use crate::isa::{Isa, Kernels};
 use crate::primitive::Primitive;
@@ -233,14 +232,7 @@ impl<P: Primitive, N: Node4> Bvh4<P, N> {
     /// # Errors
     /// [`RefitError`] as [`crate::Bvh::refit`]; nothing is changed then.
     pub fn refit(&mut self, prims: &[P]) -> Result<(), RefitError> {
-        let get = |i: u32| prims[i as usize].clone();
-        check_moved(self.inputs, &self.prim_ids, prims.len(), Some(prims), &get)?;
-        self.refit_from(&MovedPrims {
-            get,
-            frame: Frame::default(),
-            slice: Some(prims),
-        });
-        Ok(())
+        refit_unscaled(self, prims)
     }
 
     /// The SAH cost of the nodes the walk enters, with unit costs (as [`crate::Bvh::sah_cost`]):
@@ -252,17 +244,13 @@ impl<P: Primitive, N: Node4> Bvh4<P, N> {
     /// What the nodes and the leaf data the kernels read occupy (the SIMD groups, where
     /// the leaves have them), and everything the layout keeps.
     pub fn footprint(&self) -> Footprint {
-        let mut f = if self.tri4.is_empty() {
-            Footprint::of(&self.nodes, &self.prims, &self.prim_ids)
-        } else {
-            Footprint::of(&self.nodes, &self.tri4, &[])
-        };
-        f.kept = f.node_bytes
-            + std::mem::size_of_val(&self.prims[..])
-            + std::mem::size_of_val(&self.prim_ids[..])
-            + std::mem::size_of_val(&self.tri4[..])
-            + self.far.bytes();
-        f
+        Footprint::wide(
+            &self.nodes,
+            &self.prims,
+            &self.prim_ids,
+            &self.tri4,
+            &self.far,
+        )
     }
 
     /// The node array as bytes, as the traversal reads it.
@@ -276,11 +264,6 @@ impl<P: Primitive, N: Node4> Bvh4<P, N> {
     /// at leaf position `k` is the one the groups name there.
     pub fn prims(&self) -> &[P] {
         &self.prims
-    }
-
-    /// For each primitive in leaf order, its index in the input (what hits report).
-    pub(crate) fn prim_ids(&self) -> &[u32] {
-        &self.prim_ids
     }
 
     /// The leaves as SIMD triangle groups (triangle leaf formats; empty otherwise).

@@ -2,12 +2,11 @@
 //! in one 8-lane slab test (one AVX2 instruction per step on the AVX2 path).
 
 use super::collapse::{collapse_sah, Wide};
-use super::moved::{check_moved, MovedPrims, RefitError};
+use super::moved::{refit_unscaled, RefitError};
 use super::tri4::{self, FarGroups, Tri4};
 use super::walk::sah_cost;
 use super::{Footprint, Inputs, LeafPrims};
 use crate::builders::{BuildConfig, BuildTree, TreeError};
-use crate::frame::Frame;
 use crate::geometry::Aabb;
 use crate::geometry::Triangle;
 use crate::isa::{Isa, Kernels};
@@ -176,14 +175,7 @@ impl<P: Primitive> Bvh8<P> {
     /// # Errors
     /// [`RefitError`] as [`crate::Bvh::refit`]; nothing is changed then.
     pub fn refit(&mut self, prims: &[P]) -> Result<(), RefitError> {
-        let get = |i: u32| prims[i as usize].clone();
-        check_moved(self.inputs, &self.prim_ids, prims.len(), Some(prims), &get)?;
-        self.refit_from(&MovedPrims {
-            get,
-            frame: Frame::default(),
-            slice: Some(prims),
-        });
-        Ok(())
+        refit_unscaled(self, prims)
     }
 
     /// The SAH cost of the nodes the walk enters, with unit costs (as [`crate::Bvh::sah_cost`]):
@@ -206,17 +198,13 @@ impl<P: Primitive> Bvh8<P> {
     /// What the nodes and the leaf data the kernels read occupy (the SIMD groups, where
     /// the leaves have them), and everything the layout keeps.
     pub fn footprint(&self) -> Footprint {
-        let mut f = if self.tri4.is_empty() {
-            Footprint::of(&self.nodes, &self.prims, &self.prim_ids)
-        } else {
-            Footprint::of(&self.nodes, &self.tri4, &[])
-        };
-        f.kept = f.node_bytes
-            + std::mem::size_of_val(&self.prims[..])
-            + std::mem::size_of_val(&self.prim_ids[..])
-            + std::mem::size_of_val(&self.tri4[..])
-            + self.far.bytes();
-        f
+        Footprint::wide(
+            &self.nodes,
+            &self.prims,
+            &self.prim_ids,
+            &self.tri4,
+            &self.far,
+        )
     }
 
     /// The node array as bytes, as the traversal reads it.
@@ -230,11 +218,6 @@ impl<P: Primitive> Bvh8<P> {
     /// at leaf position `k` is the one the groups name there.
     pub fn prims(&self) -> &[P] {
         &self.prims
-    }
-
-    /// For each primitive in leaf order, its index in the input (what hits report).
-    pub(crate) fn prim_ids(&self) -> &[u32] {
-        &self.prim_ids
     }
 
     /// The leaves as SIMD triangle groups (triangle leaf formats; empty otherwise).

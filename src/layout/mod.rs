@@ -246,6 +246,28 @@ pub struct Footprint {
 }
 
 impl Footprint {
+    /// A wide layout's: what its kernels read (the nodes and the SIMD groups, where the
+    /// leaves have them, else the leaf-order primitives and their ids), and all it keeps.
+    pub(crate) fn wide<N, P>(
+        nodes: &[N],
+        prims: &[P],
+        ids: &[u32],
+        groups: &[Tri4],
+        far: &tri4::FarGroups,
+    ) -> Footprint {
+        let mut f = if groups.is_empty() {
+            Footprint::of(nodes, prims, ids)
+        } else {
+            Footprint::of(nodes, groups, &[])
+        };
+        f.kept = f.node_bytes
+            + std::mem::size_of_val(prims)
+            + std::mem::size_of_val(ids)
+            + std::mem::size_of_val(groups)
+            + far.bytes();
+        f
+    }
+
     pub(crate) fn of<N, P>(nodes: &[N], prims: &[P], ids: &[u32]) -> Footprint {
         let node_bytes = std::mem::size_of_val(nodes);
         let bytes = node_bytes + std::mem::size_of_val(prims) + std::mem::size_of_val(ids);

@@ -147,6 +147,39 @@ impl Summary {
     }
 }
 
+/// A layout a refit rewrites in place: what it was built over, the input index of each of its
+/// leaf positions, and the rewrite from a [`RefitInput`].
+pub(crate) trait RefitTarget<P: Primitive> {
+    /// What the layout was built over.
+    fn inputs(&self) -> Inputs;
+    /// For each primitive in leaf order, its index in the input.
+    fn held_ids(&self) -> &[u32];
+    /// Recomputes every box (and the leaf data) from `src`.
+    fn refit_from<S: RefitInput<P>>(&mut self, src: &S);
+}
+
+/// Refits `layout` to `prims` in their own units (a layout keeps no frame): the moved
+/// primitives checked, then the boxes rewritten. What each layout's public `refit` is.
+pub(crate) fn refit_unscaled<P: Primitive, L: RefitTarget<P>>(
+    layout: &mut L,
+    prims: &[P],
+) -> Result<(), RefitError> {
+    let get = |i: u32| prims[i as usize].clone();
+    check_moved(
+        layout.inputs(),
+        layout.held_ids(),
+        prims.len(),
+        Some(prims),
+        &get,
+    )?;
+    layout.refit_from(&MovedPrims {
+        get,
+        frame: Frame::default(),
+        slice: Some(prims),
+    });
+    Ok(())
+}
+
 /// Checks `n` moved primitives, primitive `i` being `get(i)` (`slice[i]` where they are a
 /// slice), against a layout built over `inputs` whose leaves name input indices `held`: the
 /// same count, every primitive the tree holds finite, every one the build dropped still

@@ -19,7 +19,9 @@ use super::bvh2::{compact_children, Addressing, Bvh2, Bvh2Mapping, Bvh2Node};
 use super::bvh4::{Bvh4, Bvh4Mapping, Bvh4Node, Node4};
 use super::bvh8::{Bvh8, Bvh8Node};
 use super::collapse::{Child, Wide};
+use super::moved::RefitTarget;
 use super::tri4::{fill, groups as group_count, FarGroups, Tri4};
+use super::Inputs;
 use crate::geometry::Aabb;
 use crate::primitive::{LeafFormat, Primitive};
 use rayon::prelude::*;
@@ -508,9 +510,17 @@ fn far_groups<P: Primitive, S: RefitInput<P>>(far: bool, groups: &[Tri4], src: &
     FarGroups::find(groups, |id| src.get(id).triangle())
 }
 
-impl<P: Primitive> Bvh8<P> {
+impl<P: Primitive> RefitTarget<P> for Bvh8<P> {
+    fn inputs(&self) -> Inputs {
+        self.inputs
+    }
+
+    fn held_ids(&self) -> &[u32] {
+        &self.prim_ids
+    }
+
     /// Refits in place from `src` (see the [module](self) docs).
-    pub(crate) fn refit_from<S: RefitInput<P>>(&mut self, src: &S) {
+    fn refit_from<S: RefitInput<P>>(&mut self, src: &S) {
         let far;
         (self.bounds, far) = refit_wide::<8, _, _, _>(
             &mut self.nodes,
@@ -524,9 +534,17 @@ impl<P: Primitive> Bvh8<P> {
     }
 }
 
-impl<P: Primitive, N: Node4> Bvh4<P, N> {
+impl<P: Primitive, N: Node4> RefitTarget<P> for Bvh4<P, N> {
+    fn inputs(&self) -> Inputs {
+        self.inputs
+    }
+
+    fn held_ids(&self) -> &[u32] {
+        &self.prim_ids
+    }
+
     /// Refits in place from `src`, quantized nodes encoded again (see the [module](self) docs).
-    pub(crate) fn refit_from<S: RefitInput<P>>(&mut self, src: &S) {
+    fn refit_from<S: RefitInput<P>>(&mut self, src: &S) {
         let far;
         (self.bounds, far) = refit_wide::<4, _, _, _>(
             &mut self.nodes,
@@ -628,9 +646,17 @@ fn bvh2_inner(nodes: &mut [Bvh2Node], at: usize, addressing: Addressing) -> Aabb
     b
 }
 
-impl<P: Primitive> Bvh2<P> {
+impl<P: Primitive> RefitTarget<P> for Bvh2<P> {
+    fn inputs(&self) -> Inputs {
+        self.inputs
+    }
+
+    fn held_ids(&self) -> &[u32] {
+        &self.prim_ids
+    }
+
     /// Refits in place from `src` (see the [module](self) docs).
-    pub(crate) fn refit_from<S: RefitInput<P>>(&mut self, src: &S) {
+    fn refit_from<S: RefitInput<P>>(&mut self, src: &S) {
         if self.mapping == Bvh2Mapping::DepthFirst {
             let run = Run {
                 prims: &mut self.prims,
@@ -714,25 +740,25 @@ mod tests {
             AnyLayout::Bvh2(b) => (
                 b.node_bytes().to_vec(),
                 Vec::new(),
-                b.prim_ids().to_vec(),
+                b.held_ids().to_vec(),
                 b.bounds(),
             ),
             AnyLayout::Bvh4(b) => (
                 b.node_bytes().to_vec(),
                 bytemuck::cast_slice(b.groups()).to_vec(),
-                b.prim_ids().to_vec(),
+                b.held_ids().to_vec(),
                 b.bounds(),
             ),
             AnyLayout::QBvh4(b) => (
                 b.node_bytes().to_vec(),
                 bytemuck::cast_slice(b.groups()).to_vec(),
-                b.prim_ids().to_vec(),
+                b.held_ids().to_vec(),
                 b.bounds(),
             ),
             AnyLayout::Bvh8(b) => (
                 b.node_bytes().to_vec(),
                 bytemuck::cast_slice(b.groups()).to_vec(),
-                b.prim_ids().to_vec(),
+                b.held_ids().to_vec(),
                 b.bounds(),
             ),
         }

@@ -7,9 +7,11 @@ use super::top::{instance_box, top_level, world_boxes};
 use super::{Geometry, GeometryId, InstanceId, InstanceLeaf};
 use super::{World, WorldError};
 use crate::geometry::{Aabb, Triangle};
+use crate::layout::moved::RefitTarget;
 use crate::layout::refit::RefitInput;
 use crate::mesh::{Mesh, Positions};
 use crate::primitive::Primitive;
+use crate::Bvh;
 use glam::Affine3A;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -110,14 +112,7 @@ impl<P: Primitive> WorldEdit<'_, P> {
         tris: &[Triangle],
     ) -> Result<(), WorldError> {
         let done = match self.geometry(geometry)? {
-            Geometry::Triangles(bvh, kept) => {
-                bvh.refit(tris).map_err(|error| WorldError::Refit {
-                    geometry: geometry.0,
-                    error,
-                })?;
-                kept.clone_from_slice(tris);
-                Ok(())
-            }
+            Geometry::Triangles(bvh, kept) => refit_kept(geometry, bvh, kept, tris),
             Geometry::Prims(..) => Err(prims_not_triangles(geometry)),
         };
         self.refit(done)
@@ -165,14 +160,7 @@ impl<P: Primitive> WorldEdit<'_, P> {
     /// geometry.
     pub fn refit_prims(&mut self, geometry: GeometryId, prims: &[P]) -> Result<(), WorldError> {
         let done = match self.geometry(geometry)? {
-            Geometry::Prims(bvh, kept) => {
-                bvh.refit(prims).map_err(|error| WorldError::Refit {
-                    geometry: geometry.0,
-                    error,
-                })?;
-                kept.clone_from_slice(prims);
-                Ok(())
-            }
+            Geometry::Prims(bvh, kept) => refit_kept(geometry, bvh, kept, prims),
             Geometry::Triangles(..) => Err(WorldError::GeometryKind {
                 geometry: geometry.0,
                 holds: "triangles",
@@ -244,6 +232,21 @@ impl<P: Primitive> WorldEdit<'_, P> {
         self.geometry_refit = false;
         self.instances.clear();
     }
+}
+
+/// Refits geometry `geometry`'s BVH to `moved` and its kept primitives (for normals) with it.
+fn refit_kept<Q: Primitive>(
+    geometry: GeometryId,
+    bvh: &mut Bvh<Q>,
+    kept: &mut [Q],
+    moved: &[Q],
+) -> Result<(), WorldError> {
+    bvh.refit(moved).map_err(|error| WorldError::Refit {
+        geometry: geometry.0,
+        error,
+    })?;
+    kept.clone_from_slice(moved);
+    Ok(())
 }
 
 fn prims_not_triangles(geometry: GeometryId) -> WorldError {
