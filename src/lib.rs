@@ -22,9 +22,11 @@
 //! The pipeline, one module per stage: [`builders`] (SAH trees over primitive bounds) →
 //! [`layout`] (compact node arrays: binary, 4-wide, quantized; in several memory orders) →
 //! [`traverse`] (single-ray and packet kernels, closest and any hit, statistics).
-//! [`Bvh::new`] and [`BuildOptions`] run the first two; [`geometry`] holds rays, boxes,
-//! triangles and hit records, [`intersect`] the watertight and exact triangle tests, and
-//! [`mod@reference`] the brute-force oracle every kernel is tested against.
+//! [`Bvh::new`] and [`Bvh::build`] with [`BuildOptions`] run the first two; [`World`] places
+//! BVHs as instances under one top level; [`geometry`] holds rays, boxes, triangles and hit
+//! records, [`intersect`] the watertight and exact triangle tests, and [`mod@reference`] the
+//! brute-force oracle every kernel is tested against. [`prelude`] imports what a renderer
+//! needs in one line.
 //!
 //! This crate depends only on glam, wide, rayon and bytemuck. Scenes (the SPD generators,
 //! NFF and OBJ files), analytic shapes and the SPD renderer live in `quiver-scenes`; the
