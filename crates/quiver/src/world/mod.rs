@@ -235,8 +235,8 @@ pub enum WorldError {
     Transform {
         /// The instance.
         instance: usize,
-        /// Not finite, not invertible (its determinant is zero in f32), or out of f32's range
-        /// to invert.
+        /// Not finite, not invertible, its inverse out of f32's range, or too close to
+        /// singular for f32 ([`invert`]).
         why: &'static str,
     },
     /// Geometry `geometry`'s mesh: an index names no vertex, or too many triangles.
@@ -470,28 +470,80 @@ fn check_instance(
         });
     }
     let m = &inst.transform;
-    let bad = |why| {
-        Err(WorldError::Transform {
-            instance: index,
-            why,
-        })
-    };
-    if !m.is_finite() {
-        return bad("not finite");
-    }
-    if m.matrix3.determinant() == 0.0 {
-        return bad("not invertible");
-    }
-    let (inverse, identity) = placement(m);
-    if !inverse.is_finite() {
-        return bad("out of f32's range to invert (its inverse is not finite)");
-    }
-    Ok((inverse, identity))
+    invert(m).map_err(|why| WorldError::Transform {
+        instance: index,
+        why,
+    })?;
+    Ok(placement(m))
 }
 
-/// A checked transform's inverse and whether it is the identity.
+/// How far from the identity a transform times its f32 inverse may be, in each entry of the
+/// linear part (and relative to the sizes added, in the translation): a few thousand ulps,
+/// room for the rounding of a well-placed transform at any scale, far less than a transform
+/// too close to singular for f32 (whose inverse's rounding moves hits visibly) leaves.
+pub const INVERSE_TOLERANCE: f64 = 1.0 / 8192.0;
+
+/// The inverse of an instance transform as the walk uses it (world to object space), or why
+/// it cannot place a geometry: not finite, singular, an inverse out of f32's range, or an
+/// inverse that is not one (the transform times it, in f64, is off the identity by more than
+/// [`INVERSE_TOLERANCE`]). Computed in f64 and rounded once, so any scale whose inverse f32
+/// holds is served: glam's f32 inverse divides by the f32 determinant, which overflows for a
+/// uniform scale past about 7e12 (the inverse then comes out as zeros) and underflows below
+/// about 1e-15.
+///
+/// ```
+/// use quiver::glam::{Affine3A, Vec3};
+/// use quiver::world::invert;
+/// let big = Affine3A::from_scale(Vec3::splat(1e13));
+/// assert_eq!(invert(&big).unwrap().matrix3.x_axis.x, 1e-13);
+/// let tiny = Affine3A::from_scale(Vec3::splat(1e-30));
+/// assert_eq!(invert(&tiny).unwrap().matrix3.x_axis.x, 1e30);
+/// assert!(invert(&Affine3A::from_scale(Vec3::splat(1e-39))).is_err()); // 1e39 is past f32
+/// assert!(invert(&Affine3A::from_scale(Vec3::new(1.0, 0.0, 1.0))).is_err());
+/// ```
+pub fn invert(m: &Affine3A) -> Result<Affine3A, &'static str> {
+    if !m.is_finite() {
+        return Err("not finite");
+    }
+    let wide = glam::DAffine3::from_cols_array(&m.to_cols_array().map(f64::from));
+    // Entries of f32's range: the f64 determinant neither overflows nor underflows.
+    if wide.matrix3.determinant() == 0.0 {
+        return Err("not invertible");
+    }
+    let inverse = wide.inverse();
+    let rounded = Affine3A::from_cols_array(&inverse.to_cols_array().map(|x| x as f32));
+    if !rounded.is_finite() {
+        return Err("out of f32's range to invert (its inverse is not finite)");
+    }
+    let back = glam::DAffine3::from_cols_array(&rounded.to_cols_array().map(f64::from));
+    let product = wide * back;
+    let abs = |a: glam::DMat3| glam::DMat3::from_cols(a.x_axis.abs(), a.y_axis.abs(), a.z_axis.abs());
+    let linear_off = (product.matrix3 - glam::DMat3::IDENTITY)
+        .to_cols_array()
+        .into_iter()
+        .fold(0.0f64, |a, x| a.max(x.abs()));
+    // The translation's error, against the size of what was added to make it.
+    let size = abs(wide.matrix3) * back.translation.abs() + wide.translation.abs();
+    let moved_off = product.translation.abs().cmpgt(size * INVERSE_TOLERANCE).any();
+    if !(linear_off <= INVERSE_TOLERANCE) || moved_off {
+        return Err("too close to singular for f32 (it times its f32 inverse is not the identity)");
+    }
+    Ok(rounded)
+}
+
+/// Whether `m` mirrors (reverses a triangle's winding): its determinant's sign, taken in f64
+/// so that it neither overflows nor underflows to zero at any f32 scale.
+pub(crate) fn mirrors(m: &Affine3A) -> bool {
+    let d = glam::DMat3::from_cols_array(&m.matrix3.to_cols_array().map(f64::from));
+    d.determinant() < 0.0
+}
+
+/// A checked transform's inverse ([`invert`]) and whether it is the identity.
 fn placement(m: &Affine3A) -> (Affine3A, bool) {
-    (m.inverse(), *m == Affine3A::IDENTITY)
+    (
+        invert(m).unwrap_or(Affine3A::IDENTITY),
+        *m == Affine3A::IDENTITY,
+    )
 }
 
 /// The world box of an object box placed by `m`: the box of its eight transformed corners.
@@ -701,7 +753,7 @@ impl<P: Primitive> World<P> {
     pub fn normal(&self, ray: &Ray, hit: &WorldHit) -> Option<Vec3A> {
         let inst = self.instances.get(hit.instance as usize)?;
         let g = self.geometries.get(hit.geometry as usize)?;
-        let to_object = inst.transform.inverse();
+        let to_object = invert(&inst.transform).ok()?;
         let at = to_object.transform_point3a(ray.at(hit.t));
         let local = PrimHit {
             t: hit.t,
@@ -713,7 +765,7 @@ impl<P: Primitive> World<P> {
         // reverses the winding, which is what says which side a triangle faces.
         let inverse_t: Mat3A = to_object.matrix3.transpose();
         let n = unit_or_zero(inverse_t * n);
-        Some(if inst.transform.matrix3.determinant() < 0.0 {
+        Some(if mirrors(&inst.transform) {
             -n
         } else {
             n
