@@ -510,21 +510,36 @@ pub fn invert(m: &Affine3A) -> Result<Affine3A, &'static str> {
     if wide.matrix3.determinant() == 0.0 {
         return Err("not invertible");
     }
-    let inverse = wide.inverse();
-    let rounded = Affine3A::from_cols_array(&inverse.to_cols_array().map(|x| x as f32));
+    let inverse = wide.matrix3.inverse();
+    let f = |v: glam::DVec3| Vec3A::new(v.x as f32, v.y as f32, v.z as f32);
+    let linear = Mat3A::from_cols(f(inverse.x_axis), f(inverse.y_axis), f(inverse.z_axis));
+    // The translation through the rounded linear part: a world point near the instance then
+    // maps as that one linear map of its offset from it, whose rounding error scales with the
+    // offset, not with the distance from the origin.
+    let d = |v: Vec3A| glam::DVec3::new(v.x as f64, v.y as f64, v.z as f64);
+    let lin64 = glam::DMat3::from_cols(d(linear.x_axis), d(linear.y_axis), d(linear.z_axis));
+    let rounded = Affine3A {
+        matrix3: linear,
+        translation: f(-(lin64 * wide.translation)),
+    };
     if !rounded.is_finite() {
         return Err("out of f32's range to invert (its inverse is not finite)");
     }
     let back = glam::DAffine3::from_cols_array(&rounded.to_cols_array().map(f64::from));
     let product = wide * back;
-    let abs = |a: glam::DMat3| glam::DMat3::from_cols(a.x_axis.abs(), a.y_axis.abs(), a.z_axis.abs());
+    let abs =
+        |a: glam::DMat3| glam::DMat3::from_cols(a.x_axis.abs(), a.y_axis.abs(), a.z_axis.abs());
     let linear_off = (product.matrix3 - glam::DMat3::IDENTITY)
         .to_cols_array()
         .into_iter()
         .fold(0.0f64, |a, x| a.max(x.abs()));
     // The translation's error, against the size of what was added to make it.
     let size = abs(wide.matrix3) * back.translation.abs() + wide.translation.abs();
-    let moved_off = product.translation.abs().cmpgt(size * INVERSE_TOLERANCE).any();
+    let moved_off = product
+        .translation
+        .abs()
+        .cmpgt(size * INVERSE_TOLERANCE)
+        .any();
     if !(linear_off <= INVERSE_TOLERANCE) || moved_off {
         return Err("too close to singular for f32 (it times its f32 inverse is not the identity)");
     }
@@ -765,11 +780,7 @@ impl<P: Primitive> World<P> {
         // reverses the winding, which is what says which side a triangle faces.
         let inverse_t: Mat3A = to_object.matrix3.transpose();
         let n = unit_or_zero(inverse_t * n);
-        Some(if mirrors(&inst.transform) {
-            -n
-        } else {
-            n
-        })
+        Some(if mirrors(&inst.transform) { -n } else { n })
     }
 
     /// The top-level BVH, for readers inside the crate (the cost predictor).

@@ -43,12 +43,12 @@
 //! ```
 
 use super::{Budget, Groups, LoadOptions, LoadReport, NonFinite, Scene, SceneError};
-use std::path::{Component, PathBuf};
-use std::rc::Rc;
 use glam::{DMat4, DQuat, DVec3, Vec3A};
 use quiver::geometry::Triangle;
 use serde_json::Value;
 use std::path::Path;
+use std::path::{Component, PathBuf};
+use std::rc::Rc;
 
 /// Parses a `.gltf` or `.glb` file's bytes strictly (see [`parse_with`]).
 pub fn parse(data: &[u8], path: impl AsRef<Path>) -> Result<Scene, SceneError> {
@@ -590,9 +590,9 @@ impl<'a> Reader<'a> {
             // Every placement of a mesh counts: its triangles (and what they become) are
             // stored once per node that places it.
             let placed = || format!("{pat}, placed as {group}/{p}");
-            let temporary =
-                (positions.len() * 16 + indices.as_ref().map_or(0, |i| i.len()) * 4) as u64
-                    + triangles as u64 * 12;
+            let temporary = (positions.len() * 16 + indices.as_ref().map_or(0, |i| i.len()) * 4)
+                as u64
+                + triangles as u64 * 12;
             self.budget.bytes(triangles as u64 * 12, placed)?;
             self.budget.prims(triangles as u64, placed)?;
             self.budget.grow(&mut self.tris, triangles, placed)?;
@@ -776,8 +776,7 @@ impl<'a> Reader<'a> {
         let f = |b: &[u8], k: usize| {
             f32::from_le_bytes([b[4 * k], b[4 * k + 1], b[4 * k + 2], b[4 * k + 3]])
         };
-        self.budget
-            .bytes(view.count as u64 * 16, || here.clone())?;
+        self.budget.bytes(view.count as u64 * 16, || here.clone())?;
         let mut out = Vec::with_capacity(view.count);
         for i in 0..view.count {
             let b = &view.buffer[view.start + i * view.stride..];
@@ -824,8 +823,7 @@ impl<'a> Reader<'a> {
                 ),
             ));
         }
-        self.budget
-            .bytes(view.count as u64 * 4, || here.clone())?;
+        self.budget.bytes(view.count as u64 * 4, || here.clone())?;
         let mut out = Vec::with_capacity(view.count);
         for i in 0..view.count {
             let b = &view.buffer[view.start + i * view.stride..];
@@ -868,10 +866,13 @@ impl<'a> Reader<'a> {
                     self.err(&at, "has no uri, and the file has no GLB BIN chunk")
                 })?;
                 if b != 0 {
-                    return Err(self.err(&at, "has no uri; only buffers[0] can be the GLB BIN chunk"));
+                    return Err(
+                        self.err(&at, "has no uri; only buffers[0] can be the GLB BIN chunk")
+                    );
                 }
-                self.budget
-                    .bytes(bin.len() as u64, || format!("{at} (a copy of the BIN chunk)"))?;
+                self.budget.bytes(bin.len() as u64, || {
+                    format!("{at} (a copy of the BIN chunk)")
+                })?;
                 bin.into()
             }
             Some(uri) => {
@@ -904,14 +905,11 @@ impl<'a> Reader<'a> {
             };
             self.budget
                 .bytes(payload.len() as u64 / 4 * 3 + 3, || at.to_string())?;
-            return base64(payload)
-                .map(Rc::from)
-                .map_err(|m| self.err(at, m));
+            return base64(payload).map(Rc::from).map_err(|m| self.err(at, m));
         }
         let folder = self.path.parent().unwrap_or(Path::new(""));
-        let file = confined(folder, uri, self.opts.outside_files).map_err(|m| {
-            self.err(at, format!("'{}': {m}", super::clip(uri)))
-        })?;
+        let file = confined(folder, uri, self.opts.outside_files)
+            .map_err(|m| self.err(at, format!("'{}': {m}", super::clip(uri))))?;
         if let Some((_, data)) = self.files.iter().find(|(f, _)| *f == file) {
             return Ok(data.clone());
         }
@@ -937,7 +935,8 @@ impl<'a> Reader<'a> {
             )));
         }
         // Read whole (other buffers may name more of it), and counted before it is read.
-        self.budget.bytes(meta.len(), || format!("{at} ({})", file.display()))?;
+        self.budget
+            .bytes(meta.len(), || format!("{at} ({})", file.display()))?;
         let data: Rc<[u8]> = super::read_bytes(&file, self.opts.max_file_bytes)
             .map_err(|e| self.err(at, e.to_string()))?
             .into();
@@ -969,7 +968,9 @@ fn confined(folder: &Path, uri: &str, outside: bool) -> Result<PathBuf, String> 
     let absolute = name.starts_with('/')
         || name.starts_with('\\')
         || Path::new(&name).is_absolute()
-        || Path::new(&name).components().any(|c| matches!(c, Component::Prefix(_)));
+        || Path::new(&name)
+            .components()
+            .any(|c| matches!(c, Component::Prefix(_)));
     if outside {
         return Ok(folder.join(&name));
     }

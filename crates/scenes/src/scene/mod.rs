@@ -614,7 +614,11 @@ impl<'p> Budget<'p> {
     }
 
     /// Charges `n` bytes about to be allocated for `item`.
-    pub(crate) fn bytes(&mut self, n: u64, item: impl FnOnce() -> String) -> Result<(), SceneError> {
+    pub(crate) fn bytes(
+        &mut self,
+        n: u64,
+        item: impl FnOnce() -> String,
+    ) -> Result<(), SceneError> {
         let total = self.bytes.saturating_add(n);
         if total > self.max_bytes {
             return Err(self.over(item(), total, self.max_bytes, Budgeted::Bytes));

@@ -22,7 +22,8 @@
 //! ```
 
 use super::{
-    Budget, Camera, Light, LoadOptions, LoadReport, Material, NonFinite, Object, Scene, SceneError, Shape,
+    Budget, Camera, Light, LoadOptions, LoadReport, Material, NonFinite, Object, Scene, SceneError,
+    Shape,
 };
 use crate::primitive::{Cone, Sphere};
 use glam::Vec3A;
@@ -286,8 +287,7 @@ pub fn parse_with(
                 None => {
                     let prims = &mut held.0;
                     *prims += traced;
-                    held.1
-                        .grow(objects, 1, || format!("line {line}"))?;
+                    held.1.grow(objects, 1, || format!("line {line}"))?;
                     if *prims > opts.max_primitives {
                         return Err(SceneError::TooLarge {
                             path: path.into(),
@@ -438,7 +438,8 @@ pub fn parse_with(
                 // it reserve memory first (a vertex takes at least six bytes of text).
                 let room = n.min(text.len() / 6 + 1);
                 let lists = if tok == "pp" { 2 } else { 1 };
-                held.1.bytes(room as u64 * 16 * lists, || format!("line {line}"))?;
+                held.1
+                    .bytes(room as u64 * 16 * lists, || format!("line {line}"))?;
                 let mut verts = Vec::with_capacity(room);
                 let mut normals = Vec::with_capacity(if tok == "pp" { room } else { 0 });
                 // A word or the end of the file where a vertex should be: say what the count

@@ -107,9 +107,8 @@ pub fn parse_with(
     // text, the vertex, corner and face lists, the triangles and the objects they become.
     let mut budget = Budget::new(path, opts);
     let lists = total.v as u64 * 16 + all_corners as u64 * 4 + all_faces as u64 * 16;
-    let made = triangles.saturating_mul(
-        std::mem::size_of::<Triangle>() as u64 + super::OBJECT_BYTES,
-    );
+    let made =
+        triangles.saturating_mul(std::mem::size_of::<Triangle>() as u64 + super::OBJECT_BYTES);
     budget.bytes(text.len() as u64 + lists + made, || {
         format!(
             "{} vertices, {all_faces} faces of {all_corners} corners, {triangles} triangles",
@@ -307,11 +306,14 @@ pub fn parse_with(
                 .find_map(|&i| bad_verts.binary_search_by_key(&i, |b| b.0).ok());
             if let Some(b) = bad {
                 let (i, l) = bad_verts[b];
-                report.drop_primitives(face.len() - 2, format!(
-                    "{}:{line}: face dropped: its vertex {} (line {l}) is not finite",
-                    path.display(),
-                    i + 1
-                ));
+                report.drop_primitives(
+                    face.len() - 2,
+                    format!(
+                        "{}:{line}: face dropped: its vertex {} (line {l}) is not finite",
+                        path.display(),
+                        i + 1
+                    ),
+                );
                 continue;
             }
         }

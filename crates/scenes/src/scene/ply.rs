@@ -495,7 +495,13 @@ fn read_ascii(
                 ),
             ));
         }
-        reserve(mesh, e, role, capacity(e.count, body.len(), 2), At::Line(e.line))?;
+        reserve(
+            mesh,
+            e,
+            role,
+            capacity(e.count, body.len(), 2),
+            At::Line(e.line),
+        )?;
         let mut values: Vec<f64> = Vec::new();
         let mut tokens: Vec<&str> = Vec::new();
         let mut list: Vec<i64> = Vec::new();
@@ -602,13 +608,7 @@ fn ascii_value(tok: &str, ty: Ty) -> Result<f64, String> {
 }
 
 /// Room for `n` instances of `e` (as vertices or faces), charged to the mesh's budget.
-fn reserve(
-    mesh: &mut Mesh,
-    e: &Element,
-    role: Role,
-    n: usize,
-    at: At,
-) -> Result<(), SceneError> {
+fn reserve(mesh: &mut Mesh, e: &Element, role: Role, n: usize, at: At) -> Result<(), SceneError> {
     let item = || place(at, format!("element {}", e.name));
     match role {
         Role::Vertex { .. } => {
@@ -801,7 +801,13 @@ impl<'p> Mesh<'p> {
 
     /// Charges face `i` of `n` corners before they are read: its triangles against the
     /// load's limits, and room for its corners in `list`.
-    fn face_room(&mut self, n: usize, list: &mut Vec<i64>, at: At, i: u64) -> Result<(), SceneError> {
+    fn face_room(
+        &mut self,
+        n: usize,
+        list: &mut Vec<i64>,
+        at: At,
+        i: u64,
+    ) -> Result<(), SceneError> {
         let item = || place(at, format!("face {i}"));
         let triangles = (n as u64).saturating_sub(2);
         self.budget.prims(triangles, item)?;
