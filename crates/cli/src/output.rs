@@ -25,10 +25,61 @@ use std::sync::Mutex;
 /// too, and a closed pipe has no reader left.
 static STDOUT_ERROR: Mutex<Option<io::Error>> = Mutex::new(None);
 
+/// Set when the run started with stdout closed (`quiver ... >&-`).
+static STDOUT_CLOSED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// Whether stdout was closed when the process started, looked at before Rust's runtime
+/// puts `/dev/null` in a closed standard descriptor's place (it does so before `main`, which
+/// then cannot tell `>&-` from `>/dev/null`): the loader runs `.init_array` entries first.
+#[cfg(target_os = "linux")]
+#[used]
+#[link_section = ".init_array"]
+static STDOUT_AT_START: extern "C" fn() = {
+    extern "C" fn look() {
+        // SAFETY: F_GETFD only asks whether descriptor 1 is open; it reads and changes
+        // nothing, and needs nothing of Rust's runtime.
+        if unsafe { libc::fcntl(1, libc::F_GETFD) } == -1 {
+            STDOUT_CLOSED.store(true, std::sync::atomic::Ordering::Relaxed);
+        }
+    }
+    look
+};
+
+/// Called first by `main`: a closed stdout or stderr (`>&-`) gets `/dev/null` in its place,
+/// so that no file the run opens later takes descriptor 1 or 2 and receives the table or the
+/// messages; a closed stdout is remembered, and the first write to it fails the run (Rust's
+/// stdout would otherwise swallow the error, and the table would be lost with exit code 0).
+pub(crate) fn guard_std_fds() {
+    for fd in [1, 2] {
+        // SAFETY: F_GETFD only asks whether `fd` is open; it reads and changes nothing.
+        if unsafe { libc::fcntl(fd, libc::F_GETFD) } != -1 {
+            continue;
+        }
+        if fd == 1 {
+            STDOUT_CLOSED.store(true, std::sync::atomic::Ordering::Relaxed);
+        }
+        // SAFETY: the path is a NUL-terminated literal; open returns the lowest free
+        // descriptor, which is `fd` (every lower one is open: checked in order).
+        let null = unsafe { libc::open(c"/dev/null".as_ptr(), libc::O_RDWR) };
+        if null != -1 && null != fd {
+            // SAFETY: both descriptors are ours; dup2 makes `fd` a copy and `null` is closed.
+            unsafe {
+                libc::dup2(null, fd);
+                libc::close(null);
+            }
+        }
+    }
+}
+
 /// Writes formatted text to stdout, remembering the first failure for [`finish_stdout`].
 pub(crate) fn emit(args: std::fmt::Arguments) {
     // A poisoned lock only means another thread panicked while printing; the slot is intact.
     let mut error = STDOUT_ERROR.lock().unwrap_or_else(|e| e.into_inner());
+    if error.is_none() && STDOUT_CLOSED.load(std::sync::atomic::Ordering::Relaxed) {
+        *error = Some(io::Error::other(
+            "it was closed when the run started (file descriptor 1)",
+        ));
+    }
     if error.is_none() {
         if let Err(e) = io::stdout().write_fmt(args) {
             *error = Some(e);
@@ -345,12 +396,39 @@ fn parent_dir(path: &Path) -> &Path {
     }
 }
 
-/// The temporary name for `name` that [`TempFile::create`] makes: `.NAME.quiver-PID-K.tmp`.
+/// The most bytes a file name may have (Linux's `NAME_MAX`, most file systems' limit).
+const NAME_MAX: usize = 255;
+
+/// The longest `.quiver-PID-K.tmp` tail a temporary takes (both numbers at 10 digits).
+const TEMP_TAIL: usize = ".quiver-4294967295-4294967295.tmp".len();
+
+/// What a temporary for `name` starts with: `.NAME`, or for a name too long to take the
+/// tail within [`NAME_MAX`], `.` and as much of it as fits with `~` and a 16-digit hash of
+/// the whole name (FNV-1a, stable from run to run, so a later run sweeps it).
+fn temp_stem(name: &std::ffi::OsStr) -> Vec<u8> {
+    use std::os::unix::ffi::OsStrExt as _;
+    let bytes = name.as_bytes();
+    let mut stem = b".".to_vec();
+    if 1 + bytes.len() + TEMP_TAIL <= NAME_MAX {
+        stem.extend_from_slice(bytes);
+        return stem;
+    }
+    let hash = bytes.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &b| {
+        (h ^ b as u64).wrapping_mul(0x100_0000_01b3)
+    });
+    let tail = format!("~{hash:016x}");
+    stem.extend_from_slice(&bytes[..NAME_MAX - TEMP_TAIL - 1 - tail.len()]);
+    stem.extend_from_slice(tail.as_bytes());
+    stem
+}
+
+/// The temporary name for `name` that [`TempFile::create`] makes: `.NAME.quiver-PID-K.tmp`,
+/// within 255 bytes however long `name` is ([`temp_stem`]).
 fn temp_name(name: &std::ffi::OsStr, pid: u32, k: u32) -> std::ffi::OsString {
-    let mut temp = std::ffi::OsString::from(".");
-    temp.push(name);
-    temp.push(format!(".quiver-{pid}-{k}.tmp"));
-    temp
+    use std::os::unix::ffi::OsStringExt as _;
+    let mut temp = temp_stem(name);
+    temp.extend_from_slice(format!(".quiver-{pid}-{k}.tmp").as_bytes());
+    std::ffi::OsString::from_vec(temp)
 }
 
 /// Removes `dir`'s temporaries for `name` left by quiver runs that died without cleaning up
@@ -360,8 +438,7 @@ fn temp_name(name: &std::ffi::OsStr, pid: u32, k: u32) -> std::ffi::OsString {
 /// costs disk space, not correctness.
 fn sweep_stale(dir: &Path, name: &std::ffi::OsStr) {
     use std::os::unix::ffi::OsStrExt as _;
-    let mut prefix = b".".to_vec();
-    prefix.extend_from_slice(name.as_bytes());
+    let mut prefix = temp_stem(name);
     prefix.extend_from_slice(b".quiver-");
     let Ok(entries) = std::fs::read_dir(dir) else {
         return;
