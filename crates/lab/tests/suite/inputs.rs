@@ -679,6 +679,7 @@ fn obj_non_finite_faces_can_be_dropped_and_counted() {
             "d.obj:8: face dropped: its vertex 5 (line 5) is not finite",
         ]
     );
+    // Twelve faces dropped, eight reasons kept.
     assert!(report.to_string().ends_with("; 4 more)"), "{report}");
     assert!(s
         .triangles()

@@ -522,9 +522,25 @@ pub fn invert(m: &Affine3A) -> Result<Affine3A, &'static str> {
         matrix3: linear,
         translation: f(-(lin64 * wide.translation)),
     };
+    // Where glam's f32 inverse is finite and is one (the check below), it is kept: the walk's
+    // answers for every transform it served stay as they were; the f64 one serves the rest.
+    let glam_inverse = m.inverse();
+    if glam_inverse.is_finite() && is_inverse(&wide, &glam_inverse) {
+        return Ok(glam_inverse);
+    }
     if !rounded.is_finite() {
         return Err("out of f32's range to invert (its inverse is not finite)");
     }
+    if !is_inverse(&wide, &rounded) {
+        return Err("too close to singular for f32 (it times its f32 inverse is not the identity)");
+    }
+    Ok(rounded)
+}
+
+/// Whether `inverse` (f32) times `wide` (the transform in f64) is the identity within
+/// [`INVERSE_TOLERANCE`].
+fn is_inverse(wide: &glam::DAffine3, inverse: &Affine3A) -> bool {
+    let rounded = inverse;
     let back = glam::DAffine3::from_cols_array(&rounded.to_cols_array().map(f64::from));
     let product = wide * back;
     let abs =
@@ -540,10 +556,7 @@ pub fn invert(m: &Affine3A) -> Result<Affine3A, &'static str> {
         .abs()
         .cmpgt(size * INVERSE_TOLERANCE)
         .any();
-    if !(linear_off <= INVERSE_TOLERANCE) || moved_off {
-        return Err("too close to singular for f32 (it times its f32 inverse is not the identity)");
-    }
-    Ok(rounded)
+    linear_off <= INVERSE_TOLERANCE && !moved_off
 }
 
 /// Whether `m` mirrors (reverses a triangle's winding): its determinant's sign, taken in f64

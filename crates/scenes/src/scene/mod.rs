@@ -693,6 +693,9 @@ pub struct LoadReport {
     /// Why, as `file:line: ...`, for the first [`LoadReport::REASONS_KEPT`] drops in file
     /// order.
     pub reasons: Vec<String>,
+    /// How many reasons there were in all (one a dropped face, shape or light), of which
+    /// [`LoadReport::reasons`] keeps the first.
+    pub reasons_total: usize,
 }
 
 impl LoadReport {
@@ -706,6 +709,7 @@ impl LoadReport {
     }
 
     fn note(&mut self, reason: String) {
+        self.reasons_total += 1;
         if self.reasons.len() < Self::REASONS_KEPT {
             self.reasons.push(reason);
         }
@@ -746,9 +750,8 @@ impl fmt::Display for LoadReport {
             parts.join(" and "),
             self.reasons.join("; ")
         )?;
-        let total = self.dropped_primitives + self.dropped_lights;
-        if total > self.reasons.len() {
-            write!(f, "; {} more", total - self.reasons.len())?;
+        if self.reasons_total > self.reasons.len() {
+            write!(f, "; {} more", self.reasons_total - self.reasons.len())?;
         }
         write!(f, ")")
     }
