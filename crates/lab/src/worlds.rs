@@ -96,8 +96,8 @@ impl Placements {
                         + m.z_axis.length_squared())
                     .sqrt()
                 };
-                let inverse = quiver::world::invert(&i.transform)
-                    .map_or(m.inverse(), |inv| inv.matrix3);
+                let inverse =
+                    quiver::world::invert(&i.transform).map_or(m.inverse(), |inv| inv.matrix3);
                 (f(m) * f(inverse) / 3.0) as f64
             })
             .fold(1.0, f64::max);
