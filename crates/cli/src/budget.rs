@@ -166,7 +166,7 @@ pub(crate) fn scene_bytes(c: &Census) -> u64 {
         + c.polygon_vertices * vertex
         + c.patch_vertices * 2 * vertex
         + (c.polygons + 2 * c.patches) * allocation
-        + c.triangles * std::mem::size_of::<quiver::Triangle>() as u64
+        + c.triangles * std::mem::size_of::<quiver_rt::Triangle>() as u64
 }
 
 /// An estimate: named parts that add up.

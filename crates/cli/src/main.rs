@@ -80,7 +80,7 @@ fn main() -> ExitCode {
     commands::load_options(cli.drop_non_finite, cli.outside_files);
     // A misspelt QUIVER_ISA would otherwise be ignored and the run measured on other kernels
     // than the user asked for.
-    if let Err(e) = quiver::Isa::from_env() {
+    if let Err(e) = quiver_rt::Isa::from_env() {
         return fail(&e);
     }
     budget::set_limit(cli.max_memory);

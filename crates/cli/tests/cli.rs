@@ -489,7 +489,7 @@ fn bad_scene_names_and_files_are_named() {
 #[test]
 fn bench_defaults_need_no_file_from_the_source_tree() {
     let binary = std::fs::read(QUIVER).unwrap();
-    let baked = concat!(env!("CARGO_MANIFEST_DIR"), "/../lab");
+    let baked = concat!(env!("CARGO_MANIFEST_DIR"), "/../../tests/data");
     assert!(
         !binary.windows(baked.len()).any(|w| w == baked.as_bytes()),
         "the binary refers to {baked}"

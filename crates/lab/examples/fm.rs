@@ -8,11 +8,11 @@
 //! `flat` (the plain rays 20 times, through the world and through the flattened patch scene,
 //! for `perf record`), `counts` (nodes, boxes, leaves and primitives a ray, instanced beside
 //! flattened) or `none` (builds only). `FM_BUILDER=NAME` builds the world with that builder
-//! (a `quiver::builders::Builder` name, e.g. `sbvh` or `sweep`) instead of the default.
+//! (a `quiver_rt::builders::Builder` name, e.g. `sbvh` or `sweep`) instead of the default.
 //! Meant for `valgrind --tool=callgrind --toggle-collect='fm::trace*'`, whose instruction
 //! counts, unlike times on a shared machine, repeat exactly: the difference between modes is
 //! the features' price per ray.
-use quiver::{BuildOptions, Hit, Ray, RayQuery};
+use quiver_rt::{BuildOptions, Hit, Ray, RayQuery};
 use quiver_lab::rays;
 use quiver_scenes::accel::SceneBvh;
 use quiver_scenes::scene::tessellate::DEFAULT_RESOLUTION;
@@ -89,8 +89,8 @@ fn main() {
             let flat = flattened();
             for (label, q) in [("instanced", &q), ("flattened", &flat)] {
                 let (mut ce, mut cs) = (
-                    quiver::traverse::Counters::default(),
-                    quiver::traverse::Counters::default(),
+                    quiver_rt::traverse::Counters::default(),
+                    quiver_rt::traverse::Counters::default(),
                 );
                 eye.iter().for_each(|r| {
                     let _ = q.closest_hit_counted(r, &mut ce);

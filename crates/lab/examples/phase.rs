@@ -1,7 +1,7 @@
 //! Times the phases of a BVH2 build (primitive bounds, SAH build, layout) on tetra10 at 1 and
 //! 2 threads; prints the fastest of five runs of each. `cargo run --release --example phase`
-use quiver::builders::{build, prim_bounds, BuildConfig, Builder};
-use quiver::{Bvh2, Bvh2Mapping};
+use quiver_rt::builders::{build, prim_bounds, BuildConfig, Builder};
+use quiver_rt::{Bvh2, Bvh2Mapping};
 use quiver_scenes::Scene;
 use std::time::{Duration, Instant};
 

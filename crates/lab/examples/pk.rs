@@ -3,8 +3,8 @@
 //! packet kernel in packets of SIZE rays (8, 16, 32 or 64; 0 = single rays), REPS rounds,
 //! and prints the fastest round's Mrays/s. For quick A/B runs and profiling; the tables come
 //! from `quiver packets`.
-use quiver::traverse::{FastBoxes, NoFilter, NoStats, PacketMode, PacketQuery};
-use quiver::{BuildOptions, Layout, RayQuery};
+use quiver_rt::traverse::{FastBoxes, NoFilter, NoStats, PacketMode, PacketQuery};
+use quiver_rt::{BuildOptions, Layout, RayQuery};
 use quiver_scenes::scene::tessellate::DEFAULT_RESOLUTION;
 use quiver_scenes::Scene;
 use std::time::Instant;

@@ -2,7 +2,7 @@
 //! scene (curve mode) with packets off and on, alternating, one thread, and prints the
 //! fastest and median trace time of each and their ratio. A fifth argument `off` or `on`
 //! renders in that mode only (for profiling one side).
-use quiver::{BuildOptions, Layout};
+use quiver_rt::{BuildOptions, Layout};
 use quiver_scenes::accel::SceneBvh;
 use quiver_scenes::render::{render, RenderConfig};
 use quiver_scenes::Scene;

@@ -7,8 +7,8 @@
 //! thread count, with the ratios default / high-quality.
 
 use glam::Vec3A;
-use quiver::builders::BuildConfig;
-use quiver::{BuildOptions, Bvh, Ray, Triangle};
+use quiver_rt::builders::BuildConfig;
+use quiver_rt::{BuildOptions, Bvh, Ray, Triangle};
 use quiver_lab::measure::{median_times_interleaved, trace, Query};
 use quiver_lab::rays;
 use quiver_scenes::Scene;
@@ -65,7 +65,7 @@ fn main() {
             let tris = slivers(n.parse().unwrap_or(200_000));
             let b = tris
                 .iter()
-                .fold(quiver::Aabb::EMPTY, |a, t| a.union(&t.bounds()));
+                .fold(quiver_rt::Aabb::EMPTY, |a, t| a.union(&t.bounds()));
             let cam = quiver_scenes::Camera::framing(&b).ok();
             (tris, cam.map(|c| rays::camera_rays(&c, res)))
         } else {
@@ -75,7 +75,7 @@ fn main() {
         };
         let presets = [BuildOptions::default(), BuildOptions::high_quality()];
         let mut build_ms = [vec![], vec![]];
-        let mut built: Vec<Option<(Bvh, quiver::builders::BuildTree)>> = vec![None, None];
+        let mut built: Vec<Option<(Bvh, quiver_rt::builders::BuildTree)>> = vec![None, None];
         for _ in 0..reps.max(1) {
             for (k, p) in presets.iter().enumerate() {
                 built[k] = None;
@@ -85,7 +85,7 @@ fn main() {
                 built[k] = Some(out);
             }
         }
-        let built: Vec<(Bvh, quiver::builders::BuildTree)> = built.into_iter().flatten().collect();
+        let built: Vec<(Bvh, quiver_rt::builders::BuildTree)> = built.into_iter().flatten().collect();
         let config = BuildConfig::default();
         let bounds = built[0].0.bounds();
         let random: Vec<Ray> = rays::random_rays(&bounds, n_rays, 7);

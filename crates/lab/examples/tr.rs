@@ -5,8 +5,8 @@
 //! round's Mrays/s of each. The fastest round is what a busy machine perturbs least: for
 //! quick A/B runs of two builds; the tables come from `quiver bench`. Environment knobs for
 //! trying build settings: `TR_LEAF` (largest leaf), `TR_BINS`, `TR_CT` (the SAH's node cost)
-//! and `TR_BUILDER` (a `quiver::builders::Builder` name, e.g. `sbvh` or `sweep`).
-use quiver::{Bvh, RayQuery};
+//! and `TR_BUILDER` (a `quiver_rt::builders::Builder` name, e.g. `sbvh` or `sweep`).
+use quiver_rt::{Bvh, RayQuery};
 use quiver_scenes::scene::tessellate::DEFAULT_RESOLUTION;
 use quiver_scenes::Scene;
 use std::time::Instant;
@@ -21,7 +21,7 @@ fn main() {
         .into_patches(DEFAULT_RESOLUTION);
     let tris = scene.triangles();
     let env = |k: &str| std::env::var(k).ok().map(|v| v.parse::<f32>().expect(k));
-    let mut config = quiver::builders::BuildConfig::default();
+    let mut config = quiver_rt::builders::BuildConfig::default();
     if let Some(v) = env("TR_LEAF") {
         config.max_leaf_size = v as usize;
     }
@@ -31,7 +31,7 @@ fn main() {
     if let Some(v) = env("TR_CT") {
         config.traversal_cost = v;
     }
-    let mut options = quiver::BuildOptions::default().config(config);
+    let mut options = quiver_rt::BuildOptions::default().config(config);
     if let Ok(name) = std::env::var("TR_BUILDER") {
         options = options.builder(name.parse().expect("TR_BUILDER"));
     }

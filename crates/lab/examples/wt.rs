@@ -7,9 +7,9 @@
 //! `COUNT=1` also prints the nodes, leaves and triangle tests per closest-hit ray.
 //! For quick A/B runs and instruction counts under callgrind; the table comes from
 //! `quiver accuracy`.
-use quiver::intersect::Watertight;
-use quiver::traverse::{BoxTest, ConservativeBoxes, FastBoxes, NoFilter, NoStats};
-use quiver::{Bvh, Primitive, Ray, RayQuery};
+use quiver_rt::intersect::Watertight;
+use quiver_rt::traverse::{BoxTest, ConservativeBoxes, FastBoxes, NoFilter, NoStats};
+use quiver_rt::{Bvh, Primitive, Ray, RayQuery};
 use quiver_scenes::Scene;
 use std::time::Instant;
 
@@ -43,7 +43,7 @@ fn main() {
     let tris = Scene::load(name).expect("scene").triangles();
     let bounds = tris
         .iter()
-        .fold(quiver::Aabb::EMPTY, |b, t| b.union(&t.bounds()));
+        .fold(quiver_rt::Aabb::EMPTY, |b, t| b.union(&t.bounds()));
     let rays = quiver_lab::rays::random_rays(&bounds, n, 17);
     if kernel == "alt" {
         // Fast + plain against watertight + conservative interleaved round by round, through
@@ -98,7 +98,7 @@ fn main() {
     if std::env::var_os("COUNT").is_some() {
         // The fast layout's work per closest-hit ray (the watertight one walks the same tree).
         let bvh = Bvh::new(&tris);
-        let mut s = quiver::traverse::Counters::default();
+        let mut s = quiver_rt::traverse::Counters::default();
         for r in &rays {
             bvh.closest_hit_with::<FastBoxes, _, _>(r, &mut s, &mut NoFilter);
         }

@@ -22,9 +22,9 @@
 
 use crate::measure;
 use glam::Vec3A;
-use quiver::intersect::{Exact, Watertight};
-use quiver::traverse::{BoxTest, ConservativeBoxes, FastBoxes, NoFilter, NoStats};
-use quiver::{Bvh, Primitive, Ray, RayQuery, Triangle};
+use quiver_rt::intersect::{Exact, Watertight};
+use quiver_rt::traverse::{BoxTest, ConservativeBoxes, FastBoxes, NoFilter, NoStats};
+use quiver_rt::{Bvh, Primitive, Ray, RayQuery, Triangle};
 use quiver_scenes::render::Offset;
 use quiver_scenes::Scene;
 use rayon::prelude::*;
@@ -55,7 +55,7 @@ pub struct Row {
 ///
 /// ```
 /// use glam::Vec3A;
-/// let t = quiver::Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y);
+/// let t = quiver_rt::Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y);
 /// assert_eq!(quiver_lab::accuracy::edge_points(&t)[3], Vec3A::new(0.5, 0.0, 0.0));
 /// ```
 pub fn edge_points(t: &Triangle) -> [Vec3A; 6] {
@@ -93,7 +93,7 @@ pub fn evaluate(
 ) -> Vec<Row> {
     let bounds = scene_tris
         .iter()
-        .fold(quiver::Aabb::EMPTY, |b, t| b.union(&t.bounds()));
+        .fold(quiver_rt::Aabb::EMPTY, |b, t| b.union(&t.bounds()));
     let rays = crate::rays::random_rays(&bounds, n_rays, 17);
     let sphere = Scene::load(&format!("icosphere{sphere_level}"))
         .map(|s| s.triangles())
@@ -227,7 +227,7 @@ fn combo<P: Primitive, B: BoxTest>(
         .par_iter()
         .filter(|r| !sphere_bvh.any_hit_with::<B, _, _>(r, &mut NoStats, &mut NoFilter))
         .count();
-    let hits: Vec<Option<quiver::Hit>> = ctx.rays.par_iter().map(closest).collect();
+    let hits: Vec<Option<quiver_rt::Hit>> = ctx.rays.par_iter().map(closest).collect();
     let mismatches = hits
         .iter()
         .zip(ctx.want)

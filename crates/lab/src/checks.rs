@@ -14,10 +14,10 @@
 
 use crate::oracle::{Answer, Oracle};
 use glam::Vec3A;
-use quiver::builders::{BuildConfig, Builder};
-use quiver::intersect::Watertight;
-use quiver::traverse::{FastBoxes, NoFilter, NoStats, PacketMode, PacketQuery};
-use quiver::{BuildOptions, Bvh, Isa, Layout, Primitive, Ray, RayQuery, Triangle};
+use quiver_rt::builders::{BuildConfig, Builder};
+use quiver_rt::intersect::Watertight;
+use quiver_rt::traverse::{FastBoxes, NoFilter, NoStats, PacketMode, PacketQuery};
+use quiver_rt::{BuildOptions, Bvh, Isa, Layout, Primitive, Ray, RayQuery, Triangle};
 
 /// Reads little-endian f32s from the bytes; NaN, infinities, huge and subnormal values all
 /// come through as they are.
@@ -119,7 +119,7 @@ fn fuzz_bvh<P: Primitive>(setup: Setup, tris: &[Triangle], wrap: fn(Triangle) ->
         .layout(setup.layout)
         .config(config.clone())
         .build_with_tree(&prims);
-    tree.validate(&quiver::builders::prim_bounds(&prims), &config)
+    tree.validate(&quiver_rt::builders::prim_bounds(&prims), &config)
         .expect("tree invariants");
     bvh
 }
@@ -187,7 +187,7 @@ pub fn packets_against_oracle(data: &[u8]) {
 }
 
 /// A hit's fields as bits, so NaN and signed zeros compare exactly.
-fn hit_bits(h: Option<quiver::Hit>) -> Option<(u32, u32, u32, u32)> {
+fn hit_bits(h: Option<quiver_rt::Hit>) -> Option<(u32, u32, u32, u32)> {
     h.map(|h| (h.t.to_bits(), h.prim, h.u.to_bits(), h.v.to_bits()))
 }
 
@@ -342,7 +342,7 @@ pub fn render_nff(data: &[u8]) {
 /// with tame numbers (as [`packets_against_oracle`] tames them), where most rays meet the
 /// shapes: each ray aims at the shape's centre.
 pub fn analytic_lanes(data: &[u8]) {
-    use quiver::primitive::PacketLanes;
+    use quiver_rt::primitive::PacketLanes;
     use quiver_scenes::primitive::{Cone, Sphere};
     let f = floats(data);
     if f.len() < 12 + 8 * 8 {
@@ -606,7 +606,7 @@ pub fn mesh_load(data: &[u8], ext: &str) {
 pub fn instanced_against_oracle(data: &[u8]) {
     use crate::worlds::{check, Placements};
     use glam::{Affine3A, Quat, Vec3};
-    use quiver::{GeometryId, Instance, WorldHit};
+    use quiver_rt::{GeometryId, Instance, WorldHit};
     let Some((setup, tris, rays)) = fuzz_input(data) else {
         return;
     };
@@ -747,9 +747,9 @@ impl ByteReader<'_> {
 /// arbitrary kinds, links, leaf ranges and index array (mostly invalid); a random shape built
 /// valid (any leaf sizes, empty leaves, chains deeper than the kernels' stacks allow); or a
 /// builder's tree with a few of its links, ranges or indices changed.
-fn fuzz_tree(b: &mut ByteReader<'_>, mode: u8, tris: &[Triangle]) -> quiver::builders::BuildTree {
-    use quiver::builders::{BuildNode, NodeKind};
-    let bounds = quiver::builders::prim_bounds(tris);
+fn fuzz_tree(b: &mut ByteReader<'_>, mode: u8, tris: &[Triangle]) -> quiver_rt::builders::BuildTree {
+    use quiver_rt::builders::{BuildNode, NodeKind};
+    let bounds = quiver_rt::builders::prim_bounds(tris);
     let finite: Vec<u32> = (0..tris.len() as u32)
         .filter(|&i| bounds[i as usize].is_finite())
         .collect();
@@ -765,13 +765,13 @@ fn fuzz_tree(b: &mut ByteReader<'_>, mode: u8, tris: &[Triangle]) -> quiver::bui
                     };
                     let (lo, hi) = (b.point(), b.point());
                     BuildNode {
-                        bounds: quiver::Aabb::new(lo, hi),
+                        bounds: quiver_rt::Aabb::new(lo, hi),
                         kind,
                     }
                 })
                 .collect();
             let prim_indices = (0..b.u8() % 24).map(|_| b.index()).collect();
-            quiver::builders::BuildTree {
+            quiver_rt::builders::BuildTree {
                 nodes,
                 prim_indices,
                 dropped: b.index() as usize,
@@ -806,7 +806,7 @@ fn fuzz_tree(b: &mut ByteReader<'_>, mode: u8, tris: &[Triangle]) -> quiver::bui
                     if !split {
                         let count = (b.u8() as usize % 5).min(order.len() - used);
                         nodes.push(BuildNode {
-                            bounds: quiver::Aabb::EMPTY,
+                            bounds: quiver_rt::Aabb::EMPTY,
                             kind: NodeKind::Leaf {
                                 first: used as u32,
                                 count: count as u32,
@@ -816,7 +816,7 @@ fn fuzz_tree(b: &mut ByteReader<'_>, mode: u8, tris: &[Triangle]) -> quiver::bui
                         break;
                     }
                     nodes.push(BuildNode {
-                        bounds: quiver::Aabb::EMPTY,
+                        bounds: quiver_rt::Aabb::EMPTY,
                         kind: NodeKind::Inner {
                             left: node as u32 + 1,
                             right: 0,
@@ -833,7 +833,7 @@ fn fuzz_tree(b: &mut ByteReader<'_>, mode: u8, tris: &[Triangle]) -> quiver::bui
             {
                 *count += (order.len() - used) as u32;
             }
-            quiver::builders::BuildTree {
+            quiver_rt::builders::BuildTree {
                 nodes,
                 prim_indices: order,
                 dropped: tris.len() - finite.len(),
@@ -874,13 +874,13 @@ fn fuzz_tree(b: &mut ByteReader<'_>, mode: u8, tris: &[Triangle]) -> quiver::bui
 }
 
 /// Build trees from outside: arbitrary bytes decoded into up to 12 triangles (on a grid of
-/// 1/8, one of them sometimes with a NaN corner) and a [`quiver::builders::BuildTree`] over them —
+/// 1/8, one of them sometimes with a NaN corner) and a [`quiver_rt::builders::BuildTree`] over them —
 /// arbitrary nodes, a random valid shape, or a builder's tree with links, leaf ranges, indices
 /// or the dropped count changed (see `fuzz_tree`) — laid out by [`Bvh::from_tree`] in every
-/// layout and by each layout type's own `from_tree`. A tree [`quiver::builders::BuildTree::check`]
+/// layout and by each layout type's own `from_tree`. A tree [`quiver_rt::builders::BuildTree::check`]
 /// refuses must be refused by all of them; one it accepts must be accepted (unless a leaf is
 /// too large for the layout) and then every query must answer as
-/// [`quiver::reference::closest_hit`] over the same triangles: a hit or a miss alike, the
+/// [`quiver_rt::reference::closest_hit`] over the same triangles: a hit or a miss alike, the
 /// same `t` to rounding (a hit on an edge two triangles share at the same distance may be
 /// either's, and a hit at an interval end may round in or out), any-hit alike. Nothing may
 /// panic or loop.
@@ -920,14 +920,14 @@ pub fn from_tree_against_reference(data: &[u8]) {
 }
 
 fn trees_against_reference<P: Primitive>(
-    tree: &quiver::builders::BuildTree,
+    tree: &quiver_rt::builders::BuildTree,
     prims: &[P],
     max_leaf: usize,
     rays: &[Ray],
 ) {
-    use quiver::builders::TreeError;
-    use quiver::layout::{Bvh2, Bvh2Mapping, Bvh4, Bvh4Mapping, Bvh8, QBvh4};
-    let bounds = quiver::builders::prim_bounds(prims);
+    use quiver_rt::builders::TreeError;
+    use quiver_rt::layout::{Bvh2, Bvh2Mapping, Bvh4, Bvh4Mapping, Bvh8, QBvh4};
+    let bounds = quiver_rt::builders::prim_bounds(prims);
     let valid = tree.check(&bounds);
     let what = format!("{tree:?} over {} primitives", prims.len());
     // Refused exactly when the check refuses, or for a leaf the layout cannot store.
@@ -1002,17 +1002,17 @@ fn trees_against_reference<P: Primitive>(
     );
 }
 
-/// `q` answers every ray as [`quiver::reference`] does over `prims` (see
+/// `q` answers every ray as [`quiver_rt::reference`] does over `prims` (see
 /// [`from_tree_against_reference`] for the rounding it allows).
 fn same_as_reference<P: Primitive>(
-    q: &impl RayQuery<Hit = quiver::Hit>,
+    q: &impl RayQuery<Hit = quiver_rt::Hit>,
     prims: &[P],
     rays: &[Ray],
     what: &str,
 ) {
     let close = |a: f32, b: f32| (a - b).abs() <= 1e-4 * (1.0 + a.abs().max(b.abs()));
     for r in rays {
-        let want = quiver::reference::closest_hit(prims, r);
+        let want = quiver_rt::reference::closest_hit(prims, r);
         let got = q.closest_hit(r);
         let at_end = want.is_some_and(|h| close(h.t, r.t_min) || close(h.t, r.t_max));
         match (want, got) {
@@ -1021,7 +1021,7 @@ fn same_as_reference<P: Primitive>(
                 if g.prim != w.prim {
                     // Another primitive at (about) the same distance: it must really be hit
                     // there.
-                    let own = quiver::reference::closest_hit(&prims[g.prim as usize..][..1], r);
+                    let own = quiver_rt::reference::closest_hit(&prims[g.prim as usize..][..1], r);
                     assert!(
                         own.is_some_and(|h| h.t == g.t),
                         "{what}: {r:?}: {g:?}, reference {w:?}"

@@ -6,7 +6,7 @@
 //!
 //! ```
 //! use glam::Vec3A;
-//! use quiver::{Ray, Triangle};
+//! use quiver_rt::{Ray, Triangle};
 //! use quiver_lab::embree::EmbreeScene;
 //! let tris = [Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y)];
 //! let scene = EmbreeScene::new(&tris).unwrap();
@@ -20,7 +20,7 @@
 //! the tied triangles, quiver the lowest index: the two may disagree on rays through edges and
 //! at equal distances (the tests below allow one ray in 1,000).
 
-use quiver::{Ray, Triangle};
+use quiver_rt::{Ray, Triangle};
 use std::ffi::{c_char, c_void, CStr, CString};
 use std::mem::MaybeUninit;
 use std::sync::atomic::{AtomicI64, Ordering};
@@ -485,7 +485,7 @@ impl EmbreeScene {
     ///
     /// ```
     /// use glam::{Affine3A, Vec3, Vec3A};
-    /// use quiver::{Ray, Triangle};
+    /// use quiver_rt::{Ray, Triangle};
     /// use quiver_lab::embree::{EmbreeDevice, EmbreeScene};
     /// let tri = vec![Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y)];
     /// let far = Affine3A::from_translation(Vec3::new(0.0, 0.0, -2.0));
@@ -787,7 +787,7 @@ fn occluded(r: &RTCRay) -> bool {
 mod tests {
     use super::*;
     use crate::rays;
-    use quiver::reference;
+    use quiver_rt::reference;
     use quiver_scenes::Scene;
     use rayon::prelude::*;
 
@@ -825,7 +825,7 @@ mod tests {
         let camera = rays::camera_rays(&s.camera, 128);
         let mut lights: Vec<_> = s.lights.iter().map(|l| l.pos).collect();
         lights.push(s.camera.from); // soups have no lights
-        let shadow = rays::shadow_rays(&quiver::Bvh::new(&tris), &camera, &lights);
+        let shadow = rays::shadow_rays(&quiver_rt::Bvh::new(&tris), &camera, &lights);
         let sets = [
             ("random", rays::random_rays(&s.bounds(), random, 5)),
             ("shadow", shadow),

@@ -4,8 +4,8 @@
 //! accuracy study ([`accuracy`]), the checks the fuzz targets run ([`checks`]) and quiver's
 //! data in obvhs's terms ([`obvhs_bridge`]); with the `embree` feature, Intel Embree 3 as a
 //! second comparison engine (`embree`, which links `libembree3`), and with `tinybvh`,
-//! tinybvh's `BVH8_CPU` and `BVH4_CPU` as a third (`tinybvh`, over the tinybvh-rs crate). The integration tests
-//! (`tests/suite`) and the criterion benches (`benches/`) live in this crate.
+//! tinybvh's `BVH8_CPU` and `BVH4_CPU` as a third (`tinybvh`, over the tinybvh-rs crate). The
+//! core's integration tests (`tests/suite`) and criterion benches (`benches/`) use it.
 
 #![warn(missing_docs)]
 

@@ -1,5 +1,5 @@
 //! Isotropic random lines through a box, and the walk that counts every node they pierce: the
-//! measurement side of `quiver::predict`'s Cauchy–Crofton identity.
+//! measurement side of `quiver_rt::predict`'s Cauchy–Crofton identity.
 //!
 //! Lines meeting a convex body, drawn from the motion-invariant line measure, are made by
 //! taking a point uniformly on the body's surface (by area) and a direction into the body with
@@ -13,8 +13,8 @@
 //! is what the identity is about.
 //!
 //! ```
-//! use quiver::predict::predict;
-//! use quiver::{Bvh, BuildOptions, Layout};
+//! use quiver_rt::predict::predict;
+//! use quiver_rt::{Bvh, BuildOptions, Layout};
 //! use quiver_lab::lines::{isotropic_lines, pierced, Pierce};
 //! use quiver_scenes::Scene;
 //! let tris = Scene::load("tetra3").unwrap().triangles();
@@ -28,8 +28,8 @@
 //! ```
 
 use glam::Vec3A;
-use quiver::traverse::Counters;
-use quiver::{Aabb, LeafFormat, PrimHit, Primitive, Ray, RayQuery, Triangle};
+use quiver_rt::traverse::Counters;
+use quiver_rt::{Aabb, LeafFormat, PrimHit, Primitive, Ray, RayQuery, Triangle};
 use quiver_scenes::rng::Rng;
 use rayon::prelude::*;
 use std::marker::PhantomData;

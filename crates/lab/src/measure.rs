@@ -2,7 +2,7 @@
 //! anything that answers [`RayQuery`] on the current rayon pool and time it.
 //!
 //! ```
-//! use quiver::Bvh;
+//! use quiver_rt::Bvh;
 //! use quiver_lab::measure::{trace, Query};
 //! use quiver_lab::rays;
 //! use quiver_scenes::Scene;
@@ -12,10 +12,10 @@
 //! assert!(trace(&bvh, &rays, Query::Closest) > 0);
 //! ```
 
-use quiver::traverse::{
+use quiver_rt::traverse::{
     ConservativeBoxes, Counters, NoFilter, NoStats, PacketMode, PacketQuery, RayQuery,
 };
-use quiver::Ray;
+use quiver_rt::Ray;
 use rayon::prelude::*;
 use std::time::{Duration, Instant};
 
@@ -55,7 +55,7 @@ pub fn trace<Q: RayQuery + Sync>(bvh: &Q, rays: &[Ray], query: Query) -> usize {
 ///
 /// ```
 /// use quiver_lab::measure::count_hits;
-/// use quiver::Ray;
+/// use quiver_rt::Ray;
 /// use glam::Vec3A;
 /// let rays = vec![Ray::new(Vec3A::ZERO, Vec3A::X); 3000];
 /// assert_eq!(count_hits(&rays, |r| r.dir.x > 0.0), 3000);
@@ -71,7 +71,7 @@ pub fn count_hits(rays: &[Ray], hit: impl Fn(&Ray) -> bool + Sync) -> usize {
 /// so coherent input must come packet-ordered (e.g. [`crate::rays::camera_tiles`]).
 ///
 /// ```
-/// use quiver::{traverse::PacketMode, Bvh};
+/// use quiver_rt::{traverse::PacketMode, Bvh};
 /// use quiver_lab::measure::{trace, trace_packets, Query};
 /// use quiver_lab::rays;
 /// use quiver_scenes::Scene;

@@ -9,7 +9,7 @@
 //! assert_eq!(obvhs_bridge::triangles(&tris).len(), 64);
 //! ```
 
-use quiver::Triangle;
+use quiver_rt::Triangle;
 
 /// The same triangles in obvhs's type.
 pub fn triangles(tris: &[Triangle]) -> Vec<obvhs::triangle::Triangle> {

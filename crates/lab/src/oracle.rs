@@ -1,7 +1,7 @@
 //! An oracle for closest-hit queries over triangles that shares no arithmetic with quiver's
 //! kernels, and says for every ray whether an f32 kernel's answer can be judged exactly.
 //!
-//! quiver's brute-force reference (`quiver::reference`) calls the very `Triangle::intersect`
+//! quiver's brute-force reference (`quiver_rt::reference`) calls the very `Triangle::intersect`
 //! the kernels call, so comparing the two checks traversal but not the triangle test. This
 //! oracle computes in f64 with its own formulation, signed volumes (Plücker's side test
 //! written with the vertices relative to the ray origin): with `A`, `B`, `C` the vertices
@@ -68,7 +68,7 @@
 //!
 //! ```
 //! use glam::Vec3A;
-//! use quiver::{Ray, Triangle};
+//! use quiver_rt::{Ray, Triangle};
 //! use quiver_lab::oracle::Oracle;
 //! let tris = [Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y)];
 //! let oracle = Oracle::new(&tris);
@@ -82,7 +82,7 @@
 //! ```
 
 use glam::{DVec3, Vec3A};
-use quiver::{Hit, Ray, Triangle};
+use quiver_rt::{Hit, Ray, Triangle};
 use rayon::prelude::*;
 
 /// The f32 unit roundoff, `2^-24`: the relative error of one rounded f32 operation.
@@ -309,7 +309,7 @@ impl OracleHit {
     /// `u` and `v` within the tolerances.
     ///
     /// ```
-    /// use quiver::Hit;
+    /// use quiver_rt::Hit;
     /// use quiver_lab::oracle::OracleHit;
     /// let want = OracleHit { prim: 3, t: 2.0, u: 0.25, v: 0.5, t_tol: 1e-6, uv_tol: 1e-6 };
     /// assert!(want.matches(&Hit { prim: 3, t: 2.0, u: 0.25, v: 0.5 }));
@@ -332,7 +332,7 @@ impl OracleHit {
     /// which shows the headroom [`T_K`] and [`BARY_K`] leave.
     ///
     /// ```
-    /// use quiver::Hit;
+    /// use quiver_rt::Hit;
     /// use quiver_lab::oracle::OracleHit;
     /// let want = OracleHit { prim: 0, t: 2.0, u: 0.25, v: 0.5, t_tol: 1e-3, uv_tol: 1e-3 };
     /// let got = Hit { prim: 0, t: 2.0005, u: 0.25, v: 0.49975 };
@@ -352,7 +352,7 @@ impl OracleHit {
 ///
 /// ```
 /// use glam::Vec3A;
-/// use quiver::{Ray, Triangle};
+/// use quiver_rt::{Ray, Triangle};
 /// use quiver_lab::oracle::{Ambiguity, Oracle};
 /// let tri = Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y);
 /// let ray = Ray::new(Vec3A::new(0.25, 0.25, 1.0), -Vec3A::Z);
@@ -414,12 +414,12 @@ impl Answer {
     ///
     /// ```
     /// use glam::Vec3A;
-    /// use quiver::{Ray, Triangle};
+    /// use quiver_rt::{Ray, Triangle};
     /// use quiver_lab::oracle::Oracle;
     /// let tri = Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y);
     /// let ray = Ray::new(Vec3A::new(0.25, 0.5, 2.0), -Vec3A::Z);
     /// let answer = Oracle::new(&[tri]).closest_hit(&ray);
-    /// let got = tri.intersect(&ray).map(|h| quiver::Hit { t: h.t, prim: 0, u: h.u, v: h.v });
+    /// let got = tri.intersect(&ray).map(|h| quiver_rt::Hit { t: h.t, prim: 0, u: h.u, v: h.v });
     /// assert!(answer.check(got).is_ok());
     /// assert!(answer.check(None).is_err());
     /// ```
@@ -438,7 +438,7 @@ impl Answer {
 ///
 /// ```
 /// use glam::Vec3A;
-/// use quiver::{Ray, Triangle};
+/// use quiver_rt::{Ray, Triangle};
 /// use quiver_lab::oracle::Oracle;
 /// let near = Triangle::new(Vec3A::new(-1.0, -1.0, 1.0), Vec3A::new(3.0, -1.0, 1.0), Vec3A::new(-1.0, 3.0, 1.0));
 /// let far = Triangle::new(Vec3A::new(-1.0, -1.0, 5.0), Vec3A::new(3.0, -1.0, 5.0), Vec3A::new(-1.0, 3.0, 5.0));
@@ -471,7 +471,7 @@ impl Oracle {
     ///
     /// ```
     /// use glam::Vec3A;
-    /// use quiver::{Ray, Triangle};
+    /// use quiver_rt::{Ray, Triangle};
     /// use quiver_lab::oracle::Oracle;
     /// let tri = [Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y)];
     /// let ray = Ray::new(Vec3A::new(0.25, 0.25, 1.0), -Vec3A::Z);
@@ -526,7 +526,7 @@ impl Oracle {
     ///
     /// ```
     /// use glam::Vec3A;
-    /// use quiver::{Ray, Triangle};
+    /// use quiver_rt::{Ray, Triangle};
     /// use quiver_lab::oracle::Oracle;
     /// let oracle = Oracle::new(&[Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y)]);
     /// // t in units of the direction: a direction of length 2 meets the plane at t = 0.5.

@@ -10,7 +10,7 @@
 //! ```
 
 use glam::Vec3A;
-use quiver::{Aabb, Hit, Ray, RayQuery};
+use quiver_rt::{Aabb, Hit, Ray, RayQuery};
 use quiver_scenes::rng::Rng;
 use quiver_scenes::scene::Camera;
 use rayon::prelude::*;
@@ -76,7 +76,7 @@ pub fn camera_tiles(camera: &Camera, res: usize, tile: usize) -> Vec<Ray> {
 ///
 /// ```
 /// use glam::Vec3A;
-/// use quiver::{Bvh, RayQuery};
+/// use quiver_rt::{Bvh, RayQuery};
 /// use quiver_lab::rays;
 /// use quiver_scenes::Scene;
 /// let s = Scene::load("tetra3").unwrap();
@@ -110,7 +110,7 @@ pub fn shadow_rays<Q: RayQuery<Hit = Hit> + Sync>(
 /// mirrors, in the eye rays' order.
 ///
 /// ```
-/// use quiver::{Bvh, RayQuery};
+/// use quiver_rt::{Bvh, RayQuery};
 /// use quiver_lab::rays;
 /// use quiver_scenes::Scene;
 /// let tris = Scene::load("tetra3").unwrap().triangles();
@@ -122,7 +122,7 @@ pub fn shadow_rays<Q: RayQuery<Hit = Hit> + Sync>(
 /// ```
 pub fn reflection_rays<Q: RayQuery<Hit = Hit> + Sync>(
     bvh: &Q,
-    tris: &[quiver::Triangle],
+    tris: &[quiver_rt::Triangle],
     eye: &[Ray],
 ) -> Vec<Ray> {
     eye.par_iter()

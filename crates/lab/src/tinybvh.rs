@@ -11,7 +11,7 @@
 //!
 //! ```
 //! use glam::Vec3A;
-//! use quiver::{Ray, Triangle};
+//! use quiver_rt::{Ray, Triangle};
 //! use quiver_lab::tinybvh::{TinyBvh, TinyLayout};
 //! let tris = [Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y)];
 //! let bvh = TinyBvh::new(&tris, TinyLayout::Bvh8Cpu).unwrap();
@@ -34,7 +34,7 @@
 // used, so name the crate for the linker.
 use tinybvh_rs as _;
 
-use quiver::{Ray, Triangle};
+use quiver_rt::{Ray, Triangle};
 use std::ffi::c_void;
 
 /// A ray as the shim takes it.
@@ -311,7 +311,7 @@ mod tests {
     use super::*;
     use crate::rays;
     use glam::Vec3A;
-    use quiver::reference;
+    use quiver_rt::reference;
     use quiver_scenes::Scene;
     use rayon::prelude::*;
 
@@ -347,7 +347,7 @@ mod tests {
         let camera = rays::camera_rays(&s.camera, 128);
         let mut lights: Vec<_> = s.lights.iter().map(|l| l.pos).collect();
         lights.push(s.camera.from);
-        let shadow = rays::shadow_rays(&quiver::Bvh::new(&tris), &camera, &lights);
+        let shadow = rays::shadow_rays(&quiver_rt::Bvh::new(&tris), &camera, &lights);
         for (kind, set) in [
             ("random", rays::random_rays(&s.bounds(), 20_000, 5)),
             ("shadow", shadow),

@@ -5,14 +5,14 @@
 use crate::oracle::Answer;
 use crate::rays::random_rays;
 use glam::Affine3A;
-use quiver::{Aabb, BuildOptions, Hit, Instance, Ray, Triangle, World, WorldHit};
+use quiver_rt::{Aabb, BuildOptions, Hit, Instance, Ray, Triangle, World, WorldHit};
 
 /// A scene to instance: geometries (triangle lists; the second is given to the world as an
 /// indexed mesh) and instances of them with transforms and masks.
 ///
 /// ```
-/// use quiver::{BuildOptions, GeometryId, Instance, Triangle};
-/// use quiver::glam::{Affine3A, Vec3A};
+/// use quiver_rt::{BuildOptions, GeometryId, Instance, Triangle};
+/// use quiver_rt::glam::{Affine3A, Vec3A};
 /// use quiver_lab::worlds::Placements;
 /// let tri = Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y);
 /// let p = Placements {
@@ -97,7 +97,7 @@ impl Placements {
                     .sqrt()
                 };
                 let inverse =
-                    quiver::world::invert(&i.transform).map_or(m.inverse(), |inv| inv.matrix3);
+                    quiver_rt::world::invert(&i.transform).map_or(m.inverse(), |inv| inv.matrix3);
                 (f(m) * f(inverse) / 3.0) as f64
             })
             .fold(1.0, f64::max);

@@ -6,8 +6,8 @@
 //! default) for comparison, and a refit of that build to the same triangles (`Bvh::refit`).
 //! `BUILDER=lbvh` (any builder name) picks the builder, `REPS` the number of runs.
 
-use quiver::builders::{build, prim_bounds, BuildConfig, Builder};
-use quiver::{BuildOptions, Bvh};
+use quiver_rt::builders::{build, prim_bounds, BuildConfig, Builder};
+use quiver_rt::{BuildOptions, Bvh};
 use std::time::Instant;
 
 fn ms<R>(f: impl FnOnce() -> R) -> (R, f64) {
@@ -18,7 +18,7 @@ fn ms<R>(f: impl FnOnce() -> R) -> (R, f64) {
 
 /// A fingerprint of the tree (every node's box bits and links, the leaf order), to see that
 /// a change to the builder left the tree as it was and that thread counts agree.
-fn fingerprint(tree: &quiver::builders::BuildTree) -> u64 {
+fn fingerprint(tree: &quiver_rt::builders::BuildTree) -> u64 {
     use std::hash::{Hash, Hasher};
     let mut h = std::collections::hash_map::DefaultHasher::new();
     for n in &tree.nodes {
@@ -55,7 +55,7 @@ fn main() {
         let options = BuildOptions::default().thread_pool(&pool);
         // The default build counts leaves in the default layout's groups.
         let config = BuildConfig {
-            leaf_group: quiver::Layout::default().leaf_group(),
+            leaf_group: quiver_rt::Layout::default().leaf_group(),
             ..BuildConfig::default()
         };
         let builder: Builder =
@@ -68,11 +68,11 @@ fn main() {
             tree.stats()
         );
         let bvh8 = pool.install(|| {
-            quiver::Bvh8::from_tree(&tree, &tris, &config, quiver::Isa::detect()).unwrap()
+            quiver_rt::Bvh8::from_tree(&tree, &tris, &config, quiver_rt::Isa::detect()).unwrap()
         });
         let mut h = std::collections::hash_map::DefaultHasher::new();
         std::hash::Hash::hash(bvh8.node_bytes(), &mut h);
-        std::hash::Hash::hash(quiver::bytemuck::cast_slice::<_, u8>(bvh8.groups()), &mut h);
+        std::hash::Hash::hash(quiver_rt::bytemuck::cast_slice::<_, u8>(bvh8.groups()), &mut h);
         println!(
             "threads {threads}: bvh8 {:016x}",
             std::hash::Hasher::finish(&h)

@@ -3,7 +3,7 @@
 //! the primitive; [`SceneBvh::object_of`] maps it back to the scene object (and material).
 //!
 //! ```
-//! use quiver::{BuildOptions, RayQuery};
+//! use quiver_rt::{BuildOptions, RayQuery};
 //! use quiver_scenes::{accel::SceneBvh, Scene};
 //! let scene = Scene::load("tetra3").unwrap();
 //! let bvh = SceneBvh::build(&scene, &BuildOptions::default());
@@ -15,12 +15,12 @@ use crate::instanced::Instanced;
 use crate::primitive::{PatchTriangle, Prim};
 use crate::scene::Scene;
 use glam::Vec3A;
-use quiver::builders::BuildTree;
-use quiver::layout::Footprint;
-use quiver::predict::{Piece, Pieces};
-use quiver::traverse::NoStats;
-use quiver::traverse::{BoxTest, Filter, PacketQuery, RayQuery, Stats};
-use quiver::{BuildOptions, Bvh, Hit, PrimHit, Primitive, Ray, Triangle};
+use quiver_rt::builders::BuildTree;
+use quiver_rt::layout::Footprint;
+use quiver_rt::predict::{Piece, Pieces};
+use quiver_rt::traverse::NoStats;
+use quiver_rt::traverse::{Ask, BoxTest, ClosestHit, Filter, PacketQuery, RayQuery, Stats};
+use quiver_rt::{BuildOptions, Bvh, Hit, PrimHit, Primitive, Ray, Triangle};
 use std::sync::Mutex;
 
 /// The BVH of one scene.
@@ -131,7 +131,7 @@ impl SceneBvh {
         scene: &Scene,
         resolution: u32,
         options: &BuildOptions,
-    ) -> Result<SceneBvh, quiver::WorldError> {
+    ) -> Result<SceneBvh, quiver_rt::WorldError> {
         Ok(SceneBvh {
             kind: Kind::Instanced(Box::new(Instanced::build(scene, resolution, options)?)),
             owner: Vec::new(),
@@ -202,7 +202,7 @@ impl SceneBvh {
     /// counting, not for timing.
     ///
     /// ```
-    /// use quiver::{BuildOptions, RayQuery};
+    /// use quiver_rt::{BuildOptions, RayQuery};
     /// use quiver_scenes::{accel::SceneBvh, Scene};
     /// let scene = Scene::load("tetra3").unwrap();
     /// let rec = SceneBvh::build(&scene, &BuildOptions::default()).recording();
@@ -264,7 +264,7 @@ impl SceneBvh {
 }
 
 impl Pieces for SceneBvh {
-    /// The traversed layout's nodes (see `quiver::predict`).
+    /// The traversed layout's nodes (see `quiver_rt::predict`).
     fn pieces(&self, f: &mut dyn FnMut(Piece)) {
         match &self.kind {
             Kind::Triangles(b, ..) => b.pieces(f),
@@ -279,60 +279,36 @@ impl RayQuery for SceneBvh {
     type Hit = Hit;
 
     #[inline]
-    fn closest_hit_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
+    fn trace_with<A: Ask, B: BoxTest, S: Stats, F: Filter<Hit>>(
         &self,
         ray: &Ray,
         stats: &mut S,
         filter: &mut F,
     ) -> Option<Hit> {
         match &self.kind {
-            Kind::Triangles(b, ..) => b.closest_hit_with::<B, S, F>(ray, stats, filter),
-            Kind::Mixed(b, _) => b.closest_hit_with::<B, S, F>(ray, stats, filter),
-            Kind::Instanced(i) => i.closest_hit_with::<B, S, F>(ray, stats, filter),
+            Kind::Triangles(b, ..) => b.trace_with::<A, B, S, F>(ray, stats, filter),
+            Kind::Mixed(b, _) => b.trace_with::<A, B, S, F>(ray, stats, filter),
+            Kind::Instanced(i) => i.trace_with::<A, B, S, F>(ray, stats, filter),
             Kind::Record(inner, _) => {
-                let hit = inner.closest_hit_with::<B, S, F>(ray, stats, filter);
+                let hit = inner.trace_with::<A, B, S, F>(ray, stats, filter);
+                // The ideal algorithm tests one blocker: the nearest, found without counting.
+                let nearest = if A::ANY && hit.is_some() {
+                    inner.trace_with::<ClosestHit, B, _, F>(ray, &mut NoStats, filter)
+                } else {
+                    hit
+                };
                 self.record(Traced {
                     ray: *ray,
-                    any: false,
+                    any: A::ANY,
                     found: hit.is_some(),
-                    hit: hit.map(|h| h.prim),
+                    hit: nearest.map(|h| h.prim),
                 });
                 hit
             }
         }
     }
 
-    #[inline]
-    fn any_hit_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
-        &self,
-        ray: &Ray,
-        stats: &mut S,
-        filter: &mut F,
-    ) -> bool {
-        match &self.kind {
-            Kind::Triangles(b, ..) => b.any_hit_with::<B, S, F>(ray, stats, filter),
-            Kind::Mixed(b, _) => b.any_hit_with::<B, S, F>(ray, stats, filter),
-            Kind::Instanced(i) => i.any_hit_with::<B, S, F>(ray, stats, filter),
-            Kind::Record(inner, _) => {
-                let blocked = inner.any_hit_with::<B, S, F>(ray, stats, filter);
-                // The ideal algorithm tests one blocker: the nearest, found without counting.
-                let hit = if blocked {
-                    inner.closest_hit_with::<B, _, F>(ray, &mut NoStats, filter)
-                } else {
-                    None
-                };
-                self.record(Traced {
-                    ray: *ray,
-                    any: true,
-                    found: blocked,
-                    hit: hit.map(|h| h.prim),
-                });
-                blocked
-            }
-        }
-    }
-
-    fn closest_hit_packet_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
+    fn trace_packet_with<A: Ask, B: BoxTest, S: Stats, F: Filter<Hit>>(
         &self,
         query: PacketQuery<'_>,
         hits: &mut [Option<Hit>],
@@ -340,38 +316,13 @@ impl RayQuery for SceneBvh {
         filter: &mut F,
     ) {
         match &self.kind {
-            Kind::Triangles(b, ..) => {
-                b.closest_hit_packet_with::<B, S, F>(query, hits, stats, filter)
-            }
-            Kind::Mixed(b, _) => b.closest_hit_packet_with::<B, S, F>(query, hits, stats, filter),
-            Kind::Instanced(i) => i.closest_hit_packet_with::<B, S, F>(query, hits, stats, filter),
+            Kind::Triangles(b, ..) => b.trace_packet_with::<A, B, S, F>(query, hits, stats, filter),
+            Kind::Mixed(b, _) => b.trace_packet_with::<A, B, S, F>(query, hits, stats, filter),
+            Kind::Instanced(i) => i.trace_packet_with::<A, B, S, F>(query, hits, stats, filter),
             Kind::Record(..) => {
                 for (i, (r, h)) in query.rays.iter().zip(hits.iter_mut()).enumerate() {
                     if query.active.is_none_or(|a| a[i]) {
-                        *h = self.closest_hit_with::<B, S, F>(r, stats, filter);
-                    }
-                }
-            }
-        }
-    }
-
-    fn any_hit_packet_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
-        &self,
-        query: PacketQuery<'_>,
-        occluded: &mut [bool],
-        stats: &mut S,
-        filter: &mut F,
-    ) {
-        match &self.kind {
-            Kind::Triangles(b, ..) => {
-                b.any_hit_packet_with::<B, S, F>(query, occluded, stats, filter)
-            }
-            Kind::Mixed(b, _) => b.any_hit_packet_with::<B, S, F>(query, occluded, stats, filter),
-            Kind::Instanced(i) => i.any_hit_packet_with::<B, S, F>(query, occluded, stats, filter),
-            Kind::Record(..) => {
-                for (i, (r, o)) in query.rays.iter().zip(occluded.iter_mut()).enumerate() {
-                    if query.active.is_none_or(|a| a[i]) {
-                        *o = self.any_hit_with::<B, S, F>(r, stats, filter);
+                        *h = self.trace_with::<A, B, S, F>(r, stats, filter);
                     }
                 }
             }

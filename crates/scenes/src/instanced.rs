@@ -9,12 +9,12 @@
 //! map that takes the unit shape onto each object, so an instanced scene is the flattened patch
 //! scene up to the rounding of the placement (a vertex lands within an ulp or two of where
 //! patch mode puts it). Hits are numbered as in a flattened list, instance by instance:
-//! `quiver::Hit::prim` is the instance's first number plus the primitive's index in its
+//! `quiver_rt::Hit::prim` is the instance's first number plus the primitive's index in its
 //! geometry, so the renderer and every `RayQuery` user read an instanced scene like any
 //! other.
 //!
 //! ```
-//! use quiver::{BuildOptions, RayQuery};
+//! use quiver_rt::{BuildOptions, RayQuery};
 //! use quiver_scenes::instanced::Instanced;
 //! use quiver_scenes::Scene;
 //! let scene = Scene::load("balls1").unwrap();
@@ -27,8 +27,8 @@
 use crate::primitive::{Cone, PatchTriangle, Prim, Sphere};
 use crate::scene::{tessellate, Scene, Shape};
 use glam::{Affine3A, DVec3, Mat3A, Vec3, Vec3A};
-use quiver::traverse::{BoxTest, Filter, PacketQuery, RayQuery, Stats, PACKET_RAYS};
-use quiver::{
+use quiver_rt::traverse::{Ask, BoxTest, Filter, PacketQuery, RayQuery, Stats, PACKET_RAYS};
+use quiver_rt::{
     BuildOptions, Footprint, GeometryId, Hit, Instance, PrimHit, Ray, Triangle, World, WorldError,
     WorldHit,
 };
@@ -157,7 +157,7 @@ impl Instanced {
             // A map the walk cannot invert in f32 (a radius past 1e38 or below 1e-38, say)
             // places nothing: the object is tessellated in world space instead, as patch mode
             // draws it.
-            match shape.filter(|(_, m)| quiver::world::invert(m).is_ok()) {
+            match shape.filter(|(_, m)| quiver_rt::world::invert(m).is_ok()) {
                 Some((k, m)) => placed.push((i as u32, k, m)),
                 None => {
                     let patched = match &o.shape {
@@ -261,8 +261,8 @@ impl Instanced {
         let inst = self.world.instance(i as u32);
         let g = inst.geometry.0 as usize;
         let tri = match &self.world.geometries()[g] {
-            quiver::Geometry::Triangles(_, t) => t[p as usize],
-            quiver::Geometry::Prims(_, t) => t[p as usize],
+            quiver_rt::Geometry::Triangles(_, t) => t[p as usize],
+            quiver_rt::Geometry::Prims(_, t) => t[p as usize],
         };
         (tri, self.normals[g][p as usize], inst)
     }
@@ -284,7 +284,7 @@ impl Instanced {
         if inst.transform == Affine3A::IDENTITY {
             return local;
         }
-        let to_object = quiver::world::invert(&inst.transform).unwrap_or(Affine3A::IDENTITY);
+        let to_object = quiver_rt::world::invert(&inst.transform).unwrap_or(Affine3A::IDENTITY);
         let inverse_t = to_object.matrix3.transpose();
         (inverse_t * local).normalize_or_zero()
     }
@@ -293,7 +293,7 @@ impl Instanced {
     /// test Havran's ideal algorithm makes.
     pub fn intersect_one(&self, ray: &Ray, prim: u32) -> Option<PrimHit> {
         let (tri, _, inst) = self.triangle(prim);
-        let to_object = quiver::world::invert(&inst.transform).unwrap_or(Affine3A::IDENTITY);
+        let to_object = quiver_rt::world::invert(&inst.transform).unwrap_or(Affine3A::IDENTITY);
         let local = Ray {
             origin: to_object.transform_point3a(ray.origin),
             dir: to_object.transform_vector3a(ray.dir),
@@ -325,7 +325,7 @@ impl<F: Filter<Hit>> Filter<WorldHit> for Flat<'_, F> {
 impl RayQuery for Instanced {
     type Hit = Hit;
 
-    fn closest_hit_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
+    fn trace_with<A: Ask, B: BoxTest, S: Stats, F: Filter<Hit>>(
         &self,
         ray: &Ray,
         stats: &mut S,
@@ -335,27 +335,11 @@ impl RayQuery for Instanced {
             scene: self,
             filter,
         };
-        let h = self.world.closest_hit_with::<B, S, _>(ray, stats, &mut f)?;
+        let h = self.world.trace_with::<A, B, S, _>(ray, stats, &mut f)?;
         Some(self.flat(&h))
     }
 
-    fn any_hit_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
-        &self,
-        ray: &Ray,
-        stats: &mut S,
-        filter: &mut F,
-    ) -> bool {
-        self.world.any_hit_with::<B, S, _>(
-            ray,
-            stats,
-            &mut Flat {
-                scene: self,
-                filter,
-            },
-        )
-    }
-
-    fn closest_hit_packet_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
+    fn trace_packet_with<A: Ask, B: BoxTest, S: Stats, F: Filter<Hit>>(
         &self,
         query: PacketQuery<'_>,
         hits: &mut [Option<Hit>],
@@ -382,29 +366,11 @@ impl RayQuery for Instanced {
                 filter: &mut *filter,
             };
             self.world
-                .closest_hit_packet_with::<B, S, _>(part, found, stats, &mut f);
+                .trace_packet_with::<A, B, S, _>(part, found, stats, &mut f);
             for (h, w) in hits.iter_mut().zip(found.iter()) {
                 *h = w.map(|w| self.flat(&w));
             }
         }
-    }
-
-    fn any_hit_packet_with<B: BoxTest, S: Stats, F: Filter<Hit>>(
-        &self,
-        query: PacketQuery<'_>,
-        occluded: &mut [bool],
-        stats: &mut S,
-        filter: &mut F,
-    ) {
-        self.world.any_hit_packet_with::<B, S, _>(
-            query,
-            occluded,
-            stats,
-            &mut Flat {
-                scene: self,
-                filter,
-            },
-        )
     }
 }
 
@@ -420,15 +386,15 @@ impl RayQuery for Instanced {
 /// a BVH over [`Scene::triangles`] answers; only the numbering differs.
 ///
 /// ```
-/// use quiver::{BuildOptions, RayQuery};
-/// use quiver::glam::Vec3A;
+/// use quiver_rt::{BuildOptions, RayQuery};
+/// use quiver_rt::glam::Vec3A;
 /// use quiver_scenes::instanced::grouped;
 /// use quiver_scenes::scene::obj;
 /// let text = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 0 1 1\n\
 ///             o near\nf 4 5 6\no far\nf 1 2 3\n";
 /// let scene = obj::parse(text, "two.obj").unwrap();
 /// let world = grouped(&scene, &BuildOptions::default()).unwrap();
-/// let hit = world.closest_hit(&quiver::Ray::new(Vec3A::new(0.2, 0.2, 2.0), -Vec3A::Z)).unwrap();
+/// let hit = world.closest_hit(&quiver_rt::Ray::new(Vec3A::new(0.2, 0.2, 2.0), -Vec3A::Z)).unwrap();
 /// assert_eq!(scene.groups[hit.instance as usize].name, "near");
 /// ```
 ///

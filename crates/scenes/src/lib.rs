@@ -4,7 +4,7 @@
 //! Whitted renderer that follows the SPD testing procedure ([`render`]).
 //!
 //! ```
-//! use quiver::{BuildOptions, RayQuery};
+//! use quiver_rt::{BuildOptions, RayQuery};
 //! use quiver_scenes::{accel::SceneBvh, Scene};
 //! let scene = Scene::load("balls2").unwrap(); // 91 spheres and a floor polygon
 //! let bvh = SceneBvh::build(&scene, &BuildOptions::default());

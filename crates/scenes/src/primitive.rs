@@ -3,7 +3,7 @@
 //!
 //! ```
 //! use quiver_scenes::primitive::{Prim, Sphere};
-//! use quiver::{Primitive, Ray};
+//! use quiver_rt::{Primitive, Ray};
 //! use glam::Vec3A;
 //! let s = Prim::Sphere(Sphere { center: Vec3A::ZERO, radius: 2.0 });
 //! let hit = s.intersect(&Ray::new(Vec3A::new(0.0, 0.0, -5.0), Vec3A::Z)).unwrap();
@@ -14,10 +14,10 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 use glam::Vec3A;
-use quiver::geometry::{unit_or_zero, unit_scale, Aabb, PrimHit, Ray, Triangle};
-use quiver::intersect::Watertight;
-use quiver::primitive::Primitive;
-use quiver::primitive::{PacketLanes, PacketLeaf};
+use quiver_rt::geometry::{unit_or_zero, unit_scale, Aabb, PrimHit, Ray, Triangle};
+use quiver_rt::intersect::Watertight;
+use quiver_rt::primitive::Primitive;
+use quiver_rt::primitive::{PacketLanes, PacketLeaf};
 use wide::f32x8;
 
 /// A sphere.

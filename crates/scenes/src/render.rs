@@ -9,7 +9,7 @@
 //! costs no shadow ray. Shadow rays use the any-hit query.
 //!
 //! ```
-//! use quiver::BuildOptions;
+//! use quiver_rt::BuildOptions;
 //! use quiver_scenes::render::{render, RenderConfig};
 //! use quiver_scenes::{accel::SceneBvh, Scene};
 //! let scene = Scene::load("tetra3").unwrap();
@@ -22,8 +22,8 @@
 use crate::accel::SceneBvh;
 use crate::scene::{Material, Scene};
 use glam::Vec3A;
-use quiver::geometry::{offset_ray_origin, unit_or_zero, Hit, Ray};
-use quiver::traverse::{
+use quiver_rt::geometry::{offset_ray_origin, unit_or_zero, Hit, Ray};
+use quiver_rt::traverse::{
     ConservativeBoxes, Counters, NoFilter, NoStats, PacketMode, PacketQuery, RayQuery, Stats,
     PACKET_RAYS,
 };
@@ -45,7 +45,7 @@ pub struct RenderConfig {
     /// How secondary rays leave the surface.
     pub offset: Offset,
     /// Trace eye rays in packets of 8 x 8 pixel corners, and each light's shadow rays from
-    /// those corners as a packet (see [`quiver::traverse::PacketMode::Auto`]); secondary rays
+    /// those corners as a packet (see [`quiver_rt::traverse::PacketMode::Auto`]); secondary rays
     /// go one by one. The image and the ray counts are the same either way; only the
     /// traversal work counted with [`RenderConfig::counters`] differs.
     pub packets: bool,
@@ -919,7 +919,7 @@ fn shade(m: &Material, n: Vec3A, l: Vec3A, d: Vec3A) -> Vec3A {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use quiver::BuildOptions;
+    use quiver_rt::BuildOptions;
 
     /// The renderer before issue 29 kept every corner's colour and averaged pixels from that
     /// buffer; this is that averaging, over corners traced by the same bands.

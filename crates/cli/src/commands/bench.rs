@@ -19,9 +19,9 @@ use obvhs::{
     bvh2::builder::build_bvh2_from_tris, cwbvh::builder::build_cwbvh_from_tris, ray::RayHit,
     BvhBuildParams,
 };
-use quiver::builders::{build, prim_bounds, BuildConfig, Builder};
-use quiver::traverse::PacketMode;
-use quiver::{BuildOptions, Bvh, Layout, RayQuery};
+use quiver_rt::builders::{build, prim_bounds, BuildConfig, Builder};
+use quiver_rt::traverse::PacketMode;
+use quiver_rt::{BuildOptions, Bvh, Layout, RayQuery};
 #[cfg(feature = "embree")]
 use quiver_lab::embree::{EmbreeDevice, EmbreeScene};
 use quiver_lab::measure::{
@@ -44,7 +44,7 @@ pub(crate) struct BenchArgs {
     /// triangles), balls3 (158k) and tetra10 (1M), so the default needs no file and runs from
     /// anywhere. Name a mesh to add it, e.g. the Stanford bunny of the source tree or the
     /// dragon that scripts/fetch-meshes.sh fetches:
-    /// `quiver bench crates/lab/tests/data/bunny.obj meshes/dragon_vrip.ply.gz teapot12`.
+    /// `quiver bench tests/data/bunny.obj meshes/dragon_vrip.ply.gz teapot12`.
     scenes: Vec<String>,
     /// Incoherent rays per scene (eye rays: a 256 x 256 image; shadow rays: one per eye hit).
     #[arg(allow_negative_numbers = true, long, default_value_t = 200_000, value_parser = super::count(MAX_RAYS))]
@@ -192,7 +192,7 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
             // its tree's SAH cost; beside the default's, a refit to the moved triangles (the
             // same tree, every box recomputed).
             for (preset, options) in presets() {
-                p.install(|| -> std::result::Result<(), quiver::RefitError> {
+                p.install(|| -> std::result::Result<(), quiver_rt::RefitError> {
                     drop(options.build(&tris));
                     let ((mut bvh, tree), ms) =
                         median_time(args.reps, || options.build_with_tree(&tris));
@@ -516,7 +516,7 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
         "os": std::env::consts::OS,
         "arch": std::env::consts::ARCH,
         "target_features": {"sse2": cfg!(target_feature = "sse2"), "avx": cfg!(target_feature = "avx"), "avx2": cfg!(target_feature = "avx2")},
-        "isa": quiver::Isa::detect().name(),
+        "isa": quiver_rt::Isa::detect().name(),
     });
     write_json(
         args.json.as_ref(),

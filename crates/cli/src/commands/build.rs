@@ -6,8 +6,8 @@ use super::{
     thread_count, Result,
 };
 use crate::output::{check_outputs, print_table, write_json};
-use quiver::builders::{BuildConfig, Builder, CostModel};
-use quiver::{BuildOptions, Bvh, Layout};
+use quiver_rt::builders::{BuildConfig, Builder, CostModel};
+use quiver_rt::{BuildOptions, Bvh, Layout};
 use serde_json::json;
 use std::path::PathBuf;
 

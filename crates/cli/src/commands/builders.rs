@@ -10,8 +10,8 @@ use super::{
 use crate::budget::{self, Estimate};
 use crate::output::{check_outputs, outln, scatter_svg, write_json, write_text, Axes, Point};
 use glam::Vec3A;
-use quiver::builders::{build, prim_bounds, BuildConfig, BuildTree, Builder};
-use quiver::{Aabb, BuildOptions, Bvh, Layout, Ray, Triangle};
+use quiver_rt::builders::{build, prim_bounds, BuildConfig, BuildTree, Builder};
+use quiver_rt::{Aabb, BuildOptions, Bvh, Layout, Ray, Triangle};
 use quiver_lab::measure::{self, median_times_interleaved, Query};
 use quiver_lab::rays;
 use quiver_scenes::scene::tessellate;
@@ -29,7 +29,7 @@ const BIG: [&str; 4] = ["balls3", "soup200000", "tetra9", "tetra10"];
 pub(crate) struct BuildersArgs {
     /// Scenes (generator names or .obj/.nff files), measured as triangles (SPD scenes in patch
     /// mode). Default: teapot12 (9.4k triangles) and tetra8 (65k). Name a mesh to add it,
-    /// e.g. `quiver builders teapot12 crates/lab/tests/data/bunny.obj tetra8`.
+    /// e.g. `quiver builders teapot12 tests/data/bunny.obj tetra8`.
     scenes: Vec<String>,
     /// Also measure balls3 (158k triangles), soup200000, tetra9 (262k) and tetra10 (1M):
     /// minutes, not one.
@@ -216,7 +216,7 @@ pub(crate) fn run(args: BuildersArgs) -> Result<()> {
             let stats = tree.stats();
             // Σ A(inner) / A(root) and Σ A(leaf)·n(leaf) / A(root) (Frantál's Tables 18 and
             // 19): the predicted inner nodes and primitive tests per random line.
-            let areas = quiver::predict::predict(&tree);
+            let areas = quiver_rt::predict::predict(&tree);
             let (inner_area, leaf_area) = (areas.inner, areas.prim_tests);
             scene_rows.push(Row {
                 scene: short_name(&scene.name),

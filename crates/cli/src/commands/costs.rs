@@ -5,8 +5,8 @@
 use super::{count, parse_builder, parse_layout, pool, thread_count, Result, MAX_REPS};
 use crate::budget::{self, Estimate};
 use crate::output::{check_outputs, outln, write_json};
-use quiver::builders::{BuildConfig, Builder, CostModel};
-use quiver::{BuildOptions, Bvh, Layout, Ray};
+use quiver_rt::builders::{BuildConfig, Builder, CostModel};
+use quiver_rt::{BuildOptions, Bvh, Layout, Ray};
 use quiver_lab::measure::{self, Query};
 use quiver_lab::rays;
 use serde_json::json;

@@ -9,8 +9,8 @@
 
 use super::{measured_threads, pool, Result};
 use crate::output::{outln, write_json};
-use quiver::traverse::PacketMode;
-use quiver::{Hit, Ray, RayQuery};
+use quiver_rt::traverse::PacketMode;
+use quiver_rt::{Hit, Ray, RayQuery};
 #[cfg(feature = "embree")]
 use quiver_lab::embree::{EmbreeDevice, EmbreeScene};
 use quiver_lab::measure::{
@@ -50,13 +50,13 @@ fn ms<T>(f: impl FnOnce() -> T) -> (T, f64) {
 
 /// The world's unit meshes and instances as Embree takes them.
 #[cfg(feature = "embree")]
-fn embree_instanced(world: &quiver::World, device: &EmbreeDevice) -> Result<EmbreeScene> {
-    let geometries: Vec<Vec<quiver::Triangle>> = world
+fn embree_instanced(world: &quiver_rt::World, device: &EmbreeDevice) -> Result<EmbreeScene> {
+    let geometries: Vec<Vec<quiver_rt::Triangle>> = world
         .geometries()
         .iter()
         .map(|g| match g {
-            quiver::Geometry::Triangles(_, t) => t.clone(),
-            quiver::Geometry::Prims(_, t) => t.clone(),
+            quiver_rt::Geometry::Triangles(_, t) => t.clone(),
+            quiver_rt::Geometry::Prims(_, t) => t.clone(),
         })
         .collect();
     let instances: Vec<(u32, glam::Affine3A, u32)> = world
@@ -117,7 +117,7 @@ pub(crate) fn run(s: Settings) -> Result<()> {
     let mut memory: Vec<Value> = Vec::new();
     let res = tessellate::DEFAULT_RESOLUTION;
     for scene in loaded {
-        let options = quiver::BuildOptions::default();
+        let options = quiver_rt::BuildOptions::default();
         let patched = scene.clone().into_patches(res);
         let tris = patched.triangles();
         let (flat, flat_ms) = ms(|| SceneBvh::build_triangles(&patched, &options));

@@ -6,8 +6,8 @@ use super::{
 };
 use crate::budget::{self, Estimate};
 use crate::output::{check_outputs, out, outln, write_json};
-use quiver::builders::{build, prim_bounds, BuildConfig, Builder};
-use quiver::{BuildOptions, Bvh, Layout};
+use quiver_rt::builders::{build, prim_bounds, BuildConfig, Builder};
+use quiver_rt::{BuildOptions, Bvh, Layout};
 use quiver_lab::measure::{self, Query};
 use quiver_lab::rays;
 use serde_json::{json, Value};

@@ -14,8 +14,8 @@ pub(crate) mod predict;
 pub(crate) mod render;
 
 use crate::budget;
-use quiver::builders::{BuildTree, Builder};
-use quiver::{BuildOptions, Bvh, Layout, Triangle};
+use quiver_rt::builders::{BuildTree, Builder};
+use quiver_rt::{BuildOptions, Bvh, Layout, Triangle};
 use quiver_scenes::accel::SceneBvh;
 use quiver_scenes::scene::{
     tessellate, Budgeted, Census, LoadOptions, NonFinite, Scene, SceneError, GENERATORS,
@@ -285,10 +285,10 @@ fn scene_help() -> String {
 /// field of a thousandth of the scene's size (a function of the position, so vertices that
 /// triangles share stay shared).
 pub(crate) fn nudged(tris: &[Triangle]) -> Vec<Triangle> {
-    use quiver::glam::Vec3A;
+    use quiver_rt::glam::Vec3A;
     let b = tris
         .iter()
-        .fold(quiver::Aabb::EMPTY, |b, t| b.union(&t.bounds()));
+        .fold(quiver_rt::Aabb::EMPTY, |b, t| b.union(&t.bounds()));
     let size = b.extent().max_element();
     if !(size.is_finite() && size > 0.0) {
         return tris.to_vec();
@@ -313,7 +313,7 @@ pub(crate) fn refit_ms(
     tris: &[Triangle],
     moved: &[Triangle],
     reps: usize,
-) -> std::result::Result<f64, quiver::RefitError> {
+) -> std::result::Result<f64, quiver_rt::RefitError> {
     bvh.refit(moved)?;
     let mut times = Vec::with_capacity(reps.max(1));
     for r in 0..reps.max(1) {

@@ -13,8 +13,8 @@ use super::{
 };
 use crate::budget::{self, Estimate, MIXED_BUILD};
 use crate::output::{check_outputs, out, outln, write_json};
-use quiver::traverse::PacketMode;
-use quiver::{BuildOptions, Layout, Primitive, Triangle};
+use quiver_rt::traverse::PacketMode;
+use quiver_rt::{BuildOptions, Layout, Primitive, Triangle};
 #[cfg(feature = "embree")]
 use quiver_lab::embree::EmbreeScene;
 use quiver_lab::measure::{median_times_interleaved, mrays_per_s, trace, trace_packets, Query};

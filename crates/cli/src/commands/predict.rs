@@ -6,9 +6,9 @@
 use super::{count, parse_builder, parse_layout, pool, thread_count, Result, MAX_RAYS, MAX_REPS};
 use crate::budget::{self, Estimate};
 use crate::output::{check_outputs, out, outln, scatter_svg, write_json, write_text, Axes, Point};
-use quiver::builders::Builder;
-use quiver::predict::Prediction;
-use quiver::{BuildOptions, Bvh, Layout, Ray, Triangle};
+use quiver_rt::builders::Builder;
+use quiver_rt::predict::Prediction;
+use quiver_rt::{BuildOptions, Bvh, Layout, Ray, Triangle};
 use quiver_lab::lines::{counters_per_ray, isotropic_lines, Pierce, Work};
 use quiver_lab::measure::{self, Query};
 use quiver_lab::rays;
@@ -55,7 +55,7 @@ pub(crate) struct PredictArgs {
 
 /// Aronov et al.'s objects term `Σ_s A(s) / A(B)`: triangles count both sides (twice their
 /// area), the root box its whole surface.
-fn object_area(tris: &[Triangle], root: &quiver::Aabb) -> f64 {
+fn object_area(tris: &[Triangle], root: &quiver_rt::Aabb) -> f64 {
     let area: f64 = tris
         .iter()
         .map(|t| 0.5 * (t.v[1] - t.v[0]).cross(t.v[2] - t.v[0]).length() as f64)
@@ -186,7 +186,7 @@ pub(crate) fn run(args: PredictArgs) -> Result<()> {
                 let bvh = Bvh::from_tree(&tree, &tris, &options.clone().layout(timed_layout))?;
                 let sets = ray_sets(scene, &bvh, &args);
                 let aronov = bvh.predict_within(&root).aronov(objects);
-                let sah = tree.sah_cost(&quiver::builders::BuildConfig::default());
+                let sah = tree.sah_cost(&quiver_rt::builders::BuildConfig::default());
                 // The ray kinds side by side, round after round, so a slow spell on the
                 // shared machine hits all of them alike.
                 let times = time_pool.install(|| {

@@ -4,8 +4,8 @@
 use super::{layout_help, load_and_build_as, parse_layout, pool, scene_help, thread_count, Result};
 use crate::output::{check_outputs, outln, print_table, write_heatmap, write_json, write_png};
 use clap::ValueEnum;
-use quiver::traverse::NoFilter;
-use quiver::{BuildOptions, Layout};
+use quiver_rt::traverse::NoFilter;
+use quiver_rt::{BuildOptions, Layout};
 use quiver_scenes::accel::SceneBvh;
 use quiver_scenes::render::{render, Offset, RenderConfig, Rendered};
 use serde_json::{json, Value};
@@ -170,7 +170,7 @@ pub(crate) fn run(args: RenderArgs) -> Result<()> {
     if let Some(h) = &args.heatmap {
         write_heatmap(h, &counted.eye_nodes, args.res as usize + 1)?;
     }
-    let census = quiver::predict::census(&bvh);
+    let census = quiver_rt::predict::census(&bvh);
     let stats = tree.as_ref().map(|t| t.stats());
     let rays = image.rays;
     let total = rays.total().max(1) as f64;
@@ -346,7 +346,7 @@ fn ideal_runs(
     image: &Rendered,
     reps: usize,
 ) -> Result<Theta> {
-    use quiver::traverse::{ConservativeBoxes, NoStats, RayQuery};
+    use quiver_rt::traverse::{ConservativeBoxes, NoStats, RayQuery};
     use rayon::prelude::*;
     let traced = recording.recorded();
     if traced.len() as u64 != image.rays.total() {

@@ -1,5 +1,5 @@
 use glam::Vec3A;
-use quiver::geometry::{unit_or_zero, Aabb, Ray};
+use quiver_rt::geometry::{unit_or_zero, Aabb, Ray};
 use std::fmt;
 
 /// A pinhole camera in the SPD/NFF convention.
@@ -162,7 +162,7 @@ impl Camera {
     ///
     /// ```
     /// use quiver_scenes::scene::{Camera, CameraError};
-    /// use quiver::geometry::Aabb;
+    /// use quiver_rt::geometry::Aabb;
     /// use glam::Vec3A;
     /// let unit = Camera::framing(&Aabb::new(Vec3A::ZERO, Vec3A::ONE)).unwrap();
     /// assert_eq!(unit.at, Vec3A::splat(0.5));

@@ -44,7 +44,7 @@
 
 use super::{Budget, Groups, LoadOptions, LoadReport, NonFinite, Scene, SceneError};
 use glam::{DMat4, DQuat, DVec3, Vec3A};
-use quiver::geometry::Triangle;
+use quiver_rt::geometry::Triangle;
 use serde_json::Value;
 use std::path::Path;
 use std::path::{Component, PathBuf};

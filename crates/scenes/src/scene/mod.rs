@@ -44,8 +44,8 @@ pub use read::{read_bytes, read_text, MAX_FILE_BYTES};
 
 use crate::primitive::{Cone, PatchTriangle, Polygon, PolygonPiece, Prim, Sphere};
 use glam::Vec3A;
-use quiver::geometry::{Aabb, Triangle};
-use quiver::primitive::Primitive;
+use quiver_rt::geometry::{Aabb, Triangle};
+use quiver_rt::primitive::Primitive;
 use std::fmt;
 use std::ops::Range;
 use std::path::{Path, PathBuf};

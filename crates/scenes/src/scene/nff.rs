@@ -27,7 +27,7 @@ use super::{
 };
 use crate::primitive::{Cone, Sphere};
 use glam::Vec3A;
-use quiver::Triangle;
+use quiver_rt::Triangle;
 use std::io::{self, Write};
 use std::path::Path;
 

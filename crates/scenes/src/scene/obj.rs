@@ -24,7 +24,7 @@
 
 use super::{Budget, Group, Groups, LoadOptions, LoadReport, NonFinite, Scene, SceneError};
 use glam::Vec3A;
-use quiver::geometry::Triangle;
+use quiver_rt::geometry::Triangle;
 use std::path::Path;
 
 /// The Wavefront spec's other statements, skipped on purpose.

@@ -29,7 +29,7 @@
 
 use super::{clip, Budget, Groups, LoadOptions, LoadReport, NonFinite, Scene, SceneError};
 use glam::Vec3A;
-use quiver::geometry::Triangle;
+use quiver_rt::geometry::Triangle;
 use std::path::Path;
 
 /// A PLY scalar type.

@@ -6,7 +6,7 @@
 use super::{Camera, Scene};
 use crate::rng::Rng;
 use glam::Vec3A;
-use quiver::geometry::{Aabb, Triangle};
+use quiver_rt::geometry::{Aabb, Triangle};
 
 pub(super) fn soup(n: u32) -> Scene {
     let mut rng = Rng::new(0x5EED_0000 ^ n as u64);

@@ -4,7 +4,7 @@
 use super::Shape;
 use crate::primitive::{Cone, Polygon, Sphere};
 use glam::{DVec3, Vec3A};
-use quiver::geometry::Triangle;
+use quiver_rt::geometry::Triangle;
 
 /// Appends the triangles of one shape to `out`, and to `normals` the vertex normals of each
 /// (patches, and spheres and cones through their SPD tessellation, at `DEFAULT_RESOLUTION`)

@@ -21,7 +21,7 @@ pub(crate) mod tree;
 use super::{Camera, Census, Light, Material, Object, Scene, Shape};
 use crate::primitive::{Cone, Sphere};
 use glam::{DVec3, Vec3A};
-use quiver::Triangle;
+use quiver_rt::Triangle;
 use std::cell::RefCell;
 
 /// The SPD's "UNC sky blue" background.

@@ -1,0 +1,285 @@
+//! A world's single-ray queries: the 8-wide walk over the top level, and at each instance it
+//! enters (its mask shares a bit with the ray's), the ray brought into object space and the
+//! instance's geometry asked with the nearest hit so far as its limit.
+
+use super::{Geometry, Placed, World, WorldHit};
+use crate::geometry::{Hit, Ray};
+use crate::isa::Kernels;
+use crate::primitive::Primitive;
+use crate::traverse::bvh8::{walk, Ray8};
+use crate::traverse::dispatch::{self, LaneKernel};
+use crate::traverse::lane8::F8;
+use crate::traverse::{Ask, BoxTest, Filter, PacketQuery, RayQuery, Stats};
+use std::marker::PhantomData;
+
+/// The caller's filter, asked about a geometry's candidates as world hits of one instance.
+pub(super) struct InInstance<'f, F> {
+    pub(super) filter: &'f mut F,
+    pub(super) instance: u32,
+    pub(super) geometry: u32,
+}
+
+impl<F: Filter<WorldHit>> Filter<Hit> for InInstance<'_, F> {
+    const ACTIVE: bool = F::ACTIVE;
+    #[inline(always)]
+    fn accept(&mut self, h: &Hit) -> bool {
+        self.filter.accept(&self.hit(h))
+    }
+}
+
+impl<F> InInstance<'_, F> {
+    /// A geometry's hit as this instance's world hit.
+    #[inline(always)]
+    pub(super) fn hit(&self, h: &Hit) -> WorldHit {
+        WorldHit {
+            t: h.t,
+            instance: self.instance,
+            geometry: self.geometry,
+            prim: h.prim,
+            u: h.u,
+            v: h.v,
+        }
+    }
+
+    /// Makes the geometry's hit `h` the world's `best` where the search `A` keeps it (any
+    /// hit: always; closest hit: where it beats `best`, see [`WorldHit::is_beaten_by`]); says
+    /// whether it did.
+    #[inline(always)]
+    pub(super) fn improve<A: Ask>(&self, best: &mut WorldHit, h: &Hit) -> bool {
+        let better = A::ANY || best.is_beaten_by(h.t, self.instance);
+        if better {
+            *best = self.hit(h);
+        }
+        better
+    }
+}
+
+impl<P: Primitive> RayQuery for Geometry<P> {
+    type Hit = Hit;
+
+    #[inline]
+    fn trace_with<A: Ask, B: BoxTest, S: Stats, F: Filter<Hit>>(
+        &self,
+        ray: &Ray,
+        stats: &mut S,
+        filter: &mut F,
+    ) -> Option<Hit> {
+        match self {
+            Geometry::Triangles(b, _) => b.trace_with::<A, B, S, F>(ray, stats, filter),
+            Geometry::Prims(b, _) => b.trace_with::<A, B, S, F>(ray, stats, filter),
+        }
+    }
+
+    fn trace_packet_with<A: Ask, B: BoxTest, S: Stats, F: Filter<Hit>>(
+        &self,
+        query: PacketQuery<'_>,
+        hits: &mut [Option<Hit>],
+        stats: &mut S,
+        filter: &mut F,
+    ) {
+        match self {
+            Geometry::Triangles(b, _) => {
+                b.trace_packet_with::<A, B, S, F>(query, hits, stats, filter)
+            }
+            Geometry::Prims(b, _) => b.trace_packet_with::<A, B, S, F>(query, hits, stats, filter),
+        }
+    }
+}
+
+impl<P: Primitive> Geometry<P> {
+    /// The search `A` of one ray in object space on the world's lanes (see [`crate::Bvh`]'s
+    /// `one_ray`): false, with nothing done, where the geometry's layout takes the ray the
+    /// usual way.
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn one_ray<V: F8, A: Ask, B: BoxTest, S: Stats, F: Filter<Hit>>(
+        &self,
+        kernels: Kernels,
+        cpu: V::Cpu,
+        ray: &Ray,
+        best: &mut Hit,
+        stats: &mut S,
+        filter: &mut F,
+    ) -> bool {
+        match self {
+            Geometry::Triangles(b, _) => {
+                b.one_ray::<V, A, B, S, F>(kernels, cpu, ray, best, stats, filter)
+            }
+            Geometry::Prims(b, _) => {
+                b.one_ray::<V, A, B, S, F>(kernels, cpu, ray, best, stats, filter)
+            }
+        }
+    }
+}
+
+impl<P: Primitive> World<P> {
+    /// The search `A` of `ray` in instance `p`, improving `best`: the geometry's walk inlined
+    /// on the world's lanes where its layout allows (an 8-wide BVH on the world's kernels),
+    /// else through its query. Returns true when `best` changed.
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn search_in<V: F8, A: Ask, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
+        &self,
+        cpu: V::Cpu,
+        p: &Placed,
+        ray: &Ray,
+        best: &mut WorldHit,
+        stats: &mut S,
+        filter: &mut F,
+    ) -> bool {
+        if ray.mask & p.mask == 0 {
+            return false;
+        }
+        let local = p.local(ray, best.t);
+        let g = &self.geometries[p.geometry as usize];
+        let mut f = InInstance {
+            filter,
+            instance: p.instance,
+            geometry: p.geometry,
+        };
+        let mut h = Hit::none(local.t_max);
+        let kernels = self.top.kernels;
+        let found = if g.one_ray::<V, A, B, S, _>(kernels, cpu, &local, &mut h, stats, &mut f) {
+            h.found()
+        } else {
+            g.trace_with::<A, B, S, _>(&local, stats, &mut f)
+        };
+        match found {
+            Some(h) => f.improve::<A>(best, &h),
+            None => false,
+        }
+    }
+
+    /// The search `A` in the instances of top-level leaf `first..first + count`, improving
+    /// `best`; any hit stops at the first instance that keeps one. Returns true when `best`
+    /// changed.
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn search_leaf<V: F8, A: Ask, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
+        &self,
+        cpu: V::Cpu,
+        first: usize,
+        count: usize,
+        ray: &Ray,
+        best: &mut WorldHit,
+        stats: &mut S,
+        filter: &mut F,
+    ) -> bool {
+        let mut found = false;
+        for i in first..first + count {
+            let p = &self.top.prims[i];
+            found |= self.search_in::<V, A, B, S, F>(cpu, p, ray, best, stats, filter);
+            if A::ANY && found {
+                break;
+            }
+        }
+        found
+    }
+
+    /// The search `A` in the top-level subtree of inner node `root`, improving `best`.
+    #[inline(always)]
+    pub(super) fn search_from<V: F8, A: Ask, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
+        &self,
+        cpu: V::Cpu,
+        ray: &Ray,
+        root: usize,
+        best: &mut WorldHit,
+        stats: &mut S,
+        filter: &mut F,
+    ) {
+        let top = &self.top;
+        let r8 = Ray8::<V>::new(cpu, ray);
+        walk::<V, A, B, S, _>(
+            &top.nodes,
+            &r8,
+            root,
+            best.t,
+            stats,
+            #[inline(always)]
+            |first, count, limit, stats| {
+                stats.prims(count);
+                let found = self.search_leaf::<V, A, B, S, F>(
+                    cpu,
+                    first,
+                    count as usize,
+                    ray,
+                    best,
+                    stats,
+                    filter,
+                );
+                *limit = best.t;
+                A::ANY && found
+            },
+            #[inline(always)]
+            |_, _| {},
+        );
+    }
+
+    /// Whether the top level has a root node to walk (an empty world has none worth it).
+    #[inline(always)]
+    pub(super) fn walkable(&self) -> bool {
+        !self.top.prims.is_empty()
+    }
+}
+
+/// One ray's query of a [`World`], as the kernel [`dispatch`] runs on the top level's lanes
+/// (the geometries' own queries pick their kernels).
+struct Trace<'a, P, A, B, S, F> {
+    world: &'a World<P>,
+    ray: &'a Ray,
+    stats: &'a mut S,
+    filter: &'a mut F,
+    ask: PhantomData<(A, B)>,
+}
+
+impl<P, A, B, S, F> LaneKernel for Trace<'_, P, A, B, S, F>
+where
+    P: Primitive,
+    A: Ask,
+    B: BoxTest,
+    S: Stats,
+    F: Filter<WorldHit>,
+{
+    type Out = Option<WorldHit>;
+
+    #[inline(always)]
+    fn run<V: F8, const FAR: bool>(self, cpu: V::Cpu) -> Option<WorldHit> {
+        let ray = &self.ray.raised_t_min();
+        let mut best = WorldHit::none(ray.t_max);
+        if self.world.walkable() {
+            self.world
+                .search_from::<V, A, B, S, F>(cpu, ray, 0, &mut best, self.stats, self.filter);
+        }
+        best.found()
+    }
+}
+
+impl<P: Primitive> RayQuery for World<P> {
+    type Hit = WorldHit;
+
+    fn trace_with<A: Ask, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
+        &self,
+        ray: &Ray,
+        stats: &mut S,
+        filter: &mut F,
+    ) -> Option<WorldHit> {
+        let kernel = Trace::<P, A, B, S, F> {
+            world: self,
+            ray,
+            stats,
+            filter,
+            ask: PhantomData,
+        };
+        dispatch::run(self.top.kernels, false, kernel)
+    }
+
+    fn trace_packet_with<A: Ask, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
+        &self,
+        query: PacketQuery<'_>,
+        hits: &mut [Option<WorldHit>],
+        stats: &mut S,
+        filter: &mut F,
+    ) {
+        super::packet::trace_rays::<P, A, B, S, F>(self, query, hits, stats, filter)
+    }
+}
