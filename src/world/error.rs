@@ -24,8 +24,8 @@ pub enum WorldError {
     Transform {
         /// The instance.
         instance: usize,
-        /// Not finite, not invertible (its determinant is zero in f32), or out of f32's range
-        /// to invert.
+        /// Not finite, not invertible, its inverse out of f32's range, or too close to
+        /// singular for f32 ([`invert`](super::invert)).
         why: &'static str,
     },
     /// Geometry `geometry`'s mesh: an index names no vertex, or too many triangles.

@@ -3,7 +3,7 @@
 //! checks a placement must pass.
 
 use super::WorldError;
-use glam::Affine3A;
+use glam::{Affine3A, Mat3A, Vec3A};
 
 /// A geometry's index in its [`World`](super::World), in the order geometries were added:
 /// what [`WorldBuilder`](super::WorldBuilder)'s `add_mesh`, `add_triangles` and `add_prims`
@@ -105,26 +105,106 @@ pub(super) fn check_instance(
         });
     }
     let m = &inst.transform;
-    let bad = |why| {
-        Err(WorldError::Transform {
-            instance: index,
-            why,
-        })
-    };
-    if !m.is_finite() {
-        return bad("not finite");
-    }
-    if m.matrix3.determinant() == 0.0 {
-        return bad("not invertible");
-    }
-    let (inverse, identity) = placement(m);
-    if !inverse.is_finite() {
-        return bad("out of f32's range to invert (its inverse is not finite)");
-    }
-    Ok((inverse, identity))
+    invert(m).map_err(|why| WorldError::Transform {
+        instance: index,
+        why,
+    })?;
+    Ok(placement(m))
 }
 
-/// A checked transform's inverse and whether it is the identity.
+/// How far from the identity a transform times its f32 inverse may be, in each entry of the
+/// linear part (and relative to the sizes added, in the translation): a few thousand ulps,
+/// room for the rounding of a well-placed transform at any scale, far less than a transform
+/// too close to singular for f32 (whose inverse's rounding moves hits visibly) leaves.
+pub const INVERSE_TOLERANCE: f64 = 1.0 / 8192.0;
+
+/// The inverse of an instance transform as the walk uses it (world to object space), or why
+/// it cannot place a geometry: not finite, singular, an inverse out of f32's range, or an
+/// inverse that is not one (the transform times it, in f64, is off the identity by more than
+/// [`INVERSE_TOLERANCE`]). Computed in f64 and rounded once, so any scale whose inverse f32
+/// holds is served: glam's f32 inverse divides by the f32 determinant, which overflows for a
+/// uniform scale past about 7e12 (the inverse then comes out as zeros) and underflows below
+/// about 1e-15.
+///
+/// ```
+/// use quiver_rt::glam::{Affine3A, Vec3};
+/// use quiver_rt::world::invert;
+/// let big = Affine3A::from_scale(Vec3::splat(1e13));
+/// assert_eq!(invert(&big).unwrap().matrix3.x_axis.x, 1e-13);
+/// let tiny = Affine3A::from_scale(Vec3::splat(1e-30));
+/// assert_eq!(invert(&tiny).unwrap().matrix3.x_axis.x, 1e30);
+/// assert!(invert(&Affine3A::from_scale(Vec3::splat(1e-39))).is_err()); // 1e39 is past f32
+/// assert!(invert(&Affine3A::from_scale(Vec3::new(1.0, 0.0, 1.0))).is_err());
+/// ```
+pub fn invert(m: &Affine3A) -> Result<Affine3A, &'static str> {
+    if !m.is_finite() {
+        return Err("not finite");
+    }
+    let wide = glam::DAffine3::from_cols_array(&m.to_cols_array().map(f64::from));
+    // Entries of f32's range: the f64 determinant neither overflows nor underflows.
+    if wide.matrix3.determinant() == 0.0 {
+        return Err("not invertible");
+    }
+    let inverse = wide.matrix3.inverse();
+    let f = |v: glam::DVec3| Vec3A::new(v.x as f32, v.y as f32, v.z as f32);
+    let linear = Mat3A::from_cols(f(inverse.x_axis), f(inverse.y_axis), f(inverse.z_axis));
+    // The translation through the rounded linear part: a world point near the instance then
+    // maps as that one linear map of its offset from it, whose rounding error scales with the
+    // offset, not with the distance from the origin.
+    let d = |v: Vec3A| glam::DVec3::new(v.x as f64, v.y as f64, v.z as f64);
+    let lin64 = glam::DMat3::from_cols(d(linear.x_axis), d(linear.y_axis), d(linear.z_axis));
+    let rounded = Affine3A {
+        matrix3: linear,
+        translation: f(-(lin64 * wide.translation)),
+    };
+    // Where glam's f32 inverse is finite and is one (the check below), it is kept: the walk's
+    // answers for every transform it served stay as they were; the f64 one serves the rest.
+    let glam_inverse = m.inverse();
+    if glam_inverse.is_finite() && is_inverse(&wide, &glam_inverse) {
+        return Ok(glam_inverse);
+    }
+    if !rounded.is_finite() {
+        return Err("out of f32's range to invert (its inverse is not finite)");
+    }
+    if !is_inverse(&wide, &rounded) {
+        return Err("too close to singular for f32 (it times its f32 inverse is not the identity)");
+    }
+    Ok(rounded)
+}
+
+/// Whether `inverse` (f32) times `wide` (the transform in f64) is the identity within
+/// [`INVERSE_TOLERANCE`].
+fn is_inverse(wide: &glam::DAffine3, inverse: &Affine3A) -> bool {
+    let rounded = inverse;
+    let back = glam::DAffine3::from_cols_array(&rounded.to_cols_array().map(f64::from));
+    let product = wide * back;
+    let abs =
+        |a: glam::DMat3| glam::DMat3::from_cols(a.x_axis.abs(), a.y_axis.abs(), a.z_axis.abs());
+    let linear_off = (product.matrix3 - glam::DMat3::IDENTITY)
+        .to_cols_array()
+        .into_iter()
+        .fold(0.0f64, |a, x| a.max(x.abs()));
+    // The translation's error, against the size of what was added to make it.
+    let size = abs(wide.matrix3) * back.translation.abs() + wide.translation.abs();
+    let moved_off = product
+        .translation
+        .abs()
+        .cmpgt(size * INVERSE_TOLERANCE)
+        .any();
+    linear_off <= INVERSE_TOLERANCE && !moved_off
+}
+
+/// Whether `m` mirrors (reverses a triangle's winding): its determinant's sign, taken in f64
+/// so that it neither overflows nor underflows to zero at any f32 scale.
+pub(crate) fn mirrors(m: &Affine3A) -> bool {
+    let d = glam::DMat3::from_cols_array(&m.matrix3.to_cols_array().map(f64::from));
+    d.determinant() < 0.0
+}
+
+/// A checked transform's inverse ([`invert`]) and whether it is the identity.
 pub(super) fn placement(m: &Affine3A) -> (Affine3A, bool) {
-    (m.inverse(), *m == Affine3A::IDENTITY)
+    (
+        invert(m).unwrap_or(Affine3A::IDENTITY),
+        *m == Affine3A::IDENTITY,
+    )
 }

@@ -61,7 +61,7 @@ pub use edit::WorldEdit;
 pub use error::WorldError;
 pub use geometry::Geometry;
 pub use hit::WorldHit;
-pub use instance::{GeometryId, Instance, InstanceId};
+pub use instance::{invert, GeometryId, Instance, InstanceId, INVERSE_TOLERANCE};
 
 use crate::geometry::{unit_or_zero, Aabb, PrimHit, Ray, Triangle};
 use crate::layout::walk::{NodeVisit, WalkNodes};
@@ -118,7 +118,7 @@ impl<P: Primitive> World<P> {
     pub fn normal(&self, ray: &Ray, hit: &WorldHit) -> Option<Vec3A> {
         let inst = self.instances.get(hit.instance.0 as usize)?;
         let g = self.geometries.get(hit.geometry.0 as usize)?;
-        let to_object = inst.transform.inverse();
+        let to_object = instance::invert(&inst.transform).ok()?;
         let at = to_object.transform_point3a(ray.at(hit.t));
         let local = PrimHit {
             t: hit.t,
@@ -130,11 +130,7 @@ impl<P: Primitive> World<P> {
         // reverses the winding, which is what says which side a triangle faces.
         let inverse_t: Mat3A = to_object.matrix3.transpose();
         let n = unit_or_zero(inverse_t * n);
-        Some(if inst.transform.matrix3.determinant() < 0.0 {
-            -n
-        } else {
-            n
-        })
+        Some(if instance::mirrors(&inst.transform) { -n } else { n })
     }
 
     /// The top-level BVH, for readers inside the crate (the cost predictor).

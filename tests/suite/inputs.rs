@@ -669,7 +669,8 @@ fn obj_non_finite_faces_can_be_dropped_and_counted() {
     }
     let (s, report) = obj::parse_with(&text, "d.obj", &lax()).unwrap();
     assert_eq!(s.objects.len(), 2);
-    assert_eq!((report.dropped_primitives, report.dropped_lights), (12, 0));
+    // The quad `f 5 1 2 3` counts its two triangles.
+    assert_eq!((report.dropped_primitives, report.dropped_lights), (13, 0));
     assert_eq!(report.reasons.len(), 8);
     assert_eq!(
         report.reasons[..2],
@@ -678,6 +679,7 @@ fn obj_non_finite_faces_can_be_dropped_and_counted() {
             "d.obj:8: face dropped: its vertex 5 (line 5) is not finite",
         ]
     );
+    // Twelve faces dropped, eight reasons kept.
     assert!(report.to_string().ends_with("; 4 more)"), "{report}");
     assert!(s
         .triangles()

@@ -839,7 +839,7 @@ fn gltf_faults_name_the_item() {
     );
     assert_eq!(
         broken(&|d| d["buffers"][0]["uri"] = "http://example.invalid/a.bin".into()),
-        "t.gltf: buffers[0].uri: 'http://example.invalid/a.bin': quiver reads data: URIs and paths relative to the glTF file"
+        "t.gltf: buffers[0].uri: 'http://example.invalid/a.bin': a URI scheme other than data:; quiver reads data: URIs and files inside the glTF file's folder (LoadOptions::outside_files, --outside-files, allows others)"
     );
     assert_eq!(
         broken(&|d| d["accessors"][0]["componentType"] = 5123.into()),
@@ -1062,4 +1062,352 @@ fn load_dispatches_on_every_mesh_extension() {
     let e = Scene::load("mesh.stl").unwrap_err().to_string();
     assert!(e.contains(".ply, .ply.gz, .gltf or .glb"), "{e}");
     let _ = Vec3A::ZERO;
+}
+
+// ---------------------------------------------------------------------------------------
+// Issue 49: loops bounded by the bytes read, one budget, confined URIs, node graphs.
+
+/// A binary PLY whose element has no properties claims instances of zero bytes: nothing is
+/// read for them and nothing loops over them (a count of 10^12 ran for an hour, 2^64 - 1
+/// never ended). The load finishes, with the file's (no) triangles.
+#[test]
+fn ply_property_less_elements_are_not_looped_over() {
+    for count in ["1000000000000", "18446744073709551615"] {
+        let text =
+            format!("ply\nformat binary_little_endian 1.0\nelement nothing {count}\nend_header\n");
+        let scene = ply::parse(text.as_bytes(), "z.ply").unwrap();
+        assert_eq!(scene.objects.len(), 0);
+    }
+    // The same before a real mesh: its triangles still load.
+    let mut b = ply_binary(false);
+    let at = b.windows(11).position(|w| w == b"end_header\n").unwrap();
+    b.splice(
+        at..at,
+        b"element nothing 18446744073709551615\n".iter().copied(),
+    );
+    assert_eq!(corners(&ply::parse(&b, "z.ply").unwrap()), expected());
+}
+
+/// A binary PLY whose lists are all empty (`list uchar double`: each instance one count
+/// byte) is valid; the minimum size counted the item type (8 bytes) and refused it. It loads
+/// as the same data in ASCII does.
+#[test]
+fn ply_binary_empty_lists_take_their_count_bytes_only() {
+    let head = |format: &str| {
+        format!(
+            "ply\nformat {format} 1.0\nelement vertex 3\nproperty float x\nproperty float y\n\
+             property float z\nelement face 1\nproperty list uchar int vertex_indices\n\
+             element extra 5\nproperty list uchar double values\nend_header\n"
+        )
+    };
+    let mut bin = head("binary_little_endian").into_bytes();
+    for p in TRI {
+        for c in p {
+            bin.extend_from_slice(&c.to_le_bytes());
+        }
+    }
+    bin.push(3);
+    for i in 0..3i32 {
+        bin.extend_from_slice(&i.to_le_bytes());
+    }
+    bin.extend_from_slice(&[0; 5]);
+    let ascii = head("ascii") + "0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n0\n0\n0\n0\n0\n";
+    let from_ascii = corners(&ply::parse(ascii.as_bytes(), "a.ply").unwrap());
+    assert_eq!(from_ascii, [TRI]);
+    assert_eq!(corners(&ply::parse(&bin, "b.ply").unwrap()), from_ascii);
+}
+
+/// A quad with one NaN corner is dropped whole, and counted as the two primitives (its
+/// triangles) it would have been, as `max_primitives` counts it.
+#[test]
+fn ply_dropped_quad_counts_its_two_triangles() {
+    let text = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n\
+                property float z\nelement face 1\nproperty list uchar int vertex_indices\n\
+                end_header\n0 0 0\n1 0 0\n1 nan 0\n0 1 0\n4 0 1 2 3\n";
+    let (scene, report) = ply::parse_with(text.as_bytes(), "q.ply", &lax()).unwrap();
+    assert_eq!((scene.objects.len(), report.dropped_primitives), (0, 2));
+    assert_eq!(report.reasons.len(), 1);
+    // OBJ counts the same way.
+    let obj = "v 0 0 0\nv 1 0 0\nv 1 nan 0\nv 0 1 0\nf 1 2 3 4\n";
+    let (_, report) = quiver_scenes::scene::obj::parse_with(obj, "q.obj", &lax()).unwrap();
+    assert_eq!(report.dropped_primitives, 2);
+}
+
+/// `max_primitives` binds PLY files (it was ignored): a face that would pass it is refused
+/// at that face, in ASCII and binary, before its triangles are stored.
+#[test]
+fn ply_max_primitives_refuses_at_the_face_that_passes_it() {
+    // FACES make 2, 3 and 1 triangles: a limit of 4 is passed by the second face.
+    let four = LoadOptions::default().max_primitives(4);
+    let e = ply::parse_with(&ply_ascii(), "m.ply", &four).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            SceneError::OverBudget {
+                needs: 5,
+                limit: 4,
+                ..
+            }
+        ),
+        "{e}"
+    );
+    assert!(e.to_string().starts_with("m.ply: face 1 (line "), "{e}");
+    let e = ply::parse_with(&ply_binary(true), "m.ply", &four).unwrap_err();
+    assert!(e.to_string().starts_with("m.ply: face 1 (byte "), "{e}");
+    assert!(ply::parse_with(
+        &ply_binary(true),
+        "m.ply",
+        &LoadOptions::default().max_primitives(6)
+    )
+    .is_ok());
+}
+
+/// `max_bytes` is checked from what each reader is about to hold, never from a file's packed
+/// size: a small `.ply.gz` that inflates past it is refused while inflating, a PLY whose
+/// single face claims more corners than the budget holds is refused at the face, and an OBJ
+/// or NFF past it is refused before its lists are made.
+#[test]
+fn every_reader_refuses_what_passes_max_bytes() {
+    let dir = TempDir::new("max_bytes");
+    // 16 MiB of zeros after a header: a few KB packed.
+    let mut big = b"ply\nformat binary_little_endian 1.0\nelement extra 16777216\nproperty uchar v\nend_header\n".to_vec();
+    big.resize(big.len() + (16 << 20), 0);
+    let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::best());
+    gz.write_all(&big).unwrap();
+    let packed = gz.finish().unwrap();
+    assert!(packed.len() < 100_000);
+    let path = dir.file("bomb.ply.gz", &packed);
+    let limit = LoadOptions::default().max_bytes(1 << 20);
+    let e = Scene::load_with(&path, &limit).unwrap_err();
+    assert!(
+        matches!(e, SceneError::OverBudget { limit: 1048576, .. }),
+        "{e}"
+    );
+    assert!(e.to_string().contains("the inflated data (gzip)"), "{e}");
+    assert!(Scene::load_with(&path, &LoadOptions::default().max_bytes(64 << 20)).is_ok());
+    // One face of a million corners (4 MB of indices as uchar? no: uint count, uchar items).
+    let mut one = b"ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uint uchar vertex_indices\nend_header\n".to_vec();
+    one.extend(TRI.iter().flatten().flat_map(|c| c.to_le_bytes()));
+    one.extend_from_slice(&1_000_000u32.to_le_bytes());
+    one.extend((0..1_000_000).map(|i| (i % 3) as u8));
+    let e = ply::parse_with(&one, "f.ply", &LoadOptions::default().max_bytes(8 << 20)).unwrap_err();
+    assert!(e.to_string().starts_with("f.ply: face 0 (byte "), "{e}");
+    assert!(matches!(e, SceneError::OverBudget { .. }));
+    let e =
+        ply::parse_with(&one, "f.ply", &LoadOptions::default().max_primitives(1000)).unwrap_err();
+    assert!(
+        matches!(e, SceneError::OverBudget { needs: 999_998, .. }),
+        "{e}"
+    );
+    // OBJ and NFF.
+    let obj: String = "v 0 0 0\nv 1 0 0\nv 0 1 0\n".to_string() + &"f 1 2 3\n".repeat(1000);
+    let e = quiver_scenes::scene::obj::parse_with(
+        &obj,
+        "m.obj",
+        &LoadOptions::default().max_bytes(obj.len() as u64 * 2),
+    )
+    .unwrap_err();
+    assert!(matches!(e, SceneError::OverBudget { .. }), "{e}");
+    let nff = "f 1 1 1 1 0 0 0 1\n".to_string() + &"s 0 0 0 1\n".repeat(1000);
+    let e = quiver_scenes::scene::nff::parse_with(
+        &nff,
+        "m.nff",
+        &LoadOptions::default().max_bytes(nff.len() as u64 * 2),
+    )
+    .unwrap_err();
+    assert!(e.to_string().starts_with("m.nff: line "), "{e}");
+}
+
+/// A count-0 accessor with a byteOffset past its view panicked slicing the view (the size
+/// check asked for 0 bytes); now the offset must lie inside the view whatever the count, for
+/// positions and indices alike.
+#[test]
+fn gltf_count_zero_accessor_past_its_view_is_an_error() {
+    let (_, ok) = one_triangle();
+    let mut d = ok.clone();
+    d["accessors"][0]["count"] = 0.into();
+    d["accessors"][0]["byteOffset"] = 100.into();
+    assert_eq!(
+        gltf_err(&d),
+        "t.gltf: meshes[0].primitives[0].attributes.POSITION (accessors[0]): 0 elements of 12 bytes from byte 100 need 100 bytes, and bufferViews[0] has 36"
+    );
+    let mut d = ok.clone();
+    d["accessors"][1]["count"] = 0.into();
+    d["accessors"][1]["byteOffset"] = 100.into();
+    let e = gltf_err(&d);
+    assert!(
+        e.starts_with("t.gltf: meshes[0].primitives[0].indices (accessors[1]): 0 elements"),
+        "{e}"
+    );
+    // Count 0 at the end of the view is an empty accessor: no triangles.
+    let mut d = ok;
+    d["accessors"][1]["count"] = 0.into();
+    d["accessors"][1]["byteOffset"] = 4.into();
+    let scene = gltf::parse(&serde_json::to_vec(&d).unwrap(), "t.gltf").unwrap();
+    assert_eq!(scene.objects.len(), 0);
+}
+
+/// Buffer URIs are read only inside the glTF file's folder, after percent-decoding and
+/// normalising: `..` out, `%2e%2e`, `%2F`, absolute paths, schemes and a symbolic link
+/// leading out are refused naming the URI; `sub/../x.bin` stays inside and loads;
+/// `LoadOptions::outside_files` lets them all through.
+#[test]
+fn gltf_buffers_are_confined_to_the_folder() {
+    let root = TempDir::new("confined");
+    let inside = root.0.join("in");
+    std::fs::create_dir_all(inside.join("sub")).unwrap();
+    let mut g = Gltf::default();
+    let pos = g.positions(&TRI);
+    let rest = serde_json::json!({
+        "meshes": [{"primitives": [{"attributes": {"POSITION": pos}}]}],
+        "nodes": [{"mesh": 0}]
+    });
+    std::fs::write(inside.join("x.bin"), &g.bin).unwrap();
+    std::fs::write(root.0.join("out.bin"), &g.bin).unwrap();
+    std::os::unix::fs::symlink(root.0.join("out.bin"), inside.join("link.bin")).unwrap();
+    let outside_abs = root.0.join("out.bin");
+    let abs = outside_abs.to_str().unwrap().replace('/', "%2F");
+    let load = |uri: &str, opts: &LoadOptions| {
+        let doc = serde_json::to_vec(&g.json(rest.clone(), Some(Some(uri)))).unwrap();
+        let path = inside.join("t.gltf");
+        std::fs::write(&path, doc).unwrap();
+        Scene::load_with(path.to_str().unwrap(), opts).map(|(s, _)| corners(&s))
+    };
+    let strict = LoadOptions::default();
+    for uri in ["x.bin", "./x.bin", "sub/../x.bin", "sub%2F..%2Fx.bin"] {
+        assert_eq!(load(uri, &strict).unwrap(), [TRI], "{uri}");
+    }
+    for (uri, why) in [
+        ("../out.bin", "leads outside the glTF file's folder"),
+        ("%2e%2e/out.bin", "leads outside the glTF file's folder"),
+        ("sub/../../out.bin", "leads outside the glTF file's folder"),
+        ("..%5Cout.bin", "leads outside the glTF file's folder"),
+        (abs.as_str(), "an absolute path"),
+        (
+            "link.bin",
+            "a symbolic link leads outside the glTF file's folder",
+        ),
+        ("file:///etc/passwd", "a URI scheme other than data:"),
+    ] {
+        let e = load(uri, &strict).unwrap_err().to_string();
+        // The URI as quoted in messages: its first 40 characters.
+        let quoted: String = uri.chars().take(40).collect();
+        assert!(
+            e.contains(&format!("buffers[0].uri: '{quoted}")),
+            "{uri}: {e}"
+        );
+        assert!(e.contains(why), "{uri}: {e}");
+        assert!(e.contains("LoadOptions::outside_files"), "{e}");
+    }
+    let outside = LoadOptions::default().outside_files(true);
+    for uri in ["../out.bin", "%2e%2e/out.bin", abs.as_str(), "link.bin"] {
+        assert_eq!(load(uri, &outside).unwrap(), [TRI], "{uri}");
+    }
+}
+
+/// glTF under the budget: a mesh placed by many nodes counts every placement against
+/// `max_primitives`, and several buffers naming one `.bin` read and hold it once.
+#[test]
+fn gltf_placements_and_shared_files_count_once_each() {
+    let dir = TempDir::new("placements");
+    let mut g = Gltf::default();
+    let pos = g.positions(&TRI);
+    let nodes: Vec<serde_json::Value> = (0..50)
+        .map(|i| serde_json::json!({"mesh": 0, "translation": [i, 0, 0]}))
+        .collect();
+    let rest = serde_json::json!({
+        "meshes": [{"primitives": [{"attributes": {"POSITION": pos}}]}],
+        "nodes": nodes
+    });
+    let doc = g.json(rest, None);
+    let bytes = serde_json::to_vec(&doc).unwrap();
+    assert_eq!(gltf::parse(&bytes, "p.gltf").unwrap().objects.len(), 50);
+    let e =
+        gltf::parse_with(&bytes, "p.gltf", &LoadOptions::default().max_primitives(49)).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            SceneError::OverBudget {
+                needs: 50,
+                limit: 49,
+                ..
+            }
+        ),
+        "{e}"
+    );
+    assert!(
+        e.to_string()
+            .starts_with("p.gltf: meshes[0].primitives[0], placed as nodes[49]/"),
+        "{e}"
+    );
+    // 40 buffers naming one 1 MiB file: within 4 MiB, since it is read once.
+    let mut big = g.bin.clone();
+    big.resize(1 << 20, 0);
+    dir.file("big.bin", &big);
+    let mut doc = g.json(
+        serde_json::json!({
+            "meshes": [{"primitives": [{"attributes": {"POSITION": pos}}]}],
+            "nodes": [{"mesh": 0}]
+        }),
+        Some(Some("big.bin")),
+    );
+    let buffer = doc["buffers"][0].clone();
+    doc["buffers"] = serde_json::Value::Array(vec![buffer; 40]);
+    let views: Vec<serde_json::Value> = (0..40)
+        .map(|b| serde_json::json!({"buffer": b, "byteLength": 36}))
+        .collect();
+    doc["bufferViews"] = views.into();
+    let accessors: Vec<serde_json::Value> = (0..40).map(|v| serde_json::json!({"bufferView": v, "componentType": 5126, "type": "VEC3", "count": 3})).collect();
+    doc["accessors"] = accessors.into();
+    let prims: Vec<serde_json::Value> = (0..40)
+        .map(|a| serde_json::json!({"attributes": {"POSITION": a}}))
+        .collect();
+    doc["meshes"][0]["primitives"] = prims.into();
+    let path = dir.file("shared.gltf", &serde_json::to_vec(&doc).unwrap());
+    let (scene, _) = Scene::load_with(&path, &LoadOptions::default().max_bytes(4 << 20)).unwrap();
+    assert_eq!(scene.objects.len(), 40);
+}
+
+/// Without a `scene`, nodes in a cycle of children are no root and were dropped without a
+/// word; now that is an error naming a node of the cycle, as it is with a scene. A matrix
+/// whose bottom row is not (0, 0, 0, 1) is an error too (it was used as affine).
+#[test]
+fn gltf_cycles_without_a_scene_and_projective_matrices_are_errors() {
+    let (_, ok) = one_triangle();
+    let mut d = ok.clone();
+    d.as_object_mut().unwrap().remove("scenes");
+    d["nodes"] = serde_json::json!([{"mesh": 0}, {"mesh": 0, "children": [2]}, {"children": [1]}]);
+    assert_eq!(
+        gltf_err(&d),
+        "t.gltf: nodes[1]: is in a cycle of children (or below one), so no root reaches it: glTF nodes must form a forest"
+    );
+    let mut d = ok;
+    d["nodes"][0]["matrix"] = serde_json::json!([1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0.5, 0, 0, 0, 1]);
+    assert_eq!(
+        gltf_err(&d),
+        "t.gltf: nodes[0].matrix: the bottom row is [0.0, 0.0, 0.5, 1.0], not [0, 0, 0, 1]: glTF node matrices are affine"
+    );
+}
+
+/// A UTF-8 byte order mark at the start of an OBJ, NFF, PLY or glTF file is not part of its
+/// first word (it gave "unknown statement 'v'" with an invisible U+FEFF).
+#[test]
+fn byte_order_marks_are_skipped() {
+    const BOM: &str = "\u{feff}";
+    let obj = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+    let with = quiver_scenes::scene::obj::parse(&format!("{BOM}{obj}"), "b.obj").unwrap();
+    assert_eq!(corners(&with), [TRI]);
+    let nff = "f 1 1 1 1 0 0 0 1\np 3\n0 0 0\n1 0 0\n0 1 0\n";
+    let with = quiver_scenes::scene::nff::parse(&format!("{BOM}{nff}"), "b.nff").unwrap();
+    assert_eq!(corners(&with), [TRI]);
+    let mut ply_bytes = BOM.as_bytes().to_vec();
+    ply_bytes.extend_from_slice(&ply_ascii());
+    assert_eq!(
+        corners(&ply::parse(&ply_bytes, "b.ply").unwrap()),
+        expected()
+    );
+    let (_, doc) = one_triangle();
+    let mut json = BOM.as_bytes().to_vec();
+    json.extend_from_slice(&serde_json::to_vec(&doc).unwrap());
+    assert_eq!(corners(&gltf::parse(&json, "b.gltf").unwrap()), [TRI]);
 }

@@ -265,11 +265,21 @@ fn bad_worlds_are_errors_and_odd_ones_answer_right() {
             Affine3A::from_translation(Vec3::new(f32::INFINITY, 0.0, 0.0)),
             "not finite",
         ),
-        // The determinant underflows to zero in f32.
-        (Affine3A::from_scale(Vec3::splat(1e-30)), "not invertible"),
+        // 1e39 is past f32's range.
         (
-            Affine3A::from_scale(Vec3::new(1e30, 1e30, 1e-30)),
+            Affine3A::from_scale(Vec3::splat(1e-39)),
             "out of f32's range to invert (its inverse is not finite)",
+        ),
+        // Nearly singular (determinant -3e-5 of entries up to 9): the rounding of its f32
+        // inverse (entries near 1e5) moves the product off the identity by about 0.1.
+        (
+            Affine3A::from_cols(
+                Vec3A::new(1.0, 2.0, 3.0),
+                Vec3A::new(4.0, 5.0, 6.0),
+                Vec3A::new(7.0, 8.0, 9.00001),
+                Vec3A::ZERO,
+            ),
+            "too close to singular for f32 (it times its f32 inverse is not the identity)",
         ),
     ] {
         let e = one(Instance::of(g).transform(m)).unwrap_err();
@@ -462,4 +472,193 @@ fn obj_groups_are_the_geometries_of_one_world() {
         }
         assert!(named > 1000, "{named} hits");
     }
+}
+
+/// Rays for a world of scale `k`: from all around its flattened box, and aimed at triangles.
+fn scaled_setup(k: f32, seed: u64, shear: f32) -> Setup {
+    let geometries = vec![tris("icosphere2"), tris("tetra3")];
+    let mut rng = Rng::new(seed);
+    let mut instances = Vec::new();
+    for i in 0..12u32 {
+        let axis = Vec3::from(rng.in_box(Vec3A::splat(-1.0), Vec3A::ONE)).normalize_or(Vec3::Z);
+        let angle = rng.in_box(Vec3A::ZERO, Vec3A::splat(6.0)).x;
+        let uneven = Vec3::from(rng.in_box(Vec3A::splat(0.5), Vec3A::splat(2.0)));
+        let at = Vec3::from(rng.in_box(Vec3A::splat(-6.0), Vec3A::splat(6.0)));
+        let mut m = Affine3A::from_scale_rotation_translation(
+            uneven,
+            Quat::from_axis_angle(axis, angle),
+            at,
+        );
+        // A shear of up to `shear` in one column, then the whole placement scaled by `k`.
+        m.matrix3.z_axis += m.matrix3.x_axis * shear * (i % 3) as f32 / 2.0;
+        m.matrix3 *= k;
+        m.translation *= k;
+        if i % 5 == 0 {
+            m.matrix3.x_axis = -m.matrix3.x_axis;
+        }
+        instances.push(Instance::of(GeometryId(i % 2)).transform(m));
+    }
+    Setup {
+        geometries,
+        instances,
+    }
+}
+
+/// `v` times the power of two `unit`, which must be exact for finite coordinates (asserted:
+/// no overflow, nothing rounded into the subnormals).
+fn exactly_scaled(v: Vec3A, unit: f64) -> Vec3A {
+    let f = |x: f32| {
+        let y = (x as f64 * unit) as f32;
+        let back = (y as f64 / unit) as f32;
+        assert!(!x.is_finite() || back == x, "{x} times {unit} is not exact");
+        y
+    };
+    Vec3A::new(f(v.x), f(v.y), f(v.z))
+}
+
+/// Checks every ray of `s` against the f64 oracle over the flattened scene (single rays and
+/// packets); returns how many decidable rays hit.
+///
+/// The oracle judges the flattened scene and the rays multiplied by the power of two that
+/// brings the scene to about unit size: exact, so the same geometry with the same `t`, `u`
+/// and `v`. At the scene's own scale (1e-30, 1e30) the oracle calls every crossing grazed,
+/// since an f32 test in world space would form products past 2^±100 and no rounding model
+/// holds; the world never tests there (it takes each ray into its instance's object space,
+/// about unit size), and at unit size the oracle's f32 rounding model is the one that
+/// applies, widened by the transforms' slack as at scale 1.
+fn against_flattened(s: &Setup, rays: &[Ray], what: &str) -> usize {
+    let (flat, names) = s.flattened(|_, _| true);
+    let bounds = flat.iter().fold(Aabb::EMPTY, |b, t| b.union(&t.bounds()));
+    let extent = (bounds.max - bounds.min).max_element() as f64;
+    let unit = 2f64.powi(-(extent.log2().round() as i32));
+    let unit_flat: Vec<Triangle> = flat
+        .iter()
+        .map(|t| Triangle {
+            v: t.v.map(|p| exactly_scaled(p, unit)),
+        })
+        .collect();
+    let unit_rays: Vec<Ray> = rays
+        .iter()
+        .map(|r| Ray {
+            origin: exactly_scaled(r.origin, unit),
+            dir: exactly_scaled(r.dir, unit),
+            ..*r
+        })
+        .collect();
+    let oracle = Oracle::with_slack(&unit_flat, s.slack());
+    let answers = oracle.closest_hits(&unit_rays);
+    let world = s.world(&BuildOptions::default());
+    let mut hits = vec![None; rays.len()];
+    world.closest_hit_packet_with::<ConservativeBoxes, _, _>(
+        PacketQuery::new(rays).mode(PacketMode::Always),
+        &mut hits,
+        &mut NoStats,
+        &mut quiver_rt::traverse::NoFilter,
+    );
+    for (i, r) in rays.iter().enumerate() {
+        let single = world.closest_hit(r);
+        assert_eq!(hits[i], single, "{what} ray {i}: packet against single");
+        if let Err(e) = check(&answers[i], single, &names) {
+            panic!("{what} ray {i} {r:?}: {e}");
+        }
+    }
+    answers
+        .iter()
+        .filter(|a| a.is_decidable() && a.hit.is_some())
+        .count()
+}
+
+/// Issue 49: instances scaled from 1e-30 to 1e30 (rotated, some sheared and mirrored) are all
+/// accepted, and answer what the flattened scene answers by the f64 oracle; before, a uniform
+/// scale past ~7e12 was accepted with a zero inverse and never hit, and one below ~1e-13 was
+/// refused though f32 holds its inverse.
+#[test]
+fn instances_at_every_scale_answer_as_the_flattened_scene() {
+    for exp in [-30, -20, -13, -5, 0, 5, 13, 20, 30] {
+        let k = 10f32.powi(exp);
+        let s = scaled_setup(k, 7 + exp as u64, 1.0);
+        for inst in &s.instances {
+            assert!(
+                quiver_rt::world::invert(&inst.transform).is_ok(),
+                "scale 1e{exp}: {:?}",
+                inst.transform
+            );
+        }
+        // Directions of length `k`, so hits lie at t of about 1 at every scale.
+        let rays: Vec<Ray> = s
+            .rays(400, 5)
+            .iter()
+            .map(|r| Ray::new(r.origin, r.dir.normalize() * k))
+            .collect();
+        let hits = against_flattened(&s, &rays, &format!("scale 1e{exp}"));
+        assert!(
+            hits > rays.len() / 4,
+            "scale 1e{exp}: {hits} decidable hits"
+        );
+    }
+}
+
+/// A transform moved by an edit to 1e13 (accepted before with a zero inverse) is hit, as the
+/// flattened scene is.
+#[test]
+fn an_edit_to_a_large_scale_is_hit() {
+    let mut s = scaled_setup(1.0, 3, 0.0);
+    let mut world = s.world(&BuildOptions::default());
+    let big = Affine3A::from_scale(Vec3::splat(1e13));
+    let mut edit = world.edit();
+    edit.set_transform(InstanceId(0), big).unwrap();
+    edit.commit();
+    s.instances[0] = s.instances[0].transform(big);
+    let ray = Ray::new(Vec3A::new(0.1, 0.2, 5e13), -Vec3A::Z);
+    let (flat, names) = s.flattened(|_, _| true);
+    let answer = Oracle::new(&flat).closest_hit(&ray);
+    assert!(answer.hit.is_some());
+    check(&answer, world.closest_hit(&ray), &names).unwrap();
+}
+
+/// Property: random transforms with scales of 1e-38 to 1e38, shears up to 1e4 and rotations
+/// either are refused with one of the documented reasons, or build a world that answers as
+/// the flattened scene does.
+#[test]
+fn random_transforms_near_the_limits_are_refused_or_answer_right() {
+    let mut rng = Rng::new(49);
+    let mut accepted = 0;
+    for case in 0..40 {
+        let u = rng.in_box(Vec3A::ZERO, Vec3A::ONE);
+        let exp = (u.x * 76.0 - 38.0).round() as i32;
+        let shear = 10f32.powf(u.y * 4.0);
+        let k = 10f32.powi(exp);
+        let s = scaled_setup(k, 100 + case, shear);
+        let refused = s
+            .instances
+            .iter()
+            .find_map(|i| quiver_rt::world::invert(&i.transform).err());
+        if let Some(why) = refused {
+            assert!(
+                ["not invertible", "not finite"].contains(&why)
+                    || why.starts_with("out of f32's range")
+                    || why.starts_with("too close to singular"),
+                "{why}"
+            );
+            let mut b = World::builder();
+            b.add_triangles(s.geometries[0].clone());
+            b.add_triangles(s.geometries[1].clone());
+            for inst in &s.instances {
+                b.add_instance(*inst);
+            }
+            assert!(matches!(
+                b.build(&BuildOptions::default()),
+                Err(WorldError::Transform { .. })
+            ));
+            continue;
+        }
+        accepted += 1;
+        let rays: Vec<Ray> = s
+            .rays(150, case)
+            .iter()
+            .map(|r| Ray::new(r.origin, r.dir.normalize() * k))
+            .collect();
+        against_flattened(&s, &rays, &format!("case {case}: 1e{exp}, shear {shear}"));
+    }
+    assert!(accepted > 20, "{accepted} of 40 accepted");
 }

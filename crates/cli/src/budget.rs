@@ -84,6 +84,9 @@ fn available() -> Limit {
 /// `100000000` (K, M, G and T are powers of 1024, with or without `B` or `iB`).
 pub(crate) fn parse_size(s: &str) -> std::result::Result<u64, String> {
     let t = s.trim();
+    if t.starts_with('-') {
+        return Err(format!("'{s}' is negative: a size is at least 1 byte"));
+    }
     let split = t
         .find(|c: char| !(c.is_ascii_digit() || c == '.'))
         .unwrap_or(t.len());
@@ -100,13 +103,18 @@ pub(crate) fn parse_size(s: &str) -> std::result::Result<u64, String> {
         .parse()
         .map_err(|_| format!("'{s}' is not a size (a number and K, M, G or T)"))?;
     let bytes = value * (1u64 << shift) as f64;
-    if !(bytes >= 1.0 && bytes < u64::MAX as f64) {
-        return Err(format!("'{s}' must be at least 1 byte"));
+    if bytes >= u64::MAX as f64 {
+        return Err(format!(
+            "'{s}' is more than the 16 EiB (2^64 bytes) a size can be"
+        ));
+    }
+    if bytes < 1.0 {
+        return Err(format!("'{s}' is less than 1 byte"));
     }
     Ok(bytes as u64)
 }
 
-/// A byte count for people: `812 MiB`, `7.3 GiB`.
+/// A byte count for people: `812 MiB`, `7.3 GiB`, `12 KiB`, `100 bytes`.
 pub(crate) fn human(bytes: u64) -> String {
     const GIB: f64 = (1u64 << 30) as f64;
     const MIB: f64 = (1u64 << 20) as f64;
@@ -115,8 +123,12 @@ pub(crate) fn human(bytes: u64) -> String {
         format!("{:.1} GiB", b / GIB)
     } else if b >= MIB {
         format!("{:.0} MiB", b / MIB)
-    } else {
+    } else if bytes >= 1024 {
         format!("{:.0} KiB", (b / 1024.0).ceil())
+    } else if bytes == 1 {
+        "1 byte".into()
+    } else {
+        format!("{bytes} bytes")
     }
 }
 
@@ -238,6 +250,11 @@ mod tests {
         for bad in ["", "G", "4X", "-1G", "0", "0.1", "1e3", "nan"] {
             assert!(parse_size(bad).is_err(), "{bad}");
         }
+        assert_eq!(parse_size("1"), Ok(1));
+        let e = parse_size("99999999T").unwrap_err();
+        assert!(e.contains("more than the 16 EiB"), "{e}");
+        assert!(parse_size("-1").unwrap_err().contains("negative"));
+        assert!(parse_size("0").unwrap_err().contains("less than 1 byte"));
     }
 
     #[test]
@@ -247,5 +264,8 @@ mod tests {
         assert_eq!(count(999), "999");
         assert_eq!(human(805 << 20), "805 MiB");
         assert_eq!(human((73 << 30) / 10), "7.3 GiB");
+        assert_eq!(human(1), "1 byte");
+        assert_eq!(human(1000), "1000 bytes");
+        assert_eq!(human(1025), "2 KiB");
     }
 }

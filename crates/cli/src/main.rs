@@ -29,9 +29,14 @@ struct Cli {
     /// on stderr) instead of refusing the file.
     #[arg(long, global = true)]
     drop_non_finite: bool,
+    /// Scene files: let a file name files outside its own folder (a glTF buffer URI with
+    /// `..`, an absolute path or a symbolic link leading out). Off by default, so a scene
+    /// from elsewhere cannot make quiver read the machine's other files.
+    #[arg(long, global = true)]
+    outside_files: bool,
     /// The most memory the run may use, e.g. 8G or 512M (default: the memory available when
     /// it starts). Work estimated to need more is refused before it starts, with the estimate.
-    #[arg(long, global = true, value_parser = budget::parse_size)]
+    #[arg(long, global = true, value_parser = budget::parse_size, allow_hyphen_values = true)]
     max_memory: Option<u64>,
 }
 
@@ -63,14 +68,16 @@ enum Command {
 }
 
 fn main() -> ExitCode {
+    output::guard_std_fds();
     interrupt::install();
+    if let Err(e) = utf8_arguments() {
+        return fail(&e);
+    }
     let cli = match Cli::try_parse() {
         Ok(cli) => cli,
         Err(e) => return clap_exit(&e),
     };
-    if cli.drop_non_finite {
-        commands::drop_non_finite();
-    }
+    commands::load_options(cli.drop_non_finite, cli.outside_files);
     // A misspelt QUIVER_ISA would otherwise be ignored and the run measured on other kernels
     // than the user asked for.
     if let Err(e) = quiver_rt::Isa::from_env() {
@@ -95,6 +102,27 @@ fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => fail(&e.to_string()),
     }
+}
+
+/// Refuses an argument that is not UTF-8 (clap's own message names no argument), naming it
+/// and the flag before it: scene names, paths and values are read as UTF-8.
+fn utf8_arguments() -> Result<(), String> {
+    let args: Vec<std::ffi::OsString> = std::env::args_os().collect();
+    for (i, a) in args.iter().enumerate().skip(1) {
+        if a.to_str().is_none() {
+            let after = args[..i]
+                .iter()
+                .rev()
+                .find_map(|p| p.to_str().filter(|p| p.starts_with('-')))
+                .map_or(String::new(), |flag| format!(" (after {flag})"));
+            return Err(format!(
+                "argument {i}{after}, '{}', is not valid UTF-8: quiver reads scene names, \
+                 paths and values as UTF-8 (rename the file)",
+                a.to_string_lossy()
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// Prints `error: message` and returns exit code 2. `eprintln!` would panic on a failed

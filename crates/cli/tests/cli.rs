@@ -1571,6 +1571,91 @@ fn memory_estimates_bound_what_runs_take() {
             "{line}: peak {peak} bytes, estimate {estimate}"
         );
     }
+    // Compressed and amplifying inputs (issue 49): a 1M-face `.ply.gz` of a few KB, a PLY of
+    // one face of 2M corners, a glTF placing one 4,000-triangle mesh by 250 nodes. Each runs
+    // whole without a limit; under half its peak it is refused (exit 2, naming the file)
+    // without ever holding more than the limit. The files' sizes say nothing of what they
+    // make: each reader checks the sizes it is about to allocate.
+    amplifying_inputs(d);
+    for (file, line) in [
+        ("faces.ply.gz", "build faces.ply.gz --threads 1"),
+        ("corners.ply", "build corners.ply --threads 1"),
+        ("placed.gltf", "build placed.gltf --threads 1"),
+    ] {
+        let args: Vec<&str> = line.split(' ').collect();
+        let (code, _, err, peak) = run_measured(&args, d);
+        assert_eq!(code, Some(0), "{line}: {err}");
+        let limit = peak / 2;
+        let mut limited = args.clone();
+        let limit_arg = limit.to_string();
+        limited.extend(["--max-memory", &limit_arg]);
+        let (code, _, err, refused_peak) = run_measured(&limited, d);
+        assert_eq!(code, Some(2), "{line} at {limit}: {err}");
+        assert!(err.contains(file), "{err}");
+        assert!(
+            refused_peak <= limit,
+            "{line}: refused at a peak of {refused_peak} bytes, over the limit {limit}: {err}"
+        );
+    }
+}
+
+/// The files of the amplifying cases of `memory_estimates_bound_what_runs_take`, in `d`.
+fn amplifying_inputs(d: &Path) {
+    let head = |faces: usize, list: &str| {
+        format!(
+            "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\n\
+             property float y\nproperty float z\nelement face {faces}\n\
+             property list {list} vertex_indices\nend_header\n"
+        )
+        .into_bytes()
+    };
+    let tri: Vec<u8> = [0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0]
+        .iter()
+        .flat_map(|c| c.to_le_bytes())
+        .collect();
+    // A million copies of one triangle, gzipped.
+    let mut faces = head(1_000_000, "uchar uchar");
+    faces.extend_from_slice(&tri);
+    for _ in 0..1_000_000 {
+        faces.extend_from_slice(&[3, 0, 1, 2]);
+    }
+    std::fs::write(d.join("faces.ply"), faces).unwrap();
+    let gz = std::process::Command::new("gzip")
+        .args(["-9", "-f", "faces.ply"])
+        .current_dir(d)
+        .status()
+        .unwrap();
+    assert!(gz.success());
+    assert!(std::fs::metadata(d.join("faces.ply.gz")).unwrap().len() < 100_000);
+    // One face of two million corners: 2 MB of file, two million triangles.
+    let mut corners = head(1, "uint uchar");
+    corners.extend_from_slice(&tri);
+    corners.extend_from_slice(&2_000_000u32.to_le_bytes());
+    corners.extend((0..2_000_000).map(|i| (i % 3) as u8));
+    std::fs::write(d.join("corners.ply"), corners).unwrap();
+    // A 4,000-triangle strip placed by 250 nodes: a million triangles from 48 KB of data.
+    let n = 4_002;
+    let pos: Vec<u8> = (0..n)
+        .flat_map(|i| [(i / 2) as f32, (i % 2) as f32, 0.0])
+        .flat_map(|c| c.to_le_bytes())
+        .collect();
+    std::fs::write(d.join("strip.bin"), &pos).unwrap();
+    let nodes: Vec<String> = (0..250)
+        .map(|i| format!(r#"{{"mesh": 0, "translation": [0, 0, {i}]}}"#))
+        .collect();
+    std::fs::write(
+        d.join("placed.gltf"),
+        format!(
+            r#"{{"asset": {{"version": "2.0"}}, "buffers": [{{"byteLength": {len}, "uri": "strip.bin"}}],
+            "bufferViews": [{{"buffer": 0, "byteLength": {len}}}],
+            "accessors": [{{"bufferView": 0, "componentType": 5126, "count": {n}, "type": "VEC3"}}],
+            "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0}}, "mode": 5}}]}}],
+            "nodes": [{}]}}"#,
+            nodes.join(", "),
+            len = pos.len()
+        ),
+    )
+    .unwrap();
 }
 
 /// `gen --patches` streams: balls6's 114.8 million patches start arriving while the process
@@ -1668,4 +1753,270 @@ fn a_file_past_its_share_of_memory_stops_at_the_line() {
     assert!(peak < 96 << 20, "{peak} bytes");
     // With room for them, the same file loads.
     run("build fan.obj").current_dir(d).assert().success();
+}
+
+// ---------------------------------------------------------------------------------------
+// Issue 49.
+
+/// `render`'s eye rays that hit, from its JSON report.
+fn eye_hits(dir: &Path, args: &str) -> u64 {
+    let json = dir.join("hits.json");
+    run(&format!(
+        "render {args} --threads 1 -o /dev/null --json {}",
+        json.display()
+    ))
+    .current_dir(dir)
+    .assert()
+    .success();
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    r["rays"]["eye_hit"].as_u64().unwrap()
+}
+
+/// Item 1: a binary PLY element without properties claims instances of zero bytes; a count of
+/// 10^12 ran for an hour and 2^64 - 1 never ended. Now nothing is looped over.
+#[test]
+fn a_property_less_ply_element_loads_at_once() {
+    let dir = tempfile::tempdir().unwrap();
+    for count in ["1000000000000", "18446744073709551615"] {
+        let file = dir.path().join("z.ply");
+        std::fs::write(
+            &file,
+            format!("ply\nformat binary_little_endian 1.0\nelement nothing {count}\nend_header\n"),
+        )
+        .unwrap();
+        quiver()
+            .args(["build", file.to_str().unwrap()])
+            .timeout(std::time::Duration::from_secs(60))
+            .assert()
+            .success()
+            .stdout(predicate::str::contains("objects              0"));
+    }
+}
+
+/// Item 6: a sphere of radius 1e13 traced as an instance (`--instanced`) was accepted with a
+/// zero inverse (glam's f32 determinant overflows) and never hit; it must hit what the same
+/// scene flattened into patches hits (`--patches`, the flattened oracle).
+#[test]
+fn a_huge_instanced_sphere_is_hit_as_its_patches_are() {
+    let dir = tempfile::tempdir().unwrap();
+    for (r, eye) in [("1e13", "3e13"), ("1e-13", "3e-13"), ("1e30", "3e30")] {
+        std::fs::write(
+            dir.path().join("big.nff"),
+            format!(
+                "v\nfrom 0.1 0.2 {eye}\nat 0 0 0\nup 0 1 0\nangle 45\nhither 0\nresolution 64 64\n\
+                 f 1 1 1 1 0 0 0 1\ns 0 0 0 {r}\n"
+            ),
+        )
+        .unwrap();
+        let patches = eye_hits(dir.path(), "big.nff --res 64 --patches");
+        let instanced = eye_hits(dir.path(), "big.nff --res 64 --instanced");
+        assert!(patches > 1000, "radius {r}: {patches}");
+        // The same triangles, met in object space instead of world space: only rays that
+        // graze an edge may differ (f32 rounds them either way; before, all 0 hit).
+        assert!(
+            instanced.abs_diff(patches) <= patches / 200,
+            "radius {r}: {instanced} against {patches}"
+        );
+    }
+}
+
+/// Item 12: a flat analytic cone (radius 1e6 to 0 over a height of 2, seen from just above)
+/// lost 29% of its eye hits in curve mode to the cancellation of its discriminant; now every
+/// eye ray hits it, as its geometry says, and as its patches nearly all do.
+#[test]
+fn a_flat_cone_hits_in_curve_mode_what_its_patches_hit() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("flat.nff"),
+        "v\nfrom 0 10 0.001\nat 0 0 0\nup 0 0 1\nangle 90\nhither 0.001\nresolution 64 64\n\
+         f 1 1 1 1 0 0 0 1\nc 0 -1 0 1e6 0 1 0 0\n",
+    )
+    .unwrap();
+    // The view (a square of half-width 10 at the cone's height) lies far inside its radius of
+    // 1e6: by its geometry, every eye ray meets the cone.
+    let every = 65 * 65;
+    let curves = eye_hits(dir.path(), "flat.nff --res 64");
+    assert_eq!(curves, every);
+    // The tessellation agrees but for a few rays through the seams at its apex.
+    let patches = eye_hits(dir.path(), "flat.nff --res 64 --patches");
+    assert!(patches + 16 >= every, "{patches}");
+}
+
+/// Item 8: `--drop-non-finite` on a PLY quad with a NaN corner drops its two triangles and
+/// says 2 (it said 1).
+#[test]
+fn a_dropped_ply_quad_is_reported_as_two_primitives() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("q.ply");
+    std::fs::write(
+        &file,
+        "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n\
+         property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n\
+         0 0 0\n1 0 0\n1 nan 0\n0 1 0\n4 0 1 2 3\n",
+    )
+    .unwrap();
+    quiver()
+        .args(["build", file.to_str().unwrap(), "--drop-non-finite"])
+        .assert()
+        .success()
+        .stderr(predicate::str::contains("dropped 2 primitives"));
+}
+
+/// Item 9: `build` of an OBJ smaller than ~7e-38 failed in the refit timing (its nudged copy
+/// overflowed to NaN); it builds, as `render` of it did.
+#[test]
+fn a_tiny_obj_builds() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("tiny.obj");
+    std::fs::write(
+        &file,
+        "v 0 0 0\nv 1e-38 0 0\nv 0 1e-38 0\nv 3e-39 3e-39 1e-38\nf 1 2 3\nf 1 2 4\n",
+    )
+    .unwrap();
+    quiver()
+        .args(["build", file.to_str().unwrap()])
+        .assert()
+        .success()
+        .stdout(predicate::str::contains("objects              2"));
+}
+
+/// Item 11: output names of 236 to 255 bytes failed because the temporary
+/// `.NAME.quiver-PID-K.tmp` passed 255 bytes; they are written, and no temporary remains.
+#[test]
+fn output_names_up_to_255_bytes_are_written() {
+    let dir = tempfile::tempdir().unwrap();
+    for len in [230, 236, 245, 251, 255] {
+        let name = format!("{}.json", "n".repeat(len - 5));
+        run(&format!("build tetra1 --json {name}"))
+            .current_dir(dir.path())
+            .assert()
+            .success();
+        assert!(dir.path().join(&name).is_file(), "{len}");
+    }
+    let names = names(dir.path());
+    assert_eq!(names.len(), 5, "{names:?}");
+}
+
+/// Item 11: with stdout closed (`>&-`) the table cannot be written: exit 2 and a message, not
+/// exit 0 with the table lost.
+#[test]
+fn a_closed_stdout_is_an_error() {
+    let out = std::process::Command::new("sh")
+        .args(["-c", &format!("'{QUIVER}' build tetra1 >&-")])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("error: cannot write to stdout"), "{err}");
+}
+
+/// Item 11: a UTF-8 byte order mark at the start of an OBJ, NFF or PLY file is skipped.
+#[test]
+fn scene_files_may_start_with_a_byte_order_mark() {
+    let dir = tempfile::tempdir().unwrap();
+    let files = [
+        ("b.obj", TRIANGLE_OBJ.to_string()),
+        (
+            "b.nff",
+            "f 1 1 1 1 0 0 0 1\np 3\n0 0 0\n1 0 0\n0 1 0\n".to_string(),
+        ),
+        (
+            "b.ply",
+            "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n\
+             property float z\nelement face 1\nproperty list uchar int vertex_indices\n\
+             end_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n"
+                .to_string(),
+        ),
+    ];
+    for (name, text) in files {
+        std::fs::write(dir.path().join(name), format!("\u{feff}{text}")).unwrap();
+        run(&format!("build {name}"))
+            .current_dir(dir.path())
+            .assert()
+            .success()
+            .stdout(predicate::str::contains("objects              1"));
+    }
+}
+
+/// Item 13: `--max-memory` errors say what was wrong with the value, and name the flag.
+#[test]
+fn max_memory_values_are_explained() {
+    for (value, says) in [
+        ("99999999T", "more than the 16 EiB"),
+        ("-1", "is negative"),
+        ("0", "less than 1 byte"),
+    ] {
+        quiver()
+            .args(["build", "tetra1", "--max-memory", value])
+            .assert()
+            .code(2)
+            .stderr(predicate::str::contains("--max-memory").and(predicate::str::contains(says)));
+    }
+    // A limit of 1 byte is shown as such, not as "1 KiB".
+    quiver()
+        .args(["build", "tetra1", "--max-memory", "1"])
+        .assert()
+        .code(2)
+        .stderr(predicate::str::contains(
+            "more than the 1 byte this run may use",
+        ));
+}
+
+/// Item 13: a scene path that is not UTF-8 is refused naming the argument.
+#[test]
+fn a_non_utf8_argument_is_named() {
+    use std::os::unix::ffi::OsStrExt as _;
+    let bad = std::ffi::OsStr::from_bytes(b"sc\xffne.obj");
+    quiver().arg("build").arg(bad).assert().code(2).stderr(
+        predicate::str::contains("argument 2").and(predicate::str::contains("not valid UTF-8")),
+    );
+}
+
+/// Item 3: a glTF buffer URI leading out of the glTF's folder (`../`, percent-encoded `/`) is
+/// refused naming the URI, and nothing of the file outside is printed; `--outside-files`
+/// allows it.
+#[test]
+fn gltf_buffers_outside_the_folder_are_refused_unless_allowed() {
+    let root = tempfile::tempdir().unwrap();
+    let inside = root.path().join("in");
+    std::fs::create_dir(&inside).unwrap();
+    let tri: Vec<u8> = [0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0]
+        .iter()
+        .flat_map(|c| c.to_le_bytes())
+        .collect();
+    std::fs::write(root.path().join("secret.bin"), &tri).unwrap();
+    let abs = root
+        .path()
+        .join("secret.bin")
+        .to_str()
+        .unwrap()
+        .replace('/', "%2F");
+    for uri in ["../secret.bin", abs.as_str()] {
+        std::fs::write(
+            inside.join("t.gltf"),
+            format!(
+                r#"{{"asset": {{"version": "2.0"}}, "buffers": [{{"byteLength": 36, "uri": "{uri}"}}],
+                "bufferViews": [{{"buffer": 0, "byteLength": 36}}],
+                "accessors": [{{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3"}}],
+                "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0}}}}]}}], "nodes": [{{"mesh": 0}}]}}"#
+            ),
+        )
+        .unwrap();
+        quiver()
+            .args(["gen", "t.gltf"])
+            .current_dir(&inside)
+            .assert()
+            .code(2)
+            .stdout("")
+            .stderr(
+                predicate::str::contains(format!("buffers[0].uri: '{uri}'"))
+                    .and(predicate::str::contains("--outside-files")),
+            );
+        quiver()
+            .args(["gen", "t.gltf", "--outside-files"])
+            .current_dir(&inside)
+            .assert()
+            .success();
+    }
 }

@@ -480,7 +480,8 @@ pub fn obj_load(data: &[u8]) {
 }
 
 /// A PLY file with the bytes as content (`.ply.gz` when they start with gzip's magic, so the
-/// inflating path is fuzzed too): see [`mesh_load`].
+/// inflating path is fuzzed too): see [`mesh_load`]. A first byte of 0xFF (no PLY, gzip or
+/// glTF file starts so) selects the structure-aware mode instead ([`ply_structured`]).
 ///
 /// ```
 /// quiver_lab::checks::ply_load(b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n\
@@ -488,6 +489,9 @@ pub fn obj_load(data: &[u8]) {
 ///     end_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
 /// ```
 pub fn ply_load(data: &[u8]) {
+    if let Some((0xFF, rest)) = data.split_first() {
+        return ply_structured_load(rest);
+    }
     mesh_load(
         data,
         if data.starts_with(&[0x1f, 0x8b]) {
@@ -499,12 +503,16 @@ pub fn ply_load(data: &[u8]) {
 }
 
 /// A glTF file with the bytes as content (`.glb` when they start with `glTF`, else `.gltf`):
-/// see [`mesh_load`].
+/// see [`mesh_load`]. A first byte of 0xFF selects the structure-aware mode instead
+/// ([`gltf_structured`]).
 ///
 /// ```
 /// quiver_lab::checks::gltf_load(br#"{"asset": {"version": "2.0"}}"#);
 /// ```
 pub fn gltf_load(data: &[u8]) {
+    if let Some((0xFF, rest)) = data.split_first() {
+        return gltf_structured_load(rest);
+    }
     mesh_load(
         data,
         if data.starts_with(b"glTF") {
@@ -1047,4 +1055,396 @@ fn same_as_reference<P: Primitive>(
             "{what}: {r:?}: any-hit {any}, reference {want:?}"
         );
     }
+}
+
+/// A count for a structured file: usually small, sometimes one of the values that break
+/// size arithmetic (0, 2^32 and around, 2^63, 2^64 - 1, 10^12).
+fn hostile_count(b: &mut ByteReader<'_>) -> u64 {
+    match b.u8() {
+        x if x >= 240 => [
+            0,
+            1 << 32,
+            (1 << 32) - 1,
+            (1 << 32) + 1,
+            1 << 63,
+            u64::MAX,
+            1_000_000_000_000,
+            u32::MAX as u64 / 3,
+        ][x as usize % 8],
+        x => x as u64 % 12,
+    }
+}
+
+/// Structure-aware PLY mode ([`ply_load`] with a first byte of 0xFF): the bytes choose a
+/// valid header (ASCII or either binary order; vertex, face and other elements of hostile
+/// counts; scalar and list properties of every type, empty lists and property-less
+/// elements included), then a body of instances whose list counts and values come from the
+/// bytes, then any leftover bytes. Loaded as [`mesh_load`] does and under small memory and
+/// primitive limits, which must refuse with the budget error or stay within them.
+pub fn ply_structured(data: &[u8]) -> Vec<u8> {
+    const TYPES: [&str; 8] = [
+        "char", "uchar", "short", "ushort", "int", "uint", "float", "double",
+    ];
+    const SIZES: [usize; 8] = [1, 1, 2, 2, 4, 4, 4, 8];
+    let mut b = ByteReader(data);
+    let format = b.u8() % 3;
+    let mut head = format!(
+        "ply\nformat {} 1.0\n",
+        ["ascii", "binary_little_endian", "binary_big_endian"][format as usize]
+    );
+    // Each element: name, count, properties as (name, count type or none, item type).
+    let mut elements: Vec<(String, u64, Vec<(String, Option<usize>, usize)>)> = Vec::new();
+    for e in 0..1 + b.u8() % 4 {
+        let kind = b.u8() % 4;
+        let name = ["vertex", "face", "edge", "nothing"][kind as usize].to_string();
+        if elements.iter().any(|x| x.0 == name) {
+            continue;
+        }
+        let count = hostile_count(&mut b);
+        let mut props = Vec::new();
+        match kind {
+            0 => {
+                for axis in ["x", "y", "z"] {
+                    props.push((axis.to_string(), None, 6 + b.u8() as usize % 2));
+                }
+            }
+            1 => props.push((
+                "vertex_indices".to_string(),
+                Some(b.u8() as usize % 6),
+                b.u8() as usize % 6,
+            )),
+            _ => {}
+        }
+        for k in 0..b.u8() % 3 {
+            let list = (b.u8() % 2 == 0).then(|| b.u8() as usize % 6);
+            props.push((format!("p{e}{k}"), list, b.u8() as usize % 8));
+        }
+        elements.push((name, count, props));
+    }
+    for (name, count, props) in &elements {
+        head += &format!("element {name} {count}\n");
+        for (p, list, ty) in props {
+            match list {
+                Some(c) => head += &format!("property list {} {} {p}\n", TYPES[*c], TYPES[*ty]),
+                None => head += &format!("property {} {p}\n", TYPES[*ty]),
+            }
+        }
+    }
+    head += "end_header\n";
+    let mut out = head.into_bytes();
+    let big = format == 2;
+    let value = |out: &mut Vec<u8>, ty: usize, v: i64| {
+        if format == 0 {
+            out.extend_from_slice(format!("{v} ").as_bytes());
+            return;
+        }
+        let mut bytes = match ty {
+            6 => (v as f32).to_le_bytes().to_vec(),
+            7 => (v as f64).to_le_bytes().to_vec(),
+            _ => v.to_le_bytes()[..SIZES[ty]].to_vec(),
+        };
+        if big {
+            bytes.reverse();
+        }
+        out.extend_from_slice(&bytes);
+    };
+    for (name, count, props) in &elements {
+        for _ in 0..(*count).min(24) {
+            for (_, list, ty) in props {
+                if let Some(c) = list {
+                    // Mostly a few items (none included), sometimes a count past the file.
+                    let n = match b.u8() {
+                        x if x >= 250 => 1_000_000 + x as i64,
+                        x => x as i64 % 6,
+                    };
+                    value(&mut out, *c, n);
+                    for _ in 0..n.min(8) {
+                        let v = if name == "face" {
+                            b.u8() as i64 % 10
+                        } else {
+                            b.u8() as i64
+                        };
+                        value(&mut out, *ty, v);
+                    }
+                } else {
+                    value(&mut out, *ty, b.u8() as i8 as i64);
+                }
+            }
+            if format == 0 {
+                out.push(b'\n');
+            }
+        }
+    }
+    out.extend_from_slice(b.0);
+    out
+}
+
+/// Loads `bytes` (a structured file written as `ext`) under limits from `limit` (a byte):
+/// a refusal must be the budget's error naming the limit, and a load must stay within them.
+fn within_limits(bytes: &[u8], ext: &str, limit: u8) {
+    use quiver_scenes::scene::{LoadOptions, Scene, SceneError};
+    let dir = std::env::temp_dir().join(format!(
+        "quiver-fuzz-limits-{}-{}",
+        std::process::id(),
+        limit
+    ));
+    let path = dir.join(format!("input.{ext}"));
+    if std::fs::create_dir_all(&dir).is_err() || std::fs::write(&path, bytes).is_err() {
+        return;
+    }
+    let max_prims = (limit % 16) as u64;
+    let max_bytes = 64u64 << (limit / 16);
+    let opts = LoadOptions::default()
+        .max_primitives(max_prims)
+        .max_bytes(max_bytes);
+    let loaded = Scene::load_with(path.to_str().unwrap_or_default(), &opts);
+    let _ = std::fs::remove_dir_all(&dir);
+    match loaded {
+        Ok((scene, _)) => assert!(
+            scene.objects.len() as u64 <= max_prims,
+            "{} objects under max_primitives {max_prims}",
+            scene.objects.len()
+        ),
+        Err(SceneError::OverBudget { needs, limit, .. }) => {
+            assert!(
+                needs > limit,
+                "refused at {needs}, within the limit {limit}"
+            )
+        }
+        Err(_) => {}
+    }
+}
+
+/// What [`ply_load`] runs on a first byte of 0xFF: [`ply_structured`]'s file, loaded as
+/// [`mesh_load`] does and under limits.
+fn ply_structured_load(data: &[u8]) {
+    let file = ply_structured(data);
+    mesh_load(&file, "ply");
+    within_limits(&file, "ply", data.first().copied().unwrap_or(0));
+}
+
+/// Standard base64 of `bytes`, for structured glTF data URIs.
+fn base64(bytes: &[u8]) -> String {
+    const A: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut out = String::new();
+    for c in bytes.chunks(3) {
+        let n = c
+            .iter()
+            .enumerate()
+            .fold(0u32, |n, (i, &b)| n | (b as u32) << (16 - 8 * i));
+        for k in 0..=c.len() {
+            out.push(A[(n >> (18 - 6 * k)) as usize & 63] as char);
+        }
+    }
+    while out.len() % 4 != 0 {
+        out.push('=');
+    }
+    out
+}
+
+/// The coordinate every float of the file outside the glTF's folder holds: far beyond what
+/// [`gltf_structured`]'s own data and transforms can reach, so a vertex near it was read from
+/// outside.
+const OUTSIDE: f32 = 1e20;
+
+/// Structure-aware glTF mode ([`gltf_load`] with a first byte of 0xFF): the bytes choose a
+/// glTF of buffers (base64 data, the `x.bin` beside it, or URIs that try to leave the folder:
+/// `..`, percent-encoded `..` and `/`, absolute paths, a symbolic link out, schemes), buffer
+/// views and accessors of hostile offsets, strides and counts (0 included), meshes of every
+/// primitive mode, nodes whose children may form cycles or repeat, matrices (some not
+/// affine) or translation/rotation/scale, with or without a `scene`. Floats in the data are
+/// small (within ±16) and transforms scale by at most 2 a level, so a vertex near
+/// [`OUTSIDE`] proves a read outside the folder. Returns the JSON text and `x.bin`'s bytes.
+pub fn gltf_structured(data: &[u8]) -> (String, Vec<u8>) {
+    let mut b = ByteReader(data);
+    let tame = |b: &mut ByteReader<'_>| b.u8() as i8 as f32 / 8.0;
+    let mut bin = Vec::new();
+    for _ in 0..b.u8() % 64 {
+        bin.extend_from_slice(&tame(&mut b).to_le_bytes());
+    }
+    let json_count = |b: &mut ByteReader<'_>| {
+        let c = hostile_count(b);
+        // JSON numbers past 2^53 still parse as u64 in serde_json.
+        c.to_string()
+    };
+    let uris = [
+        "x.bin",
+        "./x.bin",
+        "sub/../x.bin",
+        "../outside.bin",
+        "%2e%2e/outside.bin",
+        "..%2Foutside.bin",
+        "sub/..%5C..%5Coutside.bin",
+        "link.bin",
+        "%2Ftmp%2Foutside.bin",
+        "file:///etc/passwd",
+        "x.bin%00",
+        "",
+        "sub",
+        "%zz",
+    ];
+    let mut buffers = Vec::new();
+    for _ in 0..1 + b.u8() % 3 {
+        let len = match b.u8() % 4 {
+            0 => bin.len().to_string(),
+            1 => json_count(&mut b),
+            _ => (b.u8() as usize % (bin.len() + 1)).to_string(),
+        };
+        let uri = match b.u8() % 3 {
+            0 => {
+                let n = b.u8() as usize % 16;
+                let mut raw = Vec::new();
+                for _ in 0..n {
+                    raw.extend_from_slice(&tame(&mut b).to_le_bytes());
+                }
+                format!("data:application/octet-stream;base64,{}", base64(&raw))
+            }
+            _ => uris[b.u8() as usize % uris.len()].to_string(),
+        };
+        buffers.push(format!(r#"{{"byteLength": {len}, "uri": "{uri}"}}"#));
+    }
+    let mut views = Vec::new();
+    for _ in 0..1 + b.u8() % 3 {
+        let stride = match b.u8() % 4 {
+            0 => format!(r#", "byteStride": {}"#, 4 * (b.u8() % 70)),
+            _ => String::new(),
+        };
+        views.push(format!(
+            r#"{{"buffer": {}, "byteOffset": {}, "byteLength": {}{stride}}}"#,
+            b.u8() % 4,
+            b.u8() % 16,
+            json_count(&mut b)
+        ));
+    }
+    let mut accessors = Vec::new();
+    for _ in 0..1 + b.u8() % 4 {
+        let (ty, comp) = match b.u8() % 4 {
+            0 | 1 => ("VEC3", 5126),
+            2 => ("SCALAR", [5121, 5123, 5125][b.u8() as usize % 3]),
+            _ => (
+                ["VEC2", "VEC4", "MAT4", "SCALAR"][b.u8() as usize % 4],
+                5120 + b.u8() as u32 % 8,
+            ),
+        };
+        accessors.push(format!(
+            r#"{{"bufferView": {}, "byteOffset": {}, "componentType": {comp}, "count": {}, "type": "{ty}"}}"#,
+            b.u8() % 4,
+            b.u8() % 40,
+            json_count(&mut b)
+        ));
+    }
+    let mut meshes = Vec::new();
+    for _ in 0..1 + b.u8() % 2 {
+        let mut prims = Vec::new();
+        for _ in 0..1 + b.u8() % 3 {
+            let indices = match b.u8() % 3 {
+                0 => format!(r#", "indices": {}"#, b.u8() % 5),
+                _ => String::new(),
+            };
+            prims.push(format!(
+                r#"{{"attributes": {{"POSITION": {}}}, "mode": {}{indices}}}"#,
+                b.u8() % 5,
+                [4, 4, 5, 6, 0, 1, 7][b.u8() as usize % 7]
+            ));
+        }
+        meshes.push(format!(r#"{{"primitives": [{}]}}"#, prims.join(", ")));
+    }
+    let node_count = 1 + b.u8() as usize % 6;
+    let mut nodes = Vec::new();
+    for _ in 0..node_count {
+        let mut fields = Vec::new();
+        if b.u8() % 4 != 0 {
+            fields.push(format!(r#""mesh": {}"#, b.u8() % 3));
+        }
+        let children: Vec<String> = (0..b.u8() % 3)
+            .map(|_| (b.u8() as usize % (node_count + 1)).to_string())
+            .collect();
+        if !children.is_empty() {
+            fields.push(format!(r#""children": [{}]"#, children.join(", ")));
+        }
+        match b.u8() % 5 {
+            0 => {
+                // A matrix of scale at most 2, sometimes with a bottom row that is not affine.
+                let mut m: Vec<String> = (0..16)
+                    .map(|k| match k {
+                        3 | 7 | 11 => "0".to_string(),
+                        15 => "1".to_string(),
+                        _ => ((b.u8() % 5) as f32 / 4.0 - 0.5).to_string(),
+                    })
+                    .collect();
+                if b.u8() % 4 == 0 {
+                    m[3 + 4 * (b.u8() as usize % 4)] = "0.5".into();
+                }
+                fields.push(format!(r#""matrix": [{}]"#, m.join(", ")));
+            }
+            1 => fields.push(format!(
+                r#""translation": [{}, {}, {}], "scale": [{}, 1, -1]"#,
+                tame(&mut b),
+                tame(&mut b),
+                tame(&mut b),
+                [0.5, 2.0, 0.0, 1.0][b.u8() as usize % 4]
+            )),
+            2 => fields.push(r#""rotation": [0, 0.7071068, 0, 0.7071068]"#.into()),
+            _ => {}
+        }
+        nodes.push(format!("{{{}}}", fields.join(", ")));
+    }
+    let scene = match b.u8() % 3 {
+        0 => String::new(),
+        1 => r#""scene": 0, "scenes": [{"nodes": [0]}], "#.into(),
+        _ => r#""scenes": [{"nodes": [0, 1]}], "#.into(),
+    };
+    let json = format!(
+        r#"{{"asset": {{"version": "2.0"}}, {scene}"buffers": [{}], "bufferViews": [{}], "accessors": [{}], "meshes": [{}], "nodes": [{}]}}"#,
+        buffers.join(", "),
+        views.join(", "),
+        accessors.join(", "),
+        meshes.join(", "),
+        nodes.join(", ")
+    );
+    (json, bin)
+}
+
+/// What [`gltf_load`] runs on a first byte of 0xFF: [`gltf_structured`]'s file in a folder
+/// of its own with its `x.bin`, a `sub` folder, a file of [`OUTSIDE`] floats beside the
+/// folder and at `/tmp/outside.bin`, and a symbolic link to it inside: loaded as
+/// [`mesh_load`] does and under limits, and no load may hold a vertex read from outside.
+fn gltf_structured_load(data: &[u8]) {
+    use quiver_scenes::scene::Scene;
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    static N: AtomicUsize = AtomicUsize::new(0);
+    let (json, bin) = gltf_structured(data);
+    let root = std::env::temp_dir().join(format!(
+        "quiver-fuzz-gltf-{}-{}",
+        std::process::id(),
+        N.fetch_add(1, Ordering::Relaxed)
+    ));
+    let dir = root.join("in");
+    let outside: Vec<u8> = (0..256).flat_map(|_| OUTSIDE.to_le_bytes()).collect();
+    let ready = std::fs::create_dir_all(dir.join("sub")).is_ok()
+        && std::fs::write(dir.join("x.bin"), &bin).is_ok()
+        && std::fs::write(root.join("outside.bin"), &outside).is_ok()
+        && std::fs::write("/tmp/outside.bin", &outside).is_ok()
+        && std::os::unix::fs::symlink(root.join("outside.bin"), dir.join("link.bin")).is_ok()
+        && std::fs::write(dir.join("input.gltf"), &json).is_ok();
+    if ready {
+        let spec = dir.join("input.gltf");
+        let spec = spec.to_str().unwrap_or_default();
+        let lax = quiver_scenes::scene::LoadOptions::default()
+            .non_finite(quiver_scenes::scene::NonFinite::Drop);
+        for loaded in [Scene::load(spec), Scene::load_with(spec, &lax).map(|l| l.0)] {
+            for t in loaded.iter().flat_map(|s| s.triangles()) {
+                for v in t.v {
+                    assert!(
+                        v.abs().max_element() < OUTSIDE / 1e6,
+                        "a vertex {v:?} read from outside the folder: {json}"
+                    );
+                }
+            }
+        }
+        within_limits(json.as_bytes(), "gltf", data.first().copied().unwrap_or(0));
+    }
+    let _ = std::fs::remove_dir_all(&root);
+    // The rest of mesh_load's checks (groups, strict against lax, the oracle), without x.bin.
+    mesh_load(json.as_bytes(), "gltf");
 }

@@ -96,7 +96,9 @@ impl Placements {
                         + m.z_axis.length_squared())
                     .sqrt()
                 };
-                (f(m) * f(m.inverse()) / 3.0) as f64
+                let inverse =
+                    quiver_rt::world::invert(&i.transform).map_or(m.inverse(), |inv| inv.matrix3);
+                (f(m) * f(inverse) / 3.0) as f64
             })
             .fold(1.0, f64::max);
         1.0 + 2.0 * cond

@@ -154,7 +154,10 @@ impl Instanced {
                 }),
                 _ => None,
             };
-            match shape {
+            // A map the walk cannot invert in f32 (a radius past 1e38 or below 1e-38, say)
+            // places nothing: the object is tessellated in world space instead, as patch mode
+            // draws it.
+            match shape.filter(|(_, m)| quiver_rt::world::invert(m).is_ok()) {
                 Some((k, m)) => placed.push((i as u32, k, m)),
                 None => {
                     let patched = match &o.shape {
@@ -285,7 +288,8 @@ impl Instanced {
         if inst.transform == Affine3A::IDENTITY {
             return local;
         }
-        let inverse_t = inst.transform.matrix3.inverse().transpose();
+        let to_object = quiver_rt::world::invert(&inst.transform).unwrap_or(Affine3A::IDENTITY);
+        let inverse_t = to_object.matrix3.transpose();
         (inverse_t * local).normalize_or_zero()
     }
 
@@ -293,7 +297,7 @@ impl Instanced {
     /// test Havran's ideal algorithm makes.
     pub fn intersect_one(&self, ray: &Ray, prim: u32) -> Option<PrimHit> {
         let (tri, _, inst) = self.triangle(prim);
-        let to_object = inst.transform.inverse();
+        let to_object = quiver_rt::world::invert(&inst.transform).unwrap_or(Affine3A::IDENTITY);
         let local = Ray {
             origin: to_object.transform_point3a(ray.origin),
             dir: to_object.transform_vector3a(ray.dir),

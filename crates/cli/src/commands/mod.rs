@@ -18,7 +18,7 @@ use quiver_rt::builders::{BuildTree, Builder};
 use quiver_rt::{BuildOptions, Bvh, Layout, ParseError, Triangle};
 use quiver_scenes::accel::SceneBvh;
 use quiver_scenes::scene::{
-    tessellate, Census, LoadOptions, NonFinite, Scene, SceneError, GENERATORS,
+    tessellate, Budgeted, Census, LoadOptions, NonFinite, Scene, SceneError, GENERATORS,
 };
 use std::sync::OnceLock;
 use std::time::Instant;
@@ -26,23 +26,57 @@ use std::time::Instant;
 /// How this run reads scene files (`--drop-non-finite`), set once by `main`.
 static LOAD: OnceLock<LoadOptions> = OnceLock::new();
 
-/// Makes every scene this run loads drop primitives and lights with non-finite numbers (and
-/// say so on stderr) instead of refusing the file.
-pub(crate) fn drop_non_finite() {
-    let _ = LOAD.set(LoadOptions::default().non_finite(NonFinite::Drop));
+/// Sets how this run reads scene files: `drop` makes every scene drop primitives and lights
+/// with non-finite numbers (and say so on stderr) instead of refusing the file; `outside`
+/// lets a file name files outside its folder (a glTF buffer URI). Called once by `main`.
+pub(crate) fn load_options(drop: bool, outside: bool) {
+    let non_finite = if drop {
+        NonFinite::Drop
+    } else {
+        NonFinite::Error
+    };
+    let _ = LOAD.set(
+        LoadOptions::default()
+            .non_finite(non_finite)
+            .outside_files(outside),
+    );
 }
 
 /// Loads a scene by name or path with the run's options, reading at most `max_primitives`
 /// primitives from a file; what `--drop-non-finite` dropped is reported on stderr as a
 /// warning.
-fn load_scene(name: &str, max_primitives: u64) -> Result<Scene> {
+fn load_scene(name: &str, max_primitives: u64, max_bytes: u64) -> Result<Scene> {
     let options = LOAD
         .get()
         .copied()
         .unwrap_or_default()
-        .max_primitives(max_primitives);
+        .max_primitives(max_primitives)
+        .max_bytes(max_bytes);
     let (scene, report) = match Scene::load_with(name, &options) {
         Ok(loaded) => loaded,
+        Err(SceneError::OverBudget {
+            path,
+            item,
+            needs,
+            unit,
+            ..
+        }) => {
+            let l = budget::limit();
+            let needs = match unit {
+                Budgeted::Primitives => format!("{} primitives", budget::count(needs)),
+                Budgeted::Bytes => {
+                    format!("about {} [{needs} bytes] to read", budget::human(needs))
+                }
+            };
+            return Err(format!(
+                "{}: {item}: needs {needs}, more than this command can hold within the {} \
+                 this run may use ({})",
+                path.display(),
+                budget::human(l.bytes),
+                l.source
+            )
+            .into());
+        }
         Err(SceneError::TooLarge { path, line, limit }) => {
             let l = budget::limit();
             return Err(format!(
@@ -70,9 +104,12 @@ fn load_scene(name: &str, max_primitives: u64) -> Result<Scene> {
 /// loaded (their lights and materials); it is checked twice:
 ///
 /// 1. before anything is made, on the generators' censuses (counted without generating) and
-///    the files' sizes (their text and what parsing it takes); what is left of the limit caps
-///    the primitives each file may hold, so an oversized file stops being read as soon as it
-///    passes its share;
+///    the files' sizes on disk (they are read whole); what is left of the limit caps the
+///    memory each file's reader may hold and the primitives it may make
+///    ([`LoadOptions::max_bytes`], [`LoadOptions::max_primitives`]), which every reader checks
+///    from the sizes it is about to allocate (inflated data, lists, placements), so an
+///    oversized or amplifying file is refused before the allocation that would pass the
+///    limit;
 /// 2. once loaded, on every scene's census: before patch mode, any build or any ray.
 ///
 /// Returns the scenes as loaded (curve mode).
@@ -82,21 +119,26 @@ pub(crate) fn load_within(
 ) -> Result<Vec<Scene>> {
     let mut known = Vec::new();
     let mut file_bytes = 0u64;
+    let mut files = false;
     for spec in specs {
         match Census::of_generator(spec)? {
             Some(c) => known.push(c),
-            // A file (or a name the loader will refuse): its text, and at most five times as
-            // much again while parsing (OBJ vertex, corner and face lists).
-            None => file_bytes += std::fs::metadata(spec).map_or(0, |m| m.len()),
+            // A file (or a name the loader will refuse): its bytes as read; what parsing
+            // takes beyond them its reader checks against what is left.
+            None => {
+                files = true;
+                file_bytes += std::fs::metadata(spec).map_or(0, |m| m.len());
+            }
         }
     }
     let mut before = estimate(&known, None);
-    before.add(
-        "scene files' text and parsing",
-        file_bytes.saturating_mul(6),
-    );
+    before.add("scene files' bytes", file_bytes);
     before.check()?;
-    let max_primitives = if file_bytes == 0 {
+    // What a reader may hold: the limit less the rest (its own file's bytes it counts itself).
+    let max_bytes = budget::limit()
+        .bytes
+        .saturating_sub(estimate(&known, None).total());
+    let max_primitives = if !files {
         u64::MAX
     } else {
         // The marginal cost of one more triangle-like primitive, from the command's own
@@ -115,7 +157,7 @@ pub(crate) fn load_within(
     };
     let scenes = specs
         .iter()
-        .map(|spec| load_scene(spec, max_primitives))
+        .map(|spec| load_scene(spec, max_primitives, max_bytes))
         .collect::<Result<Vec<_>>>()?;
     let censuses: Vec<Census> = scenes.iter().map(Census::of).collect();
     estimate(&censuses, Some(&scenes)).check()?;
@@ -251,9 +293,13 @@ pub(crate) fn nudged(tris: &[Triangle]) -> Vec<Triangle> {
     if !(size.is_finite() && size > 0.0) {
         return tris.to_vec();
     }
-    let k = std::f32::consts::TAU * 4.0 / size;
-    let f =
-        |p: Vec3A| p + 1e-3 * size * Vec3A::new((k * p.y).sin(), (k * p.z).sin(), (k * p.x).sin());
+    // The phase from the position within the box (0 to 1): `TAU * 4 / size` itself would
+    // overflow for a scene smaller than about 7e-38, and `p / size` for one far from 0.
+    let phase = |p: Vec3A| (p - b.min) / size * (std::f32::consts::TAU * 4.0);
+    let f = |p: Vec3A| {
+        let a = phase(p);
+        p + 1e-3 * size * Vec3A::new(a.y.sin(), a.z.sin(), a.x.sin())
+    };
     tris.iter()
         .map(|t| Triangle::new(f(t.v[0]), f(t.v[1]), f(t.v[2])))
         .collect()

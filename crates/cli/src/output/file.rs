@@ -7,13 +7,41 @@ use std::fs::File;
 use std::io::{self, BufWriter, Write};
 use std::path::{Path, PathBuf};
 
-/// The temporary name for `name` that [`TempFile::create`] makes: `.NAME.quiver-PID-K.tmp`.
-fn temp_name(name: &std::ffi::OsStr, pid: u32, k: u32) -> std::ffi::OsString {
-    let mut temp = std::ffi::OsString::from(".");
-    temp.push(name);
-    temp.push(format!(".quiver-{pid}-{k}.tmp"));
-    temp
+/// The most bytes a file name may have (Linux's `NAME_MAX`, most file systems' limit).
+const NAME_MAX: usize = 255;
+
+/// The longest `.quiver-PID-K.tmp` tail a temporary takes (both numbers at 10 digits).
+const TEMP_TAIL: usize = ".quiver-4294967295-4294967295.tmp".len();
+
+/// What a temporary for `name` starts with: `.NAME`, or for a name too long to take the
+/// tail within [`NAME_MAX`], `.` and as much of it as fits with `~` and a 16-digit hash of
+/// the whole name (FNV-1a, stable from run to run, so a later run sweeps it).
+fn temp_stem(name: &std::ffi::OsStr) -> Vec<u8> {
+    use std::os::unix::ffi::OsStrExt as _;
+    let bytes = name.as_bytes();
+    let mut stem = b".".to_vec();
+    if 1 + bytes.len() + TEMP_TAIL <= NAME_MAX {
+        stem.extend_from_slice(bytes);
+        return stem;
+    }
+    let hash = bytes.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &b| {
+        (h ^ b as u64).wrapping_mul(0x100_0000_01b3)
+    });
+    let tail = format!("~{hash:016x}");
+    stem.extend_from_slice(&bytes[..NAME_MAX - TEMP_TAIL - 1 - tail.len()]);
+    stem.extend_from_slice(tail.as_bytes());
+    stem
 }
+
+/// The temporary name for `name` that [`TempFile::create`] makes: `.NAME.quiver-PID-K.tmp`,
+/// within 255 bytes however long `name` is ([`temp_stem`]).
+fn temp_name(name: &std::ffi::OsStr, pid: u32, k: u32) -> std::ffi::OsString {
+    use std::os::unix::ffi::OsStringExt as _;
+    let mut temp = temp_stem(name);
+    temp.extend_from_slice(format!(".quiver-{pid}-{k}.tmp").as_bytes());
+    std::ffi::OsString::from_vec(temp)
+}
+
 
 /// Removes `dir`'s temporaries for `name` left by quiver runs that died without cleaning up
 /// (a SIGKILL, a power cut): regular files named as [`temp_name`] makes them whose process no
@@ -22,8 +50,7 @@ fn temp_name(name: &std::ffi::OsStr, pid: u32, k: u32) -> std::ffi::OsString {
 /// costs disk space, not correctness.
 pub(super) fn sweep_stale(dir: &Path, name: &std::ffi::OsStr) {
     use std::os::unix::ffi::OsStrExt as _;
-    let mut prefix = b".".to_vec();
-    prefix.extend_from_slice(name.as_bytes());
+    let mut prefix = temp_stem(name);
     prefix.extend_from_slice(b".quiver-");
     let Ok(entries) = std::fs::read_dir(dir) else {
         return;

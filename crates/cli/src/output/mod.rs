@@ -38,10 +38,61 @@ use std::sync::Mutex;
 /// too, and a closed pipe has no reader left.
 static STDOUT_ERROR: Mutex<Option<io::Error>> = Mutex::new(None);
 
+/// Set when the run started with stdout closed (`quiver ... >&-`).
+static STDOUT_CLOSED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// Whether stdout was closed when the process started, looked at before Rust's runtime
+/// puts `/dev/null` in a closed standard descriptor's place (it does so before `main`, which
+/// then cannot tell `>&-` from `>/dev/null`): the loader runs `.init_array` entries first.
+#[cfg(target_os = "linux")]
+#[used]
+#[link_section = ".init_array"]
+static STDOUT_AT_START: extern "C" fn() = {
+    extern "C" fn look() {
+        // SAFETY: F_GETFD only asks whether descriptor 1 is open; it reads and changes
+        // nothing, and needs nothing of Rust's runtime.
+        if unsafe { libc::fcntl(1, libc::F_GETFD) } == -1 {
+            STDOUT_CLOSED.store(true, std::sync::atomic::Ordering::Relaxed);
+        }
+    }
+    look
+};
+
+/// Called first by `main`: a closed stdout or stderr (`>&-`) gets `/dev/null` in its place,
+/// so that no file the run opens later takes descriptor 1 or 2 and receives the table or the
+/// messages; a closed stdout is remembered, and the first write to it fails the run (Rust's
+/// stdout would otherwise swallow the error, and the table would be lost with exit code 0).
+pub(crate) fn guard_std_fds() {
+    for fd in [1, 2] {
+        // SAFETY: F_GETFD only asks whether `fd` is open; it reads and changes nothing.
+        if unsafe { libc::fcntl(fd, libc::F_GETFD) } != -1 {
+            continue;
+        }
+        if fd == 1 {
+            STDOUT_CLOSED.store(true, std::sync::atomic::Ordering::Relaxed);
+        }
+        // SAFETY: the path is a NUL-terminated literal; open returns the lowest free
+        // descriptor, which is `fd` (every lower one is open: checked in order).
+        let null = unsafe { libc::open(c"/dev/null".as_ptr(), libc::O_RDWR) };
+        if null != -1 && null != fd {
+            // SAFETY: both descriptors are ours; dup2 makes `fd` a copy and `null` is closed.
+            unsafe {
+                libc::dup2(null, fd);
+                libc::close(null);
+            }
+        }
+    }
+}
+
 /// Writes formatted text to stdout, remembering the first failure for [`finish_stdout`].
 pub(crate) fn emit(args: std::fmt::Arguments) {
     // A poisoned lock only means another thread panicked while printing; the slot is intact.
     let mut error = STDOUT_ERROR.lock().unwrap_or_else(|e| e.into_inner());
+    if error.is_none() && STDOUT_CLOSED.load(std::sync::atomic::Ordering::Relaxed) {
+        *error = Some(io::Error::other(
+            "it was closed when the run started (file descriptor 1)",
+        ));
+    }
     if error.is_none() {
         if let Err(e) = io::stdout().write_fmt(args) {
             *error = Some(e);

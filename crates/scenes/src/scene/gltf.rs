@@ -42,11 +42,13 @@
 //! );
 //! ```
 
-use super::{Groups, LoadOptions, LoadReport, NonFinite, Scene, SceneError};
+use super::{Budget, Groups, LoadOptions, LoadReport, NonFinite, Scene, SceneError};
 use glam::{DMat4, DQuat, DVec3, Vec3A};
 use quiver_rt::geometry::Triangle;
 use serde_json::Value;
 use std::path::Path;
+use std::path::{Component, PathBuf};
+use std::rc::Rc;
 
 /// Parses a `.gltf` or `.glb` file's bytes strictly (see [`parse_with`]).
 pub fn parse(data: &[u8], path: impl AsRef<Path>) -> Result<Scene, SceneError> {
@@ -69,8 +71,11 @@ pub fn parse_with(
     opts: &LoadOptions,
 ) -> Result<(Scene, LoadReport), SceneError> {
     let path = path.as_ref();
+    let mut budget = Budget::new(path, opts);
+    budget.bytes(data.len() as u64, || "the file's bytes".into())?;
     let (json, bin) = if data.starts_with(b"glTF") {
         let (json, bin) = glb_chunks(data, path)?;
+        budget.bytes(json_bytes(json), || "the JSON chunk's parsed values".into())?;
         let root: Value = serde_json::from_slice(json).map_err(|e| {
             item(
                 path,
@@ -80,6 +85,8 @@ pub fn parse_with(
         })?;
         (root, bin)
     } else {
+        let data = data.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(data);
+        budget.bytes(json_bytes(data), || "the JSON's parsed values".into())?;
         let root: Value = serde_json::from_slice(data).map_err(|e| SceneError::Parse {
             path: path.into(),
             line: e.line(),
@@ -92,6 +99,8 @@ pub fn parse_with(
         root: &json,
         bin,
         buffers: Vec::new(),
+        files: Vec::new(),
+        budget,
         opts,
         report: LoadReport::default(),
         tris: Vec::new(),
@@ -115,6 +124,19 @@ pub fn parse_with(
     }
     let groups = groups.finish(tris.len());
     Ok((super::mesh_scene(path, tris, groups)?, report))
+}
+
+/// An upper bound of the memory serde_json takes for `text` parsed as a [`Value`] tree: the
+/// text itself (strings are copied), and for every value or object entry one can start (at
+/// most one per `,`, `:`, `[` and `{`, counted without parsing), a value twice over (arrays
+/// and maps grow by doubling) and a map entry's key, hash and index.
+fn json_bytes(text: &[u8]) -> u64 {
+    let starts = text
+        .iter()
+        .filter(|&&b| matches!(b, b',' | b':' | b'[' | b'{'))
+        .count() as u64;
+    let per = 2 * std::mem::size_of::<Value>() as u64 + 48;
+    text.len() as u64 + (starts + 1) * per
 }
 
 fn item(path: &Path, item: String, message: String) -> SceneError {
@@ -209,7 +231,12 @@ struct Reader<'a> {
     root: &'a Value,
     bin: Option<&'a [u8]>,
     /// Buffers read so far, by index.
-    buffers: Vec<Option<Vec<u8>>>,
+    buffers: Vec<Option<Rc<[u8]>>>,
+    /// External files read so far, by their resolved path: several buffers naming one file
+    /// read (and hold) it once.
+    files: Vec<(PathBuf, Rc<[u8]>)>,
+    /// What the load holds, against its limits.
+    budget: Budget<'a>,
     opts: &'a LoadOptions,
     report: LoadReport,
     tris: Vec<Triangle>,
@@ -227,8 +254,10 @@ const UNSIGNED_INT: u64 = 5125;
 const FLOAT: u64 = 5126;
 
 /// An accessor's elements, read and checked: where they are and how to step through them.
-struct View<'b> {
-    bytes: &'b [u8],
+struct View {
+    /// The buffer, and where the accessor's first element starts in it.
+    buffer: Rc<[u8]>,
+    start: usize,
     stride: usize,
     count: usize,
     component: u64,
@@ -329,7 +358,7 @@ impl<'a> Reader<'a> {
                 ));
             }
         }
-        let roots = self.scene_roots()?;
+        let (roots, every) = self.scene_roots()?;
         // Depth-first over the node forest, each node's world transform from its parent's.
         let node_count = root
             .get("nodes")
@@ -385,11 +414,23 @@ impl<'a> Reader<'a> {
                 }
             }
         }
+        if every {
+            // Every node should be placed; one that was not is no root, so some node names it
+            // as a child, and only a cycle of children keeps all of them from the roots.
+            if let Some(i) = seen.iter().position(|s| !s) {
+                return Err(self.err(
+                    format!("nodes[{i}]"),
+                    "is in a cycle of children (or below one), so no root reaches it: glTF \
+                     nodes must form a forest",
+                ));
+            }
+        }
         Ok(())
     }
 
-    /// The root nodes to place, each with where it was named.
-    fn scene_roots(&self) -> Result<Vec<(u64, String)>, SceneError> {
+    /// The root nodes to place, each with where it was named, and whether they should reach
+    /// every node (a file without scenes places all of its nodes).
+    fn scene_roots(&self) -> Result<(Vec<(u64, String)>, bool), SceneError> {
         let root = Node { v: self.root };
         let scenes = self.root.get("scenes").and_then(Value::as_array);
         let chosen = match self.uint(root, "scene", "the file")? {
@@ -414,17 +455,18 @@ impl<'a> Reader<'a> {
                     }
                 }
             }
-            return Ok((0..n)
+            let roots = (0..n)
                 .filter(|&i| !child[i])
                 .map(|i| (i as u64, "nodes (no scene)".to_string()))
-                .collect());
+                .collect();
+            return Ok((roots, true));
         };
         let at = format!("scenes[{s}]");
         let scene = Node {
             v: self.entry("scenes", s, "scene")?,
         };
         let Some(nodes) = scene.v.get("nodes") else {
-            return Ok(Vec::new());
+            return Ok((Vec::new(), false));
         };
         let list = nodes
             .as_array()
@@ -441,7 +483,8 @@ impl<'a> Reader<'a> {
                         )
                     })
             })
-            .collect()
+            .collect::<Result<Vec<_>, _>>()
+            .map(|roots| (roots, false))
     }
 
     /// A node's own transform: its matrix, or its translation, rotation and scale.
@@ -459,6 +502,17 @@ impl<'a> Reader<'a> {
             }
             let mut a = [0.0; 16];
             a.copy_from_slice(&m);
+            // Column-major: the bottom row is every fourth number from the fourth.
+            let bottom = [a[3], a[7], a[11], a[15]];
+            if bottom != [0.0, 0.0, 0.0, 1.0] {
+                return Err(self.err(
+                    format!("{at}.matrix"),
+                    format!(
+                        "the bottom row is {bottom:?}, not [0, 0, 0, 1]: glTF node matrices \
+                         are affine"
+                    ),
+                ));
+            }
             // glTF stores matrices column by column, as glam reads them.
             return Ok(DMat4::from_cols_array(&a));
         }
@@ -529,8 +583,21 @@ impl<'a> Reader<'a> {
                 None => None,
             };
             let n = indices.as_ref().map_or(positions.len(), |i| i.len());
+            let triangles = match mode {
+                4 => n / 3,
+                _ => n.saturating_sub(2),
+            };
+            // Every placement of a mesh counts: its triangles (and what they become) are
+            // stored once per node that places it.
+            let placed = || format!("{pat}, placed as {group}/{p}");
+            let temporary = (positions.len() * 16 + indices.as_ref().map_or(0, |i| i.len()) * 4)
+                as u64
+                + triangles as u64 * 12;
+            self.budget.bytes(triangles as u64 * 12, placed)?;
+            self.budget.prims(triangles as u64, placed)?;
+            self.budget.grow(&mut self.tris, triangles, placed)?;
             let corner = |k: usize| indices.as_ref().map_or(k as u32, |i| i[k]);
-            let mut corners: Vec<[u32; 3]> = Vec::new();
+            let mut corners: Vec<[u32; 3]> = Vec::with_capacity(triangles);
             match mode {
                 4 => {
                     if n % 3 != 0 {
@@ -572,12 +639,14 @@ impl<'a> Reader<'a> {
                 self.tris.push(Triangle::new(v[0], v[1], v[2]));
             }
             self.groups.close(self.tris.len());
+            // The positions, indices and corners are freed here.
+            self.budget.release(temporary);
         }
         Ok(())
     }
 
     /// The accessor's bytes, checked against its view and buffer.
-    fn accessor(&mut self, a: u64, at: &str) -> Result<(View<'_>, &'a Value), SceneError> {
+    fn accessor(&mut self, a: u64, at: &str) -> Result<(View, &'a Value), SceneError> {
         let here = format!("{at} (accessors[{a}])");
         let acc = self.entry("accessors", a, at)?;
         let accn = Node { v: acc };
@@ -643,7 +712,8 @@ impl<'a> Reader<'a> {
             ));
         }
         // Every product below is checked: the counts are the file's word, not yet the bytes'.
-        let need = count.checked_sub(1).map_or(Some(0), |c| {
+        // Even count 0 needs its offset inside the view: the slice starts there.
+        let need = count.checked_sub(1).map_or(Some(offset), |c| {
             c.checked_mul(stride)?
                 .checked_add(elem)?
                 .checked_add(offset)
@@ -658,24 +728,25 @@ impl<'a> Reader<'a> {
             ));
         }
         let path = self.path;
-        let data = self.buffer(buffer, &vat)?;
+        let (data, buffer_len) = self.buffer(buffer, &vat)?;
         let end = view_offset.checked_add(view_len);
-        if end.is_none_or(|e| e > data.len() as u64) {
+        if end.is_none_or(|e| e > buffer_len) {
             return Err(item(
                 path,
                 vat,
                 format!(
                     "bytes {view_offset} to {} reach past buffers[{buffer}], which has {}",
                     end.map_or("past 2^64".to_string(), |e| e.to_string()),
-                    data.len()
+                    buffer_len
                 ),
             ));
         }
+        // Inside the buffer: `need` put offset (and every element) inside the view.
         let start = (view_offset + offset) as usize;
-        let bytes = &data[start..(view_offset + view_len) as usize];
         Ok((
             View {
-                bytes,
+                buffer: data,
+                start,
                 stride: stride as usize,
                 count: count as usize,
                 component,
@@ -705,9 +776,10 @@ impl<'a> Reader<'a> {
         let f = |b: &[u8], k: usize| {
             f32::from_le_bytes([b[4 * k], b[4 * k + 1], b[4 * k + 2], b[4 * k + 3]])
         };
+        self.budget.bytes(view.count as u64 * 16, || here.clone())?;
         let mut out = Vec::with_capacity(view.count);
         for i in 0..view.count {
-            let b = &view.bytes[i * view.stride..];
+            let b = &view.buffer[view.start + i * view.stride..];
             let p = [f(b, 0), f(b, 1), f(b, 2)];
             let moved = world.transform_point3(DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64));
             let q = Vec3A::new(moved.x as f32, moved.y as f32, moved.z as f32);
@@ -751,9 +823,10 @@ impl<'a> Reader<'a> {
                 ),
             ));
         }
+        self.budget.bytes(view.count as u64 * 4, || here.clone())?;
         let mut out = Vec::with_capacity(view.count);
         for i in 0..view.count {
-            let b = &view.bytes[i * view.stride..];
+            let b = &view.buffer[view.start + i * view.stride..];
             let k = match view.component {
                 UNSIGNED_BYTE => b[0] as u32,
                 UNSIGNED_SHORT => u16::from_le_bytes([b[0], b[1]]) as u32,
@@ -773,8 +846,8 @@ impl<'a> Reader<'a> {
         Ok(out)
     }
 
-    /// Buffer `b`'s bytes (its declared length of them), read once.
-    fn buffer(&mut self, b: u64, from: &str) -> Result<&[u8], SceneError> {
+    /// Buffer `b`'s bytes (at least its declared length of them, read once) and that length.
+    fn buffer(&mut self, b: u64, from: &str) -> Result<(Rc<[u8]>, u64), SceneError> {
         let at = format!("buffers[{b}]");
         let buf = Node {
             v: self.entry("buffers", b, from)?,
@@ -784,61 +857,62 @@ impl<'a> Reader<'a> {
         if self.buffers.len() <= i {
             self.buffers.resize(i + 1, None);
         }
-        if self.buffers[i].is_none() {
-            let bytes = match buf.v.get("uri") {
-                None => {
-                    let bin = self.bin.ok_or_else(|| {
-                        self.err(&at, "has no uri, and the file has no GLB BIN chunk")
-                    })?;
-                    if b != 0 {
-                        return Err(
-                            self.err(&at, "has no uri; only buffers[0] can be the GLB BIN chunk")
-                        );
-                    }
-                    bin.to_vec()
-                }
-                Some(uri) => {
-                    let uri = uri
-                        .as_str()
-                        .ok_or_else(|| self.err(format!("{at}.uri"), "expected a string"))?;
-                    self.load_uri(uri, len, &format!("{at}.uri"))?
-                }
-            };
-            // GLB pads its BIN chunk to 4 bytes, so the data may be longer, never shorter.
-            if (bytes.len() as u64) < len {
-                return Err(self.err(
-                    &at,
-                    format!(
-                        "byteLength is {len}, and the data has {} bytes",
-                        bytes.len()
-                    ),
-                ));
-            }
-            self.buffers[i] = Some(bytes);
+        if let Some(data) = &self.buffers[i] {
+            return Ok((data.clone(), len));
         }
-        let data = self.buffers[i].as_deref().unwrap_or_default();
-        Ok(&data[..len as usize])
+        let bytes: Rc<[u8]> = match buf.v.get("uri") {
+            None => {
+                let bin = self.bin.ok_or_else(|| {
+                    self.err(&at, "has no uri, and the file has no GLB BIN chunk")
+                })?;
+                if b != 0 {
+                    return Err(
+                        self.err(&at, "has no uri; only buffers[0] can be the GLB BIN chunk")
+                    );
+                }
+                self.budget.bytes(bin.len() as u64, || {
+                    format!("{at} (a copy of the BIN chunk)")
+                })?;
+                bin.into()
+            }
+            Some(uri) => {
+                let uri = uri
+                    .as_str()
+                    .ok_or_else(|| self.err(format!("{at}.uri"), "expected a string"))?;
+                self.load_uri(uri, len, &format!("{at}.uri"))?
+            }
+        };
+        // GLB pads its BIN chunk to 4 bytes, so the data may be longer, never shorter.
+        if (bytes.len() as u64) < len {
+            return Err(self.err(
+                &at,
+                format!(
+                    "byteLength is {len}, and the data has {} bytes",
+                    bytes.len()
+                ),
+            ));
+        }
+        self.buffers[i] = Some(bytes.clone());
+        Ok((bytes, len))
     }
 
-    /// A buffer's bytes from a `data:` URI or a file beside the glTF file.
-    fn load_uri(&self, uri: &str, len: u64, at: &str) -> Result<Vec<u8>, SceneError> {
+    /// A buffer's bytes from a `data:` URI or a file in the glTF file's folder
+    /// ([`confined`]), each file read once however many buffers name it.
+    fn load_uri(&mut self, uri: &str, len: u64, at: &str) -> Result<Rc<[u8]>, SceneError> {
         if let Some(rest) = uri.strip_prefix("data:") {
             let Some((_, payload)) = rest.split_once(";base64,") else {
                 return Err(self.err(at, "a data: URI must be base64 (';base64,')"));
             };
-            return base64(payload).map_err(|m| self.err(at, m));
+            self.budget
+                .bytes(payload.len() as u64 / 4 * 3 + 3, || at.to_string())?;
+            return base64(payload).map(Rc::from).map_err(|m| self.err(at, m));
         }
-        if uri.contains(':') || uri.starts_with('/') || uri.starts_with('\\') {
-            return Err(self.err(
-                at,
-                format!(
-                    "'{}': quiver reads data: URIs and paths relative to the glTF file",
-                    super::clip(uri)
-                ),
-            ));
+        let folder = self.path.parent().unwrap_or(Path::new(""));
+        let file = confined(folder, uri, self.opts.outside_files)
+            .map_err(|m| self.err(at, format!("'{}': {m}", super::clip(uri))))?;
+        if let Some((_, data)) = self.files.iter().find(|(f, _)| *f == file) {
+            return Ok(data.clone());
         }
-        let name = percent_decode(uri).map_err(|m| self.err(at, m))?;
-        let file = self.path.parent().unwrap_or(Path::new("")).join(name);
         let fail = |m: String| self.err(at, format!("{}: {m}", file.display()));
         // A regular file of at least the declared size: a device or a short file is refused
         // before anything is read.
@@ -853,18 +927,93 @@ impl<'a> Reader<'a> {
             )));
         }
         // The same bound as every file quiver reads (`read_bytes`).
-        if len > self.opts.max_file_bytes {
+        if meta.len() > self.opts.max_file_bytes {
             return Err(fail(format!(
-                "the buffer's byteLength {len} is above the {} bytes a file may hold",
+                "{} bytes, more than the {} a file may hold",
+                meta.len(),
                 self.opts.max_file_bytes
             )));
         }
-        use std::io::Read;
-        let mut out = Vec::new();
-        std::fs::File::open(&file)
-            .and_then(|f| f.take(len).read_to_end(&mut out))
-            .map_err(|e| fail(format!("cannot read: {e}")))?;
-        Ok(out)
+        // Read whole (other buffers may name more of it), and counted before it is read.
+        self.budget
+            .bytes(meta.len(), || format!("{at} ({})", file.display()))?;
+        let data: Rc<[u8]> = super::read_bytes(&file, self.opts.max_file_bytes)
+            .map_err(|e| self.err(at, e.to_string()))?
+            .into();
+        self.files.push((file, data.clone()));
+        Ok(data)
+    }
+}
+
+/// The file a relative URI names inside `folder`: percent-decoded, then normalised (`.` and
+/// empty parts dropped, `..` taking back a part), and refused when it is absolute, names a
+/// scheme, or leads outside `folder`, by its `..` parts or through a symbolic link; unless
+/// `outside` allows files anywhere.
+fn confined(folder: &Path, uri: &str, outside: bool) -> Result<PathBuf, String> {
+    const HOW: &str = "quiver reads data: URIs and files inside the glTF file's folder \
+                       (LoadOptions::outside_files, --outside-files, allows others)";
+    // A scheme (`file:`, `http:`) is a letter and letters, digits, `+`, `-` or `.` up to `:`.
+    let scheme = uri.split_once(':').is_some_and(|(s, _)| {
+        s.starts_with(|c: char| c.is_ascii_alphabetic())
+            && s.chars()
+                .all(|c| c.is_ascii_alphanumeric() || matches!(c, '+' | '-' | '.'))
+    });
+    if scheme {
+        return Err(format!("a URI scheme other than data:; {HOW}"));
+    }
+    let name = percent_decode(uri)?;
+    if name.contains('\0') {
+        return Err("decodes to a name with a NUL byte".into());
+    }
+    let absolute = name.starts_with('/')
+        || name.starts_with('\\')
+        || Path::new(&name).is_absolute()
+        || Path::new(&name)
+            .components()
+            .any(|c| matches!(c, Component::Prefix(_)));
+    if outside {
+        return Ok(folder.join(&name));
+    }
+    if absolute {
+        return Err(format!("an absolute path; {HOW}"));
+    }
+    // Both separators, so a name meant for Windows is judged as it would be read there.
+    let mut parts: Vec<&str> = Vec::new();
+    for part in name.split(['/', '\\']) {
+        match part {
+            "" | "." => {}
+            ".." => {
+                if parts.pop().is_none() {
+                    return Err(format!("leads outside the glTF file's folder; {HOW}"));
+                }
+            }
+            p => parts.push(p),
+        }
+    }
+    if parts.is_empty() {
+        return Err("names the folder itself, not a file".into());
+    }
+    let file: PathBuf = parts.iter().fold(folder.to_path_buf(), |f, p| f.join(p));
+    // Symbolic links: where the file really is must still be inside the folder. A file that
+    // does not exist is left for the read to report.
+    if let (Ok(real), Ok(base)) = (file.canonicalize(), folder_real(folder)) {
+        if !real.starts_with(&base) {
+            return Err(format!(
+                "a symbolic link leads outside the glTF file's folder (to {}); {HOW}",
+                real.display()
+            ));
+        }
+        return Ok(real);
+    }
+    Ok(file)
+}
+
+/// `folder` with its symbolic links resolved (the current directory for an empty one).
+fn folder_real(folder: &Path) -> std::io::Result<PathBuf> {
+    if folder.as_os_str().is_empty() {
+        Path::new(".").canonicalize()
+    } else {
+        folder.canonicalize()
     }
 }
 

@@ -317,6 +317,33 @@ pub enum SceneError {
         /// The limit.
         limit: u64,
     },
+    /// A file whose load would pass [`LoadOptions::max_primitives`] or
+    /// [`LoadOptions::max_bytes`], refused at `item` before the allocation that would pass it.
+    ///
+    /// ```
+    /// use quiver_scenes::scene::{ply, LoadOptions, SceneError};
+    /// let head = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n\
+    ///             property float y\nproperty float z\nelement face 1\n\
+    ///             property list uchar int vertex_indices\nend_header\n\
+    ///             0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
+    /// let none = LoadOptions::default().max_primitives(0);
+    /// let e = ply::parse_with(head.as_bytes(), "t.ply", &none).unwrap_err();
+    /// assert!(matches!(e, SceneError::OverBudget { needs: 1, limit: 0, .. }));
+    /// assert_eq!(e.to_string(), "t.ply: face 0 (line 14): needs 1 primitives, more than the \
+    ///     0 this load allows (LoadOptions::max_primitives)");
+    /// ```
+    OverBudget {
+        /// The file.
+        path: PathBuf,
+        /// Where the load stopped: `element vertex (line 3)`, `nodes[4]/meshes[0]/1`, ...
+        item: String,
+        /// What the load would hold with the item: primitives or bytes.
+        needs: u64,
+        /// The limit it would pass.
+        limit: u64,
+        /// Which limit.
+        unit: Budgeted,
+    },
     /// A fault at one line of a scene file (NFF, OBJ, a PLY header or ASCII body, glTF JSON);
     /// shown as `file:line: message`.
     Parse {
@@ -400,6 +427,26 @@ impl fmt::Display for SceneError {
                  (LoadOptions::max_primitives)",
                 path.display()
             ),
+            SceneError::OverBudget {
+                path,
+                item,
+                needs,
+                limit,
+                unit,
+            } => match unit {
+                Budgeted::Primitives => write!(
+                    f,
+                    "{}: {item}: needs {needs} primitives, more than the {limit} this load \
+                     allows (LoadOptions::max_primitives)",
+                    path.display()
+                ),
+                Budgeted::Bytes => write!(
+                    f,
+                    "{}: {item}: needs about {needs} bytes of memory, more than the {limit} \
+                     this load may use (LoadOptions::max_bytes)",
+                    path.display()
+                ),
+            },
             SceneError::Parse {
                 path,
                 line,
@@ -445,8 +492,19 @@ pub struct LoadOptions {
     /// The most primitives a file may hold, counted as they trace (a sphere, cone or
     /// triangle is one, a polygon or face of `n` vertices `n - 2`); a file with more fails
     /// with [`SceneError::TooLarge`] as soon as the count passes it, before the rest is
-    /// stored. Unlimited by default; a caller with a memory budget sets it.
+    /// stored. Unlimited by default; a caller with a memory budget sets it. Every reader
+    /// counts glTF's placements too: a mesh placed by `k` nodes is `k` times its triangles.
     pub max_primitives: u64,
+    /// The most memory a load may hold at once, in bytes: the file's bytes (inflated, for
+    /// `.ply.gz`), the external glTF buffers, the reader's vertex and index lists, the
+    /// triangles and objects it makes. Every reader checks it from the size it is about to
+    /// allocate, before allocating, and fails with [`SceneError::OverBudget`] naming the item.
+    /// Unlimited by default; a caller with a memory budget sets it.
+    pub max_bytes: u64,
+    /// Whether a file may name files outside its own folder (a glTF buffer URI such as
+    /// `../x.bin`, `/abs/x.bin` or a symbolic link that leads out). Off by default: a renderer
+    /// that loads user-supplied files must not read the machine's other files.
+    pub outside_files: bool,
 }
 
 impl Default for LoadOptions {
@@ -455,6 +513,8 @@ impl Default for LoadOptions {
             non_finite: NonFinite::default(),
             max_file_bytes: MAX_FILE_BYTES,
             max_primitives: u64::MAX,
+            max_bytes: u64::MAX,
+            outside_files: false,
         }
     }
 }
@@ -487,6 +547,127 @@ impl LoadOptions {
         self.max_primitives = count;
         self
     }
+
+    /// Sets [`LoadOptions::max_bytes`].
+    ///
+    /// ```
+    /// use quiver_scenes::scene::{obj, LoadOptions, SceneError};
+    /// let quad = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n";
+    /// assert!(obj::parse_with(quad, "q.obj", &LoadOptions::default().max_bytes(1 << 20)).is_ok());
+    /// let e = obj::parse_with(quad, "q.obj", &LoadOptions::default().max_bytes(100)).unwrap_err();
+    /// assert!(matches!(e, SceneError::OverBudget { limit: 100, .. }), "{e}");
+    /// ```
+    pub fn max_bytes(mut self, bytes: u64) -> Self {
+        self.max_bytes = bytes;
+        self
+    }
+
+    /// Sets [`LoadOptions::outside_files`].
+    pub fn outside_files(mut self, allowed: bool) -> Self {
+        self.outside_files = allowed;
+        self
+    }
+}
+
+/// Which limit of [`LoadOptions`] a [`SceneError::OverBudget`] load would pass.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Budgeted {
+    /// [`LoadOptions::max_primitives`].
+    Primitives,
+    /// [`LoadOptions::max_bytes`].
+    Bytes,
+}
+
+/// Bytes one primitive read from a mesh file costs beside its triangle: the scene object
+/// [`mesh_scene`] makes of it (alive with the triangles while the scene is made).
+pub(crate) const OBJECT_BYTES: u64 = std::mem::size_of::<Object>() as u64;
+
+/// What a load holds so far against [`LoadOptions::max_bytes`] and
+/// [`LoadOptions::max_primitives`]: each reader charges a size before allocating it.
+pub(crate) struct Budget<'p> {
+    path: &'p Path,
+    max_bytes: u64,
+    max_prims: u64,
+    bytes: u64,
+    prims: u64,
+}
+
+impl<'p> Budget<'p> {
+    pub(crate) fn new(path: &'p Path, opts: &LoadOptions) -> Budget<'p> {
+        Budget {
+            path,
+            max_bytes: opts.max_bytes,
+            max_prims: opts.max_primitives,
+            bytes: 0,
+            prims: 0,
+        }
+    }
+
+    fn over(&self, item: String, needs: u64, limit: u64, unit: Budgeted) -> SceneError {
+        SceneError::OverBudget {
+            path: self.path.into(),
+            item,
+            needs,
+            limit,
+            unit,
+        }
+    }
+
+    /// Charges `n` bytes about to be allocated for `item`.
+    pub(crate) fn bytes(
+        &mut self,
+        n: u64,
+        item: impl FnOnce() -> String,
+    ) -> Result<(), SceneError> {
+        let total = self.bytes.saturating_add(n);
+        if total > self.max_bytes {
+            return Err(self.over(item(), total, self.max_bytes, Budgeted::Bytes));
+        }
+        self.bytes = total;
+        Ok(())
+    }
+
+    /// Gives back `n` bytes freed.
+    pub(crate) fn release(&mut self, n: u64) {
+        self.bytes = self.bytes.saturating_sub(n);
+    }
+
+    /// Charges `n` primitives about to be stored for `item`, and the objects they become
+    /// ([`OBJECT_BYTES`]; the caller charges their triangles where it stores them).
+    pub(crate) fn prims(&mut self, n: u64, item: impl Fn() -> String) -> Result<(), SceneError> {
+        let total = self.prims.saturating_add(n);
+        if total > self.max_prims {
+            return Err(self.over(item(), total, self.max_prims, Budgeted::Primitives));
+        }
+        self.bytes(n.saturating_mul(OBJECT_BYTES), item)?;
+        self.prims = total;
+        Ok(())
+    }
+
+    /// Room in `v` for `extra` more items, charged as the capacity it adds (doubling, as a
+    /// push would, so a reader pushing one at a time is charged what it holds).
+    pub(crate) fn grow<T>(
+        &mut self,
+        v: &mut Vec<T>,
+        extra: usize,
+        item: impl FnOnce() -> String,
+    ) -> Result<(), SceneError> {
+        let need = v.len().saturating_add(extra);
+        if need <= v.capacity() {
+            return Ok(());
+        }
+        let cap = need.max(v.capacity().saturating_mul(2));
+        let size = std::mem::size_of::<T>() as u64;
+        self.bytes((cap - v.capacity()) as u64 * size, item)?;
+        v.reserve_exact(cap - v.len());
+        Ok(())
+    }
+}
+
+/// `text` without a leading UTF-8 byte order mark, which some editors write and which would
+/// otherwise be read as part of the first word.
+pub(crate) fn strip_bom(text: &str) -> &str {
+    text.strip_prefix('\u{feff}').unwrap_or(text)
 }
 
 /// What a load left out under [`NonFinite::Drop`]; empty otherwise.
@@ -503,14 +684,18 @@ impl LoadOptions {
 /// ```
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct LoadReport {
-    /// Primitives left out: OBJ faces (a polygon counts once) and NFF spheres, cones,
-    /// polygons and patches.
+    /// Primitives left out, counted as [`LoadOptions::max_primitives`] counts them: a
+    /// sphere, cone or triangle is one, a polygon or face of `n` vertices `n - 2` (its
+    /// triangles). One reason is noted per face or shape, so a dropped quad counts 2.
     pub dropped_primitives: usize,
     /// NFF lights left out.
     pub dropped_lights: usize,
     /// Why, as `file:line: ...`, for the first [`LoadReport::REASONS_KEPT`] drops in file
     /// order.
     pub reasons: Vec<String>,
+    /// How many reasons there were in all (one a dropped face, shape or light), of which
+    /// [`LoadReport::reasons`] keeps the first.
+    pub reasons_total: usize,
 }
 
 impl LoadReport {
@@ -524,13 +709,19 @@ impl LoadReport {
     }
 
     fn note(&mut self, reason: String) {
+        self.reasons_total += 1;
         if self.reasons.len() < Self::REASONS_KEPT {
             self.reasons.push(reason);
         }
     }
 
     pub(crate) fn drop_primitive(&mut self, reason: String) {
-        self.dropped_primitives += 1;
+        self.drop_primitives(1, reason);
+    }
+
+    /// `n` primitives left out for one reason (a face of `n + 2` corners).
+    pub(crate) fn drop_primitives(&mut self, n: usize, reason: String) {
+        self.dropped_primitives += n;
         self.note(reason);
     }
 
@@ -559,9 +750,8 @@ impl fmt::Display for LoadReport {
             parts.join(" and "),
             self.reasons.join("; ")
         )?;
-        let total = self.dropped_primitives + self.dropped_lights;
-        if total > self.reasons.len() {
-            write!(f, "; {} more", total - self.reasons.len())?;
+        if self.reasons_total > self.reasons.len() {
+            write!(f, "; {} more", self.reasons_total - self.reasons.len())?;
         }
         write!(f, ")")
     }
@@ -593,25 +783,69 @@ pub(crate) fn clip(s: &str) -> String {
 /// a small hostile file cannot exhaust memory.
 pub const MAX_INFLATED_BYTES: u64 = 1 << 32;
 
-/// A gzip file's inflated bytes, at most [`MAX_INFLATED_BYTES`] and at most `limit` (the file
-/// itself is read within `limit` too, [`read_bytes`]).
-fn read_gzip(path: &Path, limit: u64) -> Result<Vec<u8>, SceneError> {
+/// A gzip file's inflated bytes, at most [`MAX_INFLATED_BYTES`], at most
+/// [`LoadOptions::max_file_bytes`], and within [`LoadOptions::max_bytes`] with the packed
+/// bytes it is inflated from: the inflated size is checked as it is reached, never guessed
+/// from the packed one.
+fn read_gzip(path: &Path, opts: &LoadOptions) -> Result<Vec<u8>, SceneError> {
     use std::io::Read;
-    let packed = read_bytes(path, limit)?;
-    let cap = MAX_INFLATED_BYTES.min(limit);
+    let packed = read_within(path, opts)?;
+    let over = |needs: u64| SceneError::OverBudget {
+        path: path.into(),
+        item: "the inflated data (gzip)".into(),
+        needs,
+        limit: opts.max_bytes,
+        unit: Budgeted::Bytes,
+    };
+    let room = opts.max_bytes.saturating_sub(packed.len() as u64);
+    let cap = MAX_INFLATED_BYTES.min(opts.max_file_bytes);
     let fail = |message: String| SceneError::File {
         path: path.into(),
         message,
     };
     let mut out = Vec::new();
-    flate2::read::MultiGzDecoder::new(packed.as_slice())
-        .take(cap + 1)
-        .read_to_end(&mut out)
-        .map_err(|e| fail(format!("cannot inflate (gzip): {e}")))?;
-    if out.len() as u64 > cap {
-        return Err(fail(format!("inflates to more than {cap} bytes (gzip)")));
+    let mut inflate = flate2::read::MultiGzDecoder::new(packed.as_slice()).take(cap.min(room) + 1);
+    // In steps, so the vector never holds (or doubles to) more than the budget allows.
+    let mut chunk = vec![0u8; 1 << 16];
+    loop {
+        let n = inflate
+            .read(&mut chunk)
+            .map_err(|e| fail(format!("cannot inflate (gzip): {e}")))?;
+        if n == 0 {
+            break;
+        }
+        let len = out.len() as u64 + n as u64;
+        if len > cap {
+            return Err(fail(format!("inflates to more than {cap} bytes (gzip)")));
+        }
+        if len > room {
+            return Err(over(packed.len() as u64 + len));
+        }
+        if out.len() + n > out.capacity() {
+            // Doubling, but never past what the budget and the cap leave.
+            let want = (out.capacity() * 2).max(out.len() + n).max(1 << 16) as u64;
+            out.reserve_exact(want.min(room).min(cap) as usize - out.len());
+        }
+        out.extend_from_slice(&chunk[..n]);
     }
     Ok(out)
+}
+
+/// A file's bytes for a reader ([`read_bytes`]), refused before reading when the file alone
+/// passes [`LoadOptions::max_bytes`].
+fn read_within(path: &Path, opts: &LoadOptions) -> Result<Vec<u8>, SceneError> {
+    if let Ok(meta) = std::fs::metadata(path) {
+        if meta.is_file() && meta.len() > opts.max_bytes && meta.len() <= opts.max_file_bytes {
+            return Err(SceneError::OverBudget {
+                path: path.into(),
+                item: "the file".into(),
+                needs: meta.len(),
+                limit: opts.max_bytes,
+                unit: Budgeted::Bytes,
+            });
+        }
+    }
+    read_bytes(path, opts.max_file_bytes.min(opts.max_bytes))
 }
 
 /// A scene of the triangles read from a mesh file (OBJ, PLY, glTF): the default material, a
@@ -701,40 +935,25 @@ impl Scene {
     /// ```
     pub fn load_with(spec: &str, opts: &LoadOptions) -> Result<(Scene, LoadReport), SceneError> {
         let lower = spec.to_ascii_lowercase();
+        let path = Path::new(spec);
+        let text = |bytes: Vec<u8>| {
+            String::from_utf8(bytes)
+                .unwrap_or_else(|e| String::from_utf8_lossy(e.as_bytes()).into_owned())
+        };
         if lower.ends_with(".ply.gz") {
-            return ply::parse_with(
-                &read_gzip(Path::new(spec), opts.max_file_bytes)?,
-                spec,
-                opts,
-            );
+            return ply::parse_with(&read_gzip(path, opts)?, spec, opts);
         }
         if lower.ends_with(".ply") {
-            return ply::parse_with(
-                &read_bytes(Path::new(spec), opts.max_file_bytes)?,
-                spec,
-                opts,
-            );
+            return ply::parse_with(&read_within(path, opts)?, spec, opts);
         }
         if lower.ends_with(".gltf") || lower.ends_with(".glb") {
-            return gltf::parse_with(
-                &read_bytes(Path::new(spec), opts.max_file_bytes)?,
-                spec,
-                opts,
-            );
+            return gltf::parse_with(&read_within(path, opts)?, spec, opts);
         }
         if lower.ends_with(".obj") {
-            return obj::parse_with(
-                &read_text(Path::new(spec), opts.max_file_bytes)?,
-                spec,
-                opts,
-            );
+            return obj::parse_with(&text(read_within(path, opts)?), spec, opts);
         }
         if lower.ends_with(".nff") {
-            return nff::parse_with(
-                &read_text(Path::new(spec), opts.max_file_bytes)?,
-                spec,
-                opts,
-            );
+            return nff::parse_with(&text(read_within(path, opts)?), spec, opts);
         }
         let split = spec
             .find(|c: char| c.is_ascii_digit())

@@ -22,7 +22,8 @@
 //! ```
 
 use super::{
-    Camera, Light, LoadOptions, LoadReport, Material, NonFinite, Object, Scene, SceneError, Shape,
+    Budget, Camera, Light, LoadOptions, LoadReport, Material, NonFinite, Object, Scene, SceneError,
+    Shape,
 };
 use crate::primitive::{Cone, Sphere};
 use glam::Vec3A;
@@ -238,6 +239,7 @@ pub fn parse_with(
     opts: &LoadOptions,
 ) -> Result<(Scene, LoadReport), SceneError> {
     let path = path.as_ref();
+    let text = super::strip_bom(text);
     let mut tk = Tokens::new(text, path, opts.non_finite);
     let mut report = LoadReport::default();
     let mut scene = Scene {
@@ -253,8 +255,10 @@ pub fn parse_with(
     };
     let mut have_view = false;
     let mut material: Option<u32> = None;
-    // Primitives so far, for `LoadOptions::max_primitives`.
-    let mut prims = 0u64;
+    // Primitives so far, for `LoadOptions::max_primitives`, and the memory held.
+    let mut held = (0u64, Budget::new(path, opts));
+    held.1
+        .bytes(text.len() as u64, || "the file's text".into())?;
     // The entity before the current one, to explain a stray number by a wrong count.
     let mut last: Option<(usize, &str, Option<usize>)> = None;
     while let Some(tok) = tk.peek() {
@@ -267,21 +271,23 @@ pub fn parse_with(
                      tk: &mut Tokens,
                      objects: &mut Vec<Object>,
                      report: &mut LoadReport,
-                     prims: &mut u64| {
+                     held: &mut (u64, Budget)| {
             let m =
                 material.ok_or_else(|| tk.err(line, format!("'{tok}' before any 'f' material")))?;
+            // What it traces as: a polygon or patch of n vertices is n - 2 triangles.
+            let traced = match &s {
+                Shape::Polygon(v) | Shape::Patch { verts: v, .. } => v.len() as u64 - 2,
+                _ => 1,
+            };
             match tk.dropped.take() {
-                Some((l, why)) => report.drop_primitive(format!(
-                    "{}:{l}: {} dropped: {why}",
-                    path.display(),
-                    shape_name(tok)
-                )),
+                Some((l, why)) => report.drop_primitives(
+                    traced as usize,
+                    format!("{}:{l}: {} dropped: {why}", path.display(), shape_name(tok)),
+                ),
                 None => {
-                    // What it traces as: a polygon or patch of n vertices is n - 2 triangles.
-                    *prims += match &s {
-                        Shape::Polygon(v) | Shape::Patch { verts: v, .. } => v.len() as u64 - 2,
-                        _ => 1,
-                    };
+                    let prims = &mut held.0;
+                    *prims += traced;
+                    held.1.grow(objects, 1, || format!("line {line}"))?;
                     if *prims > opts.max_primitives {
                         return Err(SceneError::TooLarge {
                             path: path.into(),
@@ -382,7 +388,7 @@ pub fn parse_with(
                     &mut tk,
                     &mut scene.objects,
                     &mut report,
-                    &mut prims,
+                    &mut held,
                 )?;
             }
             "c" => {
@@ -420,7 +426,7 @@ pub fn parse_with(
                     &mut tk,
                     &mut scene.objects,
                     &mut report,
-                    &mut prims,
+                    &mut held,
                 )?;
             }
             "p" | "pp" => {
@@ -430,8 +436,12 @@ pub fn parse_with(
                 count = Some(n);
                 // A count larger than the rest of the file is an error found below; do not let
                 // it reserve memory first (a vertex takes at least six bytes of text).
-                let mut verts = Vec::with_capacity(n.min(text.len() / 6 + 1));
-                let mut normals = Vec::new();
+                let room = n.min(text.len() / 6 + 1);
+                let lists = if tok == "pp" { 2 } else { 1 };
+                held.1
+                    .bytes(room as u64 * 16 * lists, || format!("line {line}"))?;
+                let mut verts = Vec::with_capacity(room);
+                let mut normals = Vec::with_capacity(if tok == "pp" { room } else { 0 });
                 // A word or the end of the file where a vertex should be: say what the count
                 // promised.
                 tk.hint = Some(format!("the '{tok}' on line {line} says {n} vertices"));
@@ -447,7 +457,7 @@ pub fn parse_with(
                     (_, 3) => Shape::Triangle(Triangle::new(verts[0], verts[1], verts[2])),
                     _ => Shape::Polygon(verts),
                 };
-                shape(s, &mut tk, &mut scene.objects, &mut report, &mut prims)?;
+                shape(s, &mut tk, &mut scene.objects, &mut report, &mut held)?;
             }
             other if other.parse::<f32>().is_ok() => {
                 let hint = match last {

@@ -22,7 +22,7 @@
 //! assert_eq!(e.to_string(), "bad.obj:2: expected a number for vertex y, got 'abc'");
 //! ```
 
-use super::{Group, Groups, LoadOptions, LoadReport, NonFinite, Scene, SceneError};
+use super::{Budget, Group, Groups, LoadOptions, LoadReport, NonFinite, Scene, SceneError};
 use glam::Vec3A;
 use quiver_rt::geometry::Triangle;
 use std::path::Path;
@@ -56,6 +56,7 @@ pub fn parse_with(
     opts: &LoadOptions,
 ) -> Result<(Scene, LoadReport), SceneError> {
     let path = path.as_ref();
+    let text = super::strip_bom(text);
     let err = |line: usize, message: String| SceneError::Parse {
         path: path.into(),
         line,
@@ -74,10 +75,14 @@ pub fn parse_with(
     // The triangles the faces fan into, counted before any is made, so that a file past
     // `LoadOptions::max_primitives` costs no memory for them.
     let mut triangles = 0u64;
+    let (mut all_corners, mut all_faces) = (0usize, 0usize);
     for (line, keyword, words) in lines() {
         total.add(keyword);
         if keyword == Some("f") {
-            triangles += (words.count() as u64).saturating_sub(2);
+            let n = words.count();
+            all_corners += n;
+            all_faces += 1;
+            triangles += (n as u64).saturating_sub(2);
             if triangles > opts.max_primitives {
                 return Err(SceneError::TooLarge {
                     path: path.into(),
@@ -98,13 +103,25 @@ pub fn parse_with(
         });
     }
 
+    // Everything the reader holds, from the counts, before any of it is allocated: the
+    // text, the vertex, corner and face lists, the triangles and the objects they become.
+    let mut budget = Budget::new(path, opts);
+    let lists = total.v as u64 * 16 + all_corners as u64 * 4 + all_faces as u64 * 16;
+    let made =
+        triangles.saturating_mul(std::mem::size_of::<Triangle>() as u64 + super::OBJECT_BYTES);
+    budget.bytes(text.len() as u64 + lists + made, || {
+        format!(
+            "{} vertices, {all_faces} faces of {all_corners} corners, {triangles} triangles",
+            total.v
+        )
+    })?;
     let mut seen = Counts::default();
     let mut verts = Vec::with_capacity(total.v);
     // Under `NonFinite::Drop`: the non-finite vertices, by index, with their lines.
     let mut bad_verts: Vec<(u32, usize)> = Vec::new();
-    let mut corners: Vec<u32> = Vec::new();
+    let mut corners: Vec<u32> = Vec::with_capacity(all_corners);
     // Each face's line and the end of its corners in `corners`.
-    let mut faces: Vec<(usize, usize)> = Vec::new();
+    let mut faces: Vec<(usize, usize)> = Vec::with_capacity(all_faces);
     // The first point, line or free-form statement: a file of only these is not an empty
     // scene but one quiver cannot read.
     let mut first_unsurfaced: Option<(usize, &str)> = None;
@@ -289,11 +306,14 @@ pub fn parse_with(
                 .find_map(|&i| bad_verts.binary_search_by_key(&i, |b| b.0).ok());
             if let Some(b) = bad {
                 let (i, l) = bad_verts[b];
-                report.drop_primitive(format!(
-                    "{}:{line}: face dropped: its vertex {} (line {l}) is not finite",
-                    path.display(),
-                    i + 1
-                ));
+                report.drop_primitives(
+                    face.len() - 2,
+                    format!(
+                        "{}:{line}: face dropped: its vertex {} (line {l}) is not finite",
+                        path.display(),
+                        i + 1
+                    ),
+                );
                 continue;
             }
         }

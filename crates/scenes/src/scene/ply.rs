@@ -27,7 +27,7 @@
 //! assert_eq!(e.to_string(), "quad.ply:14: face 0: vertex index 9 is out of range: the file has 4 vertices");
 //! ```
 
-use super::{clip, Groups, LoadOptions, LoadReport, NonFinite, Scene, SceneError};
+use super::{clip, Budget, Groups, LoadOptions, LoadReport, NonFinite, Scene, SceneError};
 use glam::Vec3A;
 use quiver_rt::geometry::Triangle;
 use std::path::Path;
@@ -119,9 +119,13 @@ struct Element {
 }
 
 impl Element {
-    /// Bytes of one instance in a binary body, lists counted as empty: the least it can take.
+    /// Bytes of one instance in a binary body, lists counted as empty (their count alone):
+    /// the least it can take.
     fn min_size(&self) -> u64 {
-        self.props.iter().map(|p| p.ty.size() as u64).sum()
+        self.props
+            .iter()
+            .map(|p| p.list.unwrap_or(p.ty).size() as u64)
+            .sum()
     }
 
     /// Singular noun for messages: `vertex 3`, `face 3`, `edge 3`.
@@ -179,8 +183,11 @@ pub fn parse_with(
     opts: &LoadOptions,
 ) -> Result<(Scene, LoadReport), SceneError> {
     let path = path.as_ref();
+    let data = data.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(data);
+    let mut mesh = Mesh::new(Budget::new(path, opts));
+    mesh.budget
+        .bytes(data.len() as u64, || "the file's bytes".into())?;
     let header = read_header(data, path)?;
-    let mut mesh = Mesh::default();
     let body = &data[header.body..];
     match header.format {
         Format::Ascii => read_ascii(body, header.body_line, &header, path, opts, &mut mesh)?,
@@ -359,8 +366,9 @@ fn read_header(data: &[u8], path: &Path) -> Result<Header, SceneError> {
 }
 
 /// What the body reader keeps: vertices and faces, with where each was read.
-#[derive(Default)]
-struct Mesh {
+struct Mesh<'p> {
+    /// What it holds, against the load's limits.
+    budget: Budget<'p>,
     /// The vertex element's count (0 without one).
     vertex_count: u64,
     verts: Vec<Vec3A>,
@@ -462,6 +470,11 @@ fn read_ascii(
 ) -> Result<(), SceneError> {
     let roles = roles(header, path)?;
     let text = String::from_utf8_lossy(body);
+    if let std::borrow::Cow::Owned(_) = text {
+        // Not UTF-8: the text is a copy of the body.
+        mesh.budget
+            .bytes(body.len() as u64, || "the body as text".into())?;
+    }
     let mut lines = text
         .lines()
         .enumerate()
@@ -482,7 +495,13 @@ fn read_ascii(
                 ),
             ));
         }
-        reserve(mesh, e, role, capacity(e.count, body.len(), 2));
+        reserve(
+            mesh,
+            e,
+            role,
+            capacity(e.count, body.len(), 2),
+            At::Line(e.line),
+        )?;
         let mut values: Vec<f64> = Vec::new();
         let mut tokens: Vec<&str> = Vec::new();
         let mut list: Vec<i64> = Vec::new();
@@ -525,6 +544,11 @@ fn read_ascii(
                         }
                         // The items must be on this line, so a hostile count runs out of words.
                         let keep = matches!(role, Role::Face { indices } if indices == k);
+                        // A count the line cannot hold fails on its missing items below,
+                        // before anything is stored for it.
+                        if keep && n as usize <= l.len() {
+                            mesh.face_room(n as usize, &mut list, At::Line(line), i)?;
+                        }
                         for _ in 0..n as u64 {
                             let (v, _) = next(p.ty, &format!("an item of {}", p.name))?;
                             if keep {
@@ -553,7 +577,7 @@ fn read_ascii(
                     path,
                     opts,
                 )?,
-                Role::Face { .. } => mesh.face(list.iter().copied(), at, i, path)?,
+                Role::Face { .. } => mesh.face(&list, at, i, path)?,
                 Role::Other => {}
             }
         }
@@ -583,17 +607,28 @@ fn ascii_value(tok: &str, ty: Ty) -> Result<f64, String> {
         .map_err(|_| format!("expected a number ({})", ty.name()))
 }
 
-fn reserve(mesh: &mut Mesh, e: &Element, role: Role, n: usize) {
+/// Room for `n` instances of `e` (as vertices or faces), charged to the mesh's budget.
+fn reserve(mesh: &mut Mesh, e: &Element, role: Role, n: usize, at: At) -> Result<(), SceneError> {
+    let item = || place(at, format!("element {}", e.name));
     match role {
         Role::Vertex { .. } => {
             mesh.vertex_count = e.count;
-            mesh.verts.reserve(n);
+            mesh.budget.grow(&mut mesh.verts, n, item)
         }
         Role::Face { .. } => {
-            mesh.faces.reserve(n);
-            mesh.corners.reserve(n.saturating_mul(3));
+            mesh.budget.grow(&mut mesh.faces, n, item)?;
+            mesh.budget
+                .grow(&mut mesh.corners, n.saturating_mul(3), item)
         }
-        Role::Other => {}
+        Role::Other => Ok(()),
+    }
+}
+
+/// `what` and where it is, for [`SceneError::OverBudget`]'s item: `face 3 (line 14)`.
+fn place(at: At, what: String) -> String {
+    match at {
+        At::Line(l) => format!("{what} (line {l})"),
+        At::Byte(b) => format!("{what} (byte {b})"),
     }
 }
 
@@ -673,7 +708,17 @@ fn read_binary(
                 ),
             ));
         }
-        reserve(mesh, e, role, capacity(e.count, cur.left(), min));
+        reserve(
+            mesh,
+            e,
+            role,
+            capacity(e.count, cur.left(), min),
+            At::Byte(cur.offset()),
+        )?;
+        if e.props.is_empty() {
+            // Instances of no bytes: nothing to read, and nothing to loop over.
+            continue;
+        }
         for i in 0..e.count {
             values.clear();
             list.clear();
@@ -709,6 +754,9 @@ fn read_binary(
                             ));
                         }
                         let keep = matches!(role, Role::Face { indices } if indices == k);
+                        if keep {
+                            mesh.face_room(n as usize, &mut list, At::Byte(start), i)?;
+                        }
                         for _ in 0..n as u64 {
                             let v = cur.value(p.ty).map_err(short)?;
                             if keep {
@@ -724,7 +772,7 @@ fn read_binary(
                 Role::Vertex { x, y, z } => {
                     mesh.vertex([values[x], values[y], values[z]], None, at, i, path, opts)?
                 }
-                Role::Face { .. } => mesh.face(list.iter().copied(), at, i, path)?,
+                Role::Face { .. } => mesh.face(&list, at, i, path)?,
                 Role::Other => {}
             }
         }
@@ -739,7 +787,36 @@ fn read_binary(
     Ok(())
 }
 
-impl Mesh {
+impl<'p> Mesh<'p> {
+    fn new(budget: Budget<'p>) -> Mesh<'p> {
+        Mesh {
+            budget,
+            vertex_count: 0,
+            verts: Vec::new(),
+            bad_verts: Vec::new(),
+            corners: Vec::new(),
+            faces: Vec::new(),
+        }
+    }
+
+    /// Charges face `i` of `n` corners before they are read: its triangles against the
+    /// load's limits, and room for its corners in `list`.
+    fn face_room(
+        &mut self,
+        n: usize,
+        list: &mut Vec<i64>,
+        at: At,
+        i: u64,
+    ) -> Result<(), SceneError> {
+        let item = || place(at, format!("face {i}"));
+        let triangles = (n as u64).saturating_sub(2);
+        self.budget.prims(triangles, item)?;
+        // `finish` stores the triangles in a list of exactly their number.
+        let size = std::mem::size_of::<Triangle>() as u64;
+        self.budget.bytes(triangles.saturating_mul(size), item)?;
+        self.budget.grow(list, n, item)
+    }
+
     /// A vertex; `tokens` are its ASCII numbers, for messages.
     fn vertex(
         &mut self,
@@ -772,22 +849,25 @@ impl Mesh {
                         ),
                     });
                 }
-                NonFinite::Drop => self.bad_verts.push((i as u32, at)),
+                NonFinite::Drop => {
+                    self.budget
+                        .grow(&mut self.bad_verts, 1, || place(at, format!("vertex {i}")))?;
+                    self.bad_verts.push((i as u32, at))
+                }
             }
         }
+        self.budget
+            .grow(&mut self.verts, 1, || place(at, format!("vertex {i}")))?;
         self.verts.push(Vec3A::from(p));
         Ok(())
     }
 
-    fn face(
-        &mut self,
-        corners: impl Iterator<Item = i64>,
-        at: At,
-        i: u64,
-        path: &Path,
-    ) -> Result<(), SceneError> {
+    fn face(&mut self, corners: &[i64], at: At, i: u64, path: &Path) -> Result<(), SceneError> {
+        let item = || place(at, format!("face {i}"));
+        self.budget.grow(&mut self.corners, corners.len(), item)?;
+        self.budget.grow(&mut self.faces, 1, item)?;
         let start = self.corners.len();
-        for c in corners {
+        for &c in corners {
             // Checked against the vertex count once every element is read: the vertex element
             // may come after the faces. Out-of-range values are kept as u32::MAX to fail then.
             self.corners.push(u32::try_from(c).unwrap_or(u32::MAX));
@@ -856,7 +936,8 @@ impl Mesh {
                             format!("{place} dropped: its vertex {v} ({vplace}) is not finite")
                         }
                     };
-                    report.drop_primitive(reason);
+                    // Counted as the load counts primitives: a face of n corners is n - 2.
+                    report.drop_primitives(face.len() - 2, reason);
                     continue;
                 }
             }
