@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Fetches quiver's real-mesh benchmark set from the npm registry (with `npm pack`, so nothing
-# is installed and no package script runs) into meshes/ (git-ignored; pass another folder as
+# is installed and no package script runs) and PyPI (`pip download` of a source archive: pip
+# reads its metadata, nothing is compiled or installed) into meshes/ (git-ignored; pass another folder as
 # the first argument). Third-party meshes: never commit them. What each is, and its terms:
 #
 #   meshes/dragon_vrip.ply.gz       Stanford dragon, 871,414 triangles (ASCII PLY, gzipped), and
@@ -12,9 +13,16 @@
 #   meshes/snowden.ply              Snowden bust, 109,259 triangles, from npm `snowden` 1.0.1
 #                                   (MIT per the package), written as binary PLY from the
 #                                   package's position and cell arrays by the node snippet below.
+#   meshes/samurai_monastery.obj    a modelled Japanese temple courtyard (halls, roofs, walls,
+#                                   fences, stairs: overlapping parts, triangles of every size),
+#                                   124,789 triangles, from PyPI `pybullet` 3.2.7's source archive
+#                                   (pybullet_data/samurai_monastry.obj; the package is under the
+#                                   zlib licence), with its 201 two-vertex "faces" (edges, not
+#                                   triangles) left out. Y is up.
 #
-# Needs npm and node (Debian: apt-get install npm). Then, e.g.:
-#   cargo run --release -- bench meshes/dragon_vrip.ply.gz meshes/snowden.ply teapot12 balls3 tetra10
+# Needs npm and node (Debian: apt-get install npm) and pip (python3-pip). Then, e.g.:
+#   cargo run --release -- bench meshes/dragon_vrip.ply.gz meshes/snowden.ply \
+#       meshes/samurai_monastery.obj teapot12 balls3 tetra10
 set -euo pipefail
 cd "$(dirname "$0")/.."
 out="${1:-meshes}"
@@ -51,6 +59,13 @@ for (const c of cells) {
 require('fs').writeFileSync(file, Buffer.concat([head, verts, faces]));
 JS
 
-for f in "$out"/dragon_vrip*.ply.gz "$out/snowden.ply"; do
+# The monastery: one OBJ from pybullet's 80 MB source archive (no wheel: nothing compiled).
+python3 -m pip download --quiet --no-deps --no-binary :all: \
+    pybullet==3.2.7 -d "$work" >/dev/null
+obj=pybullet-3.2.7/examples/pybullet/gym/pybullet_data/samurai_monastry.obj
+tar -xzf "$work/pybullet-3.2.7.tar.gz" -C "$work" "$obj"
+awk '!/^f / || NF >= 4' "$work/$obj" >"$out/samurai_monastery.obj"
+
+for f in "$out"/dragon_vrip*.ply.gz "$out/snowden.ply" "$out/samurai_monastery.obj"; do
     echo "$f"
 done
