@@ -13,16 +13,19 @@
 #   meshes/snowden.ply              Snowden bust, 109,259 triangles, from npm `snowden` 1.0.1
 #                                   (MIT per the package), written as binary PLY from the
 #                                   package's position and cell arrays by the node snippet below.
-#   meshes/samurai_monastery.obj    a modelled Japanese temple courtyard (halls, roofs, walls,
-#                                   fences, stairs: overlapping parts, triangles of every size),
-#                                   124,789 triangles, from PyPI `pybullet` 3.2.7's source archive
-#                                   (pybullet_data/samurai_monastry.obj; the package is under the
-#                                   zlib licence), with its 201 two-vertex "faces" (edges, not
-#                                   triangles) left out. Y is up.
+#   meshes/samurai_monastery.nff    a modelled Japanese temple courtyard (halls, roofs, walls,
+#                                   fences, lanterns, stairs: overlapping parts, triangle areas
+#                                   over six orders of magnitude), 124,789 triangles, from PyPI
+#                                   `pybullet` 3.2.7's source archive (pybullet_data/
+#                                   samurai_monastry.obj; the package is under the zlib licence),
+#                                   written as NFF by the python snippet below with a viewpoint
+#                                   inside the courtyard (a mesh file brings none, and the framing
+#                                   view from outside would see it small) and a light above; its
+#                                   201 two-vertex "faces" (edges, not triangles) are left out.
 #
 # Needs npm and node (Debian: apt-get install npm) and pip (python3-pip). Then, e.g.:
 #   cargo run --release -- bench meshes/dragon_vrip.ply.gz meshes/snowden.ply \
-#       meshes/samurai_monastery.obj teapot12 balls3 tetra10
+#       meshes/samurai_monastery.nff teapot12 balls3 tetra10
 set -euo pipefail
 cd "$(dirname "$0")/.."
 out="${1:-meshes}"
@@ -64,8 +67,24 @@ python3 -m pip download --quiet --no-deps --no-binary :all: \
     pybullet==3.2.7 -d "$work" >/dev/null
 obj=pybullet-3.2.7/examples/pybullet/gym/pybullet_data/samurai_monastry.obj
 tar -xzf "$work/pybullet-3.2.7.tar.gz" -C "$work" "$obj"
-awk '!/^f / || NF >= 4' "$work/$obj" >"$out/samurai_monastery.obj"
+python3 - "$work/$obj" "$out/samurai_monastery.nff" <<'PY'
+import sys
+src, dst = sys.argv[1:]
+verts = []
+with open(src) as f, open(dst, "w") as out:
+    out.write("# samurai_monastry.obj from pybullet 3.2.7 (zlib licence), as NFF\n"
+              "v\nfrom -20 9 -20\nat 10 3 10\nup 0 1 0\nangle 60\nhither 0.01\n"
+              "resolution 512 512\nb 0.2 0.2 0.2\nl 60 80 40\nf 0.8 0.8 0.8 1 0 0 0 0\n")
+    for line in f:
+        w = line.split()
+        if w[:1] == ["v"]:
+            verts.append(" ".join(w[1:4]))
+        elif w[:1] == ["f"] and len(w) >= 4:
+            idx = [int(t.split("/")[0]) for t in w[1:]]
+            out.write(f"p {len(idx)}\n")
+            out.write("".join(verts[i - 1 if i > 0 else i] + "\n" for i in idx))
+PY
 
-for f in "$out"/dragon_vrip*.ply.gz "$out/snowden.ply" "$out/samurai_monastery.obj"; do
+for f in "$out"/dragon_vrip*.ply.gz "$out/snowden.ply" "$out/samurai_monastery.nff"; do
     echo "$f"
 done
