@@ -11,8 +11,9 @@
 //!   ns per ray and Mrays/s of each engine) or `pass` (each engine traces each set once, in a
 //!   function of its own, for `valgrind --tool=callgrind --collect-atstart=no
 //!   --toggle-collect='gap::pass_*'`: inclusive instructions per ray by function).
-//! - `GAP_BUILD`: quiver's tree, `default` (`Bvh::new`), `sbvh` (`BuildOptions::high_quality`)
-//!   or `bins32` (the default with 32 bins).
+//! - `GAP_BUILD`: quiver's trees, comma-separated, each traced as an engine of its own in the
+//!   same interleaved rounds: `default` (`Bvh::new`), `sbvh` (`BuildOptions::high_quality`) or
+//!   `bins32` (the default with 32 bins). The first one makes the shadow and diffuse rays.
 //! - `GAP_KINDS`: comma-separated ray sets (default `eye,shadow,diffuse`).
 //! - `GAP_ROWS`: trace every Nth image row only (default 1: all), to keep callgrind runs
 //!   short; whole rows keep the rays' coherence.
@@ -98,18 +99,18 @@ fn pass_embree_any(e: &quiver_lab::embree::EmbreeScene, set: &[Ray]) -> usize {
     set.iter().filter(|r| e.any_hit(r)).count()
 }
 
-/// Traces `set` once with engine `i` (0: quiver, then [`Peers::names`]), on this thread;
-/// returns the hits.
+/// Traces `set` once with engine `i` (quiver's trees `bvhs`, then [`Peers::names`]), on this
+/// thread; returns the hits.
 #[allow(unused_variables, unused_mut)]
-fn trace(i: usize, bvh: &Bvh, peers: &Peers, set: &[Ray], any: bool) -> usize {
-    if i == 0 {
+fn trace(i: usize, bvhs: &[Bvh], peers: &Peers, set: &[Ray], any: bool) -> usize {
+    if let Some(bvh) = bvhs.get(i) {
         return if any {
             pass_quiver_any(bvh, set)
         } else {
             pass_quiver_closest(bvh, set)
         };
     }
-    let mut k = i - 1;
+    let mut k = i - bvhs.len();
     #[cfg(feature = "tinybvh")]
     {
         if k == 0 {
@@ -145,13 +146,18 @@ fn main() {
         .expect("scene")
         .into_patches(DEFAULT_RESOLUTION);
     let tris = scene.triangles();
-    let options = match build.as_str() {
-        "default" => BuildOptions::default(),
-        "sbvh" => BuildOptions::high_quality(),
-        "bins32" => BuildOptions::default().bins(32),
-        other => panic!("GAP_BUILD: {other}: default, sbvh or bins32"),
-    };
-    let bvh: Bvh = options.build(&tris);
+    let builds: Vec<&str> = build.split(',').collect();
+    let bvhs: Vec<Bvh> = builds
+        .iter()
+        .map(|b| match *b {
+            "default" => BuildOptions::default(),
+            "sbvh" => BuildOptions::high_quality(),
+            "bins32" => BuildOptions::default().bins(32),
+            other => panic!("GAP_BUILD: {other}: default, sbvh or bins32"),
+        })
+        .map(|o| o.build(&tris))
+        .collect();
+    let bvh = &bvhs[0];
     let peers = Peers::new(&tris);
     // Whole rows, every `every`-th: the rays' order and coherence within a row as in the bench.
     let eye: Vec<Ray> = rays::camera_rays(&scene.camera, res)
@@ -165,8 +171,8 @@ fn main() {
         .split(',')
         .map(|k| match k {
             "eye" => ("eye", eye.clone(), false),
-            "shadow" => ("shadow", rays::shadow_rays(&bvh, &eye, &[light]), true),
-            "diffuse" => ("diffuse", rays::diffuse_rays(&bvh, &tris, &eye, 51), false),
+            "shadow" => ("shadow", rays::shadow_rays(bvh, &eye, &[light]), true),
+            "diffuse" => ("diffuse", rays::diffuse_rays(bvh, &tris, &eye, 51), false),
             other => panic!("GAP_KINDS: {other}: eye, shadow or diffuse"),
         })
         .collect();
@@ -177,7 +183,12 @@ fn main() {
     );
     #[cfg(feature = "tinybvh")]
     println!("tinybvh {}", quiver_lab::tinybvh::version());
-    let engines: Vec<&str> = std::iter::once("quiver").chain(Peers::names()).collect();
+    let quiver_names: Vec<String> = builds.iter().map(|b| format!("quiver-{b}")).collect();
+    let engines: Vec<&str> = quiver_names
+        .iter()
+        .map(String::as_str)
+        .chain(Peers::names())
+        .collect();
     for (kind, set, any) in &sets {
         let n = set.len().max(1) as f64;
         match mode.as_str() {
@@ -187,9 +198,10 @@ fn main() {
                     .num_threads(1)
                     .build()
                     .unwrap();
-                let c: Counters = pool.install(|| count(&bvh, set, query));
-                println!(
-                    "{short} {kind} quiver: {} rays, per ray: nodes {:.2} (inner {:.2}), leaves {:.2}, box tests {:.1}, triangle tests {:.2}, leaves that changed nothing {:.2}",
+                for (b, bvh) in builds.iter().zip(&bvhs) {
+                    let c: Counters = pool.install(|| count(bvh, set, query));
+                    println!(
+                    "{short} {kind} quiver-{b}: {} rays, per ray: nodes {:.2} (inner {:.2}), leaves {:.2}, box tests {:.1}, triangle tests {:.2}, leaves that changed nothing {:.2}",
                     set.len(),
                     c.nodes as f64 / n,
                     (c.nodes - c.leaves) as f64 / n,
@@ -198,10 +210,11 @@ fn main() {
                     c.prim_tests as f64 / n,
                     c.empty_leaves as f64 / n
                 );
+                }
                 #[cfg(feature = "tinybvh")]
                 {
                     let _ = quiver_lab::tinybvh::take_counters();
-                    let hits = trace(1, &bvh, &peers, set, *any);
+                    let hits = trace(bvhs.len(), &bvhs, &peers, set, *any);
                     if let Some([nodes, leaves, tris, pushes]) =
                         quiver_lab::tinybvh::take_counters()
                     {
@@ -218,7 +231,7 @@ fn main() {
             }
             "time" => {
                 let times = median_times_interleaved(reps, engines.len(), |i| {
-                    std::hint::black_box(trace(i, &bvh, &peers, set, *any));
+                    std::hint::black_box(trace(i, &bvhs, &peers, set, *any));
                 });
                 let line: Vec<String> = engines
                     .iter()
@@ -232,7 +245,7 @@ fn main() {
             }
             "pass" => {
                 for (i, e) in engines.iter().enumerate() {
-                    let hits = trace(i, &bvh, &peers, set, *any);
+                    let hits = trace(i, &bvhs, &peers, set, *any);
                     println!("{short} {kind} {e}: {} rays, {hits} hits", set.len());
                 }
             }
