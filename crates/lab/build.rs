@@ -1,6 +1,10 @@
 //! With the `tinybvh` feature: compiles `ffi/tinybvh_shim.cpp`, quiver-lab's C entry points
-//! into tinybvh's CPU layouts, against the `tiny_bvh.h` that tinybvh-rs ships and compiles.
-//! Without it, nothing.
+//! into tinybvh's CPU layouts, together with tinybvh itself from one `tiny_bvh.h`: the one in
+//! the directory `QUIVER_TINYBVH_HEADER_DIR` names (e.g. a newer upstream header, kept outside
+//! the repository), else the snapshot the tinybvh-rs crate ships. Which header it was (its
+//! path and an FNV-1a hash of its bytes) reaches the crate as `QUIVER_TINYBVH_HEADER` and
+//! `QUIVER_TINYBVH_HEADER_HASH`, so the benches can say which tinybvh they timed. Without the
+//! feature, nothing.
 
 fn main() {
     println!("cargo:rerun-if-changed=build.rs");
@@ -13,29 +17,55 @@ mod tinybvh {
     use std::path::PathBuf;
     use std::process::Command;
 
-    /// The tinybvh-rs version whose header the shim is written against (and whose build
-    /// flags, `-std=c++20 -march=native`, it repeats: the classes' layout depends on them).
+    /// The crate whose `tiny_bvh.h` is the default header (its build flags, `-std=c++20
+    /// -march=native`, are the shim's too).
     const CRATE: &str = "tinybvh-rs";
 
     pub fn compile() {
         println!("cargo:rerun-if-changed=ffi/tinybvh_shim.cpp");
+        println!("cargo:rerun-if-env-changed=QUIVER_TINYBVH_HEADER_DIR");
         let header_dir = header_dir();
+        let header = header_dir.join("tiny_bvh.h");
+        println!("cargo:rerun-if-changed={}", header.display());
+        let bytes =
+            std::fs::read(&header).unwrap_or_else(|e| panic!("reading {}: {e}", header.display()));
+        println!("cargo:rustc-env=QUIVER_TINYBVH_HEADER={}", header.display());
+        println!(
+            "cargo:rustc-env=QUIVER_TINYBVH_HEADER_HASH={:016x}",
+            fnv1a(&bytes)
+        );
         cc::Build::new()
             .cpp(true)
             .file("ffi/tinybvh_shim.cpp")
             .include(&header_dir)
             .std("c++20")
             .flag("-march=native")
+            // The peer at its best whatever the profile: tinybvh's own builds use -O3.
+            .opt_level(3)
             // tiny_bvh.h warns about what it does not use; the shim's own code is small.
             .warnings(false)
             .compile("quiver_tinybvh_shim");
     }
 
-    /// Where tinybvh-rs's `tiny_bvh.h` is: cargo knows where it unpacked the crate, so ask it
+    /// FNV-1a (64 bits) of `bytes`: enough to tell two headers apart in a report.
+    fn fnv1a(bytes: &[u8]) -> u64 {
+        bytes.iter().fold(0xcbf2_9ce4_8422_2325, |h, &b| {
+            (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3)
+        })
+    }
+
+    /// `QUIVER_TINYBVH_HEADER_DIR` if set (it must hold a `tiny_bvh.h`); else where
+    /// tinybvh-rs's `tiny_bvh.h` is: cargo knows where it unpacked the crate, so ask it
     /// (`cargo metadata`, offline: the crate is already there, being built beside us).
     fn header_dir() -> PathBuf {
         if let Ok(dir) = std::env::var("QUIVER_TINYBVH_HEADER_DIR") {
-            return PathBuf::from(dir);
+            let dir = PathBuf::from(dir);
+            assert!(
+                dir.join("tiny_bvh.h").is_file(),
+                "QUIVER_TINYBVH_HEADER_DIR={}: no tiny_bvh.h there",
+                dir.display()
+            );
+            return dir;
         }
         let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
         let manifest =
@@ -84,10 +114,6 @@ mod tinybvh {
             dir.join("tiny_bvh.h").is_file(),
             "no tiny_bvh.h in {}",
             dir.display()
-        );
-        println!(
-            "cargo:rerun-if-changed={}",
-            dir.join("tiny_bvh.h").display()
         );
         dir
     }

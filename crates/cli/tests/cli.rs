@@ -47,7 +47,7 @@ fn every_command(scene: &str, dir: &Path) -> Vec<Vec<String>> {
             &tiny,
         ),
         with(&["accuracy", scene, "--sphere", "0"], &tiny),
-        with(&["bench", scene], &tiny),
+        with(&["bench", scene, "--res", "8"], &tiny),
         with(&["packets", scene, "--res", "8"], &tiny),
         with(
             &["predict", scene, "--lines", "10", "--res", "8", "--time"],
@@ -162,7 +162,7 @@ fn zero_threads_is_refused_everywhere() {
 fn bench_and_packets_measure_the_thread_counts_asked_for() {
     let dir = tempfile::tempdir().unwrap();
     for line in [
-        "bench tetra1 --rays 10 --reps 1 --threads 1",
+        "bench tetra1 --rays 10 --reps 1 --res 8 --threads 1",
         "packets tetra1 --rays 10 --reps 1 --res 8 --threads 1",
     ] {
         let json = dir.path().join("report.json");
@@ -175,6 +175,11 @@ fn bench_and_packets_measure_the_thread_counts_asked_for() {
         if line.starts_with("bench") {
             // tetra1's 4 triangles: one 256-byte 8-wide node, and at least the triangles'
             // own 36 bytes each beside it.
+            // Every ray kind of the single-ray rounds, eye rays from the camera asked for.
+            for kind in ["eye", "shadow", "diffuse", "incoherent"] {
+                assert!(rows.iter().any(|r| r["rays"] == kind), "{kind}: {rows:?}");
+            }
+            assert_eq!(report["machine"]["eye_res"], 8);
             let memory = report["memory"].as_array().unwrap();
             let bvh8 = memory.iter().find(|m| m["kernel"] == "bvh8-dfs").unwrap();
             assert_eq!(bvh8["node_bytes"], 256, "{bvh8}");
@@ -195,6 +200,14 @@ fn bench_and_packets_measure_the_thread_counts_asked_for() {
                 mirror.is_some_and(|r| r["count"].as_u64() > Some(0)),
                 "{rows:?}"
             );
+            // Diffuse bounce rays: one per eye hit, as the mirror rays.
+            let diffuse = rows.iter().find(|r| r["rays"] == "diffuse");
+            assert_eq!(
+                diffuse.map(|r| &r["count"]),
+                mirror.map(|r| &r["count"]),
+                "{rows:?}"
+            );
+            assert_eq!(report["eye_res"], 8);
         }
     }
 }
@@ -1544,7 +1557,7 @@ fn memory_estimates_bound_what_runs_take() {
         "render balls3 --patches --res 64 --threads 2 -o r.png",
         "gen balls4 --patches -o /dev/null",
         "layouts soup100000 --rays 100000 --res 64 --reps 1 --threads 1",
-        "bench soup100000 --rays 10000 --reps 1 --threads 1",
+        "bench soup100000 --rays 10000 --res 64 --reps 1 --threads 1",
         "packets balls3 --res 64 --rays 10000 --reps 1 --threads 1",
         "predict soup50000 --lines 100000 --time --rays 10000 --res 64 --reps 1 --threads 1",
         "costs soup50000 --res 64 --reps 1 --threads 1",

@@ -1,13 +1,17 @@
 // quiver-lab's C entry points into tinybvh's BVH8_CPU and BVH4_CPU (feature `tinybvh`).
 //
-// tinybvh-rs compiles tinybvh (its TINYBVH_IMPLEMENTATION) with -march=native and links it;
-// this file only includes the same header for the class declarations and calls the methods
-// tinybvh-rs's Rust API does not reach: the CPU layouts' builds, Intersect and IsOccluded
-// whatever the Rust target features, and the size of their node and leaf arrays. It must see
-// the classes exactly as the library was compiled, so build.rs passes the same -march=native
-// and C++ standard. Nothing here may throw or exit: the Rust side refuses rays tinybvh's
+// This file compiles tinybvh itself (its TINYBVH_IMPLEMENTATION) from whichever tiny_bvh.h
+// build.rs found: the snapshot the tinybvh-rs crate ships, or the one QUIVER_TINYBVH_HEADER_DIR
+// names (e.g. the newest upstream header). The header's namespace is renamed, so this copy can
+// never clash with, or be mixed up with, the one tinybvh-rs compiles from its own snapshot:
+// declarations, implementation and flags (-O3 -march=native, C++20) come from one header in one
+// translation unit. Nothing here may throw or exit: the Rust side refuses rays tinybvh's
 // VALIDATE_RAY would end the process on (NaN) before calling.
+#define TINYBVH_IMPLEMENTATION
+#define tinybvh quiver_tinybvh
 #include "tiny_bvh.h"
+#undef tinybvh
+namespace tinybvh = quiver_tinybvh;
 
 #include <cstddef>
 #include <cstdint>
@@ -84,6 +88,35 @@ int32_t occluded(const void* bvh, const ShimRay* r) {
 }  // namespace
 
 extern "C" {
+
+// The header's version macros (1.6.8 and its later development snapshots share one number).
+void quiver_tinybvh_version(uint32_t* major, uint32_t* minor, uint32_t* sub) {
+    *major = TINY_BVH_VERSION_MAJOR;
+    *minor = TINY_BVH_VERSION_MINOR;
+    *sub = TINY_BVH_VERSION_SUB;
+}
+
+// Traversal counters, when the header was instrumented to keep them (a probe's copy of the
+// header that defines QUIVER_TINYBVH_COUNTERS and the counters; never the shipped ones): nodes,
+// leaves, triangle lanes tested and stack pushes since the last reset, on all threads. Returns 0
+// when the header keeps none.
+int32_t quiver_tinybvh_counters(uint64_t* out, int32_t reset) {
+#ifdef QUIVER_TINYBVH_COUNTERS
+    out[0] = tinybvh::quiver_count_nodes;
+    out[1] = tinybvh::quiver_count_leaves;
+    out[2] = tinybvh::quiver_count_tris;
+    out[3] = tinybvh::quiver_count_pushes;
+    if (reset) {
+        tinybvh::quiver_count_nodes = tinybvh::quiver_count_leaves = 0;
+        tinybvh::quiver_count_tris = tinybvh::quiver_count_pushes = 0;
+    }
+    return 1;
+#else
+    (void)out;
+    (void)reset;
+    return 0;
+#endif
+}
 
 void* quiver_tinybvh8_build(const float* vertices, uint32_t tris) {
     return build<tinybvh::BVH8_CPU>(vertices, tris);

@@ -67,6 +67,9 @@ mod ffi {
 
     pub type RTCDeviceProperty = u32;
     pub const RTC_DEVICE_PROPERTY_VERSION: RTCDeviceProperty = 0;
+    pub const RTC_DEVICE_PROPERTY_NATIVE_RAY4_SUPPORTED: RTCDeviceProperty = 32;
+    pub const RTC_DEVICE_PROPERTY_NATIVE_RAY8_SUPPORTED: RTCDeviceProperty = 33;
+    pub const RTC_DEVICE_PROPERTY_NATIVE_RAY16_SUPPORTED: RTCDeviceProperty = 34;
     pub const RTC_DEVICE_PROPERTY_RAY_STREAM_SUPPORTED: RTCDeviceProperty = 35;
     pub const RTC_DEVICE_PROPERTY_BACKFACE_CULLING_ENABLED: RTCDeviceProperty = 65;
 
@@ -412,6 +415,32 @@ impl EmbreeDevice {
     pub fn version(&self) -> String {
         let v = unsafe { rtcGetDeviceProperty(self.inner.raw, RTC_DEVICE_PROPERTY_VERSION) };
         format!("{}.{}.{}", v / 10000, v / 100 % 100, v % 100)
+    }
+
+    /// The widest instruction set this device's kernels run on, as its native packet widths
+    /// show: Embree enables `rtcIntersect16` only when it selected its AVX-512 kernels (on this
+    /// CPU and not forced lower by `isa=` in the configuration), 8 for AVX or AVX2, 4 for SSE.
+    /// E.g. `"avx512"`, `"avx2"` (with `QUIVER_EMBREE_CONFIG=isa=avx2`).
+    pub fn isa(&self) -> &'static str {
+        let native = |p| unsafe { rtcGetDeviceProperty(self.inner.raw, p) != 0 };
+        if native(RTC_DEVICE_PROPERTY_NATIVE_RAY16_SUPPORTED) {
+            "avx512"
+        } else if native(RTC_DEVICE_PROPERTY_NATIVE_RAY8_SUPPORTED) {
+            // Embree's AVX-only target exists, but on a CPU with AVX2 it takes AVX2.
+            #[cfg(target_arch = "x86_64")]
+            let avx2 = std::arch::is_x86_feature_detected!("avx2");
+            #[cfg(not(target_arch = "x86_64"))]
+            let avx2 = false;
+            if avx2 {
+                "avx2"
+            } else {
+                "avx"
+            }
+        } else if native(RTC_DEVICE_PROPERTY_NATIVE_RAY4_SUPPORTED) {
+            "sse"
+        } else {
+            "scalar"
+        }
     }
 
     /// Whether this library was built with ray streams (`rtcIntersect1M`); without them the
@@ -944,6 +973,18 @@ mod tests {
         let ray = Ray::new(glam::Vec3A::ZERO, glam::Vec3A::X);
         assert_eq!(empty.closest_hit(&ray), None);
         assert!(!empty.any_hit(&ray));
+    }
+
+    #[test]
+    fn embree_isa_follows_a_forced_configuration() {
+        // Embree runs the ISA its configuration names when the CPU has it.
+        let sse = EmbreeDevice::with_config(Some("isa=sse4.2")).unwrap();
+        assert_eq!(sse.isa(), "sse");
+        if std::arch::is_x86_feature_detected!("avx2") {
+            let avx2 = EmbreeDevice::with_config(Some("isa=avx2")).unwrap();
+            assert_eq!(avx2.isa(), "avx2");
+        }
+        println!("default: {}", EmbreeDevice::new().unwrap().isa());
     }
 
     #[test]

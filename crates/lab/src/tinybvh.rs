@@ -3,11 +3,12 @@
 //! triangles and rays as quiver's kernels, so `quiver bench` and `quiver packets` can time
 //! them side by side.
 //!
-//! tinybvh 1.6.8 comes from the `tinybvh-rs` crate, whose build compiles it with
-//! `-march=native`. Its Rust API builds `BVH8_CPU` but offers its ray query only when the Rust
-//! side is compiled for AVX2 too, and neither `IsOccluded` nor `BVH4_CPU`; a small C++ shim of
-//! ours (`ffi/tinybvh_shim.cpp`, compiled by build.rs against the crate's header with the same
-//! flags) calls those directly.
+//! tinybvh is one C++ header. build.rs compiles it, with a small C++ shim of ours
+//! (`ffi/tinybvh_shim.cpp`: builds, `Intersect` and `IsOccluded` of both layouts, sizes) in one
+//! translation unit at `-O3 -march=native`, from the header in the directory
+//! `QUIVER_TINYBVH_HEADER_DIR` names, or else the 1.6.8 snapshot the `tinybvh-rs` crate ships
+//! (whose Rust API offers neither `IsOccluded` nor `BVH4_CPU`, so only its header is used).
+//! [`version`] says which header was compiled.
 //!
 //! ```
 //! use glam::Vec3A;
@@ -29,10 +30,6 @@
 //! rays). A NaN in a ray would make tinybvh end the process, so such rays are answered here
 //! as misses without asking it; triangles with a non-finite vertex are left out of its build,
 //! as quiver and Embree leave them out.
-
-// tinybvh-rs provides the compiled library the shim calls into; nothing of its Rust API is
-// used, so name the crate for the linker.
-use tinybvh_rs as _;
 
 use quiver_rt::{Ray, Triangle};
 use std::ffi::c_void;
@@ -77,6 +74,37 @@ extern "C" {
     ) -> i32;
     fn quiver_tinybvh4_occluded(bvh: *const c_void, ray: *const ShimRay) -> i32;
     fn quiver_tinybvh4_bytes(bvh: *const c_void, used: *mut u64, allocated: *mut u64);
+    fn quiver_tinybvh_version(major: *mut u32, minor: *mut u32, sub: *mut u32);
+    fn quiver_tinybvh_counters(out: *mut u64, reset: i32) -> i32;
+}
+
+/// The tinybvh compiled in: its version macros, the header's path and an FNV-1a hash of its
+/// bytes (development snapshots keep the release's number), e.g. `1.6.8 (tiny_bvh.h
+/// 3f0c…, /work/tinybvh-new/tiny_bvh.h)`.
+///
+/// ```
+/// assert!(quiver_lab::tinybvh::version().starts_with("1."));
+/// ```
+pub fn version() -> String {
+    let (mut major, mut minor, mut sub) = (0, 0, 0);
+    // SAFETY: three out-pointers to locals.
+    unsafe { quiver_tinybvh_version(&mut major, &mut minor, &mut sub) };
+    format!(
+        "{major}.{minor}.{sub} (tiny_bvh.h {}, {})",
+        env!("QUIVER_TINYBVH_HEADER_HASH"),
+        env!("QUIVER_TINYBVH_HEADER")
+    )
+}
+
+/// Traversal work counted by an instrumented header since the last call (which resets it):
+/// `[nodes, leaves, triangle lanes tested, stack pushes]` summed over all threads, or `None`
+/// when the compiled header keeps no counters (the shipped ones do not; a profiling copy of
+/// the header may define `QUIVER_TINYBVH_COUNTERS` and the counters the shim reads).
+pub fn take_counters() -> Option<[u64; 4]> {
+    let mut out = [0u64; 4];
+    // SAFETY: `out` holds the four values the shim writes.
+    let kept = unsafe { quiver_tinybvh_counters(out.as_mut_ptr(), 1) };
+    (kept != 0).then_some(out)
 }
 
 /// Which of tinybvh's CPU layouts.

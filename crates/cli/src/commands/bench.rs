@@ -1,5 +1,7 @@
 //! `quiver bench`: quiver and obvhs 0.4 side by side in one process, on the same triangles and
-//! the same rays: build time and SAH cost, then Mrays/s for eye, shadow and incoherent rays.
+//! the same rays: build time and SAH cost, then Mrays/s for eye rays (a `--res`² camera, 1024²
+//! by default, row by row), shadow rays (one per eye hit, toward the first light), diffuse
+//! bounce rays (one cosine-distributed direction per eye hit) and incoherent rays.
 //! Built with the `embree` feature, Intel Embree 3 joins them (`rtcIntersect1` / `rtcOccluded1`
 //! in the same interleaved rounds, and its build time). Coherent rays (the eye rays in 8 x 8
 //! tiles and their shadow rays) also go through quiver's packet kernel and, with the
@@ -10,7 +12,8 @@
 //! commit, tinybvh's node and leaf array. quiver's build presets (default, fast) each report their
 //! build time and SAH cost, and their trees are traced in the default layout beside the
 //! kernels; the default also reports its refit time (`Bvh::refit` to the triangles slightly
-//! moved, as by an animation).
+//! moved, as by an animation). The report names each peer's version, and the instruction set
+//! Embree's kernels run on.
 
 use super::{measured_threads, pool, thread_count, Result, MAX_RAYS, MAX_REPS};
 use crate::budget::{self, Estimate};
@@ -46,9 +49,13 @@ pub(crate) struct BenchArgs {
     /// dragon that scripts/fetch-meshes.sh fetches:
     /// `quiver bench tests/data/bunny.obj meshes/dragon_vrip.ply.gz teapot12`.
     scenes: Vec<String>,
-    /// Incoherent rays per scene (eye rays: a 256 x 256 image; shadow rays: one per eye hit).
+    /// Incoherent rays per scene.
     #[arg(allow_negative_numbers = true, long, default_value_t = 200_000, value_parser = super::count(MAX_RAYS))]
     rays: usize,
+    /// Image width and height for eye rays (shadow and diffuse rays: one per eye hit). Not
+    /// used by --instanced, which traces a 256² image.
+    #[arg(allow_negative_numbers = true, long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(8..=8192))]
+    res: u32,
     /// Timed rounds per measurement (median).
     #[arg(allow_negative_numbers = true, long, default_value_t = 3, value_parser = super::count(MAX_REPS))]
     reps: usize,
@@ -76,6 +83,13 @@ const PER_TRIANGLE: u64 = 2000;
 /// Memory per incoherent ray (`quiver bench soup1000 --rays 2000000`: 113 MB, 54 B a ray),
 /// rounded up.
 const PER_RAY: u64 = 72;
+
+/// Rays kept per eye pixel: the eye rays row by row and in tiles, and at most one shadow ray
+/// of each and one diffuse ray.
+const PER_PIXEL: u64 = 5;
+
+/// The seed of the diffuse bounce rays (any fixed value: every engine traces the same set).
+pub(crate) const DIFFUSE_SEED: u64 = 51;
 
 /// The scenes `quiver bench` measures without arguments.
 const DEFAULT_SCENES: [&str; 3] = ["teapot12", "balls3", "tetra10"];
@@ -153,8 +167,17 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
             format!("{} incoherent rays", budget::count(args.rays as u64)),
             args.rays as u64 * PER_RAY,
         );
+        let pixels = u64::from(args.res).pow(2);
+        e.add(
+            format!(
+                "{} eye rays, their shadow and diffuse rays",
+                budget::count(pixels)
+            ),
+            pixels * PER_PIXEL * PER_RAY,
+        );
         e
     })?;
+    let (peer_lines, peers) = super::peers()?;
     let loaded: Vec<_> = scenes
         .iter()
         .zip(loaded)
@@ -376,17 +399,19 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
             let bytes = t.bytes().0;
             memory_rows.push(memory("tinybvh", t.layout().name(), None, bytes, bytes));
         }
-        let eye = rays::camera_rays(&scene.camera, 256);
+        let res = args.res as usize;
+        let eye = rays::camera_rays(&scene.camera, res);
         let light = scene
             .lights
             .first()
             .map(|l| l.pos)
             .unwrap_or(scene.camera.from);
         let shadow = rays::shadow_rays(&bvhs[2], &eye, &[light]);
+        let diffuse = rays::diffuse_rays(&bvhs[2], &tris, &eye, DIFFUSE_SEED);
         let incoherent = rays::random_rays(&scene.bounds(), args.rays, 11);
         // The same eye rays in 8 x 8 tiles, and their shadow rays in that order: coherent
         // input for the packet kernels (quiver's, and Embree's streams).
-        let tiles = rays::camera_tiles(&scene.camera, 256, 8);
+        let tiles = rays::camera_tiles(&scene.camera, res, 8);
         let tile_shadow = rays::shadow_rays(&bvhs[2], &tiles, &[light]);
         for &threads in &thread_counts {
             let p = pool(Some(threads))?;
@@ -439,6 +464,7 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
             for (kind, set, any) in [
                 ("eye", &eye, false),
                 ("shadow", &shadow, true),
+                ("diffuse", &diffuse, false),
                 ("incoherent", &incoherent, false),
             ] {
                 let ours = KERNELS.len() + preset_bvhs.len();
@@ -512,6 +538,13 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
         bar.inc(1);
     }
     bar.finish_and_clear();
+    for line in &peer_lines {
+        outln!("{line}");
+    }
+    outln!(
+        "(eye: {0}x{0} camera; shadow and diffuse: one per eye hit)",
+        args.res
+    );
     print_throughput(&rows);
     print_memory(&memory_rows);
     let machine = json!({
@@ -521,6 +554,8 @@ pub(crate) fn run(args: BenchArgs) -> Result<()> {
         "arch": std::env::consts::ARCH,
         "target_features": {"sse2": cfg!(target_feature = "sse2"), "avx": cfg!(target_feature = "avx"), "avx2": cfg!(target_feature = "avx2")},
         "isa": quiver_rt::Isa::detect().name(),
+        "eye_res": args.res,
+        "peers": peers,
     });
     write_json(
         args.json.as_ref(),

@@ -249,6 +249,41 @@ pub(crate) fn measured_threads(asked: &[u16]) -> Vec<usize> {
     counts
 }
 
+/// The comparison engines built in, for the reports: each one's version, and for Embree the
+/// instruction set its kernels run on and any `QUIVER_EMBREE_CONFIG`; as one line each to
+/// print and as JSON. No lines and an empty object without the `embree` and `tinybvh`
+/// features.
+pub(crate) fn peers() -> Result<(Vec<String>, serde_json::Value)> {
+    #[allow(unused_mut)]
+    let mut lines = Vec::new();
+    #[allow(unused_mut)]
+    let mut json = serde_json::Map::new();
+    #[cfg(feature = "embree")]
+    {
+        let device = quiver_lab::embree::EmbreeDevice::new()?;
+        let config = std::env::var("QUIVER_EMBREE_CONFIG").ok();
+        lines.push(format!(
+            "Embree {} ({} kernels{})",
+            device.version(),
+            device.isa(),
+            config
+                .as_deref()
+                .map_or(String::new(), |c| format!(", QUIVER_EMBREE_CONFIG={c}"))
+        ));
+        json.insert(
+            "embree".into(),
+            serde_json::json!({"version": device.version(), "isa": device.isa(), "config": config}),
+        );
+    }
+    #[cfg(feature = "tinybvh")]
+    {
+        let version = quiver_lab::tinybvh::version();
+        lines.push(format!("tinybvh {version}"));
+        json.insert("tinybvh".into(), serde_json::json!({ "version": version }));
+    }
+    Ok((lines, json.into()))
+}
+
 /// `--layout` by name.
 pub(crate) fn parse_layout(s: &str) -> std::result::Result<Layout, ParseError> {
     s.parse()

@@ -1,12 +1,14 @@
 //! `quiver packets`: packet traversal against the single-ray kernel of the same BVH, side by side on the
-//! same rays: eye rays (8 x 8 pixel tiles), shadow rays (one per eye hit and light, in tile
-//! order), mirror rays (patch mode: every eye hit reflected about its triangle, in tile order)
-//! and incoherent rays, SPD scenes in curve mode (analytic shapes and whole polygons)
+//! same rays: eye rays (8 x 8 pixel tiles of a `--res`² camera, 1024² by default), shadow rays
+//! (one per eye hit and light, in tile order), mirror rays (patch mode: every eye hit reflected
+//! about its triangle, in tile order), diffuse bounce rays (patch mode: one cosine-distributed
+//! direction about each eye hit's triangle normal, in tile order) and incoherent rays, SPD scenes in curve mode (analytic shapes and whole polygons)
 //! and in patch mode (the scene's triangles), 1 thread and all threads. Built with the
 //! `embree` feature, Intel Embree 3 joins them in patch mode, on the same triangles: one ray
 //! at a time and as coherent streams over the same packet-ordered rays. Built with the
 //! `tinybvh` feature, tinybvh's `BVH8_CPU` and `BVH4_CPU` join them likewise, one ray at a
-//! time (tinybvh's packet query is for its binary layout only).
+//! time (tinybvh's packet query is for its binary layout only). The report names each peer's
+//! version, and the instruction set Embree's kernels run on.
 
 use super::{
     count, measured_threads, parse_layout, pool, thread_count, Result, MAX_RAYS, MAX_REPS,
@@ -32,7 +34,7 @@ pub(crate) struct PacketsArgs {
     /// Default: balls3 (158k triangles in patch mode), gears3, teapot12 and tetra9 (262k).
     scenes: Vec<String>,
     /// Image width and height for eye rays.
-    #[arg(allow_negative_numbers = true, long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(8..=8192))]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(8..=8192))]
     res: u32,
     /// Incoherent rays per scene.
     #[arg(allow_negative_numbers = true, long, default_value_t = 200_000, value_parser = count(MAX_RAYS))]
@@ -132,10 +134,10 @@ pub(crate) fn run(args: PacketsArgs) -> Result<()> {
         let eye = (args.res as u64).pow(2);
         e.add(
             format!(
-                "{} eye rays with their shadow and mirror rays",
+                "{} eye rays with their shadow, mirror and diffuse rays",
                 budget::count(eye)
             ),
-            eye * (PER_EYE + PER_RAY * (1 + lights as u64)),
+            eye * (PER_EYE + PER_RAY * (2 + lights as u64)),
         );
         e
     })?;
@@ -147,6 +149,7 @@ pub(crate) fn run(args: PacketsArgs) -> Result<()> {
         jobs.push(("patch", scene.into_patches(DEFAULT_RESOLUTION)));
     }
     let thread_counts = measured_threads(&args.threads);
+    let (peer_lines, peers) = super::peers()?;
     let bar = indicatif::ProgressBar::new(jobs.len() as u64);
     bar.set_style(indicatif::ProgressStyle::with_template(
         "{bar:40} {pos}/{len} {msg} [{elapsed}]",
@@ -181,8 +184,15 @@ pub(crate) fn run(args: PacketsArgs) -> Result<()> {
         bar.inc(1);
     }
     bar.finish_and_clear();
+    for line in &peer_lines {
+        outln!("{line}");
+    }
+    outln!("(eye: {0}x{0} camera in 8x8 tiles)", args.res);
     print_rows(&rows);
-    write_json(args.json.as_ref(), &json!({ "rows": rows }))
+    write_json(
+        args.json.as_ref(),
+        &json!({ "eye_res": args.res, "peers": peers, "rows": rows }),
+    )
 }
 
 /// The scenes named, for messages (the defaults when none were).
@@ -203,6 +213,9 @@ const PER_TRIANGLE: u64 = 600;
 /// Memory per random ray and its answer (`quiver packets soup1000 --rays 2000000`: 101 MB, 48 B
 /// a ray), rounded up; shadow and mirror rays likewise.
 const PER_RAY: u64 = 64;
+
+/// The seed of the diffuse bounce rays (`quiver bench`'s too, so both trace the same set).
+const DIFFUSE_SEED: u64 = super::bench::DIFFUSE_SEED;
 
 /// Memory per eye ray in tiles with its hit (`quiver packets soup1000 --res 1024`: 109 MB,
 /// 100 B an eye ray with its one light's shadow ray), rounded up.
@@ -226,6 +239,9 @@ fn measure<P: Primitive>(
     let shadow = rays::shadow_rays(&bvh, &eye, &lights);
     // `bvh` is over `tris` itself here, so its hits index them.
     let mirror = tris.map_or_else(Vec::new, |t| rays::reflection_rays(&bvh, t, &eye));
+    let diffuse = tris.map_or_else(Vec::new, |t| {
+        rays::diffuse_rays(&bvh, t, &eye, DIFFUSE_SEED)
+    });
     let random = rays::random_rays(&scene.bounds(), args.rays, 11);
     // Embree and tinybvh trace triangles only: in patch mode the same triangles as quiver;
     // curve mode's spheres, cones and whole polygons would need user geometry, so they are
@@ -275,9 +291,10 @@ fn measure<P: Primitive>(
             ("eye", &eye, Query::Closest),
             ("shadow", &shadow, Query::Any),
             ("mirror", &mirror, Query::Closest),
+            ("diffuse", &diffuse, Query::Closest),
             ("incoherent", &random, Query::Closest),
         ] {
-            if kind == "mirror" && tris.is_none() {
+            if (kind == "mirror" || kind == "diffuse") && tris.is_none() {
                 continue;
             }
             let times = p.install(|| {
