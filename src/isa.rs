@@ -1,10 +1,11 @@
 //! Which instruction set the wide kernels run on, chosen at run time.
 //!
 //! `wide` picks SSE or AVX when a crate is compiled, and a binary built for baseline x86-64
-//! gets SSE. The AVX2 kernels are compiled separately under `#[target_feature]` and chosen
-//! once per BVH, when it is built, from what the CPU reports; the portable kernels (`wide`:
-//! SSE2 on x86-64, NEON on aarch64, scalar elsewhere) run everywhere else. Both compute every
-//! float the same way, operation for operation, so they return bit-identical answers.
+//! gets SSE. The AVX2 and AVX-512 kernels are compiled separately under `#[target_feature]`
+//! (`traverse::dispatch`) and chosen once per BVH, when it is built, from what the CPU
+//! reports; the portable kernels (`wide`: SSE2 on x86-64, NEON on aarch64, scalar elsewhere)
+//! run everywhere else. All compute every float the same way, operation for operation, so they
+//! return bit-identical answers.
 
 use crate::names::{by_name, ParseError};
 use std::fmt;
@@ -24,6 +25,9 @@ pub enum Isa {
     /// x86-64 AVX2 (256-bit lanes; FMA present but unused, so the answers stay
     /// bit-identical to the portable kernels').
     Avx2,
+    /// x86-64 AVX-512 (F, VL, BW, DQ): the AVX2 kernels' lanes with mask registers,
+    /// compression and 32 vector registers.
+    Avx512,
 }
 
 /// Proof that this CPU runs AVX2 and FMA instructions. Its field is private to this module and
@@ -39,6 +43,18 @@ impl Avx2Cpu {
     }
 }
 
+/// Proof that this CPU runs AVX-512 F, VL, BW and DQ instructions, and AVX2 and FMA. Made
+/// only by [`Avx512Cpu::detect`], as [`Avx2Cpu`] is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct Avx512Cpu(());
+
+impl Avx512Cpu {
+    /// The proof, where the CPU reports AVX-512 F, VL, BW, DQ, AVX2 and FMA.
+    pub(crate) fn detect() -> Option<Avx512Cpu> {
+        avx512_supported().then_some(Avx512Cpu(()))
+    }
+}
+
 /// The kernels a BVH's queries run on, checked when chosen: the AVX2 ones carry the proof
 /// that the CPU has them, so no value of this type can send a query to instructions the CPU
 /// lacks. Layouts keep one in a private field.
@@ -48,12 +64,17 @@ pub(crate) enum Kernels {
     Portable,
     /// AVX2 lanes, on a CPU that has them.
     Avx2(Avx2Cpu),
+    /// AVX-512 lanes, on a CPU that has them.
+    Avx512(Avx512Cpu),
 }
 
 impl Kernels {
-    /// The kernels for `isa` where this CPU runs them, else the portable ones.
+    /// The kernels for `isa` where this CPU runs them, else the best it runs below `isa`.
     pub(crate) fn new(isa: Isa) -> Kernels {
         match isa {
+            Isa::Avx512 => {
+                Avx512Cpu::detect().map_or_else(|| Kernels::new(Isa::Avx2), Kernels::Avx512)
+            }
             Isa::Avx2 => Avx2Cpu::detect().map_or(Kernels::Portable, Kernels::Avx2),
             Isa::Portable => Kernels::Portable,
         }
@@ -64,13 +85,14 @@ impl Kernels {
         match self {
             Kernels::Portable => Isa::Portable,
             Kernels::Avx2(_) => Isa::Avx2,
+            Kernels::Avx512(_) => Isa::Avx512,
         }
     }
 }
 
 impl Isa {
-    /// The environment variable that forces an instruction set, `QUIVER_ISA`: `portable` or
-    /// `avx2` (see [`Isa::detect`]).
+    /// The environment variable that forces an instruction set, `QUIVER_ISA`: `portable`,
+    /// `avx2` or `avx512` (see [`Isa::detect`]).
     ///
     /// ```
     /// assert_eq!(quiver_rt::Isa::ENV, "QUIVER_ISA");
@@ -78,15 +100,15 @@ impl Isa {
     pub const ENV: &'static str = "QUIVER_ISA";
 
     /// Every instruction set, portable first.
-    pub const ALL: [Isa; 2] = [Isa::Portable, Isa::Avx2];
+    pub const ALL: [Isa; 3] = [Isa::Portable, Isa::Avx2, Isa::Avx512];
 
-    /// The best instruction set this CPU runs, unless [`Isa::ENV`] says `portable` (or
-    /// `avx2`, which is honoured only where supported). Read when a BVH is built. A value of
-    /// [`Isa::ENV`] that names no instruction set is ignored here; [`Isa::from_env`] reports it
-    /// (the `quiver` command refuses to start with one).
+    /// The best instruction set this CPU runs, unless [`Isa::ENV`] names another (honoured
+    /// only where supported; a CPU without it gets the best below it). Read when a BVH is
+    /// built. A value of [`Isa::ENV`] that names no instruction set is ignored here;
+    /// [`Isa::from_env`] reports it (the `quiver` command refuses to start with one).
     pub fn detect() -> Isa {
         match Isa::from_env() {
-            Ok(Some(Isa::Portable)) => Isa::Portable,
+            Ok(Some(isa)) => isa.or_best_below(),
             _ => Isa::best(),
         }
     }
@@ -97,7 +119,7 @@ impl Isa {
     /// ```
     /// use quiver_rt::Isa;
     /// assert_eq!("portable".parse::<Isa>(), Ok(Isa::Portable));
-    /// assert_eq!("Portable".parse::<Isa>().unwrap_err().expected, ["portable", "avx2"]);
+    /// assert_eq!("Portable".parse::<Isa>().unwrap_err().expected, ["portable", "avx2", "avx512"]);
     /// ```
     ///
     /// # Errors
@@ -118,11 +140,7 @@ impl Isa {
 
     /// The best instruction set this CPU runs.
     pub fn best() -> Isa {
-        if Isa::Avx2.is_supported() {
-            Isa::Avx2
-        } else {
-            Isa::Portable
-        }
+        Isa::Avx512.or_best_below()
     }
 
     /// True when this CPU can run the kernels.
@@ -130,6 +148,7 @@ impl Isa {
         match self {
             Isa::Portable => true,
             Isa::Avx2 => avx2_supported(),
+            Isa::Avx512 => avx512_supported(),
         }
     }
 
@@ -142,11 +161,17 @@ impl Isa {
         }
     }
 
+    /// `self` if supported, else the best instruction set below it that is.
+    pub fn or_best_below(self) -> Isa {
+        Kernels::new(self).isa()
+    }
+
     /// The name reports use.
     pub fn name(self) -> &'static str {
         match self {
             Isa::Portable => "portable",
             Isa::Avx2 => "avx2",
+            Isa::Avx512 => "avx512",
         }
     }
 }
@@ -173,6 +198,20 @@ fn avx2_supported() -> bool {
 
 #[cfg(not(target_arch = "x86_64"))]
 fn avx2_supported() -> bool {
+    false
+}
+
+#[cfg(target_arch = "x86_64")]
+fn avx512_supported() -> bool {
+    avx2_supported()
+        && is_x86_feature_detected!("avx512f")
+        && is_x86_feature_detected!("avx512vl")
+        && is_x86_feature_detected!("avx512bw")
+        && is_x86_feature_detected!("avx512dq")
+}
+
+#[cfg(not(target_arch = "x86_64"))]
+fn avx512_supported() -> bool {
     false
 }
 

@@ -175,7 +175,7 @@ impl<P: Primitive> RayQuery for AnyLayout<P> {
         ray: &Ray,
         stats: &mut S,
         filter: &mut F,
-    ) -> Option<Hit> {
+    ) -> A::Answer<Hit> {
         match self {
             AnyLayout::Bvh2(b) => b.trace_with::<A, B, S, F>(ray, stats, filter),
             AnyLayout::Bvh4(b) => b.trace_with::<A, B, S, F>(ray, stats, filter),
@@ -188,7 +188,7 @@ impl<P: Primitive> RayQuery for AnyLayout<P> {
     fn trace_packet_with<A: Ask, B: BoxTest, S: Stats, F: Filter<Hit>>(
         &self,
         query: PacketQuery<'_>,
-        hits: &mut [Option<Hit>],
+        hits: &mut [A::Answer<Hit>],
         stats: &mut S,
         filter: &mut F,
     ) {
@@ -229,7 +229,7 @@ pub(crate) fn trace_scaled<P, A, B, S, F>(
     ray: &Ray,
     stats: &mut S,
     filter: &mut F,
-) -> Option<Hit>
+) -> A::Answer<Hit>
 where
     P: Primitive,
     A: Ask,
@@ -240,7 +240,7 @@ where
     let (local, back) = frame.ray(ray);
     let mut filter = InWorld { filter, back };
     let hit = layout.trace_with::<A, B, S, _>(&local, stats, &mut filter);
-    hit.map(|h| back.hit(h))
+    A::map(hit, |h| back.hit(h))
 }
 
 /// [`trace_scaled`] for packets.
@@ -250,7 +250,7 @@ pub(crate) fn trace_packet_scaled<P, A, B, S, F>(
     layout: &AnyLayout<P>,
     frame: Frame,
     query: PacketQuery<'_>,
-    hits: &mut [Option<Hit>],
+    hits: &mut [A::Answer<Hit>],
     stats: &mut S,
     filter: &mut F,
 ) where
@@ -271,7 +271,7 @@ pub(crate) fn trace_packet_scaled<P, A, B, S, F>(
         let hits = &mut hits[at..at + local.rays.len()];
         layout.trace_packet_with::<A, B, S, F>(local, hits, stats, filter);
         for (h, back) in hits.iter_mut().zip(backs) {
-            *h = h.map(|h| back.hit(h));
+            *h = A::map(*h, |h| back.hit(h));
         }
     });
 }
@@ -291,7 +291,7 @@ impl<P: Primitive> RayQuery for Scaled<'_, P> {
         ray: &Ray,
         stats: &mut S,
         filter: &mut F,
-    ) -> Option<Hit> {
+    ) -> A::Answer<Hit> {
         trace_scaled::<P, A, B, S, F>(self.layout, self.frame, ray, stats, filter)
     }
 }

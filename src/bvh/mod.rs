@@ -254,7 +254,7 @@ impl<P: Primitive> RayQuery for Bvh<P> {
         ray: &Ray,
         stats: &mut S,
         filter: &mut F,
-    ) -> Option<Hit> {
+    ) -> A::Answer<Hit> {
         if !self.frame.is_identity() {
             return any_layout::trace_scaled::<P, A, B, S, F>(
                 &self.layout,
@@ -270,7 +270,7 @@ impl<P: Primitive> RayQuery for Bvh<P> {
     fn trace_packet_with<A: Ask, B: BoxTest, S: Stats, F: Filter<Hit>>(
         &self,
         query: PacketQuery<'_>,
-        hits: &mut [Option<Hit>],
+        hits: &mut [A::Answer<Hit>],
         stats: &mut S,
         filter: &mut F,
     ) {

@@ -58,7 +58,7 @@ impl<P: Primitive> RayQuery for Bvh2<P> {
         ray: &Ray,
         stats: &mut S,
         filter: &mut F,
-    ) -> Option<Hit> {
+    ) -> A::Answer<Hit> {
         let ray = &ray.raised_t_min();
         let mut best = Hit::none(ray.t_max);
         traverse::<P, B, S, _>(self, ray, stats, |range, limit, stats| {
@@ -70,10 +70,13 @@ impl<P: Primitive> RayQuery for Bvh2<P> {
                 stats,
                 filter,
             );
+            if A::ANY {
+                return found;
+            }
             *limit = best.t;
-            A::ANY && found
+            false
         });
-        best.found()
+        A::answer(best.found())
     }
 }
 

@@ -96,50 +96,66 @@ fn walk<N, A, B, S, F>(
         stats.node();
         stats.boxes(4);
         let (t, mask) = r4.enter::<B>(&n.planes(), limit * B::SLACK);
-        if !A::ANY {
-            // Push hit children farthest first, so the nearest is popped next.
-            if mask.is_power_of_two() {
-                // One child hit (the common case): nothing to order.
-                let i = mask.trailing_zeros() as usize;
-                let (c, count) = n.child(i);
-                stack.push((c, count, t[i]));
-            } else {
+        // The child taken next is held here rather than pushed and popped (as in the 8-wide
+        // walk): the next node's address then does not wait on a store and a load through the
+        // stack.
+        let mut next = if mask.is_power_of_two() {
+            // One child hit (the common case): nothing to order.
+            let i = mask.trailing_zeros() as usize;
+            let (c, count) = n.child(i);
+            (c, count, t[i])
+        } else if mask != 0 {
+            if !A::ANY {
+                // Push hit children farthest first and take the nearest.
                 let mut hits = [(0.0f32, 0u32); 4];
                 let mut k = 0;
                 for i in bits(mask) {
                     insert_farthest_first(&mut hits, k, t[i], i as u32);
                     k += 1;
                 }
-                for &(ti, i) in &hits[..k] {
+                for &(ti, i) in &hits[..k - 1] {
                     let (c, count) = n.child(i as usize);
                     stack.push((c, count, ti));
                 }
+                let (tn, near) = hits[k - 1];
+                let (c, count) = n.child(near as usize);
+                (c, count, tn)
+            } else {
+                // Any hit stops at the first hit wherever it is: no ordering to pay for.
+                let last = 31 - mask.leading_zeros() as usize;
+                for i in bits(mask & !(1 << last)) {
+                    let (c, count) = n.child(i);
+                    stack.push((c, count, t[i]));
+                }
+                let (c, count) = n.child(last);
+                (c, count, t[last])
             }
         } else {
-            // Any hit stops at the first hit wherever it is: no ordering to pay for.
-            for i in bits(mask) {
-                let (c, count) = n.child(i);
-                stack.push((c, count, t[i]));
+            match stack.pop() {
+                Some(e) => e,
+                None => return,
             }
-        }
-        // Pop until an inner node worth entering; leaves are handled on the way.
+        };
+        // From the held child, then popping, until an inner node worth entering; leaves are
+        // handled on the way.
         loop {
-            let Some((c, count, ti)) = stack.pop() else {
-                return;
+            let (c, count, ti) = next;
+            if ti <= limit * B::SLACK {
+                if count & Bvh4Node::LEAF == 0 {
+                    node = c as usize;
+                    break;
+                }
+                let count = count & !Bvh4Node::LEAF;
+                stats.node();
+                stats.leaf();
+                if leaf(c as usize..(c + count) as usize, &mut limit, stats) {
+                    return;
+                }
+            }
+            next = match stack.pop() {
+                Some(e) => e,
+                None => return,
             };
-            if ti > limit * B::SLACK {
-                continue;
-            }
-            if count & Bvh4Node::LEAF == 0 {
-                node = c as usize;
-                break;
-            }
-            let count = count & !Bvh4Node::LEAF;
-            stats.node();
-            stats.leaf();
-            if leaf(c as usize..(c + count) as usize, &mut limit, stats) {
-                return;
-            }
         }
     }
 }
@@ -149,7 +165,8 @@ fn walk<N, A, B, S, F>(
 /// compiled in only for a layout that holds far groups.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-pub(crate) fn search<N, A, B, P, S, F, const FAR: bool>(
+pub(crate) fn search<V, N, A, B, P, S, F, const FAR: bool>(
+    cpu: V::Cpu,
     nodes: &[N],
     leaves: &Leaves<P>,
     ray: &Ray,
@@ -164,6 +181,7 @@ pub(crate) fn search<N, A, B, P, S, F, const FAR: bool>(
     P: Primitive,
     S: Stats,
     F: Filter<Hit>,
+    V: F8,
 {
     let mut prep = None;
     walk::<N, A, B, S, _>(
@@ -175,7 +193,8 @@ pub(crate) fn search<N, A, B, P, S, F, const FAR: bool>(
         #[inline(always)]
         |range, limit, stats| {
             let count = range.len() as u32;
-            let found = leaves.test::<A, S, F, FAR>(
+            let found = leaves.test::<V, A, S, F, FAR>(
+                cpu,
                 range.start,
                 count,
                 ray,
@@ -184,8 +203,11 @@ pub(crate) fn search<N, A, B, P, S, F, const FAR: bool>(
                 stats,
                 filter,
             );
+            if A::ANY {
+                return found;
+            }
             *limit = best.t;
-            A::ANY && found
+            false
         },
     );
 }
@@ -193,7 +215,8 @@ pub(crate) fn search<N, A, B, P, S, F, const FAR: bool>(
 /// [`search`] with the far-group path picked at run time (see `bvh8::search_from`).
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-pub(crate) fn search_from<N, A, B, P, S, F>(
+pub(crate) fn search_from<V, N, A, B, P, S, F>(
+    cpu: V::Cpu,
     nodes: &[N],
     leaves: &Leaves<P>,
     ray: &Ray,
@@ -202,6 +225,7 @@ pub(crate) fn search_from<N, A, B, P, S, F>(
     stats: &mut S,
     filter: &mut F,
 ) where
+    V: F8,
     N: WideNode,
     A: Ask,
     B: BoxTest,
@@ -213,9 +237,11 @@ pub(crate) fn search_from<N, A, B, P, S, F>(
         *best = search_far::<N, A, B, P, S, F>(nodes, leaves, ray, root, *best, stats, filter);
         return;
     }
-    search::<N, A, B, P, S, F, false>(nodes, leaves, ray, root, best, stats, filter);
+    search::<V, N, A, B, P, S, F, false>(cpu, nodes, leaves, ray, root, best, stats, filter);
 }
 
+/// [`search`] over a layout holding far groups, on the portable lanes, in a cold function of
+/// its own (see `bvh8::search_from`).
 #[cold]
 #[inline(never)]
 fn search_far<N, A, B, P, S, F>(
@@ -235,7 +261,10 @@ where
     S: Stats,
     F: Filter<Hit>,
 {
-    search::<N, A, B, P, S, F, true>(nodes, leaves, ray, root, &mut best, stats, filter);
+    let cpu = ();
+    search::<wide::f32x8, N, A, B, P, S, F, true>(
+        cpu, nodes, leaves, ray, root, &mut best, stats, filter,
+    );
     best
 }
 
@@ -258,16 +287,25 @@ where
     S: Stats,
     F: Filter<Hit>,
 {
-    type Out = Option<Hit>;
+    type Out = A::Answer<Hit>;
 
     #[inline(always)]
-    fn run<V: F8, const FAR: bool>(self, _: V::Cpu) -> Option<Hit> {
+    fn run<V: F8, const FAR: bool>(self, cpu: V::Cpu) -> A::Answer<Hit> {
         let ray = &self.ray.raised_t_min();
         let mut best = Hit::none(ray.t_max);
         let leaves = self.bvh.leaves();
         let nodes = &self.bvh.nodes;
-        search::<N, A, B, P, S, F, FAR>(nodes, &leaves, ray, 0, &mut best, self.stats, self.filter);
-        best.found()
+        search::<V, N, A, B, P, S, F, FAR>(
+            cpu,
+            nodes,
+            &leaves,
+            ray,
+            0,
+            &mut best,
+            self.stats,
+            self.filter,
+        );
+        A::answer(best.found())
     }
 }
 
@@ -279,7 +317,7 @@ impl<P: Primitive, N: WideNode> RayQuery for Bvh4<P, N> {
         ray: &Ray,
         stats: &mut S,
         filter: &mut F,
-    ) -> Option<Hit> {
+    ) -> A::Answer<Hit> {
         let kernel = Trace::<P, N, A, B, S, F> {
             bvh: self,
             ray,
@@ -293,7 +331,7 @@ impl<P: Primitive, N: WideNode> RayQuery for Bvh4<P, N> {
     fn trace_packet_with<A: Ask, B: BoxTest, S: Stats, F: Filter<Hit>>(
         &self,
         query: PacketQuery<'_>,
-        hits: &mut [Option<Hit>],
+        hits: &mut [A::Answer<Hit>],
         stats: &mut S,
         filter: &mut F,
     ) {

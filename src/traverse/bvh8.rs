@@ -9,7 +9,7 @@ use super::dispatch::{self, LaneKernel};
 use super::lane8::F8;
 use super::leaves::Leaves;
 use super::packet::{self, InLanes, PacketQuery, RayPacket};
-use super::simd::{bits, insert_farthest_first};
+use super::simd::bits;
 use super::stats::Stats;
 use super::{slab_reciprocal, Ask, BoxTest, Filter, RayQuery, Stack};
 use crate::builders::MAX_DEPTH;
@@ -18,6 +18,7 @@ use crate::isa::Kernels;
 use crate::layout::{Bvh8, Bvh8Node};
 use crate::primitive::Primitive;
 use std::marker::PhantomData;
+use wide::f32x8;
 
 /// A ray prepared for the slab test of a node's eight boxes in eight lanes of `V`.
 pub(crate) struct Ray8<V: F8> {
@@ -59,6 +60,13 @@ impl<V: F8> Ray8<V> {
     /// `[t_min, t_max]` (boundaries included; `t_max` already scaled by the box test's slack).
     #[inline(always)]
     pub(crate) fn enter<B: BoxTest>(&self, n: &Bvh8Node, t_max: f32) -> ([f32; 8], u32) {
+        let (near, mask) = self.enter_lanes::<B>(n, t_max);
+        (near.to_array(), mask)
+    }
+
+    /// [`Ray8::enter`] with the distances left in lanes.
+    #[inline(always)]
+    pub(crate) fn enter_lanes<B: BoxTest>(&self, n: &Bvh8Node, t_max: f32) -> (V, u32) {
         let p = |row: usize| V::load(self.cpu, &n.planes[row]);
         let slack = V::splat(self.cpu, B::SLACK);
         let mut near = self.t_min;
@@ -69,7 +77,7 @@ impl<V: F8> Ray8<V> {
             near = tn.max_nan_first(near);
             far = tf.mul(slack).min_nan_first(far);
         }
-        (near.to_array(), near.le(far).bitmask())
+        (near, near.le_bits(far))
     }
 }
 
@@ -104,7 +112,7 @@ pub(crate) fn walk<V, A, B, S, F>(
         let n = &nodes[node];
         stats.node();
         stats.boxes(8);
-        let (t, mask) = ray.enter::<B>(n, limit * B::SLACK);
+        let (near, mask) = ray.enter_lanes::<B>(n, limit * B::SLACK);
         // The child taken next is held here rather than pushed and popped: the next node's
         // address then does not wait on a store and a load through the stack. The held entry
         // is a plain value each pop replaces: taken through an `Option` chain
@@ -113,28 +121,20 @@ pub(crate) fn walk<V, A, B, S, F>(
         let mut next = if mask.is_power_of_two() {
             // One child hit (the common case): nothing to order.
             let i = mask.trailing_zeros() as usize;
-            (n.child[i], n.count[i], t[i])
+            (n.child[i], n.count[i], near.to_array()[i])
         } else if mask != 0 {
             if !A::ANY {
-                // Push hit children farthest first and take the nearest. Measured against
-                // per-octant precomputed orders (children by centre along the ray's octant, 32
-                // more bytes a node): those ran eye rays 4-29% faster but incoherent rays up
-                // to 12% slower (`quiver layouts`, 1 thread, medians of 3 runs), and the
-                // nearest hit child first plus octant order for the rest was slower than both.
-                let mut hits = [(0.0f32, 0u32); 8];
-                let mut k = 0;
-                for i in bits(mask) {
-                    insert_farthest_first(&mut hits, k, t[i], i as u32);
-                    k += 1;
+                // Push hit children farthest first and take the nearest (see
+                // `F8::order_hits`: the lanes order them, in registers where they can).
+                let (k, child, count, t) = near.order_hits(mask, &n.child, &n.count);
+                for j in 0..k - 1 {
+                    touch(child[j], count[j]);
+                    stack.push((child[j], count[j], t[j]));
                 }
-                let (tn, near) = hits[k - 1];
-                for &(ti, i) in &hits[..k - 1] {
-                    touch(n.child[i as usize], n.count[i as usize]);
-                    stack.push((n.child[i as usize], n.count[i as usize], ti));
-                }
-                (n.child[near as usize], n.count[near as usize], tn)
+                (child[k - 1], count[k - 1], t[k - 1])
             } else {
                 // Any order serves; the last hit child is taken next.
+                let t = near.to_array();
                 let last = 31 - mask.leading_zeros() as usize;
                 for i in bits(mask & !(1 << last)) {
                     touch(n.child[i], n.count[i]);
@@ -216,10 +216,13 @@ pub(crate) fn search<V, A, B, P, S, F, const FAR: bool>(
         stats,
         #[inline(always)]
         |first, count, limit, stats| {
-            let found =
-                leaves.test::<A, S, F, FAR>(first, count, ray, &mut prep, best, stats, filter);
+            let found = leaves
+                .test::<V, A, S, F, FAR>(cpu, first, count, ray, &mut prep, best, stats, filter);
+            if A::ANY {
+                return found;
+            }
             *limit = best.t;
-            A::ANY && found
+            false
         },
         #[inline(always)]
         |c, count| touch(nodes, leaves, c, count),
@@ -228,8 +231,8 @@ pub(crate) fn search<V, A, B, P, S, F, const FAR: bool>(
 
 /// [`search`] with the far-group path picked at run time, for a walk that starts in another
 /// (a packet's ray continuing alone, a world's ray entering an instance): the far path is a
-/// cold call of its own, compiled for the caller's lanes ([`F8::outlined`]), and `best` goes
-/// to it by value, so the fast walk's search state never has its address taken.
+/// cold call of its own, and `best` goes to it by value, so the fast walk's search state
+/// never has its address taken.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn search_from<V, A, B, P, S, F>(
@@ -250,27 +253,35 @@ pub(crate) fn search_from<V, A, B, P, S, F>(
     F: Filter<Hit>,
 {
     if leaves.far.any() {
-        let mut far_best = *best;
-        *best = V::outlined(
-            cpu,
-            #[inline(always)]
-            move || {
-                search::<V, A, B, P, S, F, true>(
-                    cpu,
-                    nodes,
-                    leaves,
-                    ray,
-                    root,
-                    &mut far_best,
-                    stats,
-                    filter,
-                );
-                far_best
-            },
-        );
+        *best = search_far::<A, B, P, S, F>(nodes, leaves, ray, root, *best, stats, filter);
         return;
     }
     search::<V, A, B, P, S, F, false>(cpu, nodes, leaves, ray, root, best, stats, filter);
+}
+
+/// [`search`] over a layout holding far groups, on the portable lanes (as `dispatch` runs such
+/// a layout), in a cold function of its own.
+#[cold]
+#[inline(never)]
+#[allow(clippy::too_many_arguments)]
+fn search_far<A, B, P, S, F>(
+    nodes: &[Bvh8Node],
+    leaves: &Leaves<P>,
+    ray: &Ray,
+    root: usize,
+    mut best: Hit,
+    stats: &mut S,
+    filter: &mut F,
+) -> Hit
+where
+    A: Ask,
+    B: BoxTest,
+    P: Primitive,
+    S: Stats,
+    F: Filter<Hit>,
+{
+    search::<f32x8, A, B, P, S, F, true>((), nodes, leaves, ray, root, &mut best, stats, filter);
+    best
 }
 
 /// One ray's query of a [`Bvh8`], as the kernel [`dispatch`] runs.
@@ -290,10 +301,10 @@ where
     S: Stats,
     F: Filter<Hit>,
 {
-    type Out = Option<Hit>;
+    type Out = A::Answer<Hit>;
 
     #[inline(always)]
-    fn run<V: F8, const FAR: bool>(self, cpu: V::Cpu) -> Option<Hit> {
+    fn run<V: F8, const FAR: bool>(self, cpu: V::Cpu) -> A::Answer<Hit> {
         let ray = &self.ray.raised_t_min();
         let mut best = Hit::none(ray.t_max);
         let leaves = self.bvh.leaves();
@@ -308,7 +319,7 @@ where
             self.stats,
             self.filter,
         );
-        best.found()
+        A::answer(best.found())
     }
 }
 
@@ -320,7 +331,7 @@ impl<P: Primitive> RayQuery for Bvh8<P> {
         ray: &Ray,
         stats: &mut S,
         filter: &mut F,
-    ) -> Option<Hit> {
+    ) -> A::Answer<Hit> {
         let kernel = Trace::<P, A, B, S, F> {
             bvh: self,
             ray,
@@ -334,7 +345,7 @@ impl<P: Primitive> RayQuery for Bvh8<P> {
     fn trace_packet_with<A: Ask, B: BoxTest, S: Stats, F: Filter<Hit>>(
         &self,
         query: PacketQuery<'_>,
-        hits: &mut [Option<Hit>],
+        hits: &mut [A::Answer<Hit>],
         stats: &mut S,
         filter: &mut F,
     ) {

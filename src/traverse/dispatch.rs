@@ -1,7 +1,7 @@
 //! The one place a query picks its instruction set: a kernel is written once over lanes
 //! ([`F8`]) as a [`LaneKernel`], and [`run`] calls it on the lanes of a BVH's [`Kernels`],
 //! through a `#[target_feature]` trampoline per instruction set, with the layout's far-group
-//! path compiled in or out. Adding an instruction set is one trampoline and one match arm here
+//! path compiled in or out (a layout holding far groups runs the portable lanes). Adding an instruction set is one trampoline and one match arm here
 //! (and its lane type in `lane8`); no kernel changes.
 //!
 //! Everything a kernel calls is `#[inline(always)]` (closures included), so it is compiled
@@ -23,29 +23,35 @@ pub(crate) trait LaneKernel {
     fn run<V: F8, const FAR: bool>(self, cpu: V::Cpu) -> Self::Out;
 }
 
-/// Runs `kernel` on `kernels`' lanes, with the far groups' path when `far`. A layout holding
-/// far groups takes a cold instantiation of its own, so the others carry no trace of it.
+/// Runs `kernel` on `kernels`' lanes; with the far groups' path when `far`, on the portable
+/// lanes. A layout holding far groups (a scene mixing sizes far apart, rare) thus takes one
+/// cold instantiation of its own, so the others carry no trace of it, and each kernel is
+/// compiled once per instruction set plus once for that case, not twice per instruction set.
 #[inline(always)]
 pub(crate) fn run<K: LaneKernel>(kernels: Kernels, far: bool, kernel: K) -> K::Out {
     if far {
-        return run_far(kernels, kernel);
+        return run_far(kernel);
     }
-    run_as::<K, false>(kernels, kernel)
+    run_as(kernels, kernel)
 }
 
 #[cold]
 #[inline(never)]
-fn run_far<K: LaneKernel>(kernels: Kernels, kernel: K) -> K::Out {
-    run_as::<K, true>(kernels, kernel)
+fn run_far<K: LaneKernel>(kernel: K) -> K::Out {
+    kernel.run::<f32x8, true>(())
 }
 
 #[inline(always)]
-fn run_as<K: LaneKernel, const FAR: bool>(kernels: Kernels, kernel: K) -> K::Out {
+fn run_as<K: LaneKernel>(kernels: Kernels, kernel: K) -> K::Out {
     match kernels {
         #[cfg(target_arch = "x86_64")]
+        // SAFETY: the `Avx512Cpu` proves the CPU has AVX-512 F, VL, BW, DQ, AVX2 and FMA
+        // (only detection makes one).
+        Kernels::Avx512(cpu) => unsafe { avx512(cpu, kernel) },
+        #[cfg(target_arch = "x86_64")]
         // SAFETY: the `Avx2Cpu` proves the CPU has AVX2 and FMA (only detection makes one).
-        Kernels::Avx2(cpu) => unsafe { avx2::<K, FAR>(cpu, kernel) },
-        Kernels::Portable => portable::<K, FAR>(kernel),
+        Kernels::Avx2(cpu) => unsafe { avx2(cpu, kernel) },
+        Kernels::Portable => portable(kernel),
     }
 }
 
@@ -53,8 +59,8 @@ fn run_as<K: LaneKernel, const FAR: bool>(kernels: Kernels, kernel: K) -> K::Out
 /// own as every instruction set's: inlined beside the far path's call, a walk kept its SIMD
 /// state across that call.
 #[inline(never)]
-fn portable<K: LaneKernel, const FAR: bool>(kernel: K) -> K::Out {
-    kernel.run::<f32x8, FAR>(())
+fn portable<K: LaneKernel>(kernel: K) -> K::Out {
+    kernel.run::<f32x8, false>(())
 }
 
 /// The kernel on AVX2 lanes, compiled with AVX2 and FMA enabled (FMA is never contracted
@@ -64,6 +70,17 @@ fn portable<K: LaneKernel, const FAR: bool>(kernel: K) -> K::Out {
 /// The CPU must support AVX2 and FMA, which `cpu` proves.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-unsafe fn avx2<K: LaneKernel, const FAR: bool>(cpu: crate::isa::Avx2Cpu, kernel: K) -> K::Out {
-    kernel.run::<super::lane8::Avx, FAR>(cpu)
+unsafe fn avx2<K: LaneKernel>(cpu: crate::isa::Avx2Cpu, kernel: K) -> K::Out {
+    kernel.run::<super::lane8::Avx, false>(cpu)
+}
+
+/// The kernel on AVX-512 lanes (256-bit, with mask registers), compiled with AVX-512 F, VL, BW
+/// and DQ enabled.
+///
+/// # Safety
+/// The CPU must support AVX-512 F, VL, BW, DQ, AVX2 and FMA, which `cpu` proves.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512vl,avx512bw,avx512dq,avx2,fma")]
+unsafe fn avx512<K: LaneKernel>(cpu: crate::isa::Avx512Cpu, kernel: K) -> K::Out {
+    kernel.run::<super::lane8::Avx512, false>(cpu)
 }

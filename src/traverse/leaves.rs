@@ -2,8 +2,9 @@
 //! [`LeafFormat`], chosen by a compile-time constant, so a leaf is a primitive range (plain
 //! types) or a range of [`Tri4`] groups (triangle formats), never a run-time check.
 
+use super::lane8::F8;
 use super::search::test_prims;
-use super::tri4::{test_far, test_leaf, Ray4Tri};
+use super::tri4::{test_far, test_leaf, LeafRay};
 use super::{Ask, Filter, Stats};
 use crate::geometry::{Hit, Ray};
 use crate::layout::tri4::FarGroups;
@@ -46,12 +47,13 @@ impl<P: Primitive> Leaves<'_, P> {
     /// `FAR`, or false).
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
-    pub fn test<A: Ask, S: Stats, F: Filter<Hit>, const FAR: bool>(
+    pub fn test<V: F8, A: Ask, S: Stats, F: Filter<Hit>, const FAR: bool>(
         &self,
+        cpu: V::Cpu,
         first: usize,
         count: u32,
         ray: &Ray,
-        prep: &mut Option<Ray4Tri>,
+        prep: &mut Option<LeafRay<V>>,
         best: &mut Hit,
         stats: &mut S,
         filter: &mut F,
@@ -68,7 +70,8 @@ impl<P: Primitive> Leaves<'_, P> {
                     filter,
                 )
             }
-            format => test_leaf::<A, S, F, FAR>(
+            format => test_leaf::<V, A, S, F, FAR>(
+                cpu,
                 (self.groups(first, count), first, self.far),
                 count,
                 ray,
@@ -84,8 +87,10 @@ impl<P: Primitive> Leaves<'_, P> {
     /// [`Leaves::test`] with the far groups checked at run time, for callers outside a walk
     /// (a packet's ray alone at a leaf).
     #[inline(always)]
-    pub fn test_checked<A: Ask, S: Stats, F: Filter<Hit>>(
+    #[allow(clippy::too_many_arguments)]
+    pub fn test_checked<V: F8, A: Ask, S: Stats, F: Filter<Hit>>(
         &self,
+        cpu: V::Cpu,
         first: usize,
         count: u32,
         ray: &Ray,
@@ -95,12 +100,12 @@ impl<P: Primitive> Leaves<'_, P> {
     ) -> bool {
         if P::LEAF_FORMAT != LeafFormat::Plain && self.far.any() {
             let groups = (self.groups(first, count), first, self.far);
-            let (found, b) =
-                test_far::<A, S, F>(groups, count, ray, P::LEAF_FORMAT, *best, stats, filter);
+            let format = P::LEAF_FORMAT;
+            let (found, b) = test_far::<A, S, F>(groups, count, ray, format, *best, stats, filter);
             *best = b;
             return found;
         }
-        self.test::<A, S, F, false>(first, count, ray, &mut None, best, stats, filter)
+        self.test::<V, A, S, F, false>(cpu, first, count, ray, &mut None, best, stats, filter)
     }
 }
 

@@ -1,7 +1,7 @@
 //! [`RayQuery`]: the one interface every traversable structure answers; [`Ask`], whether a
 //! query wants the closest hit or any hit; [`Filter`], the candidate test a query may carry.
 
-use super::packet::{each_packet, PacketMode, PacketQuery, PACKET_RAYS};
+use super::packet::{each_packet, PacketMode, PacketQuery};
 use super::{BoxTest, ConservativeBoxes, Counters, NoStats, Stats};
 use crate::geometry::Ray;
 
@@ -17,6 +17,23 @@ pub trait Ask: Copy + Default + sealed::Sealed + 'static {
     /// node's children in any order; false for the closest hit: children nearest first, the
     /// search interval shrinking to the best hit so far.
     const ANY: bool;
+
+    /// What a query answers for one ray: the hit found (`Option<H>`, closest hit) or whether
+    /// there is one (`bool`, any hit). Its default is the answer for a ray not traced.
+    type Answer<H: Copy>: Copy + Default;
+
+    /// The answer for the hit a search found, if any.
+    fn answer<H: Copy>(found: Option<H>) -> Self::Answer<H>;
+
+    /// Whether `answer` says something was hit.
+    fn is_hit<H: Copy>(answer: &Self::Answer<H>) -> bool;
+
+    /// `answer` with its hit (if it names one) mapped by `f`.
+    fn map<H: Copy, G: Copy>(answer: Self::Answer<H>, f: impl FnOnce(H) -> G) -> Self::Answer<G>;
+
+    /// The hit `answer` names: a closest hit's own, or for any hit `stand_in` where there is
+    /// one (an any-hit answer names none).
+    fn into_hit<H: Copy>(answer: Self::Answer<H>, stand_in: H) -> Option<H>;
 }
 
 /// The nearest hit along the ray (lowest primitive index on ties).
@@ -29,10 +46,52 @@ pub struct AnyHit;
 
 impl Ask for ClosestHit {
     const ANY: bool = false;
+    type Answer<H: Copy> = Option<H>;
+
+    #[inline(always)]
+    fn answer<H: Copy>(found: Option<H>) -> Option<H> {
+        found
+    }
+
+    #[inline(always)]
+    fn is_hit<H: Copy>(answer: &Option<H>) -> bool {
+        answer.is_some()
+    }
+
+    #[inline(always)]
+    fn map<H: Copy, G: Copy>(answer: Option<H>, f: impl FnOnce(H) -> G) -> Option<G> {
+        answer.map(f)
+    }
+
+    #[inline(always)]
+    fn into_hit<H: Copy>(answer: Option<H>, _: H) -> Option<H> {
+        answer
+    }
 }
 
 impl Ask for AnyHit {
     const ANY: bool = true;
+    type Answer<H: Copy> = bool;
+
+    #[inline(always)]
+    fn answer<H: Copy>(found: Option<H>) -> bool {
+        found.is_some()
+    }
+
+    #[inline(always)]
+    fn is_hit<H: Copy>(answer: &bool) -> bool {
+        *answer
+    }
+
+    #[inline(always)]
+    fn map<H: Copy, G: Copy>(answer: bool, _: impl FnOnce(H) -> G) -> bool {
+        answer
+    }
+
+    #[inline(always)]
+    fn into_hit<H: Copy>(answer: bool, stand_in: H) -> Option<H> {
+        answer.then_some(stand_in)
+    }
 }
 
 mod sealed {
@@ -123,35 +182,35 @@ pub trait RayQuery {
     /// What a hit names.
     type Hit: Copy;
 
-    /// The hit `A` asks for along `ray` among those `filter` accepts: the nearest
-    /// ([`ClosestHit`]), or the first one met ([`AnyHit`], which stops there); with the box
-    /// test `B`, reporting work to `stats`.
+    /// The answer `A` asks for along `ray`, among the hits `filter` accepts: the nearest hit
+    /// ([`ClosestHit`]), or whether there is one ([`AnyHit`], which stops at the first it
+    /// meets); with the box test `B`, reporting work to `stats`.
     fn trace_with<A: Ask, B: BoxTest, S: Stats, F: Filter<Self::Hit>>(
         &self,
         ray: &Ray,
         stats: &mut S,
         filter: &mut F,
-    ) -> Option<Self::Hit>;
+    ) -> A::Answer<Self::Hit>;
 
-    /// [`RayQuery::trace_with`] for each of the query's rays into `hits` (one slot per ray),
-    /// in packets of [`PACKET_RAYS`] where its mode and the layout allow: only active rays are
-    /// traced (the others get `None`). Each closest hit is exactly
-    /// [`RayQuery::trace_with`]'s for that ray; an any-hit answer is `Some` exactly where
-    /// it is. `stats` counts packet node visits, not per-ray ones.
+    /// [`RayQuery::trace_with`] for each of the query's rays into `answers` (one slot per
+    /// ray), in packets of [`super::PACKET_RAYS`] where its mode and the layout allow: only active
+    /// rays are traced (the others get the default answer: no hit). Each answer is exactly
+    /// [`RayQuery::trace_with`]'s for that ray. `stats` counts packet node visits, not per-ray
+    /// ones.
     ///
     /// Without a packet kernel (the default) every active ray goes through
     /// [`RayQuery::trace_with`] and the mode is ignored.
     ///
     /// # Panics
-    /// When `hits` or the active flags differ in length from the rays.
+    /// When `answers` or the active flags differ in length from the rays.
     fn trace_packet_with<A: Ask, B: BoxTest, S: Stats, F: Filter<Self::Hit>>(
         &self,
         query: PacketQuery<'_>,
-        hits: &mut [Option<Self::Hit>],
+        answers: &mut [A::Answer<Self::Hit>],
         stats: &mut S,
         filter: &mut F,
     ) {
-        ray_by_ray::<_, A, B, S, F>(self, query, hits, stats, filter)
+        ray_by_ray::<_, A, B, S, F>(self, query, answers, stats, filter)
     }
 
     /// The nearest hit along `ray` that `filter` accepts, with the box test `B`, reporting
@@ -176,7 +235,6 @@ pub trait RayQuery {
         filter: &mut F,
     ) -> bool {
         self.trace_with::<AnyHit, B, S, F>(ray, stats, filter)
-            .is_some()
     }
 
     /// Closest hits of the query's rays into `hits`: [`RayQuery::trace_packet_with`] asking
@@ -200,6 +258,7 @@ pub trait RayQuery {
     ///
     /// # Panics
     /// When `occluded` or the active flags differ in length from the rays.
+    #[inline]
     fn any_hit_packet_with<B: BoxTest, S: Stats, F: Filter<Self::Hit>>(
         &self,
         query: PacketQuery<'_>,
@@ -207,26 +266,7 @@ pub trait RayQuery {
         stats: &mut S,
         filter: &mut F,
     ) {
-        let PacketQuery { rays, active, mode } = query;
-        assert_eq!(occluded.len(), rays.len(), "one flag per ray");
-        if let Some(a) = active {
-            assert_eq!(a.len(), rays.len(), "one active flag per ray");
-        }
-        // Packet by packet, as the packet kernels cut the rays anyway.
-        let mut hits = [None; PACKET_RAYS];
-        for (k, out) in occluded.chunks_mut(PACKET_RAYS).enumerate() {
-            let at = k * PACKET_RAYS;
-            let n = out.len();
-            let part = PacketQuery {
-                rays: &rays[at..at + n],
-                active: active.map(|a| &a[at..at + n]),
-                mode,
-            };
-            self.trace_packet_with::<AnyHit, B, S, F>(part, &mut hits[..n], stats, filter);
-            for (o, h) in out.iter_mut().zip(&hits[..n]) {
-                *o = h.is_some();
-            }
-        }
+        self.trace_packet_with::<AnyHit, B, S, F>(query, occluded, stats, filter)
     }
 
     /// The nearest hit along `ray` (lowest primitive index on ties).
@@ -381,7 +421,7 @@ pub trait RayQuery {
 pub(crate) fn ray_by_ray<Q, A, B, S, F>(
     q: &Q,
     query: PacketQuery<'_>,
-    hits: &mut [Option<Q::Hit>],
+    hits: &mut [A::Answer<Q::Hit>],
     stats: &mut S,
     filter: &mut F,
 ) where
@@ -396,7 +436,7 @@ pub(crate) fn ray_by_ray<Q, A, B, S, F>(
             *h = if on >> i & 1 == 1 {
                 q.trace_with::<A, B, S, F>(r, stats, filter)
             } else {
-                None
+                Default::default()
             };
         }
     });

@@ -60,15 +60,21 @@ pub(crate) fn test_prims<A: Ask, P: Primitive, S: Stats, F: Filter<Hit>>(
     stats: &mut S,
     filter: &mut F,
 ) -> bool {
-    // The interval up to the best hit so far (the whole ray for any hit, which stops at its
-    // first): a primitive beyond it cannot change the answer.
-    let r = Ray {
-        t_max: best.t,
-        ..*ray
+    // The interval up to the best hit so far (any hit stops at its first, so it searches
+    // the whole ray): a primitive beyond it cannot change the answer.
+    let shortened;
+    let r = if A::ANY {
+        ray
+    } else {
+        shortened = Ray {
+            t_max: best.t,
+            ..*ray
+        };
+        &shortened
     };
     let mut found = false;
     for i in 0..prims.len().min(prim_ids.len()) {
-        if let Some(h) = prim_hit(&prims[i], &r) {
+        if let Some(h) = prim_hit(&prims[i], r) {
             if offer::<A, F>(best, prim_ids[i], h, filter) {
                 found = true;
                 if A::ANY {

@@ -63,6 +63,21 @@ pub(crate) fn insert_farthest_first<T: Copy>(list: &mut [(f32, T)], len: usize, 
     list[j] = (t, item);
 }
 
+/// Inserts `key` into `list[..len]`, kept in decreasing order (an 8-wide node's children,
+/// farthest first, as keys that compare as integers).
+///
+/// # Panics
+/// When `list` is full (`len == list.len()`).
+#[inline(always)]
+pub(crate) fn insert_descending(list: &mut [u32], len: usize, key: u32) {
+    let mut j = len;
+    while j > 0 && list[j - 1] < key {
+        list[j] = list[j - 1];
+        j -= 1;
+    }
+    list[j] = key;
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

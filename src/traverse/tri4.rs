@@ -4,6 +4,7 @@
 //! scalar leaf test's, ties by primitive index included. [`super::leaves::Leaves`] picks
 //! them for triangle leaf formats.
 
+use super::lane8::F8;
 use super::search::offer;
 use super::simd::bits;
 use super::{Ask, Filter, Stats};
@@ -24,24 +25,221 @@ pub(crate) struct Ray4Tri {
     t_min: f32x4,
 }
 
+/// The watertight test's shear of `ray` (largest axis last) and its factors; the identity for
+/// the fast test, which does not read them.
+#[inline(always)]
+fn shear_terms(ray: &Ray, format: LeafFormat) -> ([usize; 3], [f32; 3]) {
+    if format == LeafFormat::WatertightTriangles {
+        let d: [f32; 3] = ray.dir.into();
+        let (kx, ky, kz) = crate::intersect::shear_axes(ray.dir);
+        let sz = 1.0 / d[kz];
+        ([kx, ky, kz], [d[kx] * sz, d[ky] * sz, sz])
+    } else {
+        ([0, 1, 2], [0.0; 3])
+    }
+}
+
 impl Ray4Tri {
     #[inline(always)]
     pub(crate) fn new(ray: &Ray, format: LeafFormat) -> Self {
+        let (k, s) = shear_terms(ray, format);
+        Self::of(ray, k, s)
+    }
+
+    #[inline(always)]
+    fn of(ray: &Ray, k: [usize; 3], s: [f32; 3]) -> Self {
         let o: [f32; 3] = ray.origin.into();
         let d: [f32; 3] = ray.dir.into();
-        let (k, s) = if format == LeafFormat::WatertightTriangles {
-            let (kx, ky, kz) = crate::intersect::shear_axes(ray.dir);
-            let sz = 1.0 / d[kz];
-            ([kx, ky, kz], [d[kx] * sz, d[ky] * sz, sz])
-        } else {
-            ([0, 1, 2], [0.0; 3])
-        };
         Ray4Tri {
-            o: o.map(f32x4::splat),
-            d: d.map(f32x4::splat),
+            o: [f32x4::splat(o[0]), f32x4::splat(o[1]), f32x4::splat(o[2])],
+            d: [f32x4::splat(d[0]), f32x4::splat(d[1]), f32x4::splat(d[2])],
             k,
-            s: s.map(f32x4::splat),
+            s: [f32x4::splat(s[0]), f32x4::splat(s[1]), f32x4::splat(s[2])],
             t_min: f32x4::splat(ray.t_min),
+        }
+    }
+}
+
+/// A ray's terms for two groups tested as one, in eight lanes of `V` (the second group's
+/// lanes beside the first's).
+pub(crate) struct Ray8Tri<V: F8> {
+    o: [V; 3],
+    d: [V; 3],
+    s: [V; 3],
+    t_min: V,
+}
+
+/// A ray's terms for a leaf's group tests, made at its first leaf: four lanes for a lone
+/// group, eight for a pair.
+pub(crate) struct LeafRay<V: F8> {
+    four: Ray4Tri,
+    eight: Ray8Tri<V>,
+}
+
+impl<V: F8> LeafRay<V> {
+    #[inline(always)]
+    fn new(cpu: V::Cpu, ray: &Ray, format: LeafFormat) -> Self {
+        let (k, s) = shear_terms(ray, format);
+        let o: [f32; 3] = ray.origin.into();
+        let d: [f32; 3] = ray.dir.into();
+        LeafRay {
+            four: Ray4Tri::of(ray, k, s),
+            eight: Ray8Tri {
+                o: V::splat3(cpu, o),
+                d: V::splat3(cpu, d),
+                s: V::splat3(cpu, s),
+                t_min: V::splat(cpu, ray.t_min),
+            },
+        }
+    }
+}
+
+/// Row `v`, axis `a` of groups `g` and `h` side by side in eight lanes.
+#[inline(always)]
+fn pair_row<V: F8>(cpu: V::Cpu, g: &Tri4, h: &Tri4, v: usize, a: usize) -> V {
+    V::load_halves(cpu, &g.rows[v][a], &h.rows[v][a])
+}
+
+/// [`fast4`] of groups `g` and `h` at once, in eight lanes of `V`: lane for lane the same
+/// operations.
+#[inline(always)]
+fn fast8<V: F8>(
+    cpu: V::Cpu,
+    (g, h): (&Tri4, &Tri4),
+    r: &Ray8Tri<V>,
+    t_max: f32,
+) -> (u32, [f32; 8], [f32; 8], [f32; 8]) {
+    let [dx, dy, dz] = r.d;
+    let (e1x, e1y, e1z) = (
+        pair_row::<V>(cpu, g, h, 1, 0),
+        pair_row::<V>(cpu, g, h, 1, 1),
+        pair_row::<V>(cpu, g, h, 1, 2),
+    );
+    let (e2x, e2y, e2z) = (
+        pair_row::<V>(cpu, g, h, 2, 0),
+        pair_row::<V>(cpu, g, h, 2, 1),
+        pair_row::<V>(cpu, g, h, 2, 2),
+    );
+    let nx = e1y.mul(e2z).sub(e1z.mul(e2y));
+    let ny = e1z.mul(e2x).sub(e1x.mul(e2z));
+    let nz = e1x.mul(e2y).sub(e1y.mul(e2x));
+    let det = nx.mul(dx).add(ny.mul(dy)).add(nz.mul(dz));
+    let inv = V::splat(cpu, 1.0).div(det);
+    let cx = pair_row::<V>(cpu, g, h, 0, 0).sub(r.o[0]);
+    let cy = pair_row::<V>(cpu, g, h, 0, 1).sub(r.o[1]);
+    let cz = pair_row::<V>(cpu, g, h, 0, 2).sub(r.o[2]);
+    let rx = dy.mul(cz).sub(cy.mul(dz));
+    let ry = dz.mul(cx).sub(cz.mul(dx));
+    let rz = dx.mul(cy).sub(cx.mul(dy));
+    let u = rx.mul(e2x).add(ry.mul(e2y)).add(rz.mul(e2z)).mul(inv);
+    let v = rx.mul(e1x).add(ry.mul(e1y)).add(rz.mul(e1z)).mul(inv);
+    let t = nx.mul(cx).add(ny.mul(cy)).add(nz.mul(cz)).mul(inv);
+    let zero = V::splat(cpu, 0.0);
+    let ok = det
+        .ne(zero)
+        .and(u.ge(zero))
+        .and(v.ge(zero))
+        .and(u.add(v).le(V::splat(cpu, 1.0)))
+        .and(t.ge(r.t_min))
+        .and(t.le(V::splat(cpu, t_max)));
+    (ok.bitmask(), t.to_array(), u.to_array(), v.to_array())
+}
+
+/// [`watertight4`] of groups `g` and `h` at once, in eight lanes of `V`.
+#[inline(always)]
+fn watertight8<V: F8>(
+    cpu: V::Cpu,
+    (g, h): (&Tri4, &Tri4),
+    k: [usize; 3],
+    r: &Ray8Tri<V>,
+    t_max: f32,
+) -> (u32, u32, [f32; 8], [f32; 8], [f32; 8]) {
+    let [kx, ky, kz] = k;
+    let [sx, sy, sz] = r.s;
+    // Written as a function, not a closure: lane operations must stay inside the kernel.
+    #[inline(always)]
+    fn rel<V: F8>(cpu: V::Cpu, gh: (&Tri4, &Tri4), o: &[V; 3], v: usize, a: usize) -> V {
+        pair_row::<V>(cpu, gh.0, gh.1, v, a).sub(o[a])
+    }
+    let o = &r.o;
+    let (z0, z1, z2) = (
+        rel(cpu, (g, h), o, 0, kz),
+        rel(cpu, (g, h), o, 1, kz),
+        rel(cpu, (g, h), o, 2, kz),
+    );
+    let x = [
+        rel(cpu, (g, h), o, 0, kx).sub(sx.mul(z0)),
+        rel(cpu, (g, h), o, 1, kx).sub(sx.mul(z1)),
+        rel(cpu, (g, h), o, 2, kx).sub(sx.mul(z2)),
+    ];
+    let y = [
+        rel(cpu, (g, h), o, 0, ky).sub(sy.mul(z0)),
+        rel(cpu, (g, h), o, 1, ky).sub(sy.mul(z1)),
+        rel(cpu, (g, h), o, 2, ky).sub(sy.mul(z2)),
+    ];
+    let u = x[2].mul(y[1]).sub(y[2].mul(x[1]));
+    let v = x[0].mul(y[2]).sub(y[0].mul(x[2]));
+    let w = x[1].mul(y[0]).sub(y[1].mul(x[0]));
+    let zero = V::splat(cpu, 0.0);
+    let lo = u.min_nan_first(v).min_nan_first(w);
+    let hi = u.max_nan_first(v).max_nan_first(w);
+    let inside = zero.lt(lo).or(hi.lt(zero));
+    let edge = u.mul(v).mul(w).eq(zero).and_not(inside);
+    if inside.or(edge).bitmask() == 0 {
+        return (0, 0, [0.0; 8], [0.0; 8], [0.0; 8]);
+    }
+    let det = u.add(v).add(w);
+    let t_scaled = u
+        .mul(sz.mul(z0))
+        .add(v.mul(sz.mul(z1)))
+        .add(w.mul(sz.mul(z2)));
+    let inv = V::splat(cpu, 1.0).div(det);
+    let t = t_scaled.mul(inv);
+    let ok = inside.and(t.ge(r.t_min)).and(t.le(V::splat(cpu, t_max)));
+    let (hu, hv) = (v.mul(inv), w.mul(inv));
+    (
+        ok.bitmask(),
+        edge.bitmask(),
+        t.to_array(),
+        hu.to_array(),
+        hv.to_array(),
+    )
+}
+
+/// Hits of groups `g` and `h` tested as one in `format` within `[t_min, t_max]`: `(lane,
+/// hit)` for each, lanes 4 to 7 being `h`'s. Neither group is far.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn pair_hits<V: F8>(
+    cpu: V::Cpu,
+    (g, h): (&Tri4, &Tri4),
+    r: &LeafRay<V>,
+    ray: &Ray,
+    t_max: f32,
+    format: LeafFormat,
+    mut hit: impl FnMut(usize, PrimHit),
+) {
+    // The fast test has no edge lanes; `format` is a constant here, so that loop compiles away.
+    let (ok, edge, t, u, v) = if format == LeafFormat::WatertightTriangles {
+        watertight8::<V>(cpu, (g, h), r.four.k, &r.eight, t_max)
+    } else {
+        let (ok, t, u, v) = fast8::<V>(cpu, (g, h), &r.eight, t_max);
+        (ok, 0, t, u, v)
+    };
+    for l in bits(ok) {
+        hit(
+            l,
+            PrimHit {
+                t: t[l],
+                u: u[l],
+                v: v[l],
+            },
+        );
+    }
+    for l in bits(edge) {
+        let group = if l < 4 { g } else { h };
+        if let Some(e) = edge_hit(group, l & 3, ray, t_max) {
+            hit(l, e);
         }
     }
 }
@@ -198,10 +396,10 @@ fn far_hits(g: &Tri4, ray: &Ray, t_max: f32, format: LeafFormat) -> [Option<Prim
     })
 }
 
-/// [`test_groups`] for a layout holding far groups, out of the fast path's line: from `best`,
-/// the new best and whether it changed. By value, and with the ray's group terms made here,
-/// so the fast path's search state never has its address taken (which would keep it in
-/// memory).
+/// [`test_groups`] for a layout holding far groups, out of the fast path's line, on the
+/// portable lanes: from `best`, the new best and whether it changed. By value, and with the
+/// ray's group terms made here, so the fast path's search state never has its address taken
+/// (which would keep it in memory).
 #[cold]
 #[inline(never)]
 pub(crate) fn test_far<A: Ask, S: Stats, F: Filter<Hit>>(
@@ -213,9 +411,18 @@ pub(crate) fn test_far<A: Ask, S: Stats, F: Filter<Hit>>(
     stats: &mut S,
     filter: &mut F,
 ) -> (bool, Hit) {
-    let r = Ray4Tri::new(ray, format);
-    let found =
-        test_groups::<A, S, F, true>(groups, count, ray, &r, format, &mut best, stats, filter);
+    let r = LeafRay::<wide::f32x8>::new((), ray, format);
+    let found = test_groups::<wide::f32x8, A, S, F, true>(
+        (),
+        groups,
+        count,
+        ray,
+        &r,
+        format,
+        &mut best,
+        stats,
+        filter,
+    );
     (found, best)
 }
 
@@ -223,18 +430,19 @@ pub(crate) fn test_far<A: Ask, S: Stats, F: Filter<Hit>>(
 /// leaf (`prep`, see [`prepared`]).
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-pub(crate) fn test_leaf<A: Ask, S: Stats, F: Filter<Hit>, const FAR: bool>(
+pub(crate) fn test_leaf<V: F8, A: Ask, S: Stats, F: Filter<Hit>, const FAR: bool>(
+    cpu: V::Cpu,
     groups: LeafGroups<'_>,
     count: u32,
     ray: &Ray,
-    prep: &mut Option<Ray4Tri>,
+    prep: &mut Option<LeafRay<V>>,
     format: LeafFormat,
     best: &mut Hit,
     stats: &mut S,
     filter: &mut F,
 ) -> bool {
-    let r = prepared(prep, ray, format);
-    test_groups::<A, S, F, FAR>(groups, count, ray, r, format, best, stats, filter)
+    let r = prepared::<V>(cpu, prep, ray, format);
+    test_groups::<V, A, S, F, FAR>(cpu, groups, count, ray, r, format, best, stats, filter)
 }
 
 /// The ray's group terms, made at its first leaf. The watertight shear (an axis choice, a
@@ -242,48 +450,85 @@ pub(crate) fn test_leaf<A: Ask, S: Stats, F: Filter<Hit>, const FAR: bool>(
 /// entry, though most rays reach no leaf, and held its terms in registers the walk needed.
 /// The fast terms are splats of the ray and stay inline.
 #[inline(always)]
-fn prepared<'p>(prep: &'p mut Option<Ray4Tri>, ray: &Ray, format: LeafFormat) -> &'p Ray4Tri {
+fn prepared<'p, V: F8>(
+    cpu: V::Cpu,
+    prep: &'p mut Option<LeafRay<V>>,
+    ray: &Ray,
+    format: LeafFormat,
+) -> &'p LeafRay<V> {
     if format == LeafFormat::WatertightTriangles {
-        prep.get_or_insert_with(|| shear(ray))
+        prep.get_or_insert_with(
+            #[inline(always)]
+            || V::outlined(cpu, || LeafRay::<V>::new(cpu, ray, format)),
+        )
     } else {
-        prep.get_or_insert_with(|| Ray4Tri::new(ray, format))
+        prep.get_or_insert_with(
+            #[inline(always)]
+            || LeafRay::<V>::new(cpu, ray, format),
+        )
     }
-}
-
-/// [`Ray4Tri::new`] for the watertight test, out of line (see [`prepared`]).
-#[cold]
-#[inline(never)]
-fn shear(ray: &Ray) -> Ray4Tri {
-    Ray4Tri::new(ray, LeafFormat::WatertightTriangles)
 }
 
 /// The search `A` among a leaf's groups (`count` triangles in the leaf), improving `best`:
 /// every group for the closest hit, until one is kept for any hit. Returns true when `best`
-/// changed. `FAR`: as for [`group_hits`].
+/// changed. Two groups are tested as one in eight lanes (a leaf of five to eight triangles in
+/// one test), a lone group in four. `FAR`: as for [`group_hits`]; a far group goes alone.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-pub(crate) fn test_groups<A: Ask, S: Stats, F: Filter<Hit>, const FAR: bool>(
+pub(crate) fn test_groups<V: F8, A: Ask, S: Stats, F: Filter<Hit>, const FAR: bool>(
+    cpu: V::Cpu,
     (groups, first, far): LeafGroups<'_>,
     count: u32,
     ray: &Ray,
-    r: &Ray4Tri,
+    r: &LeafRay<V>,
     format: LeafFormat,
     best: &mut Hit,
     stats: &mut S,
     filter: &mut F,
 ) -> bool {
     let mut found = false;
-    for i in 0..groups.len() {
-        let g = (&groups[i], FAR && far.has(first + i));
-        // Any hit keeps the first candidate its filter accepts, and the group's other lanes
-        // are then not offered.
-        group_hits::<FAR>(g, r, ray, best.t, format, |l, h| {
-            if !(A::ANY && found) {
-                found |= offer::<A, F>(best, g.0.id[l], h, filter);
-            }
-        });
+    let mut i = 0;
+    while i < groups.len() {
+        let pair = i + 1 < groups.len() && !(FAR && (far.has(first + i) || far.has(first + i + 1)));
+        if pair {
+            let (g, h) = (&groups[i], &groups[i + 1]);
+            // Any hit keeps the first candidate its filter accepts; the other lanes are then
+            // not offered.
+            pair_hits::<V>(
+                cpu,
+                (g, h),
+                r,
+                ray,
+                best.t,
+                format,
+                #[inline(always)]
+                |l, hit| {
+                    if !(A::ANY && found) {
+                        let id = if l < 4 { g.id[l] } else { h.id[l - 4] };
+                        found |= offer::<A, F>(best, id, hit, filter);
+                    }
+                },
+            );
+            i += 2;
+        } else {
+            let g = (&groups[i], FAR && far.has(first + i));
+            group_hits::<FAR>(
+                g,
+                &r.four,
+                ray,
+                best.t,
+                format,
+                #[inline(always)]
+                |l, hit| {
+                    if !(A::ANY && found) {
+                        found |= offer::<A, F>(best, g.0.id[l], hit, filter);
+                    }
+                },
+            );
+            i += 1;
+        }
         if A::ANY && found {
-            stats.prims((4 * (i as u32 + 1)).min(count));
+            stats.prims((4 * i as u32).min(count));
             return true;
         }
     }

@@ -130,7 +130,11 @@ impl<P: Primitive> World<P> {
         // reverses the winding, which is what says which side a triangle faces.
         let inverse_t: Mat3A = to_object.matrix3.transpose();
         let n = unit_or_zero(inverse_t * n);
-        Some(if instance::mirrors(&inst.transform) { -n } else { n })
+        Some(if instance::mirrors(&inst.transform) {
+            -n
+        } else {
+            n
+        })
     }
 
     /// The top-level BVH, for readers inside the crate (the cost predictor).

@@ -161,6 +161,17 @@ fn local_rays<V: F8>(
     }
 }
 
+/// Ray `i`'s search limit: its best hit's distance; any hit reads no record (a ray that meets
+/// something retires), so its whole interval.
+#[inline(always)]
+fn limit<A: Ask>(rays: &[Ray], best: &[WorldHit; PACKET_RAYS], i: usize) -> f32 {
+    if A::ANY {
+        rays[i].t_max
+    } else {
+        best[i].t
+    }
+}
+
 /// Flags for the rays of `m` among the first `n`.
 #[inline(always)]
 fn flags(m: u64, n: usize, out: &mut [bool; PACKET_RAYS]) {
@@ -189,7 +200,7 @@ impl<P: Primitive> World<P> {
         let n = rays.len();
         let mut local = [Ray::new(Vec3A::ZERO, Vec3A::ZERO); PACKET_RAYS];
         let mut active = [false; PACKET_RAYS];
-        let mut found: [Option<Hit>; PACKET_RAYS] = [None; PACKET_RAYS];
+        let mut found = [A::Answer::<Hit>::default(); PACKET_RAYS];
         let mut records = [Hit::none(0.0); PACKET_RAYS];
         let mut lp = RayPacket::empty();
         let kernels = top.kernels;
@@ -220,7 +231,7 @@ impl<P: Primitive> World<P> {
                             };
                             local_packet::<V>(cpu, p, pk, m, &mut lp);
                             for i in bits(m) {
-                                records[i] = Hit::none(best[i].t);
+                                records[i] = Hit::none(limit::<A>(rays, best, i));
                             }
                             if !geometry.in_lanes::<V, A, B, S, _>(
                                 kernels,
@@ -237,7 +248,7 @@ impl<P: Primitive> World<P> {
                                     rays,
                                     m,
                                     #[inline(always)]
-                                    |i| best[i].t,
+                                    |i| limit::<A>(rays, best, i),
                                     &mut local,
                                 );
                                 flags(m, n, &mut active);
@@ -251,7 +262,12 @@ impl<P: Primitive> World<P> {
                                     &mut f,
                                 );
                                 for i in bits(m) {
-                                    if let Some(h) = found[i] {
+                                    // Any hit keeps no record: a stand-in marks the hit.
+                                    let stand_in = Hit {
+                                        prim: 0,
+                                        ..records[i]
+                                    };
+                                    if let Some(h) = A::into_hit(found[i], stand_in) {
                                         records[i] = h;
                                     }
                                 }
@@ -274,6 +290,10 @@ impl<P: Primitive> World<P> {
                     }
                     Visit::Alone(i, at) => {
                         let ray = &rays[i];
+                        if A::ANY {
+                            // Its record was never read before: the ray's whole interval.
+                            best[i] = WorldHit::none(ray.t_max);
+                        }
                         let found = match at {
                             AloneIn::Leaf(r) => self.search_leaf::<V, A, B, S, F>(
                                 cpu,
@@ -310,10 +330,10 @@ impl<P: Primitive> World<P> {
 }
 
 /// A world's packet query, as the kernel [`dispatch`] runs on the top level's lanes.
-struct TraceRays<'a, P, A, B, S, F> {
+struct TraceRays<'a, P, A: Ask, B, S, F> {
     world: &'a World<P>,
     query: PacketQuery<'a>,
-    hits: &'a mut [Option<WorldHit>],
+    hits: &'a mut [A::Answer<WorldHit>],
     stats: &'a mut S,
     filter: &'a mut F,
     ask: PhantomData<(A, B)>,
@@ -346,22 +366,32 @@ where
             #[inline(always)]
             |rays, on, packet, hits| {
                 for h in hits.iter_mut() {
-                    *h = None;
+                    *h = Default::default();
                 }
                 if !walkable {
                     return;
                 }
+                // Any hit reads no record (see `trace_packet`): its records start unset.
                 let mut best = [WorldHit::none(0.0); PACKET_RAYS];
-                for i in 0..rays.len() {
-                    best[i] = WorldHit::none(rays[i].t_max);
+                if !A::ANY {
+                    for i in 0..rays.len() {
+                        best[i] = WorldHit::none(rays[i].t_max);
+                    }
                 }
+                let mut found = 0u64;
                 if packet {
                     let mut pk = RayPacket::new(rays, on);
+                    let traced = pk.active;
                     world.trace_packet::<V, A, B, S, F>(
                         cpu, rays, &mut pk, &mut best, stats, filter,
                     );
+                    // Any hit: a ray leaves the active set only when it meets something.
+                    found = traced & !pk.active;
                 } else {
                     for i in bits(on) {
+                        if A::ANY {
+                            best[i] = WorldHit::none(rays[i].t_max);
+                        }
                         world.search_from::<V, A, B, S, F>(
                             cpu,
                             &rays[i],
@@ -370,10 +400,19 @@ where
                             stats,
                             filter,
                         );
+                        if best[i].found().is_some() {
+                            found |= 1 << i;
+                        }
                     }
                 }
-                for i in bits(on) {
-                    hits[i] = best[i].found();
+                if A::ANY {
+                    for i in bits(found) {
+                        hits[i] = A::answer(Some(best[i]));
+                    }
+                } else {
+                    for i in bits(on) {
+                        hits[i] = A::answer(best[i].found());
+                    }
                 }
             },
         );
@@ -384,7 +423,7 @@ where
 pub(super) fn trace_rays<P: Primitive, A: Ask, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
     world: &World<P>,
     query: PacketQuery<'_>,
-    hits: &mut [Option<WorldHit>],
+    hits: &mut [A::Answer<WorldHit>],
     stats: &mut S,
     filter: &mut F,
 ) {

@@ -63,7 +63,7 @@ impl<P: Primitive> RayQuery for Geometry<P> {
         ray: &Ray,
         stats: &mut S,
         filter: &mut F,
-    ) -> Option<Hit> {
+    ) -> A::Answer<Hit> {
         match self {
             Geometry::Triangles(b, _) => b.trace_with::<A, B, S, F>(ray, stats, filter),
             Geometry::Prims(b, _) => b.trace_with::<A, B, S, F>(ray, stats, filter),
@@ -73,7 +73,7 @@ impl<P: Primitive> RayQuery for Geometry<P> {
     fn trace_packet_with<A: Ask, B: BoxTest, S: Stats, F: Filter<Hit>>(
         &self,
         query: PacketQuery<'_>,
-        hits: &mut [Option<Hit>],
+        hits: &mut [A::Answer<Hit>],
         stats: &mut S,
         filter: &mut F,
     ) {
@@ -142,7 +142,9 @@ impl<P: Primitive> World<P> {
         let found = if g.one_ray::<V, A, B, S, _>(kernels, cpu, &local, &mut h, stats, &mut f) {
             h.found()
         } else {
-            g.trace_with::<A, B, S, _>(&local, stats, &mut f)
+            // Any hit keeps no record of the hit, so a stand-in marks the instance's.
+            let stand_in = Hit { prim: 0, ..h };
+            A::into_hit(g.trace_with::<A, B, S, _>(&local, stats, &mut f), stand_in)
         };
         match found {
             Some(h) => f.improve::<A>(best, &h),
@@ -207,8 +209,11 @@ impl<P: Primitive> World<P> {
                     stats,
                     filter,
                 );
+                if A::ANY {
+                    return found;
+                }
                 *limit = best.t;
-                A::ANY && found
+                false
             },
             #[inline(always)]
             |_, _| {},
@@ -240,10 +245,10 @@ where
     S: Stats,
     F: Filter<WorldHit>,
 {
-    type Out = Option<WorldHit>;
+    type Out = A::Answer<WorldHit>;
 
     #[inline(always)]
-    fn run<V: F8, const FAR: bool>(self, cpu: V::Cpu) -> Option<WorldHit> {
+    fn run<V: F8, const FAR: bool>(self, cpu: V::Cpu) -> A::Answer<WorldHit> {
         let ray = &self.ray.raised_t_min();
         let mut best = WorldHit::none(ray.t_max);
         if self.world.walkable() {
@@ -256,7 +261,7 @@ where
                 self.filter,
             );
         }
-        best.found()
+        A::answer(best.found())
     }
 }
 
@@ -268,7 +273,7 @@ impl<P: Primitive> RayQuery for World<P> {
         ray: &Ray,
         stats: &mut S,
         filter: &mut F,
-    ) -> Option<WorldHit> {
+    ) -> A::Answer<WorldHit> {
         let kernel = Trace::<P, A, B, S, F> {
             world: self,
             ray,
@@ -282,7 +287,7 @@ impl<P: Primitive> RayQuery for World<P> {
     fn trace_packet_with<A: Ask, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
         &self,
         query: PacketQuery<'_>,
-        hits: &mut [Option<WorldHit>],
+        hits: &mut [A::Answer<WorldHit>],
         stats: &mut S,
         filter: &mut F,
     ) {

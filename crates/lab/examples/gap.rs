@@ -18,10 +18,10 @@
 //! - `GAP_ROWS`: trace every Nth image row only (default 1: all), to keep callgrind runs
 //!   short; whole rows keep the rays' coherence.
 //! - `GAP_REPS`: timed rounds in `time` mode (default 5).
-use quiver_rt::traverse::Counters;
-use quiver_rt::{BuildOptions, Bvh, Ray, RayQuery, Triangle};
 use quiver_lab::measure::{count, median_times_interleaved, Query};
 use quiver_lab::rays;
+use quiver_rt::traverse::Counters;
+use quiver_rt::{BuildOptions, Bvh, Ray, RayQuery, Triangle};
 use quiver_scenes::scene::tessellate::DEFAULT_RESOLUTION;
 use quiver_scenes::Scene;
 

@@ -289,26 +289,37 @@ impl RayQuery for SceneBvh {
         ray: &Ray,
         stats: &mut S,
         filter: &mut F,
-    ) -> Option<Hit> {
+    ) -> A::Answer<Hit> {
         match &self.kind {
             Kind::Triangles(b, ..) => b.trace_with::<A, B, S, F>(ray, stats, filter),
             Kind::Mixed(b, _) => b.trace_with::<A, B, S, F>(ray, stats, filter),
             Kind::Instanced(i) => i.trace_with::<A, B, S, F>(ray, stats, filter),
             Kind::Record(inner, _) => {
-                let hit = inner.trace_with::<A, B, S, F>(ray, stats, filter);
-                // The ideal algorithm tests one blocker: the nearest, found without counting.
-                let nearest = if A::ANY && hit.is_some() {
+                let answer = inner.trace_with::<A, B, S, F>(ray, stats, filter);
+                let found = A::is_hit(&answer);
+                // The ideal algorithm tests one blocker: the nearest, found without counting
+                // (and a closest hit is its own nearest).
+                let nearest = if !found {
+                    None
+                } else if A::ANY {
                     inner.trace_with::<ClosestHit, B, _, F>(ray, &mut NoStats, filter)
                 } else {
-                    hit
+                    // A closest-hit answer names its hit; the stand-in is never used.
+                    let stand_in = Hit {
+                        t: 0.0,
+                        prim: u32::MAX,
+                        u: 0.0,
+                        v: 0.0,
+                    };
+                    A::into_hit(answer, stand_in)
                 };
                 self.record(Traced {
                     ray: *ray,
                     any: A::ANY,
-                    found: hit.is_some(),
+                    found,
                     hit: nearest.map(|h| h.prim),
                 });
-                hit
+                answer
             }
         }
     }
@@ -316,7 +327,7 @@ impl RayQuery for SceneBvh {
     fn trace_packet_with<A: Ask, B: BoxTest, S: Stats, F: Filter<Hit>>(
         &self,
         query: PacketQuery<'_>,
-        hits: &mut [Option<Hit>],
+        hits: &mut [A::Answer<Hit>],
         stats: &mut S,
         filter: &mut F,
     ) {

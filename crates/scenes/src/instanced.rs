@@ -334,24 +334,24 @@ impl RayQuery for Instanced {
         ray: &Ray,
         stats: &mut S,
         filter: &mut F,
-    ) -> Option<Hit> {
+    ) -> A::Answer<Hit> {
         let mut f = Flat {
             scene: self,
             filter,
         };
-        let h = self.world.trace_with::<A, B, S, _>(ray, stats, &mut f)?;
-        Some(self.flat(&h))
+        let h = self.world.trace_with::<A, B, S, _>(ray, stats, &mut f);
+        A::map(h, |h| self.flat(&h))
     }
 
     fn trace_packet_with<A: Ask, B: BoxTest, S: Stats, F: Filter<Hit>>(
         &self,
         query: PacketQuery<'_>,
-        hits: &mut [Option<Hit>],
+        hits: &mut [A::Answer<Hit>],
         stats: &mut S,
         filter: &mut F,
     ) {
         assert_eq!(hits.len(), query.rays.len(), "one hit slot per ray");
-        let mut found = [None; PACKET_RAYS];
+        let mut found = [A::Answer::<WorldHit>::default(); PACKET_RAYS];
         for (k, (rays, hits)) in query
             .rays
             .chunks(PACKET_RAYS)
@@ -372,7 +372,7 @@ impl RayQuery for Instanced {
             self.world
                 .trace_packet_with::<A, B, S, _>(part, found, stats, &mut f);
             for (h, w) in hits.iter_mut().zip(found.iter()) {
-                *h = w.map(|w| self.flat(&w));
+                *h = A::map(*w, |w| self.flat(&w));
             }
         }
     }

@@ -65,7 +65,7 @@ impl Bound {
             let xf = V::load(cpu, &p[ax.far_row]).sub(V::splat(cpu, ax.o_far));
             hi = hi.min_nan_first(xf.mul(i_lo).max_nan_first(xf.mul(i_hi)).mul(slack));
         }
-        lo.le(hi).bitmask()
+        lo.le_bits(hi)
     }
 }
 

@@ -366,7 +366,7 @@ impl RayPacket {
             near = tn.max_nan_first(near);
             far = tf.mul(slack).min_nan_first(far);
         }
-        (near.le(far).bitmask(), near)
+        (near.le_bits(far), near)
     }
 
     /// The first active ray of `mask` that enters `b`, with its entry distance.

@@ -45,17 +45,24 @@ pub(super) fn test_leaf<V: F8, P: Primitive, F>(
                 leaves.far,
             );
             if leaves.far.any() {
-                // Out of the fast path's line, compiled for the kernel's lanes.
-                V::outlined(
-                    cpu,
-                    #[inline(always)]
-                    || groups_packet::<V, F, true>(cpu, groups, format, &mut leaf),
-                );
+                // Out of the fast path's line, on the portable lanes (as `dispatch` runs a
+                // layout holding far groups).
+                groups_packet_far::<F>(groups, format, &mut leaf);
             } else {
                 groups_packet::<V, F, false>(cpu, groups, format, &mut leaf);
             }
         }
     }
+}
+
+/// [`groups_packet`] for a layout holding far groups ([`Tri4`]), out of the fast path's line.
+#[cold]
+#[inline(never)]
+fn groups_packet_far<F>(groups: LeafGroups<'_>, format: LeafFormat, rays: &mut PacketLeaf<'_, F>)
+where
+    F: FnMut(usize, u32, PrimHit) -> Option<f32>,
+{
+    groups_packet::<wide::f32x8, F, true>((), groups, format, rays)
 }
 
 /// One triangle's test over the live rays of a leaf, eight at a time: `test(packet, k)` gives

@@ -86,7 +86,7 @@ impl<N: Node4> PacketNode for N {
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
     fn search_from<V: F8, A: Ask, B: BoxTest, P: Primitive, S: Stats, F: Filter<Hit>>(
-        _: V::Cpu,
+        cpu: V::Cpu,
         nodes: &[Self],
         leaves: &Leaves<P>,
         ray: &Ray,
@@ -95,7 +95,7 @@ impl<N: Node4> PacketNode for N {
         stats: &mut S,
         filter: &mut F,
     ) {
-        bvh4::search_from::<N, A, B, P, S, F>(nodes, leaves, ray, root, best, stats, filter)
+        bvh4::search_from::<V, N, A, B, P, S, F>(cpu, nodes, leaves, ray, root, best, stats, filter)
     }
 }
 

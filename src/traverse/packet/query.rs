@@ -28,7 +28,7 @@ pub(crate) fn trace_rays<N, A, B, P, S, F>(
     nodes: &[N],
     leaves: &Leaves<P>,
     query: PacketQuery<'_>,
-    hits: &mut [Option<Hit>],
+    hits: &mut [A::Answer<Hit>],
     stats: &mut S,
     filter: &mut F,
 ) where
@@ -53,11 +53,11 @@ pub(crate) fn trace_rays<N, A, B, P, S, F>(
 
 /// A packet query as the kernel [`dispatch`] runs. (The leaves check for far groups
 /// themselves: a packet's leaf tests are out of the walk's line.)
-struct TraceRays<'a, N, A, B, P, S, F> {
+struct TraceRays<'a, N, A: Ask, B, P, S, F> {
     nodes: &'a [N],
     leaves: &'a Leaves<'a, P>,
     query: PacketQuery<'a>,
-    hits: &'a mut [Option<Hit>],
+    hits: &'a mut [A::Answer<Hit>],
     stats: &'a mut S,
     filter: &'a mut F,
     ask: PhantomData<(A, B)>,
@@ -90,12 +90,19 @@ where
             hits,
             #[inline(always)]
             |rays, on, packet, hits| {
+                // One search record per ray. Any hit reads none (it keeps the first hit a ray
+                // meets; which rays met one is what the packet's retired rays say), so its
+                // records start unset and a ray gets its interval only where it goes alone.
                 let mut best = [Hit::none(0.0); PACKET_RAYS];
-                for i in 0..rays.len() {
-                    best[i] = Hit::none(rays[i].t_max);
+                if !A::ANY {
+                    for i in 0..rays.len() {
+                        best[i] = Hit::none(rays[i].t_max);
+                    }
                 }
+                let mut found = 0u64;
                 if packet {
                     let mut pk = RayPacket::new(rays, on);
+                    let traced = pk.active;
                     trace_packet::<N, V, A, B, P, S, F>(
                         cpu,
                         nodes,
@@ -107,28 +114,43 @@ where
                         stats,
                         filter,
                     );
+                    // Any hit: a ray leaves the active set only when it meets something.
+                    found = traced & !pk.active;
                 } else {
-                    for i in 0..rays.len() {
-                        if on >> i & 1 == 1 {
-                            N::search_from::<V, A, B, P, S, F>(
-                                cpu,
-                                nodes,
-                                leaves,
-                                &rays[i],
-                                0,
-                                &mut best[i],
-                                stats,
-                                filter,
-                            );
+                    for i in bits(on) {
+                        if A::ANY {
+                            best[i] = Hit::none(rays[i].t_max);
+                        }
+                        N::search_from::<V, A, B, P, S, F>(
+                            cpu,
+                            nodes,
+                            leaves,
+                            &rays[i],
+                            0,
+                            &mut best[i],
+                            stats,
+                            filter,
+                        );
+                        if best[i].found().is_some() {
+                            found |= 1 << i;
                         }
                     }
                 }
-                for i in 0..hits.len() {
-                    hits[i] = if on >> i & 1 == 1 {
-                        best[i].found()
-                    } else {
-                        None
-                    };
+                if A::ANY {
+                    for h in hits.iter_mut() {
+                        *h = Default::default();
+                    }
+                    for i in bits(found) {
+                        hits[i] = A::answer(Some(best[i]));
+                    }
+                } else {
+                    for i in 0..hits.len() {
+                        hits[i] = if on >> i & 1 == 1 {
+                            A::answer(best[i].found())
+                        } else {
+                            Default::default()
+                        };
+                    }
                 }
             },
         );
@@ -172,7 +194,7 @@ pub(crate) fn in_lanes<N, V, A, B, P, S, F>(
 }
 
 /// The query `A` of one packet into `best` (one record per ray, [`Hit::none`] at its limit to
-/// start). `ray(pk, i)` is ray `i` as the single-ray walk takes it when the packet hands it
+/// start; any hit reads no record, so its records may start unset). `ray(pk, i)` is ray `i` as the single-ray walk takes it when the packet hands it
 /// over. Closest hit: a kept hit lowers its ray's limit. Any hit: a ray whose candidate is
 /// kept retires, and the walk ends once every ray has; a rejected candidate leaves the ray
 /// searching over its whole interval.
@@ -211,10 +233,15 @@ fn trace_packet<N, V, A, B, P, S, F>(
                 Visit::Leaf(range, b, cand) => (range, b, cand),
                 Visit::Alone(i, at) => {
                     let alone = ray(pk, i);
+                    if A::ANY {
+                        // Its record was never read before: the ray's whole interval.
+                        best[i] = Hit::none(alone.t_max);
+                    }
                     let found = match at {
                         AloneIn::Leaf(r) => {
                             let count = r.len() as u32;
-                            leaves.test_checked::<A, S, F>(
+                            leaves.test_checked::<V, A, S, F>(
+                                cpu,
                                 r.start,
                                 count,
                                 &alone,

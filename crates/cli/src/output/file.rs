@@ -42,7 +42,6 @@ fn temp_name(name: &std::ffi::OsStr, pid: u32, k: u32) -> std::ffi::OsString {
     std::ffi::OsString::from_vec(temp)
 }
 
-
 /// Removes `dir`'s temporaries for `name` left by quiver runs that died without cleaning up
 /// (a SIGKILL, a power cut): regular files named as [`temp_name`] makes them whose process no
 /// longer exists. A live process's temporary is left alone (another run may be writing the
