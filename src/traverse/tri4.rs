@@ -456,16 +456,22 @@ fn prepared<'p, V: F8>(
     ray: &Ray,
     format: LeafFormat,
 ) -> &'p LeafRay<V> {
-    if format == LeafFormat::WatertightTriangles {
-        prep.get_or_insert_with(
-            #[inline(always)]
-            || V::outlined(cpu, || LeafRay::<V>::new(cpu, ray, format)),
-        )
-    } else {
-        prep.get_or_insert_with(
-            #[inline(always)]
-            || LeafRay::<V>::new(cpu, ray, format),
-        )
+    // Written out rather than `get_or_insert_with`: a std combinator taking a closure may be
+    // compiled out of line in the caller's crate, outside the kernel's target features.
+    if prep.is_none() {
+        *prep = Some(if format == LeafFormat::WatertightTriangles {
+            V::outlined(
+                cpu,
+                #[inline(always)]
+                || LeafRay::<V>::new(cpu, ray, format),
+            )
+        } else {
+            LeafRay::<V>::new(cpu, ray, format)
+        });
+    }
+    match prep {
+        Some(r) => r,
+        None => unreachable!("made above"),
     }
 }
 
