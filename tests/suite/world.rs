@@ -584,11 +584,18 @@ fn instances_at_every_scale_answer_as_the_flattened_scene() {
                 inst.transform
             );
         }
-        // Directions of length `k`, so hits lie at t of about 1 at every scale.
+        // Directions of length `k`, so hits lie at t of about 1 at every scale; each is
+        // brought near unit length before `normalize`, whose squared length would underflow
+        // (at 1e-30) or overflow (at 1e30) in f32.
         let rays: Vec<Ray> = s
             .rays(400, 5)
             .iter()
-            .map(|r| Ray::new(r.origin, r.dir.normalize() * k))
+            .map(|r| {
+                Ray::new(
+                    r.origin,
+                    (r.dir / r.dir.abs().max_element()).normalize() * k,
+                )
+            })
             .collect();
         let hits = against_flattened(&s, &rays, &format!("scale 1e{exp}"));
         assert!(
@@ -656,7 +663,12 @@ fn random_transforms_near_the_limits_are_refused_or_answer_right() {
         let rays: Vec<Ray> = s
             .rays(150, case)
             .iter()
-            .map(|r| Ray::new(r.origin, r.dir.normalize() * k))
+            .map(|r| {
+                Ray::new(
+                    r.origin,
+                    (r.dir / r.dir.abs().max_element()).normalize() * k,
+                )
+            })
             .collect();
         against_flattened(&s, &rays, &format!("case {case}: 1e{exp}, shear {shear}"));
     }

@@ -1814,11 +1814,16 @@ fn a_property_less_ply_element_loads_at_once() {
 #[test]
 fn a_huge_instanced_sphere_is_hit_as_its_patches_are() {
     let dir = tempfile::tempdir().unwrap();
-    for (r, eye) in [("1e13", "3e13"), ("1e-13", "3e-13"), ("1e30", "3e30")] {
+    // The eye three radii away, off the axis by a hundredth of a radius.
+    for (r, eye) in [
+        ("1e13", "1e11 2e11 3e13"),
+        ("1e-13", "1e-15 2e-15 3e-13"),
+        ("1e30", "1e28 2e28 3e30"),
+    ] {
         std::fs::write(
             dir.path().join("big.nff"),
             format!(
-                "v\nfrom 0.1 0.2 {eye}\nat 0 0 0\nup 0 1 0\nangle 45\nhither 0\nresolution 64 64\n\
+                "v\nfrom {eye}\nat 0 0 0\nup 0 1 0\nangle 45\nhither 0\nresolution 64 64\n\
                  f 1 1 1 1 0 0 0 1\ns 0 0 0 {r}\n"
             ),
         )
