@@ -1093,7 +1093,8 @@ pub fn ply_structured(data: &[u8]) -> Vec<u8> {
         ["ascii", "binary_little_endian", "binary_big_endian"][format as usize]
     );
     // Each element: name, count, properties as (name, count type or none, item type).
-    let mut elements: Vec<(String, u64, Vec<(String, Option<usize>, usize)>)> = Vec::new();
+    type Property = (String, Option<usize>, usize);
+    let mut elements: Vec<(String, u64, Vec<Property>)> = Vec::new();
     for e in 0..1 + b.u8() % 4 {
         let kind = b.u8() % 4;
         let name = ["vertex", "face", "edge", "nothing"][kind as usize].to_string();
@@ -1236,7 +1237,7 @@ fn base64(bytes: &[u8]) -> String {
             out.push(A[(n >> (18 - 6 * k)) as usize & 63] as char);
         }
     }
-    while out.len() % 4 != 0 {
+    while !out.len().is_multiple_of(4) {
         out.push('=');
     }
     out
