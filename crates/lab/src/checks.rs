@@ -1255,7 +1255,7 @@ const OUTSIDE: f32 = 1e20;
 /// primitive mode, nodes whose children may form cycles or repeat, matrices (some not
 /// affine) or translation/rotation/scale, with or without a `scene`. Floats in the data are
 /// small (within ±16) and transforms scale by at most 2 a level, so a vertex near
-/// [`OUTSIDE`] proves a read outside the folder. Returns the JSON text and `x.bin`'s bytes.
+/// `OUTSIDE` proves a read outside the folder. Returns the JSON text and `x.bin`'s bytes.
 pub fn gltf_structured(data: &[u8]) -> (String, Vec<u8>) {
     let mut b = ByteReader(data);
     let tame = |b: &mut ByteReader<'_>| b.u8() as i8 as f32 / 8.0;
