@@ -90,15 +90,19 @@ impl Placements {
             .filter(|i| i.transform != Affine3A::IDENTITY)
             .map(|i| {
                 let m = i.transform.matrix3;
+                // Frobenius norms in f64: at scales past 1e±19 the squares over- or
+                // underflow f32 (an infinite or NaN condition number marks every ray
+                // ambiguous, or none).
                 let f = |m: glam::Mat3A| {
-                    (m.x_axis.length_squared()
-                        + m.y_axis.length_squared()
-                        + m.z_axis.length_squared())
-                    .sqrt()
+                    m.to_cols_array()
+                        .iter()
+                        .map(|&x| (x as f64) * (x as f64))
+                        .sum::<f64>()
+                        .sqrt()
                 };
                 let inverse =
                     quiver_rt::world::invert(&i.transform).map_or(m.inverse(), |inv| inv.matrix3);
-                (f(m) * f(inverse) / 3.0) as f64
+                f(m) * f(inverse) / 3.0
             })
             .fold(1.0, f64::max);
         1.0 + 2.0 * cond
