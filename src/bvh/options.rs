@@ -220,6 +220,25 @@ impl<'p> BuildOptions<'p> {
         self.isa.unwrap_or_else(Isa::detect)
     }
 
+    /// The same options, building on the current pool (to be kept past the pool's lifetime).
+    pub(crate) fn without_pool(&self) -> BuildOptions<'static> {
+        BuildOptions {
+            builder: self.builder,
+            layout: self.layout,
+            config: self.config.clone(),
+            pool: None,
+            isa: self.isa,
+        }
+    }
+
+    /// These options on `other`'s pool.
+    pub(crate) fn pool_of<'q>(&self, other: &BuildOptions<'q>) -> BuildOptions<'q> {
+        BuildOptions {
+            pool: other.pool,
+            ..self.without_pool()
+        }
+    }
+
     /// Runs `f` on the chosen pool.
     pub(crate) fn run<R: Send>(&self, f: impl FnOnce() -> R + Send) -> R {
         match self.pool {

@@ -2,7 +2,9 @@
 
 use super::instance::check_instance;
 use super::top::{top_level, world_boxes, InstanceLeaf};
-use super::{Geometry, GeometryId, Instance, InstanceId, World, WorldError};
+use super::{
+    Geometry, GeometryFilter, GeometryId, Instance, InstanceId, World, WorldError, WorldHit,
+};
 use crate::bvh::{BuildOptions, Bvh};
 use crate::geometry::{Aabb, Triangle};
 use crate::mesh::{Mesh, MeshError, Positions};
@@ -22,6 +24,10 @@ use crate::primitive::Primitive;
 #[derive(Clone, Debug)]
 pub struct WorldBuilder<P = Triangle> {
     pending: Vec<PendingGeometry<P>>,
+    /// Build options of the geometries given their own (`set_options`), by index.
+    options: Vec<(usize, BuildOptions<'static>)>,
+    /// The geometries' own filters, by index (empty when none has one).
+    filters: Vec<Option<GeometryFilter>>,
     instances: Vec<Instance>,
     /// The first mesh whose indices did not check out, reported by `build`.
     bad_mesh: Option<(usize, MeshError)>,
@@ -38,6 +44,8 @@ impl<P> Default for WorldBuilder<P> {
     fn default() -> Self {
         WorldBuilder {
             pending: Vec::new(),
+            options: Vec::new(),
+            filters: Vec::new(),
             instances: Vec::new(),
             bad_mesh: None,
         }
@@ -91,6 +99,85 @@ impl<P: Primitive> WorldBuilder<P> {
         GeometryId(self.pending.len() as u32 - 1)
     }
 
+    /// Builds geometry `geometry` with `options` (its own preset, layout, leaf size or
+    /// instruction set) rather than with the options [`WorldBuilder::build`] is given. The
+    /// pool is not taken: every geometry builds on the build's pool.
+    ///
+    /// ```
+    /// use quiver_rt::{BuildOptions, Instance, Layout, Triangle, World};
+    /// use quiver_rt::glam::Vec3A;
+    /// let tri = Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y);
+    /// let mut b = World::builder();
+    /// let leaves = b.add_triangles(vec![tri; 64]);
+    /// b.set_options(leaves, &BuildOptions::fast().layout(Layout::Bvh4Quant)).unwrap();
+    /// b.add_instance(Instance::of(leaves));
+    /// let world = b.build(&BuildOptions::default()).unwrap();
+    /// assert_eq!(world.geometries().len(), 1);
+    /// ```
+    ///
+    /// # Errors
+    /// [`WorldError::NoGeometry`] when `geometry` was not added.
+    pub fn set_options(
+        &mut self,
+        geometry: GeometryId,
+        options: &BuildOptions<'_>,
+    ) -> Result<(), WorldError> {
+        let g = geometry.0 as usize;
+        if g >= self.pending.len() {
+            return Err(WorldError::NoGeometry {
+                geometry: geometry.0,
+                geometries: self.pending.len(),
+            });
+        }
+        self.options.retain(|(i, _)| *i != g);
+        self.options.push((g, options.without_pool()));
+        Ok(())
+    }
+
+    /// Gives geometry `geometry` its own filter: every candidate hit of the geometry, in
+    /// any instance, is kept only when `keep` accepts it (after the query's own filter, if
+    /// any). An alpha test on foliage cards, say, called for the cards' hits only.
+    ///
+    /// ```
+    /// use quiver_rt::{BuildOptions, Instance, Ray, RayQuery, Triangle, World, WorldHit};
+    /// use quiver_rt::glam::Vec3A;
+    /// let card = Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y);
+    /// let wall = Triangle::new(Vec3A::new(0.0, 0.0, -1.0), Vec3A::new(1.0, 0.0, -1.0), Vec3A::new(0.0, 1.0, -1.0));
+    /// let mut b = World::builder();
+    /// let leaves = b.add_triangles(vec![card]);
+    /// let walls = b.add_triangles(vec![wall]);
+    /// // Cut-out where u > 0.3: the ray passes through the card and meets the wall.
+    /// b.set_filter(leaves, |h: &WorldHit| h.u <= 0.3).unwrap();
+    /// b.add_instance(Instance::of(leaves));
+    /// b.add_instance(Instance::of(walls));
+    /// let world = b.build(&BuildOptions::default()).unwrap();
+    /// let ray = Ray::new(Vec3A::new(0.5, 0.2, 1.0), -Vec3A::Z);
+    /// assert_eq!(world.closest_hit(&ray).map(|h| h.geometry), Some(walls));
+    /// let ray = Ray::new(Vec3A::new(0.1, 0.2, 1.0), -Vec3A::Z);
+    /// assert_eq!(world.closest_hit(&ray).map(|h| h.geometry), Some(leaves));
+    /// ```
+    ///
+    /// # Errors
+    /// [`WorldError::NoGeometry`] when `geometry` was not added.
+    pub fn set_filter(
+        &mut self,
+        geometry: GeometryId,
+        keep: impl Fn(&WorldHit) -> bool + Send + Sync + 'static,
+    ) -> Result<(), WorldError> {
+        let g = geometry.0 as usize;
+        if g >= self.pending.len() {
+            return Err(WorldError::NoGeometry {
+                geometry: geometry.0,
+                geometries: self.pending.len(),
+            });
+        }
+        if self.filters.len() <= g {
+            self.filters.resize(g + 1, None);
+        }
+        self.filters[g] = Some(GeometryFilter::new(keep));
+        Ok(())
+    }
+
     /// Adds an instance; returns its id, the index [`WorldHit::instance`](super::WorldHit)
     /// reports.
     pub fn add_instance(&mut self, instance: Instance) -> InstanceId {
@@ -109,6 +196,9 @@ impl<P: Primitive> WorldBuilder<P> {
     pub fn build(self, options: &BuildOptions<'_>) -> Result<World<P>, WorldError> {
         use rayon::prelude::*;
         options.config.check().map_err(WorldError::Config)?;
+        for (_, own) in &self.options {
+            own.config.check().map_err(WorldError::Config)?;
+        }
         if self.instances.len() >= u32::MAX as usize || self.pending.len() >= u32::MAX as usize {
             return Err(WorldError::TooMany);
         }
@@ -121,12 +211,22 @@ impl<P: Primitive> WorldBuilder<P> {
             .enumerate()
             .map(|(i, inst)| check_instance(i, inst, self.pending.len()))
             .collect::<Result<Vec<_>, _>>()?;
+        let mut own: Vec<Option<BuildOptions<'_>>> = vec![None; self.pending.len()];
+        for (g, o) in self.options {
+            own[g] = Some(o.pool_of(options));
+        }
         let geometries: Vec<Geometry<P>> = options.run(|| {
             self.pending
                 .into_par_iter()
-                .map(|s| match s {
-                    PendingGeometry::Triangles(t) => Geometry::Triangles(checked(&t, options), t),
-                    PendingGeometry::Prims(p) => Geometry::Prims(checked(&p, options), p),
+                .zip(own)
+                .map(|(s, own)| {
+                    let options = own.as_ref().unwrap_or(options);
+                    match s {
+                        PendingGeometry::Triangles(t) => {
+                            Geometry::Triangles(checked(&t, options), t)
+                        }
+                        PendingGeometry::Prims(p) => Geometry::Prims(checked(&p, options), p),
+                    }
                 })
                 .collect()
         });
@@ -135,12 +235,14 @@ impl<P: Primitive> WorldBuilder<P> {
             .enumerate()
             .map(|(i, placement)| InstanceLeaf::new(i, &self.instances[i], placement))
             .collect();
-        let boxes = options.run(|| world_boxes(&self.instances, &geometries));
+        let boxes = options.run(|| world_boxes(&self.instances, &geometries, &[]));
         let top = options.run(|| top_level(&placed, &boxes, options.chosen_isa()));
         let bounds = boxes.iter().fold(Aabb::EMPTY, |b, w| b.union(w));
         Ok(World {
             geometries,
             instances: self.instances,
+            removed: Vec::new(),
+            filters: self.filters,
             top,
             bounds,
         })

@@ -1,17 +1,18 @@
-//! Animating a [`World`]: [`WorldEdit`] refits geometries to moved primitives and moves or
-//! re-masks instances; when the edit ends, the instances' world boxes are recomputed and the
-//! top-level BVH refit, so the world is never seen half edited.
+//! Changing a [`World`] without building it again: [`WorldEdit`] refits, replaces or
+//! rebuilds one geometry, adds geometries, adds, removes, moves and re-masks instances; when
+//! the edit ends, the instances' world boxes are recomputed and the top-level BVH refit or
+//! rebuilt, so the world is never seen half edited.
 
 use super::instance::{check_instance, placement};
 use super::top::{instance_box, top_level, world_boxes};
-use super::{Geometry, GeometryId, InstanceId, InstanceLeaf};
+use super::{Geometry, GeometryFilter, GeometryId, InstanceId, InstanceLeaf};
 use super::{World, WorldError};
 use crate::geometry::{Aabb, Triangle};
 use crate::layout::moved::RefitTarget;
 use crate::layout::refit::RefitInput;
 use crate::mesh::{Mesh, Positions};
 use crate::primitive::Primitive;
-use crate::Bvh;
+use crate::{BuildOptions, Bvh, Instance};
 use glam::Affine3A;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -25,10 +26,24 @@ use std::sync::atomic::{AtomicBool, Ordering};
 /// borrows the world, so no query sees it in between. The result answers exactly as a world
 /// built afresh from the new geometries and instances does.
 ///
-/// A refit keeps each tree as it was built: see [`Bvh::refit`](crate::Bvh::refit) for when
-/// motion has loosened a geometry's tree enough to rebuild it (a new world) instead. The top
-/// level is rebuilt rather than refit when an instance's world box leaves f32's range or comes
-/// back into it (the build leaves such instances out).
+/// Structure changes too, each touching only what it names: [`WorldEdit::add_instance`],
+/// [`WorldEdit::remove_instance`] and [`WorldEdit::set_instance`] (ids stay stable: a removed
+/// instance's id is never given to another), [`WorldEdit::add_triangles`] and its kin (a new
+/// geometry, built alone), [`WorldEdit::replace_triangles`] and its kin (new primitives, any
+/// count, for one geometry, built alone with the options given: its preset, layout and leaf
+/// size are its own) and [`WorldEdit::rebuild_geometry`] (the same primitives, a fresh tree,
+/// for a geometry whose refits have loosened it).
+///
+/// The top level is refit by default: the tree of the last build, its boxes fit to where the
+/// instances are now, as cheap as a pass over its nodes. It is rebuilt instead when an
+/// instance was added, or an instance's world box left f32's range or came back into it (the
+/// build leaves such instances out), and when [`WorldEdit::rebuild_top`] asks for it, as a
+/// renderer does once motion has loosened the tree (Embree's top-level build quality).
+///
+/// Pools: geometry builds run on the pool of the [`BuildOptions`] they are given (the
+/// current pool when it names none); the top level's refit or rebuild and the refits of
+/// geometries run on the pool the edit ends on (the current one: wrap
+/// [`WorldEdit::commit`] in `pool.install` to choose).
 ///
 /// ```
 /// use quiver_rt::glam::{Affine3A, Vec3A};
@@ -66,6 +81,8 @@ pub struct WorldEdit<'w, P: Primitive = Triangle> {
     geometry_refit: bool,
     /// Instances moved or re-masked during the edit (empty until the first).
     instances: Vec<bool>,
+    /// Rebuild the top level when the edit ends rather than refit it.
+    rebuild_top: bool,
 }
 
 impl<P: Primitive> World<P> {
@@ -75,13 +92,14 @@ impl<P: Primitive> World<P> {
             world: self,
             geometry_refit: false,
             instances: Vec::new(),
+            rebuild_top: false,
         }
     }
 }
 
 fn mark(flags: &mut Vec<bool>, len: usize, i: usize) {
-    if flags.is_empty() {
-        flags.resize(len, false);
+    if flags.len() < len.max(i + 1) {
+        flags.resize(len.max(i + 1), false);
     }
     flags[i] = true;
 }
@@ -190,6 +208,9 @@ impl<P: Primitive> WorldEdit<'_, P> {
                 instances: n,
             });
         };
+        if self.world.removed.get(i as usize) == Some(&true) {
+            return Err(WorldError::Removed { instance: i });
+        }
         let mut new = *old;
         change(&mut new);
         check_instance(i as usize, &new, self.world.geometries.len())?;
@@ -219,17 +240,207 @@ impl<P: Primitive> WorldEdit<'_, P> {
         self.instance(instance, |i| i.mask = mask)
     }
 
+    /// Replaces instance `instance` by `new` (another geometry, transform, mask or user
+    /// id); its id stays.
+    ///
+    /// # Errors
+    /// As [`WorldEdit::set_transform`], and [`WorldError::Geometry`] when `new` names no
+    /// geometry.
+    pub fn set_instance(&mut self, instance: InstanceId, new: Instance) -> Result<(), WorldError> {
+        self.instance(instance, |i| *i = new)
+    }
+
+    /// Adds an instance; returns its id, one past every id given before (removed ones
+    /// included). The top level is rebuilt when the edit ends.
+    ///
+    /// # Errors
+    /// As [`super::WorldBuilder::build`] refuses an instance: [`WorldError::Geometry`],
+    /// [`WorldError::Transform`], or [`WorldError::TooMany`].
+    pub fn add_instance(&mut self, instance: Instance) -> Result<InstanceId, WorldError> {
+        let i = self.world.instances.len();
+        if i >= u32::MAX as usize - 1 {
+            return Err(WorldError::TooMany);
+        }
+        check_instance(i, &instance, self.world.geometries.len())?;
+        self.world.instances.push(instance);
+        mark(&mut self.instances, i + 1, i);
+        Ok(InstanceId(i as u32))
+    }
+
+    /// Removes instance `instance` from the world: no ray meets it from the end of the edit;
+    /// its id is not given to another ([`World::is_live`] tells it is gone).
+    ///
+    /// # Errors
+    /// [`WorldError::NoInstance`], [`WorldError::Removed`] when it was removed before.
+    pub fn remove_instance(&mut self, instance: InstanceId) -> Result<(), WorldError> {
+        self.instance(instance, |_| ())?;
+        let n = self.world.instances.len();
+        mark(&mut self.world.removed, n, instance.0 as usize);
+        Ok(())
+    }
+
+    /// Adds triangles as a new geometry, its BVH built now with `options`; returns its id.
+    ///
+    /// # Errors
+    /// [`WorldError::Config`] for options out of range, [`WorldError::TooMany`].
+    pub fn add_triangles(
+        &mut self,
+        tris: Vec<Triangle>,
+        options: &BuildOptions<'_>,
+    ) -> Result<GeometryId, WorldError> {
+        let g = built(tris, options, Geometry::Triangles)?;
+        self.push_geometry(g)
+    }
+
+    /// Adds an indexed mesh as a new geometry ([`WorldEdit::add_triangles`]).
+    ///
+    /// # Errors
+    /// As [`WorldEdit::add_triangles`], [`WorldError::Mesh`] for an index past the vertices.
+    pub fn add_mesh<'v>(
+        &mut self,
+        positions: impl Into<Positions<'v>>,
+        indices: &[[u32; 3]],
+        options: &BuildOptions<'_>,
+    ) -> Result<GeometryId, WorldError> {
+        let tris = mesh_triangles(self.world.geometries.len(), positions.into(), indices)?;
+        self.add_triangles(tris, options)
+    }
+
+    /// Adds primitives of the world's type as a new geometry ([`WorldEdit::add_triangles`]).
+    ///
+    /// # Errors
+    /// As [`WorldEdit::add_triangles`].
+    pub fn add_prims(
+        &mut self,
+        prims: Vec<P>,
+        options: &BuildOptions<'_>,
+    ) -> Result<GeometryId, WorldError> {
+        let g = built(prims, options, Geometry::Prims)?;
+        self.push_geometry(g)
+    }
+
+    /// Gives geometry `geometry` new triangles (any count, any topology), its BVH built
+    /// afresh, alone, with `options`; every instance placing it places the new one.
+    ///
+    /// # Errors
+    /// [`WorldError::NoGeometry`], [`WorldError::Config`].
+    pub fn replace_triangles(
+        &mut self,
+        geometry: GeometryId,
+        tris: Vec<Triangle>,
+        options: &BuildOptions<'_>,
+    ) -> Result<(), WorldError> {
+        self.geometry(geometry)?;
+        let g = built(tris, options, Geometry::Triangles)?;
+        self.set_geometry(geometry, g)
+    }
+
+    /// Gives geometry `geometry` a new indexed mesh ([`WorldEdit::replace_triangles`]).
+    ///
+    /// # Errors
+    /// As [`WorldEdit::replace_triangles`], [`WorldError::Mesh`] for an index past the
+    /// vertices.
+    pub fn replace_mesh<'v>(
+        &mut self,
+        geometry: GeometryId,
+        positions: impl Into<Positions<'v>>,
+        indices: &[[u32; 3]],
+        options: &BuildOptions<'_>,
+    ) -> Result<(), WorldError> {
+        self.geometry(geometry)?;
+        let tris = mesh_triangles(geometry.0 as usize, positions.into(), indices)?;
+        self.replace_triangles(geometry, tris, options)
+    }
+
+    /// Gives geometry `geometry` new primitives of the world's type
+    /// ([`WorldEdit::replace_triangles`]).
+    ///
+    /// # Errors
+    /// As [`WorldEdit::replace_triangles`].
+    pub fn replace_prims(
+        &mut self,
+        geometry: GeometryId,
+        prims: Vec<P>,
+        options: &BuildOptions<'_>,
+    ) -> Result<(), WorldError> {
+        self.geometry(geometry)?;
+        let g = built(prims, options, Geometry::Prims)?;
+        self.set_geometry(geometry, g)
+    }
+
+    /// Builds geometry `geometry`'s BVH again over its primitives as they are now, with
+    /// `options` (another preset, layout or leaf size; or the same, for a tree that refits
+    /// have loosened).
+    ///
+    /// # Errors
+    /// [`WorldError::NoGeometry`], [`WorldError::Config`].
+    pub fn rebuild_geometry(
+        &mut self,
+        geometry: GeometryId,
+        options: &BuildOptions<'_>,
+    ) -> Result<(), WorldError> {
+        let g = match self.geometry(geometry)? {
+            Geometry::Triangles(_, t) => built(t.clone(), options, Geometry::Triangles)?,
+            Geometry::Prims(_, p) => built(p.clone(), options, Geometry::Prims)?,
+        };
+        self.set_geometry(geometry, g)
+    }
+
+    /// Gives geometry `geometry` its own filter, or takes it away with `None`
+    /// ([`super::WorldBuilder::set_filter`]).
+    ///
+    /// # Errors
+    /// [`WorldError::NoGeometry`].
+    pub fn set_filter(
+        &mut self,
+        geometry: GeometryId,
+        keep: Option<GeometryFilter>,
+    ) -> Result<(), WorldError> {
+        self.geometry(geometry)?;
+        let filters = &mut self.world.filters;
+        let g = geometry.0 as usize;
+        if filters.len() <= g {
+            filters.resize(g + 1, None);
+        }
+        filters[g] = keep;
+        Ok(())
+    }
+
+    /// Rebuilds the top level when the edit ends, rather than refitting it: a tree fit to
+    /// where the instances are now (a refit keeps the tree of the last build, which motion
+    /// loosens).
+    pub fn rebuild_top(&mut self) {
+        self.rebuild_top = true;
+    }
+
+    fn push_geometry(&mut self, g: Geometry<P>) -> Result<GeometryId, WorldError> {
+        let n = self.world.geometries.len();
+        if n >= u32::MAX as usize - 1 {
+            return Err(WorldError::TooMany);
+        }
+        self.world.geometries.push(g);
+        Ok(GeometryId(n as u32))
+    }
+
+    fn set_geometry(&mut self, geometry: GeometryId, g: Geometry<P>) -> Result<(), WorldError> {
+        *self.geometry(geometry)? = g;
+        // Every world box is computed afresh by the top level's refit.
+        self.geometry_refit = true;
+        Ok(())
+    }
+
     /// Ends the edit: the changed instances' world boxes are recomputed and the top level is
-    /// refit (what dropping the edit also does).
+    /// refit or rebuilt (what dropping the edit also does).
     pub fn commit(self) {}
 
     /// Brings the top level up to date with the changes so far.
     fn finish(&mut self) {
-        if !self.geometry_refit && self.instances.is_empty() {
+        if !self.geometry_refit && self.instances.is_empty() && !self.rebuild_top {
             return;
         }
-        self.world.refit_top(&self.instances);
+        self.world.refit_top(&self.instances, self.rebuild_top);
         self.geometry_refit = false;
+        self.rebuild_top = false;
         self.instances.clear();
     }
 }
@@ -249,6 +460,31 @@ fn refit_kept<Q: Primitive>(
     Ok(())
 }
 
+/// A geometry of `prims` (`kind` is `Geometry::Triangles` or `Geometry::Prims`), its BVH
+/// built with `options`.
+fn built<Q: Primitive, P>(
+    prims: Vec<Q>,
+    options: &BuildOptions<'_>,
+    kind: fn(Bvh<Q>, Vec<Q>) -> Geometry<P>,
+) -> Result<Geometry<P>, WorldError> {
+    options.config.check().map_err(WorldError::Config)?;
+    let bvh = Bvh::build(&prims, options).expect("the settings were checked");
+    Ok(kind(bvh, prims))
+}
+
+/// The triangles of a mesh that is to be geometry `geometry`.
+fn mesh_triangles(
+    geometry: usize,
+    positions: Positions<'_>,
+    indices: &[[u32; 3]],
+) -> Result<Vec<Triangle>, WorldError> {
+    let mesh =
+        Mesh::new(positions, indices).map_err(|error| WorldError::Mesh { geometry, error })?;
+    Ok((0..indices.len() as u32)
+        .map(|i| mesh.triangle(i))
+        .collect())
+}
+
 fn prims_not_triangles(geometry: GeometryId) -> WorldError {
     WorldError::GeometryKind {
         geometry: geometry.0,
@@ -266,6 +502,8 @@ impl<P: Primitive> Drop for WorldEdit<'_, P> {
 struct InstancesNow<'a, P> {
     instances: &'a [super::Instance],
     geometries: &'a [Geometry<P>],
+    /// Which instances were removed (shorter than `instances`: the rest were not).
+    removed: &'a [bool],
     /// Which instances changed (empty: none).
     moved_instances: &'a [bool],
     /// Set when an instance the top level holds has a world box out of f32's range now.
@@ -289,7 +527,8 @@ impl<P: Primitive> RefitInput<InstanceLeaf> for InstancesNow<'_, P> {
     /// instance, moved or not (eight corners transformed: small beside the refit's walk of
     /// the nodes, and a refit geometry needs no flag of its own).
     fn bounds(&self, id: u32, _: &InstanceLeaf) -> Aabb {
-        let b = instance_box(&self.instances[id as usize], self.geometries);
+        let gone = self.removed.get(id as usize) == Some(&true);
+        let b = instance_box(&self.instances[id as usize], self.geometries, gone);
         if !b.is_finite() {
             self.lost.store(true, Ordering::Relaxed);
         }
@@ -299,24 +538,28 @@ impl<P: Primitive> RefitInput<InstanceLeaf> for InstancesNow<'_, P> {
 
 impl<P: Primitive> World<P> {
     /// The instances' world boxes recomputed and the top level refit over them (rebuilt
-    /// instead when an instance's box went out of f32's range or came back: the build leaves
-    /// those out).
-    fn refit_top(&mut self, moved_instances: &[bool]) {
+    /// instead when `rebuild` asks, or an instance's box went out of f32's range or came back,
+    /// or an instance was removed or added: the build leaves out those out of range and
+    /// those removed).
+    fn refit_top(&mut self, moved_instances: &[bool], rebuild: bool) {
         let src = InstancesNow {
             instances: &self.instances,
             geometries: &self.geometries,
+            removed: &self.removed,
             moved_instances,
             lost: AtomicBool::new(false),
         };
-        // The refit walks the leaves with their input indices, which the top level does not
-        // keep (`top_level`): each record's instance is its index.
-        self.top.prim_ids = self.top.prims.iter().map(|p| p.instance).collect();
-        self.top.refit_from(&src);
-        self.top.prim_ids = Vec::new();
+        if !rebuild {
+            // The refit walks the leaves with their input indices, which the top level does
+            // not keep (`top_level`): each record's instance is its index.
+            self.top.prim_ids = self.top.prims.iter().map(|p| p.instance).collect();
+            self.top.refit_from(&src);
+            self.top.prim_ids = Vec::new();
+        }
         let n = src.instances.len();
-        let mut rebuild = src.lost.load(Ordering::Relaxed);
+        let mut rebuild = rebuild || src.lost.load(Ordering::Relaxed);
         if rebuild || self.top.prims.len() < n {
-            let boxes = world_boxes(src.instances, src.geometries);
+            let boxes = world_boxes(src.instances, src.geometries, src.removed);
             if !rebuild {
                 // Those the build left out must stay out of range.
                 let mut in_top = vec![false; n];

@@ -51,6 +51,11 @@ pub enum WorldError {
         /// How many there are.
         instances: usize,
     },
+    /// An edit named instance `instance`, which an earlier edit removed.
+    Removed {
+        /// The instance named.
+        instance: u32,
+    },
     /// An edit gave geometry `geometry` primitives of the other kind: it `holds` triangles
     /// or the world's own primitive type.
     GeometryKind {
@@ -99,6 +104,9 @@ impl fmt::Display for WorldError {
                 f,
                 "instance {instance} does not exist: the world has {instances}"
             ),
+            WorldError::Removed { instance } => {
+                write!(f, "instance {instance} was removed from the world")
+            }
             WorldError::GeometryKind { geometry, holds } => {
                 write!(f, "geometry {geometry} holds {holds}, and takes only those")
             }

@@ -49,6 +49,7 @@
 mod builder;
 mod edit;
 mod error;
+mod filter;
 mod geometry;
 mod hit;
 mod instance;
@@ -59,6 +60,7 @@ mod top;
 pub use builder::WorldBuilder;
 pub use edit::WorldEdit;
 pub use error::WorldError;
+pub use filter::GeometryFilter;
 pub use geometry::Geometry;
 pub use hit::WorldHit;
 pub use instance::{invert, GeometryId, Instance, InstanceId, INVERSE_TOLERANCE};
@@ -75,6 +77,11 @@ use top::InstanceLeaf;
 pub struct World<P = Triangle> {
     geometries: Vec<Geometry<P>>,
     instances: Vec<Instance>,
+    /// `removed[i]`: instance `i` was removed by an edit (its id is never given again). Empty
+    /// until the first removal.
+    removed: Vec<bool>,
+    /// `filters[g]`: geometry `g`'s own filter. Empty until the first is set.
+    filters: Vec<Option<GeometryFilter>>,
     top: Bvh8<InstanceLeaf>,
     bounds: Aabb,
 }
@@ -96,7 +103,25 @@ impl<P: Primitive> World<P> {
         &self.instances[i.0 as usize]
     }
 
-    /// Every instance, in the order added.
+    /// True when `i` names an instance of the world that was not removed
+    /// ([`WorldEdit::remove_instance`]).
+    ///
+    /// ```
+    /// use quiver_rt::{BuildOptions, Instance, InstanceId, Triangle, World};
+    /// use quiver_rt::glam::Vec3A;
+    /// let mut b = World::builder();
+    /// let g = b.add_triangles(vec![Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y)]);
+    /// let a = b.add_instance(Instance::of(g));
+    /// let mut world = b.build(&BuildOptions::default()).unwrap();
+    /// world.edit().remove_instance(a).unwrap();
+    /// assert!(!world.is_live(a) && !world.is_live(InstanceId(5)));
+    /// ```
+    pub fn is_live(&self, i: InstanceId) -> bool {
+        (i.0 as usize) < self.instances.len() && self.removed.get(i.0 as usize) != Some(&true)
+    }
+
+    /// Every instance, in the order added, removed ones included (as they were last placed:
+    /// [`World::is_live`] tells which are still in the world), so an [`InstanceId`] indexes it.
     pub fn instances(&self) -> &[Instance] {
         &self.instances
     }
@@ -135,6 +160,12 @@ impl<P: Primitive> World<P> {
         } else {
             n
         })
+    }
+
+    /// Geometry `g`'s own filter, if it has one.
+    #[inline(always)]
+    pub(crate) fn own_filter(&self, g: u32) -> Option<&GeometryFilter> {
+        self.filters.get(g as usize).and_then(Option::as_ref)
     }
 
     /// The top-level BVH, for readers inside the crate (the cost predictor).

@@ -223,6 +223,28 @@ impl<P: Primitive> World<P> {
                             if m == 0 {
                                 continue;
                             }
+                            if let Some(own) = self.own_filter(p.geometry) {
+                                // A geometry with its own filter: ray by ray.
+                                for i in bits(m) {
+                                    let local = p.local(&rays[i], limit::<A>(rays, best, i));
+                                    let kept = self.search_filtered::<A, B, S, F>(
+                                        p,
+                                        own,
+                                        &local,
+                                        &mut best[i],
+                                        stats,
+                                        filter,
+                                    );
+                                    if kept {
+                                        if A::ANY {
+                                            pk.retire(i);
+                                        } else {
+                                            pk.set_limit(i, best[i].t);
+                                        }
+                                    }
+                                }
+                                continue;
+                            }
                             let geometry = &self.geometries[p.geometry as usize];
                             let mut f = InInstance {
                                 filter: &mut *filter,

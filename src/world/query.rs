@@ -2,7 +2,8 @@
 //! enters (its mask shares a bit with the ray's), the ray brought into object space and the
 //! instance's geometry asked with the nearest hit so far as its limit.
 
-use super::{Geometry, GeometryId, InstanceId, InstanceLeaf, World, WorldHit};
+use super::filter::Both;
+use super::{Geometry, GeometryFilter, GeometryId, InstanceId, InstanceLeaf, World, WorldHit};
 use crate::geometry::{Hit, Ray};
 use crate::isa::Kernels;
 use crate::primitive::Primitive;
@@ -131,6 +132,9 @@ impl<P: Primitive> World<P> {
             return false;
         }
         let local = p.local(ray, best.t);
+        if let Some(own) = self.own_filter(p.geometry) {
+            return self.search_filtered::<A, B, S, F>(p, own, &local, best, stats, filter);
+        }
         let g = &self.geometries[p.geometry as usize];
         let mut f = InInstance {
             filter,
@@ -147,6 +151,38 @@ impl<P: Primitive> World<P> {
             A::into_hit(g.trace_with::<A, B, S, _>(&local, stats, &mut f), stand_in)
         };
         match found {
+            Some(h) => f.improve::<A>(best, &h),
+            None => false,
+        }
+    }
+
+    /// The search `A` of `local` (a ray in instance `p`'s object space) in `p`'s geometry,
+    /// whose own filter `own` is asked after the caller's: through the geometry's query, not
+    /// inlined here, so the walks of geometries without a filter are not compiled twice.
+    /// Improves `best`; returns true when it did.
+    #[inline(always)]
+    pub(super) fn search_filtered<A: Ask, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
+        &self,
+        p: &InstanceLeaf,
+        own: &GeometryFilter,
+        local: &Ray,
+        best: &mut WorldHit,
+        stats: &mut S,
+        filter: &mut F,
+    ) -> bool {
+        let g = &self.geometries[p.geometry as usize];
+        let mut both = Both { query: filter, own };
+        let mut f = InInstance {
+            filter: &mut both,
+            instance: p.instance,
+            geometry: p.geometry,
+        };
+        // Any hit keeps no record of the hit, so a stand-in marks the instance's.
+        let stand_in = Hit {
+            prim: 0,
+            ..Hit::none(local.t_max)
+        };
+        match A::into_hit(g.trace_with::<A, B, S, _>(local, stats, &mut f), stand_in) {
             Some(h) => f.improve::<A>(best, &h),
             None => false,
         }

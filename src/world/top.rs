@@ -39,19 +39,30 @@ fn world_box(m: &Affine3A, b: &Aabb) -> Aabb {
 /// refit computes them again from the instances ([`RefitInput::bounds`] of `edit::InstancesNow`).
 ///
 /// [`RefitInput::bounds`]: crate::layout::refit::RefitInput::bounds
+/// A removed instance (`removed[i]`, which may be shorter than `instances`) gets the empty
+/// box, which the build leaves out, as it does any box that is not finite.
 pub(super) fn world_boxes<P: Primitive>(
     instances: &[Instance],
     geometries: &[Geometry<P>],
+    removed: &[bool],
 ) -> Vec<Aabb> {
     use rayon::prelude::*;
     instances
         .par_iter()
-        .map(|inst| instance_box(inst, geometries))
+        .enumerate()
+        .map(|(i, inst)| instance_box(inst, geometries, removed.get(i) == Some(&true)))
         .collect()
 }
 
-/// The world box of instance `inst` as placed now.
-pub(super) fn instance_box<P: Primitive>(inst: &Instance, geometries: &[Geometry<P>]) -> Aabb {
+/// The world box of instance `inst` as placed now (empty once removed).
+pub(super) fn instance_box<P: Primitive>(
+    inst: &Instance,
+    geometries: &[Geometry<P>],
+    removed: bool,
+) -> Aabb {
+    if removed {
+        return Aabb::EMPTY;
+    }
     world_box(
         &inst.transform,
         &geometries[inst.geometry.0 as usize].bounds(),

@@ -674,3 +674,277 @@ fn random_transforms_near_the_limits_are_refused_or_answer_right() {
     }
     assert!(accepted > 20, "{accepted} of 40 accepted");
 }
+
+/// The world `edited` and the same state built afresh (`fresh`, whose instance `k` is the
+/// edited world's `live[k]`) answer every ray alike: the same instance, geometry, primitive
+/// and bit-identical `t`, `u`, `v` for single rays and packets, closest and any hit.
+fn answers_alike(edited: &World, fresh: &World, live: &[u32], rays: &[Ray], what: &str) {
+    let renamed = |h: WorldHit| WorldHit {
+        instance: InstanceId(live[h.instance.0 as usize]),
+        ..h
+    };
+    let (mut closest, mut any) = (vec![None; rays.len()], vec![false; rays.len()]);
+    let q = PacketQuery::new(rays).mode(PacketMode::Always);
+    edited.closest_hit_packet_with::<ConservativeBoxes, _, _>(
+        q,
+        &mut closest,
+        &mut NoStats,
+        &mut quiver_rt::traverse::NoFilter,
+    );
+    edited.any_hit_packet(rays, &mut any);
+    let mut hits = 0;
+    for (i, r) in rays.iter().enumerate() {
+        let want = fresh.closest_hit(r).map(renamed);
+        let got = edited.closest_hit(r);
+        assert_eq!(got, want, "{what}: ray {i}");
+        assert_eq!(closest[i], want, "{what}: ray {i} in a packet");
+        assert_eq!(edited.any_hit(r), want.is_some(), "{what}: ray {i} any hit");
+        assert_eq!(
+            any[i],
+            want.is_some(),
+            "{what}: ray {i} any hit in a packet"
+        );
+        hits += usize::from(want.is_some());
+    }
+    assert!(hits > rays.len() / 4, "{what}: only {hits} hits");
+}
+
+/// Issue 52: a world edited into a state (instances removed, added, replaced and moved; a
+/// geometry replaced by triangles of another count and topology built with another layout,
+/// one rebuilt with another preset, one added; the top level refit, then rebuilt) answers
+/// exactly what the same state built from scratch answers, in every layout; and that state's
+/// hits are the f64 oracle's over it flattened.
+#[test]
+fn an_edited_world_answers_as_the_same_state_built_afresh() {
+    for (k, layout) in Layout::ALL.into_iter().enumerate() {
+        let options = BuildOptions::default().layout(layout);
+        let mut s = setup(70 + k as u64);
+        let mut world = s.world(&options);
+        let n = s.instances.len();
+        let mut removed = vec![false; n];
+        let lifted: Vec<Triangle> = tris("tetra3")
+            .iter()
+            .map(|t| Triangle {
+                v: t.v.map(|p| p * 0.5 + Vec3A::new(0.0, 3.0, 0.0)),
+            })
+            .collect();
+        let sphere_part = tris("icosphere2")[..120].to_vec();
+        let other = BuildOptions::fast().layout(Layout::ALL[(k + 5) % Layout::ALL.len()]);
+        let moved = Affine3A::from_scale_rotation_translation(
+            Vec3::new(1.5, 0.5, 1.0),
+            Quat::from_rotation_y(0.7),
+            Vec3::new(-2.0, 1.0, 0.5),
+        );
+
+        let mut edit = world.edit();
+        for i in (2..n).step_by(5) {
+            edit.remove_instance(InstanceId(i as u32)).unwrap();
+            removed[i] = true;
+        }
+        let added = edit.add_triangles(lifted.clone(), &options).unwrap();
+        assert_eq!(added, GeometryId(3));
+        s.geometries.push(lifted);
+        edit.replace_triangles(GeometryId(2), sphere_part.clone(), &other)
+            .unwrap();
+        s.geometries[2] = sphere_part;
+        edit.rebuild_geometry(GeometryId(1), &BuildOptions::high_quality())
+            .unwrap();
+        let replaced = Instance::of(added).transform(moved).mask(0b10);
+        edit.set_instance(InstanceId(3), replaced).unwrap();
+        s.instances[3] = replaced;
+        edit.set_transform(InstanceId(8), moved).unwrap();
+        s.instances[8] = s.instances[8].transform(moved);
+        for j in 0..6u32 {
+            let at = Affine3A::from_translation(Vec3::new(j as f32 - 3.0, -2.0, 1.0));
+            let inst = Instance::of(GeometryId(j % 4)).transform(at);
+            assert_eq!(edit.add_instance(inst).unwrap(), InstanceId(n as u32 + j));
+            s.instances.push(inst);
+            removed.push(false);
+        }
+        edit.commit();
+
+        let check_state = |world: &World, s: &Setup, removed: &[bool], what: &str| {
+            let live: Vec<u32> = (0..s.instances.len() as u32)
+                .filter(|&i| !removed[i as usize])
+                .collect();
+            let state = Setup {
+                geometries: s.geometries.clone(),
+                instances: live.iter().map(|&i| s.instances[i as usize]).collect(),
+            };
+            let mut b = World::builder();
+            for tris in &state.geometries {
+                let g = b.add_triangles(tris.clone());
+                if g == GeometryId(2) {
+                    b.set_options(g, &other).unwrap();
+                }
+            }
+            for inst in &state.instances {
+                b.add_instance(*inst);
+            }
+            let fresh = b.build(&options).unwrap();
+            let rays = state.rays(300, 9 + k as u64);
+            answers_alike(world, &fresh, &live, &rays, what);
+            let (flat, names) = state.flattened(|_, _| true);
+            let answers = Oracle::with_slack(&flat, state.slack()).closest_hits(&rays);
+            for (i, r) in rays.iter().enumerate() {
+                check(&answers[i], fresh.closest_hit(r), &names)
+                    .unwrap_or_else(|e| panic!("{what} ray {i}: {e}"));
+            }
+            for (i, gone) in removed.iter().enumerate() {
+                assert_eq!(world.is_live(InstanceId(i as u32)), !gone);
+            }
+        };
+        check_state(&world, &s, &removed, &format!("{layout:?} after one edit"));
+
+        // A second edit: one added instance removed, another moved, the top rebuilt.
+        let mut edit = world.edit();
+        edit.remove_instance(InstanceId(n as u32 + 1)).unwrap();
+        removed[n + 1] = true;
+        edit.set_transform(InstanceId(n as u32 + 2), moved).unwrap();
+        s.instances[n + 2] = s.instances[n + 2].transform(moved);
+        edit.rebuild_top();
+        // A removed instance takes no edit, and its id is not given again.
+        assert_eq!(
+            edit.set_mask(InstanceId(2), 1),
+            Err(WorldError::Removed { instance: 2 })
+        );
+        assert_eq!(
+            edit.remove_instance(InstanceId(n as u32 + 1)),
+            Err(WorldError::Removed {
+                instance: n as u32 + 1
+            })
+        );
+        edit.commit();
+        check_state(&world, &s, &removed, &format!("{layout:?} after two edits"));
+    }
+}
+
+/// Edits refuse what a build refuses, naming it, and change nothing.
+#[test]
+fn structural_edits_refuse_bad_input_and_change_nothing() {
+    let s = setup(90);
+    let mut world = s.world(&BuildOptions::default());
+    let rays = s.rays(100, 3);
+    let before: Vec<_> = rays.iter().map(|r| world.closest_hit(r)).collect();
+    let mut edit = world.edit();
+    assert!(matches!(
+        edit.add_instance(Instance::of(GeometryId(9))),
+        Err(WorldError::Geometry { geometry: 9, .. })
+    ));
+    assert!(matches!(
+        edit.add_instance(Instance::of(GeometryId(0)).transform(Affine3A::from_scale(Vec3::ZERO))),
+        Err(WorldError::Transform { .. })
+    ));
+    assert!(matches!(
+        edit.replace_triangles(GeometryId(7), Vec::new(), &BuildOptions::default()),
+        Err(WorldError::NoGeometry { geometry: 7, .. })
+    ));
+    assert!(matches!(
+        edit.add_mesh(&[[0.0f32; 3]; 2], &[[0, 1, 2]], &BuildOptions::default()),
+        Err(WorldError::Mesh { geometry: 3, .. })
+    ));
+    assert!(matches!(
+        edit.rebuild_geometry(GeometryId(0), &BuildOptions::default().max_leaf_size(0)),
+        Err(WorldError::Config(_))
+    ));
+    assert!(matches!(
+        edit.remove_instance(InstanceId(40)),
+        Err(WorldError::NoInstance { instance: 40, .. })
+    ));
+    edit.commit();
+    let after: Vec<_> = rays.iter().map(|r| world.closest_hit(r)).collect();
+    assert_eq!(before, after);
+    assert_eq!(world.geometries().len(), 3);
+    assert_eq!(world.instances().len(), 40);
+}
+
+/// Issue 52: a geometry's own filter (an alpha test on one geometry) is asked about that
+/// geometry's candidates only, after the query's filter, and the world answers as the
+/// flattened scene without the rejected triangles does (f64 oracle), in every layout, single
+/// rays and packets, closest and any hit; edits set and clear it.
+#[test]
+fn a_geometry_filter_hides_what_it_rejects_and_sees_only_its_geometry() {
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    use std::sync::Arc;
+    for (k, layout) in Layout::ALL.into_iter().enumerate() {
+        let s = setup(80 + k as u64);
+        let alpha = |h: &WorldHit| (h.prim + h.instance.0) % 3 != 0 || h.u > 0.5;
+        let query = |h: &WorldHit| (h.prim * 7 + h.instance.0) % 5 != 0;
+        let asked_other = Arc::new(AtomicUsize::new(0));
+        let seen = asked_other.clone();
+        let mut b = World::builder();
+        for tris in &s.geometries {
+            b.add_triangles(tris.clone());
+        }
+        b.set_filter(GeometryId(1), move |h: &WorldHit| {
+            if h.geometry != GeometryId(1) {
+                seen.fetch_add(1, Ordering::Relaxed);
+            }
+            alpha(h)
+        })
+        .unwrap();
+        for inst in &s.instances {
+            b.add_instance(*inst);
+        }
+        let options = BuildOptions::default().layout(layout);
+        let mut world = b.build(&options).unwrap();
+        let rays = s.rays(400, 4 + k as u64);
+        // Which triangles survive is known only at a hit's u; the oracle keeps the whole
+        // triangle, so rays are judged where the answer does not depend on u: the alpha
+        // test's verdict on the oracle's hit is checked with the oracle's own u below.
+        let (flat, names) = s.flattened(|i, p| {
+            let g = s.instances[i as usize].geometry;
+            g != GeometryId(1) || (p + i) % 3 != 0
+        });
+        let oracle = Oracle::with_slack(&flat, s.slack());
+        let answers = oracle.closest_hits(&rays);
+        let (mut packet, mut any) = (vec![None; rays.len()], vec![false; rays.len()]);
+        world.closest_hit_packet(&rays, &mut packet);
+        world.any_hit_packet(&rays, &mut any);
+        let mut judged = 0;
+        for (i, r) in rays.iter().enumerate() {
+            let got = world.closest_hit(r);
+            assert_eq!(packet[i], got, "{layout:?} ray {i}: packet");
+            assert_eq!(any[i], world.any_hit(r), "{layout:?} ray {i}: any packet");
+            assert_eq!(world.any_hit(r), got.is_some(), "{layout:?} ray {i}: any");
+            // The triangles the alpha test rejects whole are gone; those it cuts by u are
+            // kept by the oracle, so a ray is judged only where it hit none of those.
+            let cut = got
+                .is_some_and(|h| h.geometry == GeometryId(1) && (h.prim + h.instance.0) % 3 == 0);
+            if !cut && answers[i].is_decidable() {
+                let hit_cut = answers[i].hit.is_some_and(|h| {
+                    let (inst, g, p) = names[h.prim as usize];
+                    g == 1 && (p + inst) % 3 == 0
+                });
+                if !hit_cut {
+                    check(&answers[i], got, &names)
+                        .unwrap_or_else(|e| panic!("{layout:?} ray {i}: {e}"));
+                    judged += 1;
+                }
+            }
+            if let Some(h) = got {
+                assert!(
+                    h.geometry != GeometryId(1) || alpha(&h),
+                    "{layout:?} ray {i}: rejected hit"
+                );
+            }
+            // With the query's filter too: both are asked.
+            let both = world.closest_hit_filtered(r, query);
+            if let Some(h) = both {
+                assert!(query(&h) && (h.geometry != GeometryId(1) || alpha(&h)));
+            }
+        }
+        assert!(judged > rays.len() / 4, "{layout:?}: {judged} judged");
+        assert_eq!(asked_other.load(Ordering::Relaxed), 0, "{layout:?}");
+
+        // Cleared by an edit, the world answers as one built without it.
+        let mut edit = world.edit();
+        edit.set_filter(GeometryId(1), None).unwrap();
+        assert!(edit.set_filter(GeometryId(9), None).is_err());
+        edit.commit();
+        let plain = s.world(&options);
+        for r in &rays {
+            assert_eq!(world.closest_hit(r), plain.closest_hit(r));
+        }
+    }
+}

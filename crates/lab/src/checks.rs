@@ -602,7 +602,9 @@ pub fn mesh_load(data: &[u8], ext: &str) {
 /// may panic and both instruction sets must agree bit for bit; on tame inputs every closest
 /// hit, single and in packets, names the instance, geometry and primitive the f64 oracle
 /// finds over the flattened scene with the masked and rejected triangles left out (bands
-/// widened by the transforms' rounding), and any-hit agrees on decidable rays.
+/// widened by the transforms' rounding), and any-hit agrees on decidable rays. Then the bytes
+/// after the instances' drive a sequence of edits, and the edited world must answer as the same
+/// state built afresh (`edits_against_rebuilt`).
 ///
 /// ```
 /// quiver_lab::checks::instanced_against_oracle(&[7u8; 500]);
@@ -714,6 +716,151 @@ pub fn instanced_against_oracle(data: &[u8]) {
         if answer.is_decidable() {
             assert_eq!(any, answer.hit.is_some(), "{setup:?} any-hit {r:?}");
         }
+    }
+    let ops = control.get(96..).unwrap_or(&[]);
+    edits_against_rebuilt(ops, placements, &options, &rays, setup.tame);
+}
+
+/// A random sequence of structural edits (from `ops`, three bytes each: remove, add, move,
+/// re-mask or replace an instance; replace a geometry by part of its triangles; rebuild one
+/// with another layout; rebuild the top level) made to the world of `placements` in two
+/// edits; nothing may panic, a refused edit must be the error its state calls for, and on
+/// tame inputs the edited world answers every ray (single, packets; closest and any hit)
+/// exactly as the same state built afresh does.
+fn edits_against_rebuilt(
+    ops: &[u8],
+    mut state: crate::worlds::Placements,
+    options: &BuildOptions,
+    rays: &[Ray],
+    tame: bool,
+) {
+    use glam::{Affine3A, Vec3};
+    use quiver_rt::{GeometryId, Instance, InstanceId, World, WorldError, WorldHit};
+    let mut world = state.world(options);
+    let mut own: Vec<Option<BuildOptions>> = vec![None; state.geometries.len()];
+    let mut removed = vec![false; state.instances.len()];
+    let count = ops.first().map_or(0, |&b| b as usize % 10);
+    let op = |k: usize| -> [u8; 3] {
+        std::array::from_fn(|j| ops.get(1 + 3 * k + j).copied().unwrap_or(0))
+    };
+    for half in [0..count / 2, count / 2..count] {
+        let mut edit = world.edit();
+        for k in half {
+            let [kind, a, b] = op(k);
+            let (n, gn) = (state.instances.len(), state.geometries.len());
+            let i = a as usize % n.max(1);
+            let g = a as usize % gn;
+            let shift = Affine3A::from_translation(Vec3::new(b as f32 / 16.0 - 8.0, 0.5, 0.0));
+            let live = i < n && !removed[i];
+            let expect_live = |r: Result<(), WorldError>| match (live, r) {
+                (true, r) => r.unwrap(),
+                (false, r) => assert!(
+                    matches!(
+                        r,
+                        Err(WorldError::Removed { .. } | WorldError::NoInstance { .. })
+                    ),
+                    "edit of instance {i} of {n}"
+                ),
+            };
+            match kind % 8 {
+                0 => {
+                    expect_live(edit.remove_instance(InstanceId(i as u32)));
+                    if live {
+                        removed[i] = true;
+                    }
+                }
+                1 => {
+                    let inst = Instance::of(GeometryId((b as usize % gn) as u32)).transform(shift);
+                    assert_eq!(edit.add_instance(inst), Ok(InstanceId(n as u32)));
+                    state.instances.push(inst);
+                    removed.push(false);
+                }
+                2 => {
+                    let r = edit.set_transform(InstanceId(i as u32), shift);
+                    expect_live(r);
+                    if live {
+                        state.instances[i].transform = shift;
+                    }
+                }
+                3 => {
+                    expect_live(edit.set_mask(InstanceId(i as u32), b as u32 % 4));
+                    if live {
+                        state.instances[i].mask = b as u32 % 4;
+                    }
+                }
+                4 => {
+                    let part: Vec<Triangle> = state.geometries[g]
+                        .iter()
+                        .step_by(1 + b as usize % 3)
+                        .copied()
+                        .collect();
+                    let o = options
+                        .clone()
+                        .layout(Layout::ALL[b as usize % Layout::ALL.len()]);
+                    edit.replace_triangles(GeometryId(g as u32), part.clone(), &o)
+                        .unwrap();
+                    state.geometries[g] = part;
+                    own[g] = Some(o);
+                }
+                5 => {
+                    let o = options
+                        .clone()
+                        .layout(Layout::ALL[b as usize % Layout::ALL.len()]);
+                    edit.rebuild_geometry(GeometryId(g as u32), &o).unwrap();
+                    own[g] = Some(o);
+                }
+                6 => edit.rebuild_top(),
+                _ => {
+                    let inst = Instance::of(GeometryId((b as usize % gn) as u32)).mask(0b01);
+                    expect_live(edit.set_instance(InstanceId(i as u32), inst));
+                    if live {
+                        state.instances[i] = inst;
+                    }
+                }
+            }
+        }
+        edit.commit();
+    }
+    if !tame {
+        for r in rays {
+            let _ = (world.closest_hit(r), world.any_hit(r));
+        }
+        return;
+    }
+    let live: Vec<u32> = (0..state.instances.len() as u32)
+        .filter(|&i| !removed[i as usize])
+        .collect();
+    let mut b = World::builder();
+    for (g, tris) in state.geometries.iter().enumerate() {
+        let id = b.add_triangles(tris.clone());
+        if let Some(o) = &own[g] {
+            b.set_options(id, o).unwrap();
+        }
+    }
+    for &i in &live {
+        b.add_instance(state.instances[i as usize]);
+    }
+    let fresh = b.build(options).unwrap();
+    let renamed = |h: WorldHit| WorldHit {
+        instance: InstanceId(live[h.instance.0 as usize]),
+        ..h
+    };
+    let mut hits = vec![None; rays.len()];
+    world.closest_hit_packet_with::<FastBoxes, _, _>(
+        PacketQuery::new(rays).mode(PacketMode::Always),
+        &mut hits,
+        &mut NoStats,
+        &mut NoFilter,
+    );
+    for (i, r) in rays.iter().enumerate() {
+        let want = fresh.closest_hit(r).map(renamed);
+        assert_eq!(world.closest_hit(r), want, "edited world, ray {r:?}");
+        assert_eq!(hits[i], want, "edited world, packet, ray {r:?}");
+        assert_eq!(
+            world.any_hit(r),
+            fresh.any_hit(r),
+            "edited world, any hit, ray {r:?}"
+        );
     }
 }
 
