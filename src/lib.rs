@@ -74,7 +74,9 @@ pub use names::ParseError;
 pub use point::PointHit;
 pub use primitive::Primitive;
 pub use traverse::{reference, RayQuery};
-pub use world::{GeometryId, Instance, InstanceId, World, WorldBuilder, WorldError, WorldHit};
+pub use world::{
+    GeometryId, Instance, InstanceId, World, WorldBuilder, WorldError, WorldHit, WorldPointHit,
+};
 
 /// What a renderer needs in one import: `use quiver_rt::prelude::*;` brings the BVH and its
 /// build options, the layouts' names, rays, triangles and hits, the query trait, worlds with

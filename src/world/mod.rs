@@ -53,6 +53,7 @@ mod geometry;
 mod hit;
 mod instance;
 mod packet;
+mod point;
 mod query;
 mod top;
 
@@ -62,6 +63,7 @@ pub use error::WorldError;
 pub use geometry::Geometry;
 pub use hit::WorldHit;
 pub use instance::{invert, GeometryId, Instance, InstanceId, INVERSE_TOLERANCE};
+pub use point::WorldPointHit;
 
 use crate::geometry::{unit_or_zero, Aabb, PrimHit, Ray, Triangle};
 use crate::layout::walk::{NodeVisit, WalkNodes};
