@@ -198,10 +198,11 @@ impl Triangle {
     /// region of `p` (a vertex, an edge or the face) is decided from dot products of the edges
     /// with `p` relative to the vertices. The edges and `p - v[0]` are first brought near unit
     /// size by one power of two (exact), so the products of up to four lengths the test takes
-    /// neither overflow nor underflow at any scale. Where rounding leaves the face region with
-    /// barycentrics outside the triangle (a near-collinear sliver) or a degenerate triangle
-    /// leaves no face at all, the nearest point of the three edges is taken instead, so the
-    /// answer always lies on the triangle.
+    /// neither overflow nor underflow at any scale. A sliver (an angle at `v[0]` whose sine is
+    /// below 1/8), a degenerate triangle, or a face region whose barycentrics round out of the
+    /// triangle takes a cold path in f64 instead (the plane projection where it lies inside,
+    /// else the nearest point of the three edges): in f32 the region test's products of nearly
+    /// parallel edges cancel. The answer always lies on the triangle.
     ///
     /// For a non-finite `p` or triangle the answer is `v[0]` with `(0, 0)`, or NaN: callers
     /// that care check [`Triangle::is_finite`] and `p` first (the BVH queries do).
@@ -239,13 +240,18 @@ pub(crate) fn closest_uv(a: Vec3A, ab: Vec3A, ac: Vec3A, p: Vec3A) -> (f32, f32)
     let e = -exponent(m);
     let s = |w: Vec3A| Vec3A::new(scale2(w.x, e), scale2(w.y, e), scale2(w.z, e));
     let (ab, ac, ap) = (s(ab), s(ac), s(ap));
-    regions(ab, ac, ap).unwrap_or_else(|| nearest_edge(ab, ac, ap))
+    regions(ab, ac, ap).unwrap_or_else(|| closest_uv_wide(ab, ac, ap))
 }
 
-/// Ericson's region test on unit-sized inputs; `None` where the face region's barycentrics
-/// come out of the triangle or non-finite (a sliver or a degenerate triangle).
+/// Ericson's region test on unit-sized inputs; `None` for a sliver (the sine of the angle
+/// at `a` below 1/8: the face and edge regions' decisions cancel there, see
+/// [`closest_uv_wide`]) and where the face region's barycentrics come out of the triangle.
 #[inline]
 fn regions(ab: Vec3A, ac: Vec3A, ap: Vec3A) -> Option<(f32, f32)> {
+    let n = ab.cross(ac);
+    if !(n.length_squared() * 64.0 > ab.length_squared() * ac.length_squared()) {
+        return None;
+    }
     let d1 = ab.dot(ap);
     let d2 = ac.dot(ap);
     if d1 <= 0.0 && d2 <= 0.0 {
@@ -292,25 +298,47 @@ fn clamp01(x: f32) -> f32 {
     }
 }
 
-/// The barycentrics of the point nearest `ap` (relative to `a`) on the three edges: the
-/// answer for a triangle without a usable face (unit-sized inputs: nothing overflows).
+/// The closest point's barycentrics for a sliver or a degenerate triangle (unit-sized
+/// inputs), in f64: the f32 products of nearly parallel edges cancel (the region test's
+/// `va`, `vb`, `vc` lose digits as the square of the sliver's aspect ratio, the cross product
+/// as its first power), and in f64 they keep 29 more bits. The projection onto the plane
+/// where its barycentrics (cross products with the normal) lie in the triangle, else the
+/// nearest point of the three edges.
 #[cold]
 #[inline(never)]
-fn nearest_edge(ab: Vec3A, ac: Vec3A, ap: Vec3A) -> (f32, f32) {
-    // The segment from `o` along `d`: its parameter nearest `q`.
-    let along = |o: Vec3A, d: Vec3A, q: Vec3A| clamp01((q - o).dot(d) / d.dot(d));
-    let bc = ac - ab;
-    let t_ab = along(Vec3A::ZERO, ab, ap);
-    let t_ac = along(Vec3A::ZERO, ac, ap);
-    let t_bc = along(ab, bc, ap);
-    let candidates = [(t_ab, 0.0), (0.0, t_ac), (1.0 - t_bc, t_bc)];
-    let mut best = candidates[0];
-    let mut best_d = f32::INFINITY;
-    for (u, v) in candidates {
-        let d = (ab * u + ac * v - ap).length_squared();
-        if d < best_d {
-            (best, best_d) = ((u, v), d);
+fn closest_uv_wide(ab: Vec3A, ac: Vec3A, ap: Vec3A) -> (f32, f32) {
+    let w = |v: Vec3A| glam::DVec3::new(v.x as f64, v.y as f64, v.z as f64);
+    let (ab, ac, ap) = (w(ab), w(ac), w(ap));
+    let n = ab.cross(ac);
+    let nn = n.length_squared();
+    let (mut u, mut v) = (-1.0, -1.0);
+    if nn > 0.0 {
+        u = ap.cross(ac).dot(n) / nn;
+        v = ab.cross(ap).dot(n) / nn;
+    }
+    if !(u >= 0.0 && v >= 0.0 && u + v <= 1.0) {
+        // The segment from `o` along `d`: its parameter nearest `ap`.
+        let along = |o: glam::DVec3, d: glam::DVec3| {
+            let t = (ap - o).dot(d) / d.length_squared();
+            if t > 0.0 {
+                t.min(1.0)
+            } else {
+                0.0
+            }
+        };
+        let (t_ab, t_ac, t_bc) = (
+            along(glam::DVec3::ZERO, ab),
+            along(glam::DVec3::ZERO, ac),
+            along(ab, ac - ab),
+        );
+        let mut best = f64::INFINITY;
+        for (cu, cv) in [(t_ab, 0.0), (0.0, t_ac), (1.0 - t_bc, t_bc)] {
+            let d = (ab * cu + ac * cv - ap).length_squared();
+            if d < best {
+                (best, u, v) = (d, cu, cv);
+            }
         }
     }
-    best
+    let u = u as f32;
+    (u, (v as f32).min(1.0 - u))
 }
