@@ -80,6 +80,12 @@ impl<P: Primitive> PrimAt<'_, P> {
 /// shrink; false stops the walk.
 pub(crate) type Visit<'v, P> = dyn FnMut(u32, PrimAt<'_, P>, &mut f64) -> bool + 'v;
 
+/// What [`Bvh::walk_points`] visits: a primitive's input index, the primitive (in the
+/// frame's units), the point in the frame, the radius in the caller's units (which it may
+/// shrink), and the factor from frame to caller units; false stops the walk.
+pub(crate) type FramedVisit<'v, P> =
+    dyn FnMut(u32, PrimAt<'_, P>, Vec3A, &mut f64, f64) -> bool + 'v;
+
 /// A stack entry: a node to enter or a leaf (first, count) to visit, behind its box distance.
 #[derive(Clone, Copy)]
 enum Item {
@@ -116,7 +122,9 @@ fn best_first(
     stack.push(root);
     while let Some((d, item)) = stack.pop() {
         let slack = (2.0 * *radius + reach) * (1.0 / (1u64 << 20) as f64);
-        if !(d <= *radius + slack) {
+        // A NaN distance (never made: the point is finite) would be pruned too.
+        let within = d <= *radius + slack;
+        if !within {
             continue;
         }
         match item {
@@ -245,8 +253,8 @@ impl<P: Primitive, N: Node4> PointWalk<P> for Bvh4<P, N> {
             |i, stack| {
                 let n = &self.nodes[i as usize];
                 let planes = n.planes().map(|r| r.to_array());
-                for k in 0..4 {
-                    let (c, count) = n.child(k);
+                for (k, c) in (0..4).map(|k| (k, n.child(k))) {
+                    let (c, count) = c;
                     let leaf = count & crate::layout::Bvh4Node::LEAF != 0;
                     let count = count & !crate::layout::Bvh4Node::LEAF;
                     if let Some(item) = child_item(c, count, leaf) {
@@ -274,10 +282,10 @@ impl<P: Primitive> PointWalk<P> for Bvh8<P> {
             |i, stack| {
                 let n = &self.nodes[i as usize];
                 let pl = &n.planes;
-                for k in 0..8 {
-                    let leaf = n.count[k] & Bvh8Node::LEAF != 0;
-                    let count = n.count[k] & !Bvh8Node::LEAF;
-                    if let Some(item) = child_item(n.child[k], count, leaf) {
+                for (k, (&child, &count)) in n.child.iter().zip(&n.count).enumerate() {
+                    let leaf = count & Bvh8Node::LEAF != 0;
+                    let count = count & !Bvh8Node::LEAF;
+                    if let Some(item) = child_item(child, count, leaf) {
                         let min = Vec3A::new(pl[0][k], pl[1][k], pl[2][k]);
                         let max = Vec3A::new(pl[3][k], pl[4][k], pl[5][k]);
                         stack.push((box_distance(min, max, p), item));
@@ -319,7 +327,7 @@ impl<P: Primitive> Bvh<P> {
         &self,
         point: Vec3A,
         radius: f64,
-        visit: &mut dyn FnMut(u32, PrimAt<'_, P>, Vec3A, &mut f64, f64) -> bool,
+        visit: &mut FramedVisit<'_, P>,
     ) -> bool {
         let (layout, frame) = self.layout();
         let up = 2f64.powi(frame.k());

@@ -249,7 +249,9 @@ pub(crate) fn closest_uv(a: Vec3A, ab: Vec3A, ac: Vec3A, p: Vec3A) -> (f32, f32)
 #[inline]
 fn regions(ab: Vec3A, ac: Vec3A, ap: Vec3A) -> Option<(f32, f32)> {
     let n = ab.cross(ac);
-    if !(n.length_squared() * 64.0 > ab.length_squared() * ac.length_squared()) {
+    // Also NaN (an overflowed product): the f64 path decides.
+    let face = n.length_squared() * 64.0 > ab.length_squared() * ac.length_squared();
+    if !face {
         return None;
     }
     let d1 = ab.dot(ap);

@@ -262,6 +262,7 @@ impl PointOracle {
     ///
     /// # Errors
     /// What is wrong, with the numbers.
+    #[allow(clippy::neg_cmp_op_on_partial_ord)] // a NaN anywhere must fail the check
     pub fn check(&self, p: Vec3A, max_distance: f32, got: Option<Got>) -> Result<(), String> {
         let a = self.answer(p, max_distance);
         let tol = a.tolerance;
