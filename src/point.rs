@@ -207,6 +207,9 @@ pub(crate) trait PointWalk<P> {
 
 impl<P: Primitive> PointWalk<P> for Bvh2<P> {
     fn point_walk(&self, p: Vec3A, radius: &mut f64, visit: &mut Visit<'_, P>) -> bool {
+        if self.nodes.is_empty() {
+            return true;
+        }
         let addressing = self.mapping.addressing();
         let item = |i: usize| {
             let n = &self.nodes[i];
@@ -540,8 +543,15 @@ mod tests {
 
     #[test]
     fn empty_and_bad_inputs_answer_nothing() {
-        let bvh = Bvh::<Triangle>::new(&[]);
-        assert_eq!(bvh.closest_point(Vec3A::ZERO, f32::INFINITY), None);
+        for layout in Layout::ALL {
+            let bvh = Bvh::<Triangle>::build(&[], &BuildOptions::default().layout(layout)).unwrap();
+            assert_eq!(
+                bvh.closest_point(Vec3A::ZERO, f32::INFINITY),
+                None,
+                "{layout}"
+            );
+            assert!(bvh.point_query(Vec3A::ZERO, f32::INFINITY, |_, _| panic!("{layout}")));
+        }
         let bvh = Bvh::new(&soup(20, 1));
         for (p, r) in [
             (Vec3A::NAN, 1.0),
