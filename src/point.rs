@@ -359,7 +359,9 @@ impl<P: Primitive> Bvh<P> {
 
     /// Offers `visit` every primitive that may lie within `radius` of `point`: each one whose
     /// box (as the layout stores it; a quantized layout's box is a little larger) lies within
-    /// the radius is offered once, nearest boxes first, with its index in the build's input
+    /// the radius is offered, nearest boxes first (once; a tree built with spatial splits,
+    /// [`crate::builders::Builder::Sbvh`], may hold a primitive in several leaves and offer it
+    /// once from each), with its index in the build's input
     /// and the current radius, which the callback may shrink (a larger value is ignored) to
     /// prune the rest of the walk; returning false stops the walk. Some primitives beyond the
     /// radius may be offered too: the callback measures its own primitives. Returns false when

@@ -204,6 +204,7 @@ fn all_within_a_radius_is_every_primitive_the_oracle_puts_there() {
             let mut sorted = got.clone();
             sorted.sort_unstable();
             sorted.dedup();
+            // Binned SAH (the default) puts each primitive in one leaf.
             assert_eq!(sorted.len(), got.len(), "each primitive offered once");
         }
     }
@@ -299,5 +300,22 @@ fn nan_and_negative_inputs_answer_nothing() {
         let hit = bvh.closest_point(p, f32::INFINITY);
         assert_ne!(hit.map(|h| h.prim), Some(3));
         oracle.check_bvh(p, f32::INFINITY, hit.as_ref()).unwrap();
+    }
+}
+
+#[test]
+fn spatial_splits_answer_as_the_oracle() {
+    // The SBVH puts a primitive in several leaves: the walk meets it more than once.
+    let tris = Scene::load("tetra3").unwrap().triangles();
+    let oracle = PointOracle::new(&tris);
+    let pts = points(&tris, 100, 20.0, 7);
+    for layout in [Layout::Bvh2Dfs, Layout::Bvh4Quant, Layout::Bvh8Dfs] {
+        let bvh = Bvh::build(&tris, &BuildOptions::high_quality().layout(layout)).unwrap();
+        for &p in &pts {
+            let hit = bvh.closest_point(p, f32::INFINITY);
+            if let Err(e) = oracle.check_bvh(p, f32::INFINITY, hit.as_ref()) {
+                panic!("sbvh {layout}: {e}");
+            }
+        }
     }
 }
