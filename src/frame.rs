@@ -182,6 +182,13 @@ impl Frame {
         self.k == 0
     }
 
+    /// The power of two a local length is multiplied by to give world units: local = world ·
+    /// 2^-k.
+    #[inline(always)]
+    pub(crate) fn k(self) -> i32 {
+        self.k
+    }
+
     /// World to local factor.
     #[inline(always)]
     fn down(self) -> f32 {

@@ -53,6 +53,7 @@ mod mask;
 mod mem;
 mod mesh;
 mod names;
+pub mod point;
 pub mod predict;
 pub mod primitive;
 mod rng;
@@ -70,9 +71,12 @@ pub use isa::Isa;
 pub use layout::{Footprint, Layout};
 pub use mesh::{MeshError, Positions};
 pub use names::ParseError;
+pub use point::PointHit;
 pub use primitive::Primitive;
 pub use traverse::{reference, RayQuery};
-pub use world::{GeometryId, Instance, InstanceId, World, WorldBuilder, WorldError, WorldHit};
+pub use world::{
+    GeometryId, Instance, InstanceId, World, WorldBuilder, WorldError, WorldHit, WorldPointHit,
+};
 
 /// What a renderer needs in one import: `use quiver_rt::prelude::*;` brings the BVH and its
 /// build options, the layouts' names, rays, triangles and hits, the query trait, worlds with

@@ -25,5 +25,5 @@ pub use hit::{Hit, PrimHit};
 pub use ray::{offset_ray_origin, Ray};
 pub(crate) use scale::{exponent, pow2, scale2};
 pub use scale::{unit_or_zero, unit_scale};
-pub(crate) use triangle::unit_frame;
 pub use triangle::Triangle;
+pub(crate) use triangle::{closest_uv, unit_frame};

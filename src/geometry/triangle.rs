@@ -188,3 +188,159 @@ pub(crate) fn unit_frame(tri: &Triangle, ray: &Ray) -> Option<(Triangle, Ray, i3
         k - j,
     ))
 }
+
+impl Triangle {
+    /// The point of the (closed) triangle nearest `p`, with its barycentrics `(u, v)` (`u`
+    /// weighs `v[1]`, `v` weighs `v[2]`; the point is `v[0] + u·(v[1] - v[0]) + v·(v[2] -
+    /// v[0])`, both in `[0, 1]`, `u + v <= 1`).
+    ///
+    /// Ericson's region method (Real-Time Collision Detection, 5.1.5) in f32: the Voronoi
+    /// region of `p` (a vertex, an edge or the face) is decided from dot products of the edges
+    /// with `p` relative to the vertices. The edges and `p - v[0]` are first brought near unit
+    /// size by one power of two (exact), so the products of up to four lengths the test takes
+    /// neither overflow nor underflow at any scale. A sliver (an angle at `v[0]` whose sine is
+    /// below 1/8), a degenerate triangle, or a face region whose barycentrics round out of the
+    /// triangle takes a cold path in f64 instead (the plane projection where it lies inside,
+    /// else the nearest point of the three edges): in f32 the region test's products of nearly
+    /// parallel edges cancel. The answer always lies on the triangle.
+    ///
+    /// For a non-finite `p` or triangle the answer is `v[0]` with `(0, 0)`, or NaN: callers
+    /// that care check [`Triangle::is_finite`] and `p` first (the BVH queries do).
+    ///
+    /// ```
+    /// use quiver_rt::Triangle;
+    /// use glam::Vec3A;
+    /// let tri = Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y);
+    /// // Above the face: straight down onto it.
+    /// assert_eq!(tri.closest_point(Vec3A::new(0.25, 0.5, 3.0)), (Vec3A::new(0.25, 0.5, 0.0), 0.25, 0.5));
+    /// // Beyond the second vertex: the vertex itself.
+    /// assert_eq!(tri.closest_point(Vec3A::new(2.0, -1.0, 0.0)), (Vec3A::X, 1.0, 0.0));
+    /// // Beside the hypotenuse: its midpoint.
+    /// assert_eq!(tri.closest_point(Vec3A::new(1.0, 1.0, 0.0)), (Vec3A::new(0.5, 0.5, 0.0), 0.5, 0.5));
+    /// ```
+    pub fn closest_point(&self, p: Vec3A) -> (Vec3A, f32, f32) {
+        let (a, ab, ac) = (self.v[0], self.v[1] - self.v[0], self.v[2] - self.v[0]);
+        let (u, v) = closest_uv(a, ab, ac, p);
+        (a + ab * u + ac * v, u, v)
+    }
+}
+
+/// The barycentrics of the point nearest `p` on the triangle with vertex `a` and edges `ab`,
+/// `ac` (see [`Triangle::closest_point`], which this is, given the edges: the wide layouts
+/// store exactly these edges).
+#[inline]
+pub(crate) fn closest_uv(a: Vec3A, ab: Vec3A, ac: Vec3A, p: Vec3A) -> (f32, f32) {
+    let ap = p - a;
+    let m = ab.abs().max(ac.abs()).max(ap.abs()).max_element();
+    if !(m > 0.0 && m.is_finite()) {
+        // `p` on a point-triangle, or something non-finite.
+        return (0.0, 0.0);
+    }
+    // One exact power of two: the largest length near 1 (a subnormal `m` in two steps).
+    let e = -exponent(m);
+    let s = |w: Vec3A| Vec3A::new(scale2(w.x, e), scale2(w.y, e), scale2(w.z, e));
+    let (ab, ac, ap) = (s(ab), s(ac), s(ap));
+    regions(ab, ac, ap).unwrap_or_else(|| closest_uv_wide(ab, ac, ap))
+}
+
+/// Ericson's region test on unit-sized inputs; `None` for a sliver (the sine of the angle
+/// at `a` below 1/8: the face and edge regions' decisions cancel there, see
+/// [`closest_uv_wide`]) and where the face region's barycentrics come out of the triangle.
+#[inline]
+fn regions(ab: Vec3A, ac: Vec3A, ap: Vec3A) -> Option<(f32, f32)> {
+    let n = ab.cross(ac);
+    // Also NaN (an overflowed product): the f64 path decides.
+    let face = n.length_squared() * 64.0 > ab.length_squared() * ac.length_squared();
+    if !face {
+        return None;
+    }
+    let d1 = ab.dot(ap);
+    let d2 = ac.dot(ap);
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return Some((0.0, 0.0));
+    }
+    let bp = ap - ab;
+    let d3 = ab.dot(bp);
+    let d4 = ac.dot(bp);
+    if d3 >= 0.0 && d4 <= d3 {
+        return Some((1.0, 0.0));
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        return Some((clamp01(d1 / (d1 - d3)), 0.0));
+    }
+    let cp = ap - ac;
+    let d5 = ab.dot(cp);
+    let d6 = ac.dot(cp);
+    if d6 >= 0.0 && d5 <= d6 {
+        return Some((0.0, 1.0));
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        return Some((0.0, clamp01(d2 / (d2 - d6))));
+    }
+    let va = d3 * d6 - d5 * d4;
+    let (p, q) = (d4 - d3, d5 - d6);
+    if va <= 0.0 && p >= 0.0 && q >= 0.0 {
+        let w = clamp01(p / (p + q));
+        return Some((1.0 - w, w));
+    }
+    let denom = 1.0 / (va + vb + vc);
+    let (v, w) = (vb * denom, vc * denom);
+    (v >= 0.0 && w >= 0.0 && v + w <= 1.0).then_some((v, w))
+}
+
+/// `x` in `[0, 1]`; 0 for NaN (a zero-length edge).
+#[inline]
+fn clamp01(x: f32) -> f32 {
+    if x > 0.0 {
+        x.min(1.0)
+    } else {
+        0.0
+    }
+}
+
+/// The closest point's barycentrics for a sliver or a degenerate triangle (unit-sized
+/// inputs), in f64: the f32 products of nearly parallel edges cancel (the region test's
+/// `va`, `vb`, `vc` lose digits as the square of the sliver's aspect ratio, the cross product
+/// as its first power), and in f64 they keep 29 more bits. The projection onto the plane
+/// where its barycentrics (cross products with the normal) lie in the triangle, else the
+/// nearest point of the three edges.
+#[cold]
+#[inline(never)]
+fn closest_uv_wide(ab: Vec3A, ac: Vec3A, ap: Vec3A) -> (f32, f32) {
+    let w = |v: Vec3A| glam::DVec3::new(v.x as f64, v.y as f64, v.z as f64);
+    let (ab, ac, ap) = (w(ab), w(ac), w(ap));
+    let n = ab.cross(ac);
+    let nn = n.length_squared();
+    let (mut u, mut v) = (-1.0, -1.0);
+    if nn > 0.0 {
+        u = ap.cross(ac).dot(n) / nn;
+        v = ab.cross(ap).dot(n) / nn;
+    }
+    if !(u >= 0.0 && v >= 0.0 && u + v <= 1.0) {
+        // The segment from `o` along `d`: its parameter nearest `ap`.
+        let along = |o: glam::DVec3, d: glam::DVec3| {
+            let t = (ap - o).dot(d) / d.length_squared();
+            if t > 0.0 {
+                t.min(1.0)
+            } else {
+                0.0
+            }
+        };
+        let (t_ab, t_ac, t_bc) = (
+            along(glam::DVec3::ZERO, ab),
+            along(glam::DVec3::ZERO, ac),
+            along(ab, ac - ab),
+        );
+        let mut best = f64::INFINITY;
+        for (cu, cv) in [(t_ab, 0.0), (0.0, t_ac), (1.0 - t_bc, t_bc)] {
+            let d = (ab * cu + ac * cv - ap).length_squared();
+            if d < best {
+                (best, u, v) = (d, cu, cv);
+            }
+        }
+    }
+    let u = u as f32;
+    (u, (v as f32).min(1.0 - u))
+}

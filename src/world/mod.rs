@@ -54,6 +54,7 @@ mod geometry;
 mod hit;
 mod instance;
 mod packet;
+mod point;
 mod query;
 mod top;
 
@@ -64,6 +65,7 @@ pub use filter::GeometryFilter;
 pub use geometry::Geometry;
 pub use hit::WorldHit;
 pub use instance::{invert, GeometryId, Instance, InstanceId, INVERSE_TOLERANCE};
+pub use point::WorldPointHit;
 
 use crate::geometry::{unit_or_zero, Aabb, PrimHit, Ray, Triangle};
 use crate::layout::walk::{NodeVisit, WalkNodes};

@@ -78,3 +78,8 @@ fn instanced_inputs() {
 fn from_tree_inputs() {
     assert!(replay("from_tree", quiver_lab::checks::from_tree_against_reference) >= 3);
 }
+
+#[test]
+fn point_queries_inputs() {
+    assert!(replay("point_queries", quiver_lab::checks::point_queries) >= 3);
+}

@@ -15,6 +15,7 @@ mod meshes;
 mod mixed;
 mod obvhs;
 mod packets;
+mod point;
 mod predict;
 mod refit;
 mod render;

@@ -1596,3 +1596,121 @@ fn gltf_structured_load(data: &[u8]) {
     // The rest of mesh_load's checks (groups, strict against lax, the oracle), without x.bin.
     mesh_load(json.as_bytes(), "gltf");
 }
+
+/// Point queries from the bytes: the setup and triangles as for [`build_and_trace`], then
+/// queries of four little-endian f32s each (a point and a largest distance; on tame inputs
+/// the distance is taken as its magnitude, or infinite when its lowest bit is set). Nothing
+/// may panic or loop; a NaN or non-finite point, or a NaN or negative distance, answers
+/// `None` and offers nothing to a callback; an answer lies within its largest distance with
+/// barycentrics in the triangle. On tame inputs `Bvh::closest_point` must answer as the f64
+/// [`PointOracle`](crate::point_oracle::PointOracle) admits, `Bvh::point_query` must offer
+/// every primitive within the distance (by the oracle), and `World::closest_point` over the
+/// triangles placed by a non-uniform scale with a shear and a rotation (bytes 1–3 pick it)
+/// must answer as the oracle over the placed triangles admits.
+///
+/// ```
+/// quiver_lab::checks::point_queries(&[7u8; 300]);
+/// quiver_lab::checks::point_queries(&[2u8; 300]);
+/// ```
+pub fn point_queries(data: &[u8]) {
+    use crate::point_oracle::{closest_f64, PointOracle};
+    let Some((setup, tris, _)) = fuzz_input(data) else {
+        return;
+    };
+    let mut f = floats(&data[HEADER..]);
+    if setup.tame {
+        f.iter_mut().for_each(|x| *x = tame(*x));
+    }
+    let queries: Vec<(Vec3A, f32)> = f[(tris.len() * 9).min(f.len())..]
+        .chunks_exact(4)
+        .take(16)
+        .map(|c| {
+            let max = match setup.tame {
+                true if c[3].to_bits() & 1 == 1 => f32::INFINITY,
+                true => c[3].abs(),
+                false => c[3],
+            };
+            (Vec3A::new(c[0], c[1], c[2]), max)
+        })
+        .collect();
+    let fast = fuzz_bvh(setup, &tris, |t| t);
+    let watertight = fuzz_bvh(setup, &tris, Watertight);
+    let oracle = setup.tame.then(|| PointOracle::new(&tris));
+    for &(p, max) in &queries {
+        let valid = p.is_finite() && max >= 0.0;
+        let hit = fast.closest_point(p, max);
+        let wt = watertight.closest_point(p, max);
+        let mut offered = Vec::new();
+        fast.point_query(p, max, |i, _| {
+            offered.push(i);
+            true
+        });
+        if !valid {
+            assert!(
+                hit.is_none() && wt.is_none() && offered.is_empty(),
+                "{p} {max}"
+            );
+            continue;
+        }
+        for h in [hit, wt].iter().flatten() {
+            assert!(
+                (h.prim as usize) < tris.len() && h.distance <= max,
+                "{setup:?} {p} {max}: {h:?}"
+            );
+            assert!(h.u >= 0.0 && h.v >= 0.0 && h.u + h.v <= 1.0, "{h:?}");
+        }
+        let Some(oracle) = &oracle else {
+            continue;
+        };
+        for h in [hit, wt] {
+            if let Err(e) = oracle.check_bvh(p, max, h.as_ref()) {
+                panic!("{setup:?}: {e}");
+            }
+        }
+        // Every primitive within the distance (by the oracle, clear of its band) is offered.
+        let band = oracle.tolerance(0.0);
+        let pw = glam::DVec3::new(p.x as f64, p.y as f64, p.z as f64);
+        for (i, t) in tris.iter().enumerate() {
+            let v =
+                t.v.map(|q| glam::DVec3::new(q.x as f64, q.y as f64, q.z as f64));
+            let d = (closest_f64(&v, pw) - pw).length();
+            if t.is_finite() && d + band < max as f64 {
+                assert!(
+                    offered.contains(&(i as u32)),
+                    "{setup:?} {p} {max}: {i} at {d}"
+                );
+            }
+        }
+    }
+    if setup.tame && !tris.is_empty() {
+        point_queries_in_a_world(data, &tris, &queries);
+    }
+}
+
+/// [`point_queries`]' world: the triangles as one geometry, placed twice (as they are and by
+/// a transform of the bytes), the answers against the oracle over the placed triangles.
+fn point_queries_in_a_world(data: &[u8], tris: &[Triangle], queries: &[(Vec3A, f32)]) {
+    use crate::point_oracle::PointOracle;
+    use glam::{Affine3A, Mat3, Quat, Vec3};
+    use quiver_rt::{Instance, World};
+    let unit = |x: u8| x as f32 / 255.0;
+    let scale = Vec3::new(0.25 + 4.0 * unit(data[1]), 1.0, 0.25 + 4.0 * unit(data[2]));
+    let shear = Mat3::from_cols(Vec3::X, Vec3::new(unit(data[3]) - 0.5, 1.0, 0.0), Vec3::Z);
+    let rotation = Quat::from_axis_angle(Vec3::new(1.0, 2.0, 3.0).normalize(), unit(data[3]) * 6.0);
+    let linear = Mat3::from_quat(rotation) * shear * Mat3::from_diagonal(scale);
+    let transform = Affine3A::from_mat3_translation(linear, Vec3::new(0.5, -1.0, 2.0));
+    let mut b = World::builder();
+    let g = b.add_triangles(tris.to_vec());
+    b.add_instance(Instance::of(g));
+    b.add_instance(Instance::of(g).transform(transform));
+    let Ok(world) = b.build(&BuildOptions::default()) else {
+        return;
+    };
+    let oracle = PointOracle::for_world(&world);
+    for &(p, max) in queries {
+        let hit = world.closest_point(p, max);
+        if let Err(e) = oracle.check_world(p, max, hit.as_ref()) {
+            panic!("world {transform:?}: {e}");
+        }
+    }
+}

@@ -17,6 +17,7 @@ pub mod lines;
 pub mod measure;
 pub mod obvhs_bridge;
 pub mod oracle;
+pub mod point_oracle;
 pub mod rays;
 #[cfg(feature = "tinybvh")]
 pub mod tinybvh;

@@ -1,0 +1,166 @@
+//! [`World::closest_point`]: the closest point of a world's triangles, measured in world
+//! space through every instance's transform.
+//!
+//! The top level is walked nearest box first with the world radius. An instance's geometry is
+//! searched in object space, where a non-uniform scale or a shear does not keep distances: a
+//! world distance `d` is at most `‖M⁻¹‖·d` in object space (`M⁻¹` the world-to-object linear
+//! part, `‖·‖` its largest singular value, bounded here by the Frobenius norm), so the
+//! object-space walk runs with that radius, a superset, and each candidate triangle is
+//! placed in world space and measured there. Barycentrics are kept by affine maps, so the
+//! world triangle's are the object triangle's.
+
+use super::{Geometry, GeometryId, InstanceId, World};
+use crate::geometry::Triangle;
+use crate::point::{wide, PointWalk, PrimAt};
+use crate::primitive::Primitive;
+use glam::{Affine3A, Vec3A};
+
+/// The closest point of a [`World`]'s triangles to a query point ([`World::closest_point`]),
+/// in world space.
+///
+/// ```
+/// use quiver_rt::glam::{Affine3A, Vec3, Vec3A};
+/// use quiver_rt::world::WorldPointHit;
+/// use quiver_rt::{BuildOptions, Instance, Triangle, World};
+/// let mut b = World::builder();
+/// let g = b.add_triangles(vec![Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y)]);
+/// let i = b.add_instance(Instance::of(g).transform(Affine3A::from_scale(Vec3::new(4.0, 1.0, 1.0))));
+/// let world = b.build(&BuildOptions::default()).unwrap();
+/// let hit: WorldPointHit = world.closest_point(Vec3A::new(2.0, 0.25, 1.5), f32::INFINITY).unwrap();
+/// assert_eq!((hit.instance, hit.geometry, hit.prim), (i, g, 0));
+/// assert_eq!((hit.point, hit.distance), (Vec3A::new(2.0, 0.25, 0.0), 1.5));
+/// assert_eq!((hit.u, hit.v), (0.5, 0.25));
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WorldPointHit {
+    /// The instance: its index in the order instances were added.
+    pub instance: InstanceId,
+    /// The geometry it places.
+    pub geometry: GeometryId,
+    /// The primitive of that geometry: its index in the geometry's input.
+    pub prim: u32,
+    /// The nearest point, in world space.
+    pub point: Vec3A,
+    /// Barycentric weight of the triangle's second vertex at `point`.
+    pub u: f32,
+    /// Barycentric weight of the third vertex.
+    pub v: f32,
+    /// The world-space distance from the query point to `point`.
+    pub distance: f32,
+}
+
+/// The world-to-object linear part's largest stretch, bounded above: its Frobenius norm, in
+/// f64, with room for the rounding of the transform and of the object-space walk.
+fn stretch(to_object: &Affine3A) -> f64 {
+    let m = to_object.matrix3.to_cols_array().map(f64::from);
+    m.iter().map(|x| x * x).sum::<f64>().sqrt() * (1.0 + 1.0 / 1024.0)
+}
+
+/// `t`'s vertices placed by `m` (in f32, as the ray queries place their rays the other way).
+fn placed(m: &Affine3A, identity: bool, t: Triangle) -> Triangle {
+    if identity {
+        t
+    } else {
+        Triangle {
+            v: t.v.map(|p| m.transform_point3a(p)),
+        }
+    }
+}
+
+impl<P: Primitive> World<P> {
+    /// The point of the world's triangles nearest `point` (world space), within
+    /// `max_distance` (inclusive), measured in world space under any instance transform
+    /// (non-uniform scale and shear included): the instance, geometry and primitive, the
+    /// point, its barycentrics and the distance; `None` when nothing lies that near.
+    /// Primitives without a triangle ([`Primitive::triangle`]) are skipped; instance masks are
+    /// not consulted (a point query has no ray).
+    ///
+    /// Each candidate triangle is placed in world space by its instance's transform (in f32)
+    /// and measured there with [`Triangle::closest_point`]; its distance from the query point
+    /// is taken in f64. Equal distances go to the lower instance, then the lower primitive. A
+    /// NaN or non-finite `point`, or a NaN or negative `max_distance`, answers `None`.
+    ///
+    /// ```
+    /// use quiver_rt::glam::{Affine3A, Vec3A};
+    /// use quiver_rt::{BuildOptions, Instance, Triangle, World};
+    /// let mut b = World::builder();
+    /// let g = b.add_triangles(vec![Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y)]);
+    /// b.add_instance(Instance::of(g));
+    /// let up = b.add_instance(Instance::of(g).transform(Affine3A::from_translation([0.0, 0.0, 5.0].into())));
+    /// let world = b.build(&BuildOptions::default()).unwrap();
+    /// let hit = world.closest_point(Vec3A::new(0.2, 0.2, 4.0), f32::INFINITY).unwrap();
+    /// assert_eq!((hit.instance, hit.distance), (up, 1.0));
+    /// assert_eq!(world.closest_point(Vec3A::new(0.2, 0.2, 4.0), 0.5), None);
+    /// assert_eq!(world.closest_point(Vec3A::NAN, 1.0), None);
+    /// ```
+    pub fn closest_point(&self, point: Vec3A, max_distance: f32) -> Option<WorldPointHit> {
+        if !(point.is_finite() && max_distance >= 0.0) {
+            return None;
+        }
+        let p = wide(point);
+        let mut radius = max_distance as f64;
+        let mut best: Option<(f64, u32, u32)> = None;
+        let mut hit = None;
+        self.top
+            .point_walk(point, &mut radius, &mut |_, leaf, radius| {
+                let PrimAt::Prim(leaf) = leaf else {
+                    return true;
+                };
+                let inst = &self.instances[leaf.instance as usize];
+                let Some(geometry) = self.geometries.get(leaf.geometry as usize) else {
+                    return true;
+                };
+                let (to_object, identity) = (leaf.world_to_object(), leaf.identity);
+                let (local, stretch) = if identity {
+                    (point, 1.0)
+                } else {
+                    (to_object.transform_point3a(point), stretch(&to_object))
+                };
+                // Object-space radius: the world radius stretched, with a slack for the rounding
+                // of the point's transform (a few ulps of its object-space coordinates).
+                let slack = local.abs().max_element() as f64 * (1.0 / (1u64 << 18) as f64);
+                let r_obj = *radius * stretch + slack;
+                let mut measure = |id: u32, tri: Option<Triangle>, r_obj: &mut f64| {
+                    let Some(tri) = tri else {
+                        return true;
+                    };
+                    let tri = placed(&inst.transform, identity, tri);
+                    let (q, u, v) = tri.closest_point(point);
+                    let d = (p - wide(q)).length();
+                    let better = match best {
+                        None => true,
+                        Some((bd, bi, bp)) => d < bd || (d == bd && (leaf.instance, id) < (bi, bp)),
+                    };
+                    if d <= *radius && better {
+                        best = Some((d, leaf.instance, id));
+                        *radius = d;
+                        *r_obj = d * stretch + slack;
+                        hit = Some(WorldPointHit {
+                            instance: InstanceId(leaf.instance),
+                            geometry: GeometryId(leaf.geometry),
+                            prim: id,
+                            point: q,
+                            u,
+                            v,
+                            distance: d as f32,
+                        });
+                    }
+                    true
+                };
+                match geometry {
+                    Geometry::Triangles(bvh, tris) => {
+                        bvh.walk_points(local, r_obj, &mut |id, _, _, r, _| {
+                            measure(id, tris.get(id as usize).copied(), r)
+                        })
+                    }
+                    Geometry::Prims(bvh, prims) => {
+                        bvh.walk_points(local, r_obj, &mut |id, _, _, r, _| {
+                            measure(id, prims.get(id as usize).and_then(|p| p.triangle()), r)
+                        })
+                    }
+                };
+                true
+            });
+        hit
+    }
+}
