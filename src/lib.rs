@@ -56,6 +56,7 @@ mod names;
 pub mod predict;
 pub mod primitive;
 mod rng;
+mod save;
 #[cfg(test)]
 mod testing;
 pub mod traverse;
@@ -71,6 +72,7 @@ pub use layout::{Footprint, Layout};
 pub use mesh::{MeshError, Positions};
 pub use names::ParseError;
 pub use primitive::Primitive;
+pub use save::{LoadError, FORMAT_VERSION};
 pub use traverse::{reference, RayQuery};
 pub use world::{GeometryId, Instance, InstanceId, World, WorldBuilder, WorldError, WorldHit};
 
