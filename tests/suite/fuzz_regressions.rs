@@ -78,3 +78,8 @@ fn instanced_inputs() {
 fn from_tree_inputs() {
     assert!(replay("from_tree", quiver_lab::checks::from_tree_against_reference) >= 3);
 }
+
+#[test]
+fn saved_inputs() {
+    assert!(replay("saved", quiver_lab::checks::saved_bvh) >= 3);
+}

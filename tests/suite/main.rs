@@ -17,6 +17,7 @@ mod obvhs;
 mod packets;
 mod predict;
 mod refit;
+mod save;
 mod render;
 mod sbvh;
 mod scale;
