@@ -601,23 +601,24 @@ impl Header {
         let sizes = element_sizes(self.layout);
         let mut at = HEADER as u64;
         let mut out = [(0usize, 0usize); 5];
-        for i in 0..5 {
-            let overflow = LoadError::LengthOverflow {
-                section: SECTIONS[i],
-            };
-            let bytes = self.counts[i]
-                .checked_mul(sizes[i] as u64)
+        for (i, (slot, (&count, size))) in out
+            .iter_mut()
+            .zip(self.counts.iter().zip(sizes))
+            .enumerate()
+        {
+            let bytes = count
+                .checked_mul(size as u64)
                 .ok_or_else(|| overflow_of(i))?;
             let padded = bytes
                 .checked_add(ALIGN as u64 - 1)
                 .map(|b| b / ALIGN as u64 * ALIGN as u64)
                 .ok_or_else(|| overflow_of(i))?;
-            let end = at.checked_add(padded).ok_or(overflow)?;
+            let end = at.checked_add(padded).ok_or_else(|| overflow_of(i))?;
             // The offsets must be addressable on this machine.
             let start = usize::try_from(at).map_err(|_| overflow_of(i))?;
             let len = usize::try_from(bytes).map_err(|_| overflow_of(i))?;
             usize::try_from(end).map_err(|_| overflow_of(i))?;
-            out[i] = (start, len);
+            *slot = (start, len);
             at = end;
         }
         let total = at.checked_add(8).ok_or(LoadError::LengthOverflow {
@@ -1702,8 +1703,8 @@ mod tests {
         let d = MAX_DEPTH + 1;
         let empty = bvh2_padding();
         let mut nodes = vec![empty; 2 * d + 1];
-        for i in 0..d {
-            nodes[i] = Bvh2Node {
+        for (i, node) in nodes.iter_mut().enumerate().take(d) {
+            *node = Bvh2Node {
                 min: [0.0; 3],
                 link: i as u32 + 1,
                 max: [1.0; 3],

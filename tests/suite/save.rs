@@ -51,8 +51,13 @@ fn a_loaded_scene_answers_as_the_oracle_and_as_the_saved_bvh() {
         }
         // The file on disk, cut short, is an error naming the truncation.
         let bytes = std::fs::read(&path).unwrap();
-        let cut = Bvh::from_bytes(&bytes[..bytes.len() / 2]).map(|_| ()).unwrap_err();
-        assert!(matches!(cut, LoadError::Truncated { .. }), "{layout}: {cut}");
+        let cut = Bvh::from_bytes(&bytes[..bytes.len() / 2])
+            .map(|_| ())
+            .unwrap_err();
+        assert!(
+            matches!(cut, LoadError::Truncated { .. }),
+            "{layout}: {cut}"
+        );
     }
     std::fs::remove_dir_all(&dir).ok();
 }
