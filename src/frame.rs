@@ -176,6 +176,19 @@ impl Frame {
         (boxes, sizes.frame())
     }
 
+    /// The power of two `k` (local = world · 2^-k), as a saved BVH stores it.
+    pub(crate) fn exponent(self) -> i32 {
+        self.k
+    }
+
+    /// The frame of exponent `k`, if a build could have chosen it (`|k|` at most
+    /// [`MAX_SCALED_EXPONENT`]): a loaded file's frame is checked here.
+    pub(crate) fn from_exponent(k: i32) -> Option<Frame> {
+        (-MAX_SCALED_EXPONENT..=MAX_SCALED_EXPONENT)
+            .contains(&k)
+            .then_some(Frame { k })
+    }
+
     /// True when local and world coordinates are the same.
     #[inline(always)]
     pub(crate) fn is_identity(self) -> bool {

@@ -57,6 +57,7 @@ pub mod point;
 pub mod predict;
 pub mod primitive;
 mod rng;
+mod save;
 #[cfg(test)]
 mod testing;
 pub mod traverse;
@@ -73,6 +74,7 @@ pub use mesh::{MeshError, Positions};
 pub use names::ParseError;
 pub use point::PointHit;
 pub use primitive::Primitive;
+pub use save::{LoadError, FORMAT_VERSION};
 pub use traverse::{reference, RayQuery};
 pub use world::{
     GeometryId, Instance, InstanceId, World, WorldBuilder, WorldError, WorldHit, WorldPointHit,

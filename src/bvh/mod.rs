@@ -46,12 +46,12 @@ use options::frame_prims;
 #[derive(Clone, Debug)]
 pub struct Bvh<P = Triangle> {
     /// The nodes and leaves, in the units of `frame`.
-    layout: AnyLayout<P>,
+    pub(crate) layout: AnyLayout<P>,
     /// The identity, or for a scene far from unit size the power-of-two scale the layout was
     /// built in (see [`Primitive::scaled`]).
-    frame: Frame,
+    pub(crate) frame: Frame,
     /// Every primitive's box, in the caller's units.
-    bounds: Aabb,
+    pub(crate) bounds: Aabb,
 }
 
 impl<P> Bvh<P> {

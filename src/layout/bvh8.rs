@@ -39,7 +39,7 @@ impl Bvh8Node {
     /// Flag bit marking a leaf child in [`Bvh8Node::count`].
     pub const LEAF: u32 = 1 << 31;
 
-    fn encode(w: &Wide<8>) -> Self {
+    pub(crate) fn encode(w: &Wide<8>) -> Self {
         // Depth-first order: collapsed node `j` is stored at position `j`.
         let (planes, child, count) = w.rows(Self::LEAF, |j| j);
         Bvh8Node {

@@ -73,6 +73,17 @@ impl FarGroups {
         self.0.binary_search(&(g as u32)).is_ok()
     }
 
+    /// The far groups' indices, ascending (what a saved BVH stores).
+    pub(crate) fn ids(&self) -> &[u32] {
+        &self.0
+    }
+
+    /// The list of these group indices, which the caller has checked are strictly
+    /// ascending and name groups that exist (a loaded file's).
+    pub(crate) fn from_checked(ids: Vec<u32>) -> Self {
+        FarGroups(ids)
+    }
+
     /// The bytes the list holds.
     pub(crate) fn bytes(&self) -> usize {
         std::mem::size_of_val(&self.0[..])

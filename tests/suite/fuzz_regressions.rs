@@ -83,3 +83,8 @@ fn from_tree_inputs() {
 fn point_queries_inputs() {
     assert!(replay("point_queries", quiver_lab::checks::point_queries) >= 3);
 }
+
+#[test]
+fn saved_inputs() {
+    assert!(replay("saved", quiver_lab::checks::saved_bvh) >= 3);
+}

@@ -19,6 +19,7 @@ mod point;
 mod predict;
 mod refit;
 mod render;
+mod save;
 mod sbvh;
 mod scale;
 mod scenes;

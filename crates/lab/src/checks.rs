@@ -1712,5 +1712,134 @@ fn point_queries_in_a_world(data: &[u8], tris: &[Triangle], queries: &[(Vec3A, f
         if let Err(e) = oracle.check_world(p, max, hit.as_ref()) {
             panic!("world {transform:?}: {e}");
         }
+
+/// The checksum of a saved BVH as `docs/file-format.md` defines it, computed here from the
+/// document (not from the core's code): FNV-1a-64 over 64-bit little-endian words in four
+/// interleaved streams per 1 MiB block, the block hashes folded in order, then the length.
+fn saved_checksum(data: &[u8]) -> u64 {
+    const OFFSET: u64 = 0xcbf2_9ce4_8422_2325;
+    const PRIME: u64 = 0x0000_0100_0000_01b3;
+    let step = |s: u64, w: u64| (s ^ w).wrapping_mul(PRIME);
+    let block = |b: &[u8]| {
+        let mut s: [u64; 4] = std::array::from_fn(|l| OFFSET ^ l as u64);
+        for (i, w) in b.chunks(8).enumerate() {
+            let mut word = [0u8; 8];
+            word[..w.len()].copy_from_slice(w);
+            s[i % 4] = step(s[i % 4], u64::from_le_bytes(word));
+        }
+        s.iter().fold(OFFSET, |h, &x| step(h, x))
+    };
+    let h = data.chunks(1 << 20).map(block).fold(OFFSET, step);
+    step(h, data.len() as u64)
+}
+
+/// Writes a valid checksum over `file` (a saved BVH, changed): what a hostile writer does, so
+/// the loader's structural checks, not the checksum, must refuse what is wrong.
+pub fn reseal_saved(file: &mut [u8]) {
+    if file.len() >= 8 {
+        let end = file.len() - 8;
+        let sum = saved_checksum(&file[..end]);
+        file[end..].copy_from_slice(&sum.to_le_bytes());
+    }
+}
+
+/// Saved BVH files from the bytes ([`Bvh::from_bytes`]): the first byte's low bit chooses
+/// raw bytes as a file, or a valid file of up to 24 triangles (layout, triangles and rays
+/// from the bytes) changed by the rest: bytes overwritten or flipped at chosen offsets,
+/// truncated or extended, and the checksum made valid again or not. Loading must return a
+/// BVH or a [`quiver_rt::LoadError`], never panic, hang or allocate past the bytes present;
+/// a loaded BVH must save to bytes that load again and answer every ray (single and packets,
+/// closest and any hit) as it does, and a refit of it must not panic; an unchanged file must
+/// answer as the BVH that wrote it.
+pub fn saved_bvh(data: &[u8]) {
+    let mut b = ByteReader(data);
+    let mode = b.u8();
+    if mode & 1 == 0 {
+        let rest = b.0;
+        if let Ok(bvh) = Bvh::from_bytes(rest) {
+            let rays = fuzz_rays(&mut ByteReader(rest));
+            loaded_answers_again(&bvh, &rays, None);
+        }
+        return;
+    }
+    let layout = Layout::ALL[b.u8() as usize % Layout::ALL.len()];
+    let n = b.u8() as usize % 25;
+    let tris: Vec<Triangle> = (0..n)
+        .map(|_| Triangle::new(b.point(), b.point(), b.point()))
+        .collect();
+    let rays = fuzz_rays(&mut ByteReader(data));
+    let bvh = Bvh::build(&tris, &BuildOptions::default().layout(layout)).expect("in range");
+    let original = bvh.to_bytes();
+    let mut file = original.clone();
+    let edits = b.u8() % 8;
+    for _ in 0..edits {
+        let at = u16::from_le_bytes([b.u8(), b.u8()]) as usize;
+        let op = b.u8();
+        let value = b.u8();
+        match op % 4 {
+            0 if !file.is_empty() => {
+                let i = at % file.len();
+                file[i] = value;
+            }
+            1 if !file.is_empty() => {
+                let i = at % file.len();
+                file[i] ^= 1 << (value % 8);
+            }
+            // A 32-bit field set to a chosen small or extreme value (links, counts).
+            2 if file.len() >= 4 => {
+                let i = (at % (file.len() - 3)) & !3;
+                let v = match value {
+                    v if v >= 250 => u32::MAX - (v - 250) as u32,
+                    v => v as u32,
+                };
+                file[i..i + 4].copy_from_slice(&v.to_le_bytes());
+            }
+            3 => file.truncate(at % (file.len() + 1)),
+            _ => {}
+        }
+    }
+    if mode & 2 == 2 {
+        reseal_saved(&mut file);
+    }
+    let loaded = Bvh::from_bytes(&file);
+    if file == original {
+        let loaded = loaded.expect("an unchanged file loads");
+        loaded_answers_again(&loaded, &rays, Some(&bvh));
+        return;
+    }
+    if let Ok(loaded) = loaded {
+        loaded_answers_again(&loaded, &rays, None);
+        // A refit over triangles of the size the file claims must not panic either.
+        let mut refit = loaded.clone();
+        if refit.refit(&tris).is_ok() {
+            loaded_answers_again(&refit, &rays, None);
+        }
+    }
+}
+
+/// Up to 16 rays from the bytes, on the same grid as the fuzzed triangles.
+fn fuzz_rays(b: &mut ByteReader<'_>) -> Vec<Ray> {
+    (0..16)
+        .map(|_| Ray::new(b.point() * 2.0, Vec3A::new(b.coord(), b.coord(), b.coord())))
+        .collect()
+}
+
+/// `bvh` (loaded) saves to bytes that load again and answer as it does; and as `want` does
+/// where given.
+fn loaded_answers_again(bvh: &Bvh, rays: &[Ray], want: Option<&Bvh>) {
+    let again = Bvh::from_bytes(&bvh.to_bytes()).expect("a loaded BVH saves to a valid file");
+    for other in [Some(&again), want].into_iter().flatten() {
+        for r in rays {
+            assert_eq!(bvh.closest_hit(r), other.closest_hit(r), "{r:?}");
+            assert_eq!(bvh.any_hit(r), other.any_hit(r), "{r:?}");
+        }
+        let (mut a, mut o) = (vec![None; rays.len()], vec![None; rays.len()]);
+        bvh.closest_hit_packet(rays, &mut a);
+        other.closest_hit_packet(rays, &mut o);
+        assert_eq!(a, o);
+        let (mut a, mut o) = (vec![false; rays.len()], vec![false; rays.len()]);
+        bvh.any_hit_packet(rays, &mut a);
+        other.any_hit_packet(rays, &mut o);
+        assert_eq!(a, o);
     }
 }

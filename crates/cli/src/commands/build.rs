@@ -5,7 +5,7 @@ use super::{
     finite_cost, layout_help, load_and_build, parse_builder, parse_layout, pool, scene_help,
     thread_count, Result,
 };
-use crate::output::{check_outputs, print_table, write_json};
+use crate::output::{check_outputs, print_table, write_file, write_json};
 use quiver_rt::builders::{BuildConfig, Builder, CostModel};
 use quiver_rt::{BuildOptions, Bvh, Layout};
 use serde_json::json;
@@ -49,11 +49,22 @@ pub(crate) struct BuildArgs {
     /// Write the report as JSON to this file.
     #[arg(long)]
     json: Option<PathBuf>,
+    /// Save the built BVH to this file in quiver's format (docs/file-format.md), all or
+    /// nothing; `Bvh::load` reads it back. Triangle scenes only (add --patches for the SPD's
+    /// analytic shapes).
+    #[arg(long)]
+    save: Option<PathBuf>,
 }
 
 /// Runs `quiver build`.
 pub(crate) fn run(args: BuildArgs) -> Result<()> {
-    check_outputs(&[("--json", args.json.as_deref())], &[&args.scene])?;
+    check_outputs(
+        &[
+            ("--json", args.json.as_deref()),
+            ("--save", args.save.as_deref()),
+        ],
+        &[&args.scene],
+    )?;
     let config = BuildConfig {
         bins: args.bins as usize,
         max_leaf_size: args.max_leaf as usize,
@@ -85,13 +96,34 @@ pub(crate) fn run(args: BuildArgs) -> Result<()> {
     let (primitives, triangles) = (bvh.primitives(), bvh.is_triangles());
     let prims = primitives.max(1) as f64;
     drop(bvh);
-    // The same tree laid out again over the scene's triangles and refit to them moved by a
-    // thousandth of the scene's size (median of three), for triangle scenes.
+    if args.save.is_some() && !triangles {
+        return Err(format!(
+            "--save: {} holds analytic shapes; only triangle BVHs are saved (add --patches)",
+            args.scene
+        )
+        .into());
+    }
+    // The same tree laid out again over the scene's triangles (the same arrays the build
+    // made: what --save writes) and refit to them moved by a thousandth of the scene's size
+    // (median of three), for triangle scenes.
+    let mut saved = None;
     let refit_ms = if triangles {
         Some(pool.install(|| -> std::result::Result<f64, String> {
             let tris = scene.triangles();
             let moved = super::nudged(&tris);
             let mut laid = Bvh::from_tree(&tree, &tris, &options).map_err(|e| e.to_string())?;
+            if let Some(path) = &args.save {
+                let start = std::time::Instant::now();
+                let mut bytes = 0u64;
+                write_file(path, |w| {
+                    let mut counted = Counted { w, bytes: 0 };
+                    laid.save(&mut counted)?;
+                    bytes = counted.bytes;
+                    Ok(())
+                })
+                .map_err(|e| e.to_string())?;
+                saved = Some((start.elapsed().as_secs_f64() * 1e3, bytes));
+            }
             super::refit_ms(&mut laid, &tris, &moved, 3).map_err(|e| e.to_string())
         })?)
     } else {
@@ -120,7 +152,27 @@ pub(crate) fn run(args: BuildArgs) -> Result<()> {
         "bytes_per_prim": footprint.bytes as f64 / prims,
         "kept_bytes": footprint.kept,
         "kept_bytes_per_prim": footprint.kept as f64 / prims,
+        "save_ms": saved.map(|s| s.0),
+        "file_bytes": saved.map(|s| s.1),
     });
     print_table(&report);
     write_json(args.json.as_ref(), &report)
+}
+
+/// A writer that counts the bytes passing through it (the saved file's size, for the report).
+struct Counted<'w, W> {
+    w: &'w mut W,
+    bytes: u64,
+}
+
+impl<W: std::io::Write> std::io::Write for Counted<'_, W> {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        let n = self.w.write(buf)?;
+        self.bytes += n as u64;
+        Ok(n)
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.w.flush()
+    }
 }
