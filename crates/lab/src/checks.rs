@@ -1712,6 +1712,8 @@ fn point_queries_in_a_world(data: &[u8], tris: &[Triangle], queries: &[(Vec3A, f
         if let Err(e) = oracle.check_world(p, max, hit.as_ref()) {
             panic!("world {transform:?}: {e}");
         }
+    }
+}
 
 /// The checksum of a saved BVH as `docs/file-format.md` defines it, computed here from the
 /// document (not from the core's code): FNV-1a-64 over 64-bit little-endian words in four
