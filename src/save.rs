@@ -205,6 +205,16 @@ pub enum LoadError {
         /// The section's length.
         len: u64,
     },
+    /// A wide node's slot is neither an inner child (count 0) nor a leaf (the leaf flag set):
+    /// the kernels would read it as a child, a refit as a leaf.
+    SlotKind {
+        /// The node.
+        node: usize,
+        /// The slot.
+        slot: usize,
+        /// Its count field.
+        count: u32,
+    },
     /// A SIMD group's lane does not name the input index leaf order gives it (or an unused
     /// lane is not the all-NaN lane no ray hits).
     GroupLane {
@@ -296,6 +306,11 @@ impl fmt::Display for LoadError {
                 covered,
                 len,
             } => write!(f, "the leaves cover {covered} of the {len} {section}"),
+            SlotKind { node, slot, count } => write!(
+                f,
+                "slot {slot} of node {node} has count {count:#x}: neither an inner child (0) \
+                 nor a leaf (the leaf flag set)"
+            ),
             GroupLane { group, lane } => write!(
                 f,
                 "lane {lane} of group {group} is not the triangle leaf order gives it"
@@ -1298,6 +1313,13 @@ fn check_wide<const W: usize, N: WideSaved<W>>(
                 for i in 0..W {
                     let (c, count) = node.slot(i);
                     if count & leaf_flag == 0 {
+                        if count != 0 {
+                            return Err(LoadError::SlotKind {
+                                node: at,
+                                slot: i,
+                                count,
+                            });
+                        }
                         if c as usize >= n {
                             return Err(LoadError::ChildOutOfRange {
                                 node: at,
@@ -1680,6 +1702,24 @@ mod tests {
             b.nodes[j].count[i] = Bvh8Node::LEAF | 1000;
         }));
         assert!(matches!(e, LoadError::PrimitiveOutOfRange { .. }), "{e}");
+        // An inner slot with a count but no leaf flag: a child to the kernels, a leaf to
+        // the refit (a fuzzer's find: the refit's leaf took past its primitives).
+        let e = load(crafted(Layout::Bvh8Dfs, |l| {
+            let n = &mut bvh8(l).nodes[0];
+            let i = (0..8).find(|&i| n.count[i] == 0).unwrap();
+            n.count[i] = 5;
+        }));
+        assert!(
+            matches!(
+                e,
+                LoadError::SlotKind {
+                    node: 0,
+                    count: 5,
+                    ..
+                }
+            ),
+            "{e}"
+        );
         // A lane naming another triangle than leaf order gives it.
         let e = load(crafted(Layout::Bvh8Dfs, |l| bvh8(l).tri4[3].id.swap(0, 1)));
         assert!(matches!(e, LoadError::GroupLane { group: 3, .. }), "{e}");
