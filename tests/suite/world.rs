@@ -868,8 +868,8 @@ fn a_geometry_filter_hides_what_it_rejects_and_sees_only_its_geometry() {
     use std::sync::Arc;
     for (k, layout) in Layout::ALL.into_iter().enumerate() {
         let s = setup(80 + k as u64);
-        let alpha = |h: &WorldHit| (h.prim + h.instance.0) % 3 != 0 || h.u > 0.5;
-        let query = |h: &WorldHit| (h.prim * 7 + h.instance.0) % 5 != 0;
+        let alpha = |h: &WorldHit| !(h.prim + h.instance.0).is_multiple_of(3) || h.u > 0.5;
+        let query = |h: &WorldHit| !(h.prim * 7 + h.instance.0).is_multiple_of(5);
         let asked_other = Arc::new(AtomicUsize::new(0));
         let seen = asked_other.clone();
         let mut b = World::builder();
@@ -894,7 +894,7 @@ fn a_geometry_filter_hides_what_it_rejects_and_sees_only_its_geometry() {
         // test's verdict on the oracle's hit is checked with the oracle's own u below.
         let (flat, names) = s.flattened(|i, p| {
             let g = s.instances[i as usize].geometry;
-            g != GeometryId(1) || (p + i) % 3 != 0
+            g != GeometryId(1) || !(p + i).is_multiple_of(3)
         });
         let oracle = Oracle::with_slack(&flat, s.slack());
         let answers = oracle.closest_hits(&rays);
@@ -909,12 +909,13 @@ fn a_geometry_filter_hides_what_it_rejects_and_sees_only_its_geometry() {
             assert_eq!(world.any_hit(r), got.is_some(), "{layout:?} ray {i}: any");
             // The triangles the alpha test rejects whole are gone; those it cuts by u are
             // kept by the oracle, so a ray is judged only where it hit none of those.
-            let cut = got
-                .is_some_and(|h| h.geometry == GeometryId(1) && (h.prim + h.instance.0) % 3 == 0);
+            let cut = got.is_some_and(|h| {
+                h.geometry == GeometryId(1) && (h.prim + h.instance.0).is_multiple_of(3)
+            });
             if !cut && answers[i].is_decidable() {
                 let hit_cut = answers[i].hit.is_some_and(|h| {
                     let (inst, g, p) = names[h.prim as usize];
-                    g == 1 && (p + inst) % 3 == 0
+                    g == 1 && (p + inst).is_multiple_of(3)
                 });
                 if !hit_cut {
                     check(&answers[i], got, &names)
