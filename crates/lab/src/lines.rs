@@ -18,7 +18,7 @@
 //! use quiver_lab::lines::{isotropic_lines, pierced, Pierce};
 //! use quiver_scenes::Scene;
 //! let tris = Scene::load("tetra3").unwrap().triangles();
-//! let (_, tree) = BuildOptions::default().build_with_tree(&tris);
+//! let (_, tree) = Bvh::build_with_tree(&tris, &BuildOptions::default()).unwrap();
 //! let options = BuildOptions::default().layout(Layout::Bvh2Dfs);
 //! let ghost = Bvh::from_tree(&tree, &Pierce::of(&tris), &options).unwrap();
 //! let lines = isotropic_lines(&tree.nodes[0].bounds, 20_000, 1);
