@@ -129,10 +129,11 @@ pub const INVERSE_TOLERANCE: f64 = 1.0 / 8192.0;
 /// ```
 /// use quiver_rt::glam::{Affine3A, Vec3};
 /// use quiver_rt::world::invert;
+/// // The inverse of the f32 nearest 1e13, in f64, rounded once to f32.
 /// let big = Affine3A::from_scale(Vec3::splat(1e13));
-/// assert_eq!(invert(&big).unwrap().matrix3.x_axis.x, 1e-13);
+/// assert_eq!(invert(&big).unwrap().matrix3.x_axis.x, (1.0 / 1e13f32 as f64) as f32);
 /// let tiny = Affine3A::from_scale(Vec3::splat(1e-30));
-/// assert_eq!(invert(&tiny).unwrap().matrix3.x_axis.x, 1e30);
+/// assert_eq!(invert(&tiny).unwrap().matrix3.x_axis.x, (1.0 / 1e-30f32 as f64) as f32);
 /// assert!(invert(&Affine3A::from_scale(Vec3::splat(1e-39))).is_err()); // 1e39 is past f32
 /// assert!(invert(&Affine3A::from_scale(Vec3::new(1.0, 0.0, 1.0))).is_err());
 /// ```
