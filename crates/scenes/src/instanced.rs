@@ -399,7 +399,7 @@ impl RayQuery for Instanced {
 /// let scene = obj::parse(text, "two.obj").unwrap();
 /// let world = grouped(&scene, &BuildOptions::default()).unwrap();
 /// let hit = world.closest_hit(&quiver_rt::Ray::new(Vec3A::new(0.2, 0.2, 2.0), -Vec3A::Z)).unwrap();
-/// assert_eq!(scene.groups[hit.instance as usize].name, "near");
+/// assert_eq!(scene.groups[hit.instance.0 as usize].name, "near");
 /// ```
 ///
 /// # Errors

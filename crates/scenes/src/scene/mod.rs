@@ -329,7 +329,7 @@ pub enum SceneError {
     /// let none = LoadOptions::default().max_primitives(0);
     /// let e = ply::parse_with(head.as_bytes(), "t.ply", &none).unwrap_err();
     /// assert!(matches!(e, SceneError::OverBudget { needs: 1, limit: 0, .. }));
-    /// assert_eq!(e.to_string(), "t.ply: face 0 (line 14): needs 1 primitives, more than the \
+    /// assert_eq!(e.to_string(), "t.ply: face 0 (line 13): needs 1 primitives, more than the \
     ///     0 this load allows (LoadOptions::max_primitives)");
     /// ```
     OverBudget {
