@@ -111,7 +111,7 @@ where
     let mut stack: Stack<(u32, f32), { MAX_DEPTH + 1 }> = Stack::new();
     let mut node = 0usize;
     stats.boxes(1);
-    if sr.enter::<B>(planes(&nodes[0]), limit).is_none() {
+    if sr.enter::<B>(planes(&nodes[0]), limit * B::SLACK).is_none() {
         return;
     }
     loop {

@@ -16,7 +16,9 @@ use crate::oracle::{Answer, Oracle};
 use glam::Vec3A;
 use quiver_rt::builders::{BuildConfig, Builder};
 use quiver_rt::intersect::Watertight;
-use quiver_rt::traverse::{FastBoxes, NoFilter, NoStats, PacketMode, PacketQuery};
+use quiver_rt::traverse::{
+    ConservativeBoxes, FastBoxes, NoFilter, NoStats, PacketMode, PacketQuery,
+};
 use quiver_rt::{BuildOptions, Bvh, Isa, Layout, Primitive, Ray, RayQuery, Triangle};
 
 /// Reads little-endian f32s from the bytes; NaN, infinities, huge and subnormal values all
@@ -845,8 +847,11 @@ fn edits_against_rebuilt(
         instance: InstanceId(live[h.instance.0 as usize]),
         ..h
     };
+    // Conservative boxes, as the single-ray queries use: the plain slab test may cull a box
+    // entered at exactly the limit, so of two instances hit at one distance which is kept
+    // would depend on the order the walk meets them.
     let mut hits = vec![None; rays.len()];
-    world.closest_hit_packet_with::<FastBoxes, _, _>(
+    world.closest_hit_packet_with::<ConservativeBoxes, _, _>(
         PacketQuery::new(rays).mode(PacketMode::Always),
         &mut hits,
         &mut NoStats,
