@@ -24,8 +24,9 @@ use crate::primitive::Primitive;
 #[derive(Clone, Debug)]
 pub struct WorldBuilder<P = Triangle> {
     pending: Vec<PendingGeometry<P>>,
-    /// Build options of the geometries given their own (`set_options`), by index.
-    options: Vec<(usize, BuildOptions<'static>)>,
+    /// Build options of the geometries given their own (`set_options`), by index (empty
+    /// when none has any).
+    options: Vec<Option<BuildOptions<'static>>>,
     /// The geometries' own filters, by index (empty when none has one).
     filters: Vec<Option<GeometryFilter>>,
     instances: Vec<Instance>,
@@ -122,15 +123,8 @@ impl<P: Primitive> WorldBuilder<P> {
         geometry: GeometryId,
         options: &BuildOptions<'_>,
     ) -> Result<(), WorldError> {
-        let g = geometry.0 as usize;
-        if g >= self.pending.len() {
-            return Err(WorldError::NoGeometry {
-                geometry: geometry.0,
-                geometries: self.pending.len(),
-            });
-        }
-        self.options.retain(|(i, _)| *i != g);
-        self.options.push((g, options.without_pool()));
+        let g = self.pending_index(geometry)?;
+        set_slot(&mut self.options, g, Some(options.without_pool()));
         Ok(())
     }
 
@@ -164,18 +158,22 @@ impl<P: Primitive> WorldBuilder<P> {
         geometry: GeometryId,
         keep: impl Fn(&WorldHit) -> bool + Send + Sync + 'static,
     ) -> Result<(), WorldError> {
+        let g = self.pending_index(geometry)?;
+        set_slot(&mut self.filters, g, Some(GeometryFilter::new(keep)));
+        Ok(())
+    }
+
+    /// The index of `geometry` among those added, or the error naming it.
+    fn pending_index(&self, geometry: GeometryId) -> Result<usize, WorldError> {
         let g = geometry.0 as usize;
-        if g >= self.pending.len() {
-            return Err(WorldError::NoGeometry {
+        if g < self.pending.len() {
+            Ok(g)
+        } else {
+            Err(WorldError::NoGeometry {
                 geometry: geometry.0,
                 geometries: self.pending.len(),
-            });
+            })
         }
-        if self.filters.len() <= g {
-            self.filters.resize(g + 1, None);
-        }
-        self.filters[g] = Some(GeometryFilter::new(keep));
-        Ok(())
     }
 
     /// Adds an instance; returns its id, the index [`WorldHit::instance`](super::WorldHit)
@@ -196,7 +194,7 @@ impl<P: Primitive> WorldBuilder<P> {
     pub fn build(self, options: &BuildOptions<'_>) -> Result<World<P>, WorldError> {
         use rayon::prelude::*;
         options.config.check().map_err(WorldError::Config)?;
-        for (_, own) in &self.options {
+        for own in self.options.iter().flatten() {
             own.config.check().map_err(WorldError::Config)?;
         }
         if self.instances.len() >= u32::MAX as usize || self.pending.len() >= u32::MAX as usize {
@@ -212,8 +210,8 @@ impl<P: Primitive> WorldBuilder<P> {
             .map(|(i, inst)| check_instance(i, inst, self.pending.len()))
             .collect::<Result<Vec<_>, _>>()?;
         let mut own: Vec<Option<BuildOptions<'_>>> = vec![None; self.pending.len()];
-        for (g, o) in self.options {
-            own[g] = Some(o.pool_of(options));
+        for (slot, o) in own.iter_mut().zip(self.options) {
+            *slot = o.map(|o| o.pool_of(options));
         }
         let geometries: Vec<Geometry<P>> = options.run(|| {
             self.pending
@@ -247,6 +245,15 @@ impl<P: Primitive> WorldBuilder<P> {
             bounds,
         })
     }
+}
+
+/// Sets entry `i` of a per-geometry list that holds entries up to the last one set, growing
+/// it with `None`s as needed.
+pub(super) fn set_slot<T: Clone>(slots: &mut Vec<Option<T>>, i: usize, value: Option<T>) {
+    if slots.len() <= i {
+        slots.resize(i + 1, None);
+    }
+    slots[i] = value;
 }
 
 /// The BVH over `prims` with `options`, whose settings were checked.

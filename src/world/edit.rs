@@ -397,12 +397,7 @@ impl<P: Primitive> WorldEdit<'_, P> {
         keep: Option<GeometryFilter>,
     ) -> Result<(), WorldError> {
         self.geometry(geometry)?;
-        let filters = &mut self.world.filters;
-        let g = geometry.0 as usize;
-        if filters.len() <= g {
-            filters.resize(g + 1, None);
-        }
-        filters[g] = keep;
+        super::builder::set_slot(&mut self.world.filters, geometry.0 as usize, keep);
         Ok(())
     }
 
