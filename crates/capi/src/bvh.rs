@@ -30,8 +30,8 @@ unsafe fn get<'a>(bvh: *const QvBvh) -> Result<&'a QvBvh, Failure> {
     Ok(unsafe { &*bvh })
 }
 
-/// Writes NULL to `out` (where it is not NULL itself), so a refused call leaves no stale
-/// handle behind; then refuses a NULL `out`.
+/// Refuses a NULL `out`; else writes NULL to it first, so a call refused later leaves no
+/// stale handle behind.
 ///
 /// # Safety
 /// `out` is NULL or valid for one pointer write.

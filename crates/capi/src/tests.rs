@@ -463,6 +463,19 @@ fn a_filter_hides_what_it_rejects() {
         assert!(h.prim != 1);
     }
     assert!(hits.iter().any(|h| h.prim == 0));
+    let mut occluded = vec![7u8; rays.len()];
+    // SAFETY: a live handle, arrays as long as `n`.
+    unsafe {
+        let s = qv_world_any_hits(world, rays.as_ptr(), rays.len(), occluded.as_mut_ptr());
+        assert_eq!(s, QvStatus::Ok);
+    }
+    for (h, o) in hits.iter().zip(&occluded) {
+        assert_eq!(
+            *o,
+            u8::from(h.prim != QV_INVALID_ID),
+            "the filter holds for any hit too"
+        );
+    }
     let unfiltered = two_squares(None, null_mut());
     assert_eq!(world_hit(unfiltered, down(0.25, 0.75)).prim, 1);
     // SAFETY: live handles, freed once.
