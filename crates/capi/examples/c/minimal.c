@@ -1,0 +1,151 @@
+/*
+ * quiver from C: a two-triangle mesh as a BVH and as a world of two instances; rays traced
+ * one at a time and as arrays; the answers printed and checked.
+ *
+ * Build (from the repository root):
+ *   cargo build --release -p quiver-capi
+ *   cc crates/capi/examples/c/minimal.c -Icrates/capi/include \
+ *      target/release/libquiver_capi.a -lpthread -ldl -lm -o minimal
+ *   ./minimal
+ *
+ * Returns 0 when every answer is the expected one, 1 otherwise. Each traced ray prints one
+ * line, "bvh" or "world", the ray, then the hit (or "miss"), which crates/capi/tests/c_example.rs
+ * compares with what the Rust API answers for the same rays.
+ */
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "quiver.h"
+
+static int failures = 0;
+
+/* Counts a failed check and says which. */
+static void check(int ok, const char *what) {
+    if (!ok) {
+        fprintf(stderr, "wrong: %s\n", what);
+        failures++;
+    }
+}
+
+/* Stops on a refused call, printing quiver's message. */
+static int ok(QvStatus s, const char *call) {
+    if (s != QV_OK) {
+        fprintf(stderr, "%s failed (%d): %s\n", call, (int)s, qv_last_error());
+        failures++;
+        return 0;
+    }
+    return 1;
+}
+
+/* A ray straight down (-z) from height 5 above (x, y), seen by `mask`. */
+static QvRay down(float x, float y, uint32_t mask) {
+    QvRay r = {{x, y, 5.0f}, 0.0f, {0.0f, 0.0f, -1.0f}, INFINITY, mask};
+    return r;
+}
+
+static void print_hit(const char *what, const QvRay *r, const QvHit *h) {
+    printf("%s %.9g %.9g %.9g %.9g %.9g %.9g %u -> ", what, r->org[0], r->org[1], r->org[2],
+           r->dir[0], r->dir[1], r->dir[2], r->mask);
+    if (h->prim == QV_INVALID_ID) {
+        printf("miss\n");
+    } else {
+        printf("prim %u geometry %u instance %u t %.9g u %.9g v %.9g\n", h->prim, h->geometry,
+               h->instance, h->t, h->u, h->v);
+    }
+}
+
+int main(void) {
+    /* The struct sizes, which the Rust test compares with the library's own. */
+    printf("sizes QvRay %zu QvHit %zu QvPointHit %zu\n", sizeof(QvRay), sizeof(QvHit),
+           sizeof(QvPointHit));
+
+    /* A unit square in the z = 0 plane: four vertices, two triangles. */
+    const float vertices[4][3] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}};
+    const uint32_t indices[2][3] = {{0, 1, 2}, {0, 2, 3}};
+
+    /* ---- One BVH ---- */
+    QvBvh *bvh = NULL;
+    if (!ok(qv_bvh_build_indexed(&vertices[0][0], 4, sizeof vertices[0], &indices[0][0], 2,
+                                 sizeof indices[0], &bvh),
+            "qv_bvh_build_indexed"))
+        return 1;
+
+    QvRay rays[3] = {down(0.25f, 0.75f, ~0u), down(0.75f, 0.25f, ~0u), down(2.5f, 0.5f, ~0u)};
+    const uint32_t bvh_prim[3] = {1, 0, QV_INVALID_ID};
+    QvHit hits[3];
+    for (int i = 0; i < 3; i++) {
+        ok(qv_bvh_closest_hit(bvh, &rays[i], &hits[i]), "qv_bvh_closest_hit");
+        print_hit("bvh", &rays[i], &hits[i]);
+        check(hits[i].prim == bvh_prim[i], "bvh: the triangle hit");
+        check(hits[i].prim == QV_INVALID_ID || hits[i].t == 5.0f, "bvh: t = 5");
+    }
+    QvHit array_hits[3];
+    uint8_t occluded[3];
+    ok(qv_bvh_closest_hits(bvh, rays, 3, array_hits), "qv_bvh_closest_hits");
+    ok(qv_bvh_any_hits(bvh, rays, 3, occluded), "qv_bvh_any_hits");
+    for (int i = 0; i < 3; i++) {
+        check(memcmp(&array_hits[i], &hits[i], sizeof(QvHit)) == 0, "bvh: array = single");
+        check(occluded[i] == (hits[i].prim != QV_INVALID_ID), "bvh: any hit");
+    }
+
+    /* A refused call says why. */
+    uint32_t bad_indices[3] = {0, 1, 7};
+    QvBvh *bad = NULL;
+    QvStatus s = qv_bvh_build_indexed(&vertices[0][0], 4, 12, bad_indices, 1, 12, &bad);
+    check(s == QV_BAD_MESH && bad == NULL, "a bad index is QV_BAD_MESH");
+    printf("refused: %s\n", qv_last_error());
+    qv_bvh_free(bvh);
+
+    /* ---- A world: the square twice, the second moved by (2, 0, -1) and seen by mask 2 ---- */
+    QvWorldBuilder *builder = NULL;
+    uint32_t square, near, far;
+    const float identity[12] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
+    const float moved[12] = {1, 0, 0, 2, 0, 1, 0, 0, 0, 0, 1, -1};
+    if (!ok(qv_world_builder_new(&builder), "qv_world_builder_new") ||
+        !ok(qv_world_builder_add_mesh(builder, &vertices[0][0], 4, 12, &indices[0][0], 2, 12,
+                                      &square),
+            "qv_world_builder_add_mesh") ||
+        !ok(qv_world_builder_add_instance(builder, square, identity, 1, &near),
+            "qv_world_builder_add_instance") ||
+        !ok(qv_world_builder_add_instance(builder, square, moved, 2, &far),
+            "qv_world_builder_add_instance")) {
+        qv_world_builder_free(builder);
+        return 1;
+    }
+    QvWorld *world = NULL;
+    if (!ok(qv_world_build(builder, &world), "qv_world_build"))
+        return 1;
+
+    QvRay wrays[4] = {down(0.25f, 0.75f, ~0u), down(2.5f, 0.25f, ~0u), down(2.5f, 0.25f, 1),
+                      down(5.0f, 5.0f, ~0u)};
+    const uint32_t want_instance[4] = {near, far, QV_INVALID_ID, QV_INVALID_ID};
+    const float want_t[4] = {5.0f, 6.0f, INFINITY, INFINITY};
+    QvHit whits[4];
+    ok(qv_world_closest_hits(world, wrays, 4, whits), "qv_world_closest_hits");
+    for (int i = 0; i < 4; i++) {
+        QvHit one;
+        ok(qv_world_closest_hit(world, &wrays[i], &one), "qv_world_closest_hit");
+        print_hit("world", &wrays[i], &one);
+        check(memcmp(&one, &whits[i], sizeof(QvHit)) == 0, "world: array = single");
+        check(one.instance == want_instance[i], "world: the instance hit");
+        check(one.t == want_t[i], "world: t");
+        int occ = -1;
+        ok(qv_world_any_hit(world, &wrays[i], &occ), "qv_world_any_hit");
+        check(occ == (want_instance[i] != QV_INVALID_ID), "world: any hit");
+    }
+
+    /* An edit: the second square brought up to z = 0 and shown to every ray. */
+    const float lifted[12] = {1, 0, 0, 2, 0, 1, 0, 0, 0, 0, 1, 0};
+    ok(qv_world_set_transform(world, far, lifted), "qv_world_set_transform");
+    ok(qv_world_set_mask(world, far, ~0u), "qv_world_set_mask");
+    QvHit edited;
+    ok(qv_world_closest_hit(world, &wrays[2], &edited), "qv_world_closest_hit");
+    print_hit("edited", &wrays[2], &edited);
+    check(edited.instance == far && edited.t == 5.0f, "world: the edit moved the instance");
+
+    qv_world_free(world);
+    if (failures == 0)
+        printf("all answers as expected\n");
+    return failures == 0 ? 0 : 1;
+}

@@ -1,0 +1,309 @@
+//! `qv_bvh_*`: a BVH over one indexed triangle mesh.
+
+use crate::buffers::{bad_mesh, input, output, read_indices, read_vertices};
+use crate::error::{guard, non_null, Failure, QvStatus};
+use crate::trace;
+use crate::types::{QvHit, QvPointHit, QvRay};
+use quiver_rt::glam::Vec3A;
+use quiver_rt::{Bvh, LoadError, RayQuery};
+use std::ffi::{c_char, c_int, CStr};
+use std::path::PathBuf;
+
+/// A BVH over an indexed triangle mesh (opaque to C), with the mesh's index buffer kept for
+/// refits.
+pub struct QvBvh {
+    bvh: Bvh,
+    /// The triangles' vertex indices, for `qv_bvh_refit`; `None` for a BVH loaded from a
+    /// file (the file format holds the triangles, not the indices).
+    indices: Option<Vec<[u32; 3]>>,
+}
+
+/// The BVH behind handle `bvh`.
+///
+/// # Safety
+/// `bvh` is NULL or a handle from `qv_bvh_build_indexed` or `qv_bvh_load` not yet freed, that
+/// no other thread changes during the call.
+unsafe fn get<'a>(bvh: *const QvBvh) -> Result<&'a QvBvh, Failure> {
+    non_null(bvh, "bvh")?;
+    // SAFETY: not NULL (checked); the caller promised a live handle, which is a `Box<QvBvh>`
+    // turned into a raw pointer, not changed meanwhile.
+    Ok(unsafe { &*bvh })
+}
+
+/// Refuses a NULL `out`; else writes NULL to it first, so a call refused later leaves no
+/// stale handle behind.
+///
+/// # Safety
+/// `out` is NULL or valid for one pointer write.
+unsafe fn clear_out<T>(out: *mut *mut T) -> Result<(), Failure> {
+    non_null(out, "out")?;
+    // SAFETY: not NULL (checked), and the caller promised it is writable.
+    unsafe { out.write(std::ptr::null_mut()) };
+    Ok(())
+}
+
+/// Builds a BVH over an indexed triangle mesh: vertex `i`'s position is the three floats at
+/// byte `i * vertex_stride_bytes` of `vertices`, triangle `t`'s three vertex indices the three
+/// `uint32_t` at byte `t * index_stride_bytes` of `indices`. The buffers are copied; hits
+/// name triangle `t`. On success `*out` is the new handle (free it with `qv_bvh_free`), else
+/// NULL.
+///
+/// # Safety
+/// `vertices` and `indices` are NULL or readable for their counts and strides; `out` is NULL
+/// or writable (see `quiver.h`).
+#[no_mangle]
+pub unsafe extern "C" fn qv_bvh_build_indexed(
+    vertices: *const f32,
+    vertex_count: usize,
+    vertex_stride_bytes: usize,
+    indices: *const u32,
+    triangle_count: usize,
+    index_stride_bytes: usize,
+    out: *mut *mut QvBvh,
+) -> QvStatus {
+    guard("qv_bvh_build_indexed", || {
+        // SAFETY: the caller's contract for `out`.
+        unsafe { clear_out(out) }?;
+        // SAFETY: the caller's contract for the buffers, passed on unchanged.
+        let positions = unsafe { read_vertices(vertices, vertex_count, vertex_stride_bytes) }?;
+        // SAFETY: as above.
+        let tris =
+            unsafe { read_indices(indices, triangle_count, index_stride_bytes, vertex_count) }?;
+        let bvh = Bvh::from_mesh(&positions, &tris).map_err(|e| bad_mesh("indices", e))?;
+        let handle = Box::new(QvBvh {
+            bvh,
+            indices: Some(tris),
+        });
+        // SAFETY: `out` is not NULL and writable (checked by `clear_out`, the caller's
+        // contract).
+        unsafe { out.write(Box::into_raw(handle)) };
+        Ok(())
+    })
+}
+
+/// Frees a BVH; NULL is ignored.
+///
+/// # Safety
+/// `bvh` is NULL or a live handle that no other thread uses, and is not used again.
+#[no_mangle]
+pub unsafe extern "C" fn qv_bvh_free(bvh: *mut QvBvh) {
+    guard("qv_bvh_free", || {
+        if !bvh.is_null() {
+            // SAFETY: a live handle is a `Box<QvBvh>` from `Box::into_raw`, given back once
+            // (the caller's contract) and used by no other thread.
+            drop(unsafe { Box::from_raw(bvh) });
+        }
+        Ok(())
+    });
+}
+
+/// The closest hit of `*ray` into `*hit` (the miss record when nothing is hit).
+///
+/// # Safety
+/// `bvh` a live handle or NULL; `ray` readable and `hit` writable, or NULL.
+#[no_mangle]
+pub unsafe extern "C" fn qv_bvh_closest_hit(
+    bvh: *const QvBvh,
+    ray: *const QvRay,
+    hit: *mut QvHit,
+) -> QvStatus {
+    guard("qv_bvh_closest_hit", || {
+        // SAFETY: the caller's contract for each pointer, one element each.
+        let (b, ray, hit) = unsafe { (get(bvh)?, input(ray, 1, "ray")?, output(hit, 1, "hit")?) };
+        hit[0].write(QvHit::of_bvh(b.bvh.closest_hit(&ray[0].to_ray())));
+        Ok(())
+    })
+}
+
+/// Whether anything is hit within `*ray`'s interval: `*occluded` is 1 or 0.
+///
+/// # Safety
+/// `bvh` a live handle or NULL; `ray` readable and `occluded` writable, or NULL.
+#[no_mangle]
+pub unsafe extern "C" fn qv_bvh_any_hit(
+    bvh: *const QvBvh,
+    ray: *const QvRay,
+    occluded: *mut c_int,
+) -> QvStatus {
+    guard("qv_bvh_any_hit", || {
+        // SAFETY: the caller's contract for each pointer, one element each.
+        let (b, ray, occluded) = unsafe {
+            (
+                get(bvh)?,
+                input(ray, 1, "ray")?,
+                output(occluded, 1, "occluded")?,
+            )
+        };
+        occluded[0].write(c_int::from(b.bvh.any_hit(&ray[0].to_ray())));
+        Ok(())
+    })
+}
+
+/// The closest hits of `n` rays into `hits[0..n]`, traced in parallel.
+///
+/// # Safety
+/// `bvh` a live handle or NULL; `rays` readable and `hits` writable for `n` elements, not
+/// overlapping, or NULL.
+#[no_mangle]
+pub unsafe extern "C" fn qv_bvh_closest_hits(
+    bvh: *const QvBvh,
+    rays: *const QvRay,
+    n: usize,
+    hits: *mut QvHit,
+) -> QvStatus {
+    guard("qv_bvh_closest_hits", || {
+        // SAFETY: the caller's contract for each pointer, `n` elements each.
+        let (b, rays, hits) =
+            unsafe { (get(bvh)?, input(rays, n, "rays")?, output(hits, n, "hits")?) };
+        trace::closest_hits(&b.bvh, rays, hits, QvHit::of_bvh);
+        Ok(())
+    })
+}
+
+/// Whether each of `n` rays hits anything: `occluded[i]` is 1 or 0; traced in parallel.
+///
+/// # Safety
+/// `bvh` a live handle or NULL; `rays` readable and `occluded` writable for `n` elements, not
+/// overlapping, or NULL.
+#[no_mangle]
+pub unsafe extern "C" fn qv_bvh_any_hits(
+    bvh: *const QvBvh,
+    rays: *const QvRay,
+    n: usize,
+    occluded: *mut u8,
+) -> QvStatus {
+    guard("qv_bvh_any_hits", || {
+        // SAFETY: the caller's contract for each pointer, `n` elements each.
+        let (b, rays, occluded) = unsafe {
+            (
+                get(bvh)?,
+                input(rays, n, "rays")?,
+                output(occluded, n, "occluded")?,
+            )
+        };
+        trace::any_hits(&b.bvh, rays, occluded);
+        Ok(())
+    })
+}
+
+/// Refits the BVH to new vertex positions for the same triangles (the index buffer given to
+/// `qv_bvh_build_indexed`, kept since): the tree stays, its boxes follow the vertices.
+///
+/// # Safety
+/// `bvh` a live handle or NULL, used by no other thread during the call; `vertices` NULL or
+/// readable for `vertex_count` vertices `vertex_stride_bytes` apart.
+#[no_mangle]
+pub unsafe extern "C" fn qv_bvh_refit(
+    bvh: *mut QvBvh,
+    vertices: *const f32,
+    vertex_count: usize,
+    vertex_stride_bytes: usize,
+) -> QvStatus {
+    guard("qv_bvh_refit", || {
+        non_null(bvh, "bvh")?;
+        // SAFETY: not NULL (checked); a live handle used by no other thread (the caller's
+        // contract), so this is the only reference.
+        let b = unsafe { &mut *bvh };
+        let Some(indices) = &b.indices else {
+            return Err(Failure::new(
+                QvStatus::InvalidArgument,
+                "bvh: loaded from a file, it keeps no index buffer to refit with (build it \
+                 with qv_bvh_build_indexed)",
+            ));
+        };
+        // SAFETY: the caller's contract for the buffer.
+        let positions = unsafe { read_vertices(vertices, vertex_count, vertex_stride_bytes) }?;
+        b.bvh
+            .refit_mesh(&positions, indices)
+            .map_err(|e| Failure::new(QvStatus::BadMesh, format!("vertices: {e}")))
+    })
+}
+
+/// The point of the BVH's triangles nearest `point` within `max_distance` (inclusive;
+/// `INFINITY` for any distance) into `*hit` (the miss record when none lies that near, or
+/// for a non-finite point or a NaN or negative distance).
+///
+/// # Safety
+/// `bvh` a live handle or NULL; `point` readable for three floats and `hit` writable, or
+/// NULL.
+#[no_mangle]
+pub unsafe extern "C" fn qv_bvh_closest_point(
+    bvh: *const QvBvh,
+    point: *const f32,
+    max_distance: f32,
+    hit: *mut QvPointHit,
+) -> QvStatus {
+    guard("qv_bvh_closest_point", || {
+        // SAFETY: the caller's contract for each pointer: three floats at `point`, one hit.
+        let (b, point, hit) =
+            unsafe { (get(bvh)?, input(point, 3, "point")?, output(hit, 1, "hit")?) };
+        let p = Vec3A::new(point[0], point[1], point[2]);
+        hit[0].write(QvPointHit::of(b.bvh.closest_point(p, max_distance)));
+        Ok(())
+    })
+}
+
+/// The file path `path` names.
+///
+/// # Safety
+/// `path` is NULL or a NUL-terminated string.
+unsafe fn path_of(path: *const c_char) -> Result<PathBuf, Failure> {
+    non_null(path, "path")?;
+    // SAFETY: not NULL (checked), and NUL-terminated (the caller's contract).
+    let bytes = unsafe { CStr::from_ptr(path) }.to_bytes();
+    #[cfg(unix)]
+    {
+        use std::os::unix::ffi::OsStrExt;
+        Ok(PathBuf::from(std::ffi::OsStr::from_bytes(bytes)))
+    }
+    #[cfg(not(unix))]
+    {
+        std::str::from_utf8(bytes)
+            .map(PathBuf::from)
+            .map_err(|_| Failure::new(QvStatus::InvalidArgument, "path: not UTF-8"))
+    }
+}
+
+/// Writes the BVH to the file `path` (created or truncated) in quiver's file format.
+///
+/// # Safety
+/// `bvh` a live handle or NULL; `path` NULL or a NUL-terminated string.
+#[no_mangle]
+pub unsafe extern "C" fn qv_bvh_save(bvh: *const QvBvh, path: *const c_char) -> QvStatus {
+    guard("qv_bvh_save", || {
+        // SAFETY: the caller's contract for each pointer.
+        let (b, path) = unsafe { (get(bvh)?, path_of(path)?) };
+        let io = |e: std::io::Error| Failure::new(QvStatus::Io, format!("{}: {e}", path.display()));
+        let mut file = std::fs::File::create(&path).map_err(io)?;
+        b.bvh.save(&mut file).map_err(io)?;
+        file.sync_all().map_err(io)
+    })
+}
+
+/// Reads a BVH that `qv_bvh_save` wrote from the file `path`, checked completely before it
+/// is returned. On success `*out` is the new handle (free it with `qv_bvh_free`), else NULL.
+///
+/// # Safety
+/// `path` NULL or a NUL-terminated string; `out` NULL or writable.
+#[no_mangle]
+pub unsafe extern "C" fn qv_bvh_load(path: *const c_char, out: *mut *mut QvBvh) -> QvStatus {
+    guard("qv_bvh_load", || {
+        // SAFETY: the caller's contract for each pointer.
+        let path = unsafe {
+            clear_out(out)?;
+            path_of(path)?
+        };
+        let shown = path.display();
+        let bytes = std::fs::read(&path)
+            .map_err(|e| Failure::new(QvStatus::Io, format!("{shown}: {e}")))?;
+        let bvh = Bvh::from_bytes(&bytes).map_err(|e| match e {
+            LoadError::Io(e) => Failure::new(QvStatus::Io, format!("{shown}: {e}")),
+            e => Failure::new(QvStatus::BadFile, format!("{shown}: {e}")),
+        })?;
+        let handle = Box::new(QvBvh { bvh, indices: None });
+        // SAFETY: `out` is not NULL and writable (checked by `clear_out`, the caller's
+        // contract).
+        unsafe { out.write(Box::into_raw(handle)) };
+        Ok(())
+    })
+}

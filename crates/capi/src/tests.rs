@@ -1,0 +1,619 @@
+//! The C API called as C calls it: raw pointers, status codes, the last error's message.
+
+use crate::error::{guard, last_error, QvStatus};
+use crate::*;
+use std::ffi::{c_int, c_void};
+use std::ptr::{null, null_mut};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+/// A unit square in the z = 0 plane: four vertices, two triangles.
+const SQUARE: [[f32; 3]; 4] = [[0., 0., 0.], [1., 0., 0.], [1., 1., 0.], [0., 1., 0.]];
+const INDICES: [[u32; 3]; 2] = [[0, 1, 2], [0, 2, 3]];
+const IDENTITY: [f32; 12] = [1., 0., 0., 0., 0., 1., 0., 0., 0., 0., 1., 0.];
+
+/// A ray straight down from height 5 above `(x, y)`.
+fn down(x: f32, y: f32) -> QvRay {
+    QvRay {
+        org: [x, y, 5.0],
+        t_min: 0.0,
+        dir: [0.0, 0.0, -1.0],
+        t_max: f32::INFINITY,
+        mask: u32::MAX,
+    }
+}
+
+/// The BVH over `vertices` (packed) and `indices`, or the status and message of a refusal.
+fn build(vertices: &[[f32; 3]], indices: &[[u32; 3]]) -> Result<*mut QvBvh, (QvStatus, String)> {
+    let mut out = null_mut();
+    // SAFETY: both buffers are packed and as long as the counts say.
+    let s = unsafe {
+        qv_bvh_build_indexed(
+            vertices.as_ptr().cast(),
+            vertices.len(),
+            12,
+            indices.as_ptr().cast(),
+            indices.len(),
+            12,
+            &mut out,
+        )
+    };
+    match s {
+        QvStatus::Ok => Ok(out),
+        s => {
+            assert!(out.is_null());
+            Err((s, last_error()))
+        }
+    }
+}
+
+/// The closest hit of `ray` in `bvh`.
+fn hit(bvh: *const QvBvh, ray: QvRay) -> QvHit {
+    let mut h = QvHit::MISS;
+    // SAFETY: a live handle, one ray, one hit.
+    assert_eq!(
+        unsafe { qv_bvh_closest_hit(bvh, &ray, &mut h) },
+        QvStatus::Ok
+    );
+    h
+}
+
+#[test]
+fn a_bvh_answers_single_rays_and_arrays_alike() {
+    let bvh = build(&SQUARE, &INDICES).unwrap();
+    let h = hit(bvh, down(0.25, 0.75));
+    assert_eq!(
+        (h.prim, h.t, h.geometry, h.instance),
+        (1, 5.0, QV_INVALID_ID, QV_INVALID_ID)
+    );
+    assert_eq!(hit(bvh, down(3.0, 0.5)), QvHit::MISS);
+    assert_eq!(last_error(), "", "a call that succeeds leaves no message");
+
+    let rays: Vec<QvRay> = (0..1000)
+        .map(|i| down((i % 40) as f32 / 30.0, (i / 40) as f32 / 20.0))
+        .collect();
+    let mut hits = vec![QvHit::MISS; rays.len()];
+    let mut occluded = vec![7u8; rays.len()];
+    // SAFETY: arrays as long as `n`, not overlapping.
+    unsafe {
+        assert_eq!(
+            qv_bvh_closest_hits(bvh, rays.as_ptr(), rays.len(), hits.as_mut_ptr()),
+            QvStatus::Ok
+        );
+        assert_eq!(
+            qv_bvh_any_hits(bvh, rays.as_ptr(), rays.len(), occluded.as_mut_ptr()),
+            QvStatus::Ok
+        );
+        // No rays: NULL arrays are fine.
+        assert_eq!(
+            qv_bvh_closest_hits(bvh, null(), 0, null_mut()),
+            QvStatus::Ok
+        );
+    }
+    for ((ray, h), o) in rays.iter().zip(&hits).zip(&occluded) {
+        assert_eq!(*h, hit(bvh, *ray));
+        assert_eq!(*o, u8::from(h.prim != QV_INVALID_ID));
+        let mut any: c_int = -1;
+        // SAFETY: a live handle, one ray, one answer.
+        assert_eq!(unsafe { qv_bvh_any_hit(bvh, ray, &mut any) }, QvStatus::Ok);
+        assert_eq!(any, c_int::from(*o));
+    }
+    assert!(hits.iter().filter(|h| h.prim != QV_INVALID_ID).count() > 300);
+    // SAFETY: a live handle, freed once.
+    unsafe { qv_bvh_free(bvh) };
+}
+
+#[test]
+fn null_pointers_are_refused_and_named() {
+    let mut out = null_mut();
+    // SAFETY: NULL where the test says, real buffers elsewhere.
+    unsafe {
+        let s = qv_bvh_build_indexed(null(), 4, 12, INDICES.as_ptr().cast(), 2, 12, &mut out);
+        assert_eq!(s, QvStatus::NullPointer);
+        assert_eq!(last_error(), "qv_bvh_build_indexed: vertices is NULL");
+        let s = qv_bvh_build_indexed(SQUARE.as_ptr().cast(), 4, 12, null(), 2, 12, &mut out);
+        assert_eq!(
+            (s, last_error().contains("indices is NULL")),
+            (QvStatus::NullPointer, true)
+        );
+        let s = qv_bvh_build_indexed(
+            SQUARE.as_ptr().cast(),
+            4,
+            12,
+            INDICES.as_ptr().cast(),
+            2,
+            12,
+            null_mut(),
+        );
+        assert_eq!(
+            (s, last_error().contains("out is NULL")),
+            (QvStatus::NullPointer, true)
+        );
+        let mut h = QvHit::MISS;
+        assert_eq!(
+            qv_bvh_closest_hit(null(), &down(0.5, 0.5), &mut h),
+            QvStatus::NullPointer
+        );
+        assert_eq!(last_error(), "qv_bvh_closest_hit: bvh is NULL");
+        assert_eq!(
+            qv_world_closest_hits(null(), null(), 0, null_mut()),
+            QvStatus::NullPointer
+        );
+        assert_eq!(
+            qv_world_build(null_mut(), null_mut()),
+            QvStatus::NullPointer
+        );
+        assert_eq!(qv_bvh_load(null(), &mut out), QvStatus::NullPointer);
+        assert_eq!(last_error(), "qv_bvh_load: path is NULL");
+        // Freeing NULL is nothing.
+        qv_bvh_free(null_mut());
+        qv_world_free(null_mut());
+        qv_world_builder_free(null_mut());
+    }
+    assert!(out.is_null());
+    // An empty mesh may come with NULL buffers.
+    let mut empty = null_mut();
+    // SAFETY: no elements, so nothing is read.
+    unsafe {
+        assert_eq!(
+            qv_bvh_build_indexed(null(), 0, 12, null(), 0, 12, &mut empty),
+            QvStatus::Ok
+        );
+    }
+    assert_eq!(hit(empty, down(0.5, 0.5)), QvHit::MISS);
+    // SAFETY: a live handle, freed once.
+    unsafe { qv_bvh_free(empty) };
+}
+
+#[test]
+fn bad_meshes_are_refused_naming_what_is_wrong() {
+    let e = build(&SQUARE, &[[0, 1, 2], [0, 2, 9]]).unwrap_err();
+    assert_eq!(e.0, QvStatus::BadMesh);
+    assert_eq!(
+        e.1,
+        "qv_bvh_build_indexed: indices: triangle 1, index 2: vertex 9 does not exist (the mesh \
+         has 4 vertices)"
+    );
+    let mut nan = SQUARE;
+    nan[2][1] = f32::NAN;
+    let e = build(&nan, &INDICES).unwrap_err();
+    assert_eq!(e.0, QvStatus::BadMesh);
+    assert!(
+        e.1.contains("vertex 2 has a non-finite coordinate (y = NaN)"),
+        "{}",
+        e.1
+    );
+
+    let mut out = null_mut();
+    let (v, i) = (SQUARE.as_ptr().cast(), INDICES.as_ptr().cast());
+    // SAFETY: the buffers are valid for what the counts and strides that pass the checks say;
+    // the refused ones are never read.
+    unsafe {
+        assert_eq!(
+            qv_bvh_build_indexed(v, 4, 8, i, 2, 12, &mut out),
+            QvStatus::BadMesh
+        );
+        assert!(
+            last_error().contains(
+                "vertex_stride_bytes: positions at byte offset 0 with a stride of 8 bytes"
+            ),
+            "{}",
+            last_error()
+        );
+        assert_eq!(
+            qv_bvh_build_indexed(v, 4, 12, i, 2, 4, &mut out),
+            QvStatus::BadMesh
+        );
+        assert!(
+            last_error().contains("index_stride_bytes: a stride of 4 bytes"),
+            "{}",
+            last_error()
+        );
+        // Sizes that overflow are refused before a pointer is formed.
+        assert_eq!(
+            qv_bvh_build_indexed(v, usize::MAX, 16, i, 2, 12, &mut out),
+            QvStatus::InvalidArgument
+        );
+        assert!(last_error().contains("overflow"), "{}", last_error());
+        let mut hits = [QvHit::MISS];
+        let s = qv_bvh_closest_hits(
+            null(),
+            [down(0., 0.)].as_ptr(),
+            usize::MAX,
+            hits.as_mut_ptr(),
+        );
+        assert_eq!(s, QvStatus::NullPointer, "the handle is checked first");
+    }
+    assert!(out.is_null());
+}
+
+#[test]
+fn strided_vertices_and_indices_read_what_packed_ones_hold() {
+    // Interleaved vertices: a normal, then the position, 28 bytes apart (unaligned starts are
+    // not needed here: 28 is a multiple of 4); index triples padded to 16 bytes.
+    let mut vertices = Vec::new();
+    for p in SQUARE {
+        vertices.extend_from_slice(&[0.0, 0.0, 1.0]);
+        vertices.extend_from_slice(&p);
+        vertices.push(-1.0);
+    }
+    let indices: Vec<u32> = INDICES
+        .iter()
+        .flat_map(|t| [t[0], t[1], t[2], 99])
+        .collect();
+    let mut out = null_mut();
+    // SAFETY: 4 vertices 28 bytes apart from the position of the first; 2 triples 16 apart.
+    let s = unsafe {
+        qv_bvh_build_indexed(
+            vertices[3..].as_ptr(),
+            4,
+            28,
+            indices.as_ptr(),
+            2,
+            16,
+            &mut out,
+        )
+    };
+    assert_eq!(s, QvStatus::Ok, "{}", last_error());
+    let packed = build(&SQUARE, &INDICES).unwrap();
+    for (x, y) in [(0.25, 0.75), (0.75, 0.25), (0.5, 0.5), (2.0, 0.0)] {
+        assert_eq!(hit(out, down(x, y)), hit(packed, down(x, y)));
+    }
+    // SAFETY: live handles, freed once.
+    unsafe {
+        qv_bvh_free(out);
+        qv_bvh_free(packed);
+    }
+}
+
+#[test]
+fn refits_and_point_queries() {
+    let bvh = build(&SQUARE, &INDICES).unwrap();
+    let sunk = SQUARE.map(|[x, y, _]| [x, y, -3.0]);
+    // SAFETY: a live handle; 4 packed vertices.
+    unsafe {
+        assert_eq!(qv_bvh_refit(bvh, sunk.as_ptr().cast(), 4, 12), QvStatus::Ok);
+    }
+    assert_eq!(hit(bvh, down(0.25, 0.75)).t, 8.0);
+    // Too few vertices for the kept indices: refused, the BVH unchanged.
+    // SAFETY: as above, 2 vertices.
+    unsafe {
+        assert_eq!(
+            qv_bvh_refit(bvh, SQUARE.as_ptr().cast(), 2, 12),
+            QvStatus::BadMesh
+        );
+    }
+    assert!(last_error().contains("does not exist"), "{}", last_error());
+    assert_eq!(hit(bvh, down(0.25, 0.75)).t, 8.0);
+
+    let mut p = QvPointHit::of(None);
+    // SAFETY: a live handle, three floats, one answer.
+    unsafe {
+        assert_eq!(
+            qv_bvh_closest_point(bvh, [0.25, 0.75, 1.0].as_ptr(), f32::INFINITY, &mut p),
+            QvStatus::Ok
+        );
+    }
+    assert_eq!((p.prim, p.point, p.distance), (1, [0.25, 0.75, -3.0], 4.0));
+    // SAFETY: as above.
+    unsafe {
+        assert_eq!(
+            qv_bvh_closest_point(bvh, [0.25, 0.75, 1.0].as_ptr(), 3.0, &mut p),
+            QvStatus::Ok
+        );
+    }
+    assert_eq!((p.prim, p.distance), (QV_INVALID_ID, f32::INFINITY));
+    // SAFETY: a live handle, freed once.
+    unsafe { qv_bvh_free(bvh) };
+}
+
+#[test]
+fn a_saved_bvh_loads_and_answers_the_same() {
+    let dir = std::env::temp_dir().join(format!("quiver-capi-save-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("square.qbvh");
+    let path = std::ffi::CString::new(file.to_str().unwrap()).unwrap();
+    let bvh = build(&SQUARE, &INDICES).unwrap();
+    let mut loaded = null_mut();
+    // SAFETY: a live handle and a NUL-terminated path.
+    unsafe {
+        assert_eq!(
+            qv_bvh_save(bvh, path.as_ptr()),
+            QvStatus::Ok,
+            "{}",
+            last_error()
+        );
+        assert_eq!(
+            qv_bvh_load(path.as_ptr(), &mut loaded),
+            QvStatus::Ok,
+            "{}",
+            last_error()
+        );
+    }
+    for i in 0..400 {
+        let ray = down((i % 20) as f32 / 15.0 - 0.1, (i / 20) as f32 / 15.0 - 0.1);
+        assert_eq!(hit(loaded, ray), hit(bvh, ray));
+    }
+    // A loaded BVH has no index buffer to refit with.
+    // SAFETY: a live handle; 4 packed vertices.
+    unsafe {
+        assert_eq!(
+            qv_bvh_refit(loaded, SQUARE.as_ptr().cast(), 4, 12),
+            QvStatus::InvalidArgument
+        );
+    }
+    assert!(
+        last_error().contains("loaded from a file"),
+        "{}",
+        last_error()
+    );
+
+    // A damaged file, and none.
+    let mut bytes = std::fs::read(&file).unwrap();
+    let last = bytes.len() - 1;
+    bytes[last] ^= 1;
+    std::fs::write(&file, bytes).unwrap();
+    let mut again = null_mut();
+    let missing = std::ffi::CString::new(dir.join("none").to_str().unwrap()).unwrap();
+    // SAFETY: NUL-terminated paths, a writable out.
+    unsafe {
+        assert_eq!(qv_bvh_load(path.as_ptr(), &mut again), QvStatus::BadFile);
+        assert!(last_error().contains("checksum"), "{}", last_error());
+        assert_eq!(qv_bvh_load(missing.as_ptr(), &mut again), QvStatus::Io);
+        assert_eq!(qv_bvh_save(bvh, missing.as_ptr().add(0)), QvStatus::Ok);
+    }
+    assert!(again.is_null());
+    // SAFETY: live handles, freed once.
+    unsafe {
+        qv_bvh_free(bvh);
+        qv_bvh_free(loaded);
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// A world of the square placed twice, side by side: instance 0 at the origin, instance 1
+/// moved by (2, 0, 0); `filter` on the geometry with `user`, if given.
+fn two_squares(filter: QvFilterFn, user: *mut c_void) -> *mut QvWorld {
+    let (mut b, mut g, mut i) = (null_mut(), 0, 0);
+    let moved = [1., 0., 0., 2., 0., 1., 0., 0., 0., 0., 1., 0.];
+    let mut world = null_mut();
+    // SAFETY: live handles, packed buffers, 12-float transforms, writable outs.
+    unsafe {
+        assert_eq!(qv_world_builder_new(&mut b), QvStatus::Ok);
+        let s = qv_world_builder_add_mesh(
+            b,
+            SQUARE.as_ptr().cast(),
+            4,
+            12,
+            INDICES.as_ptr().cast(),
+            2,
+            12,
+            &mut g,
+        );
+        assert_eq!((s, g), (QvStatus::Ok, 0));
+        assert_eq!(
+            qv_world_builder_add_instance(b, g, IDENTITY.as_ptr(), 1, &mut i),
+            QvStatus::Ok
+        );
+        assert_eq!(
+            qv_world_builder_add_instance(b, g, moved.as_ptr(), 2, &mut i),
+            QvStatus::Ok
+        );
+        assert_eq!(i, 1);
+        if filter.is_some() {
+            assert_eq!(
+                qv_world_builder_set_filter(b, g, filter, user),
+                QvStatus::Ok
+            );
+        }
+        assert_eq!(
+            qv_world_build(b, &mut world),
+            QvStatus::Ok,
+            "{}",
+            last_error()
+        );
+    }
+    world
+}
+
+/// The closest hit of `ray` in `world`.
+fn world_hit(world: *const QvWorld, ray: QvRay) -> QvHit {
+    let mut h = QvHit::MISS;
+    // SAFETY: a live handle, one ray, one hit.
+    assert_eq!(
+        unsafe { qv_world_closest_hit(world, &ray, &mut h) },
+        QvStatus::Ok
+    );
+    h
+}
+
+/// Keeps only triangle 0's hits, counting its calls in the `AtomicUsize` at `user`.
+unsafe extern "C" fn only_triangle_0(user: *mut c_void, candidate: *const QvHit) -> c_int {
+    // SAFETY: the test passes a pointer to an `AtomicUsize` that outlives the world, and the
+    // candidate is valid during the call.
+    let (calls, candidate) = unsafe { (&*(user as *const AtomicUsize), &*candidate) };
+    calls.fetch_add(1, Ordering::Relaxed);
+    c_int::from(candidate.prim == 0 && candidate.geometry == 0)
+}
+
+#[test]
+fn a_filter_hides_what_it_rejects() {
+    let calls = AtomicUsize::new(0);
+    let user = &calls as *const AtomicUsize as *mut c_void;
+    let world = two_squares(Some(only_triangle_0), user);
+    // Triangle 1's half of both squares is gone, triangle 0's stays.
+    assert_eq!(world_hit(world, down(0.25, 0.75)), QvHit::MISS);
+    assert_eq!(world_hit(world, down(2.25, 0.75)), QvHit::MISS);
+    let h = world_hit(world, down(2.75, 0.25));
+    assert_eq!((h.prim, h.geometry, h.instance, h.t), (0, 0, 1, 5.0));
+    assert!(calls.load(Ordering::Relaxed) >= 3);
+    // The arrays too, on rayon's threads.
+    let rays: Vec<QvRay> = (0..500)
+        .map(|i| down((i % 50) as f32 / 16.0, (i / 50) as f32 / 9.0))
+        .collect();
+    let mut hits = vec![QvHit::MISS; rays.len()];
+    // SAFETY: a live handle, arrays as long as `n`.
+    unsafe {
+        assert_eq!(
+            qv_world_closest_hits(world, rays.as_ptr(), rays.len(), hits.as_mut_ptr()),
+            QvStatus::Ok
+        );
+    }
+    for (ray, h) in rays.iter().zip(&hits) {
+        assert_eq!(*h, world_hit(world, *ray));
+        assert!(h.prim != 1);
+    }
+    assert!(hits.iter().any(|h| h.prim == 0));
+    let mut occluded = vec![7u8; rays.len()];
+    // SAFETY: a live handle, arrays as long as `n`.
+    unsafe {
+        let s = qv_world_any_hits(world, rays.as_ptr(), rays.len(), occluded.as_mut_ptr());
+        assert_eq!(s, QvStatus::Ok);
+    }
+    for (h, o) in hits.iter().zip(&occluded) {
+        assert_eq!(
+            *o,
+            u8::from(h.prim != QV_INVALID_ID),
+            "the filter holds for any hit too"
+        );
+    }
+    let unfiltered = two_squares(None, null_mut());
+    assert_eq!(world_hit(unfiltered, down(0.25, 0.75)).prim, 1);
+    // SAFETY: live handles, freed once.
+    unsafe {
+        qv_world_free(world);
+        qv_world_free(unfiltered);
+    }
+}
+
+#[test]
+fn world_edits_move_hide_remove_and_add_instances() {
+    let world = two_squares(None, null_mut());
+    let ray = down(2.5, 0.5);
+    assert_eq!(world_hit(world, ray).instance, 1);
+    let up = [1., 0., 0., 2., 0., 1., 0., 0., 0., 0., 1., 1.];
+    // SAFETY: a live handle used by this thread only; 12-float transforms.
+    unsafe {
+        assert_eq!(qv_world_set_transform(world, 1, up.as_ptr()), QvStatus::Ok);
+        assert_eq!(world_hit(world, ray).t, 4.0);
+        assert_eq!(qv_world_set_mask(world, 1, 0), QvStatus::Ok);
+        assert_eq!(world_hit(world, ray), QvHit::MISS);
+        let mut id = 0;
+        assert_eq!(
+            qv_world_add_instance(world, 0, up.as_ptr(), u32::MAX, &mut id),
+            QvStatus::Ok
+        );
+        assert_eq!(id, 2);
+        assert_eq!(world_hit(world, ray).instance, 2);
+        assert_eq!(qv_world_remove_instance(world, 2), QvStatus::Ok);
+        assert_eq!(world_hit(world, ray), QvHit::MISS);
+        let mut occluded: c_int = 7;
+        assert_eq!(
+            qv_world_any_hit(world, &down(0.5, 0.5), &mut occluded),
+            QvStatus::Ok
+        );
+        assert_eq!(occluded, 1);
+
+        // Refused edits name the instance and change nothing.
+        assert_eq!(
+            qv_world_remove_instance(world, 2),
+            QvStatus::InvalidArgument
+        );
+        assert!(
+            last_error().contains("instance 2 was removed"),
+            "{}",
+            last_error()
+        );
+        assert_eq!(qv_world_set_mask(world, 9, 1), QvStatus::InvalidArgument);
+        assert!(
+            last_error().contains("instance 9 does not exist"),
+            "{}",
+            last_error()
+        );
+        let flat = [1., 0., 0., 0., 0., 1., 0., 0., 0., 0., 0., 0.];
+        assert_eq!(
+            qv_world_set_transform(world, 0, flat.as_ptr()),
+            QvStatus::InvalidArgument
+        );
+        assert!(last_error().contains("transform"), "{}", last_error());
+        assert_eq!(
+            qv_world_add_instance(world, 5, IDENTITY.as_ptr(), 1, &mut id),
+            QvStatus::InvalidArgument
+        );
+        assert_eq!(world_hit(world, down(0.5, 0.5)).instance, 0);
+        qv_world_free(world);
+    }
+}
+
+#[test]
+fn a_builder_refuses_unknown_geometries_and_bad_transforms_at_once() {
+    let mut b = null_mut();
+    let mut id = 0;
+    // SAFETY: a live builder, 12-float transforms, writable outs.
+    unsafe {
+        assert_eq!(qv_world_builder_new(&mut b), QvStatus::Ok);
+        assert_eq!(
+            qv_world_builder_add_instance(b, 0, IDENTITY.as_ptr(), 1, &mut id),
+            QvStatus::InvalidArgument
+        );
+        assert!(
+            last_error().contains("geometry: 0 does not exist"),
+            "{}",
+            last_error()
+        );
+        let s = qv_world_builder_add_mesh(
+            b,
+            SQUARE.as_ptr().cast(),
+            4,
+            12,
+            [0u32, 1, 4].as_ptr(),
+            1,
+            12,
+            &mut id,
+        );
+        assert_eq!(s, QvStatus::BadMesh);
+        assert_eq!(
+            qv_world_builder_set_filter(b, 0, None, null_mut()),
+            QvStatus::NullPointer
+        );
+        assert_eq!(
+            qv_world_builder_set_filter(b, 0, Some(only_triangle_0), null_mut()),
+            QvStatus::InvalidArgument
+        );
+        // The refused mesh added nothing: the world builds, empty.
+        let mut world = null_mut();
+        assert_eq!(
+            qv_world_build(b, &mut world),
+            QvStatus::Ok,
+            "{}",
+            last_error()
+        );
+        assert_eq!(world_hit(world, down(0.5, 0.5)), QvHit::MISS);
+        qv_world_free(world);
+    }
+}
+
+#[test]
+fn a_panic_becomes_qv_panic_with_its_message() {
+    let s = guard("qv_test", || panic!("deliberately, in a test"));
+    assert_eq!(s, QvStatus::Panic);
+    assert_eq!(last_error(), "quiver panicked: deliberately, in a test");
+    // The next call clears it.
+    assert_eq!(guard("qv_test", || Ok(())), QvStatus::Ok);
+    assert_eq!(last_error(), "");
+    // A panic on one of rayon's threads comes back to the caller too.
+    let s = guard("qv_test", || {
+        use quiver_rt::rayon::prelude::*;
+        (0..100)
+            .into_par_iter()
+            .for_each(|i| assert!(i != 57, "ray {i}"));
+        Ok(())
+    });
+    assert_eq!(
+        (s, last_error()),
+        (QvStatus::Panic, "quiver panicked: ray 57".to_string())
+    );
+    // And the message pointer C receives reads the same text.
+    // SAFETY: qv_last_error returns a NUL-terminated string valid until the next call.
+    let c = unsafe { std::ffi::CStr::from_ptr(qv_last_error()) };
+    assert_eq!(c.to_str().unwrap(), "quiver panicked: ray 57");
+}

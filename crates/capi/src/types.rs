@@ -1,0 +1,151 @@
+//! The plain structs C passes and receives, and their conversions to and from the core's
+//! types.
+
+use quiver_rt::glam::{Affine3A, Vec3A};
+use quiver_rt::point::PointHit;
+use quiver_rt::{Hit, Ray, WorldHit};
+use std::ffi::{c_int, c_void};
+
+/// The id a hit reports where it names nothing: no hit, or the geometry and instance of a
+/// hit in a lone BVH (`UINT32_MAX`, `QV_INVALID_ID` in C).
+pub const QV_INVALID_ID: u32 = u32::MAX;
+
+/// A ray: points `org + t * dir` for `t` in `[t_min, t_max]` (closed), seen only by world
+/// instances whose mask shares a bit with `mask` (a lone BVH ignores the mask).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct QvRay {
+    /// The origin.
+    pub org: [f32; 3],
+    /// The start of the interval (negative values count as 0).
+    pub t_min: f32,
+    /// The direction, not necessarily unit length: `t` is in its units.
+    pub dir: [f32; 3],
+    /// The end of the interval (`INFINITY` for no end).
+    pub t_max: f32,
+    /// Which instances the ray sees (`0xFFFFFFFF`: all).
+    pub mask: u32,
+}
+
+impl QvRay {
+    /// The core's ray.
+    pub(crate) fn to_ray(self) -> Ray {
+        Ray::segment(
+            Vec3A::from(self.org),
+            Vec3A::from(self.dir),
+            self.t_min,
+            self.t_max,
+        )
+        .with_mask(self.mask)
+    }
+}
+
+/// A hit: distance, barycentrics and what was hit; on a miss `prim`, `geometry` and
+/// `instance` are [`QV_INVALID_ID`], `t` is infinite and `u`, `v` are 0.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct QvHit {
+    /// Distance along the ray, in units of its direction.
+    pub t: f32,
+    /// Barycentric weight of the triangle's second vertex.
+    pub u: f32,
+    /// Barycentric weight of the triangle's third vertex.
+    pub v: f32,
+    /// The triangle: its index in the mesh's index buffer.
+    pub prim: u32,
+    /// The geometry hit (worlds); [`QV_INVALID_ID`] for a lone BVH.
+    pub geometry: u32,
+    /// The instance hit (worlds); [`QV_INVALID_ID`] for a lone BVH.
+    pub instance: u32,
+}
+
+impl QvHit {
+    /// The record of a miss.
+    pub const MISS: QvHit = QvHit {
+        t: f32::INFINITY,
+        u: 0.0,
+        v: 0.0,
+        prim: QV_INVALID_ID,
+        geometry: QV_INVALID_ID,
+        instance: QV_INVALID_ID,
+    };
+
+    /// A lone BVH's hit, or the miss record.
+    pub(crate) fn of_bvh(hit: Option<Hit>) -> QvHit {
+        hit.map_or(QvHit::MISS, |h| QvHit {
+            t: h.t,
+            u: h.u,
+            v: h.v,
+            prim: h.prim,
+            ..QvHit::MISS
+        })
+    }
+
+    /// A world's hit, or the miss record.
+    pub(crate) fn of_world(hit: Option<WorldHit>) -> QvHit {
+        hit.map_or(QvHit::MISS, |h| QvHit {
+            t: h.t,
+            u: h.u,
+            v: h.v,
+            prim: h.prim,
+            geometry: h.geometry.0,
+            instance: h.instance.0,
+        })
+    }
+}
+
+/// The nearest point of a BVH's triangles to a query point; on a miss (nothing within the
+/// distance asked) `prim` is [`QV_INVALID_ID`], `distance` infinite and the rest 0.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct QvPointHit {
+    /// The point on the triangle.
+    pub point: [f32; 3],
+    /// Its distance from the query point.
+    pub distance: f32,
+    /// Barycentric weight of the triangle's second vertex at `point`.
+    pub u: f32,
+    /// Barycentric weight of the third vertex.
+    pub v: f32,
+    /// The triangle: its index in the mesh's index buffer.
+    pub prim: u32,
+}
+
+impl QvPointHit {
+    /// The core's answer, or the miss record.
+    pub(crate) fn of(hit: Option<PointHit>) -> QvPointHit {
+        hit.map_or(
+            QvPointHit {
+                point: [0.0; 3],
+                distance: f32::INFINITY,
+                u: 0.0,
+                v: 0.0,
+                prim: QV_INVALID_ID,
+            },
+            |h| QvPointHit {
+                point: h.point.into(),
+                distance: h.distance,
+                u: h.u,
+                v: h.v,
+                prim: h.prim,
+            },
+        )
+    }
+}
+
+/// A geometry's hit filter: called with the `user` pointer given with it and a candidate hit
+/// (valid only during the call); returns nonzero to keep the candidate, 0 to pass through it.
+/// It runs on any thread, several at once (see `qv_world_builder_set_filter`).
+pub type QvFilterFn =
+    Option<unsafe extern "C" fn(user: *mut c_void, candidate: *const QvHit) -> c_int>;
+
+/// An object-to-world transform from 12 floats, a 3×4 matrix in row-major order: row `r` is
+/// `m[4r..4r + 4]`, the last column the translation.
+pub(crate) fn affine_of_rows(m: &[f32; 12]) -> Affine3A {
+    Affine3A::from_cols_array(&[
+        m[0], m[4], m[8], // first column
+        m[1], m[5], m[9], // second column
+        m[2], m[6], m[10], // third column
+        m[3], m[7], m[11], // translation
+    ])
+}

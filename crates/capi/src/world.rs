@@ -1,0 +1,495 @@
+//! `qv_world_*`: instanced worlds, from a builder (meshes, instances, filters) to queries and
+//! edits.
+
+use crate::buffers::{bad_mesh, input, output, read_indices, read_vertices};
+use crate::error::{guard, non_null, Failure, QvStatus};
+use crate::trace;
+use crate::types::{affine_of_rows, QvFilterFn, QvHit, QvRay};
+use quiver_rt::glam::Affine3A;
+use quiver_rt::world::{invert, WorldEdit};
+use quiver_rt::{
+    BuildOptions, GeometryId, Instance, InstanceId, RayQuery, World, WorldBuilder, WorldError,
+    WorldHit,
+};
+use std::ffi::{c_int, c_void};
+
+/// A world being collected: meshes, instances, filters (opaque to C).
+pub struct QvWorldBuilder {
+    builder: WorldBuilder,
+    /// The geometries added so far, to refuse an instance of a missing one at once.
+    geometries: u32,
+}
+
+/// A built world (opaque to C).
+pub struct QvWorld {
+    world: World,
+}
+
+/// A filter's `user` pointer, shared by every thread that queries the world.
+#[derive(Clone, Copy)]
+struct SharedUser(*mut c_void);
+
+// SAFETY: the C caller of `qv_world_builder_set_filter` accepted (quiver.h) that the callback
+// is called from any thread, several at once, with this same pointer, and that whatever it
+// points to is safe to use that way (read-only, or synchronised by the caller). The pointer is
+// only ever passed back to that callback; Rust never reads through it.
+unsafe impl Send for SharedUser {}
+// SAFETY: as for `Send`: sharing the pointer between threads is what the caller agreed to.
+unsafe impl Sync for SharedUser {}
+
+impl SharedUser {
+    /// The pointer (a method, so closures capture the whole `SharedUser`, not the raw field).
+    fn get(self) -> *mut c_void {
+        self.0
+    }
+}
+
+/// The builder behind a handle.
+///
+/// # Safety
+/// `b` is NULL or a live builder handle no other thread uses during the call.
+unsafe fn builder_mut<'a>(b: *mut QvWorldBuilder) -> Result<&'a mut QvWorldBuilder, Failure> {
+    non_null(b, "builder")?;
+    // SAFETY: not NULL (checked); a live handle (a `Box<QvWorldBuilder>` as a raw pointer)
+    // used by no other thread, so this is the only reference (the caller's contract).
+    Ok(unsafe { &mut *b })
+}
+
+/// The world behind a handle, to query.
+///
+/// # Safety
+/// `w` is NULL or a live world handle no thread changes during the call.
+unsafe fn world_ref<'a>(w: *const QvWorld) -> Result<&'a World, Failure> {
+    non_null(w, "world")?;
+    // SAFETY: not NULL (checked); a live handle not changed meanwhile (the caller's contract).
+    Ok(unsafe { &(*w).world })
+}
+
+/// The world behind a handle, to edit.
+///
+/// # Safety
+/// `w` is NULL or a live world handle no other thread uses during the call.
+unsafe fn world_mut<'a>(w: *mut QvWorld) -> Result<&'a mut World, Failure> {
+    non_null(w, "world")?;
+    // SAFETY: not NULL (checked); a live handle used by no other thread (the caller's
+    // contract), so this is the only reference.
+    Ok(unsafe { &mut (*w).world })
+}
+
+/// The status and message for a world's refusal.
+fn world_failure(e: WorldError) -> Failure {
+    let status = match e {
+        WorldError::Mesh { .. } | WorldError::Refit { .. } => QvStatus::BadMesh,
+        _ => QvStatus::InvalidArgument,
+    };
+    Failure::new(status, e)
+}
+
+/// The transform at `transform` (12 floats, row-major 3×4), checked as a world checks an
+/// instance's: finite and invertible in f32.
+///
+/// # Safety
+/// `transform` is NULL or readable for 12 floats.
+unsafe fn transform_of(transform: *const f32) -> Result<Affine3A, Failure> {
+    // SAFETY: the caller's contract: 12 floats.
+    let m = unsafe { input(transform, 12, "transform") }?;
+    let m = affine_of_rows(m.try_into().expect("12 floats"));
+    invert(&m)
+        .map_err(|why| Failure::new(QvStatus::InvalidArgument, format!("transform: {why}")))?;
+    Ok(m)
+}
+
+/// Starts an empty world builder: `*out` is its handle, else NULL. Free it with
+/// `qv_world_builder_free`, or pass it to `qv_world_build`.
+///
+/// # Safety
+/// `out` is NULL or writable.
+#[no_mangle]
+pub unsafe extern "C" fn qv_world_builder_new(out: *mut *mut QvWorldBuilder) -> QvStatus {
+    guard("qv_world_builder_new", || {
+        non_null(out, "out")?;
+        let handle = Box::new(QvWorldBuilder {
+            builder: WorldBuilder::new(),
+            geometries: 0,
+        });
+        // SAFETY: not NULL (checked) and writable (the caller's contract).
+        unsafe { out.write(Box::into_raw(handle)) };
+        Ok(())
+    })
+}
+
+/// Frees a builder not built; NULL is ignored.
+///
+/// # Safety
+/// `builder` is NULL or a live builder handle no other thread uses, not used again.
+#[no_mangle]
+pub unsafe extern "C" fn qv_world_builder_free(builder: *mut QvWorldBuilder) {
+    guard("qv_world_builder_free", || {
+        if !builder.is_null() {
+            // SAFETY: a live handle is a `Box` from `Box::into_raw`, given back once and used
+            // by no other thread (the caller's contract).
+            drop(unsafe { Box::from_raw(builder) });
+        }
+        Ok(())
+    });
+}
+
+/// Adds an indexed triangle mesh as a geometry (buffers as `qv_bvh_build_indexed` reads
+/// them, copied now); `*geometry_id` is its id (0, 1, 2, ... in the order added).
+///
+/// # Safety
+/// `builder` a live builder handle or NULL; the buffers NULL or readable for their counts and
+/// strides; `geometry_id` NULL or writable.
+#[no_mangle]
+#[allow(clippy::too_many_arguments)]
+pub unsafe extern "C" fn qv_world_builder_add_mesh(
+    builder: *mut QvWorldBuilder,
+    vertices: *const f32,
+    vertex_count: usize,
+    vertex_stride_bytes: usize,
+    indices: *const u32,
+    triangle_count: usize,
+    index_stride_bytes: usize,
+    geometry_id: *mut u32,
+) -> QvStatus {
+    guard("qv_world_builder_add_mesh", || {
+        // SAFETY: the caller's contract for each pointer.
+        let (b, id) = unsafe {
+            (
+                builder_mut(builder)?,
+                output(geometry_id, 1, "geometry_id")?,
+            )
+        };
+        // SAFETY: the caller's contract for the buffers, passed on unchanged.
+        let positions = unsafe { read_vertices(vertices, vertex_count, vertex_stride_bytes) }?;
+        // SAFETY: as above.
+        let tris =
+            unsafe { read_indices(indices, triangle_count, index_stride_bytes, vertex_count) }?;
+        if b.geometries == u32::MAX - 1 {
+            return Err(world_failure(WorldError::TooMany));
+        }
+        // Checked above, so the builder never records a bad mesh (which would fail its build).
+        let g = b
+            .builder
+            .add_mesh(&positions, &tris)
+            .map_err(|e| bad_mesh("indices", e))?;
+        b.geometries += 1;
+        id[0].write(g.0);
+        Ok(())
+    })
+}
+
+/// Places geometry `geometry` by `transform` (object to world, 12 floats, row-major 3×4: row
+/// `r` is `transform[4r..4r+4]`, the last column the translation), seen by rays whose mask
+/// shares a bit with `mask`; `*instance_id` is its id (0, 1, 2, ... in the order added).
+///
+/// # Safety
+/// `builder` a live builder handle or NULL; `transform` NULL or readable for 12 floats;
+/// `instance_id` NULL or writable.
+#[no_mangle]
+pub unsafe extern "C" fn qv_world_builder_add_instance(
+    builder: *mut QvWorldBuilder,
+    geometry: u32,
+    transform: *const f32,
+    mask: u32,
+    instance_id: *mut u32,
+) -> QvStatus {
+    guard("qv_world_builder_add_instance", || {
+        // SAFETY: the caller's contract for each pointer.
+        let (b, m, id) = unsafe {
+            (
+                builder_mut(builder)?,
+                transform_of(transform)?,
+                output(instance_id, 1, "instance_id")?,
+            )
+        };
+        if geometry >= b.geometries {
+            return Err(Failure::new(
+                QvStatus::InvalidArgument,
+                format!(
+                    "geometry: {geometry} does not exist (the builder has {})",
+                    b.geometries
+                ),
+            ));
+        }
+        let i = b
+            .builder
+            .add_instance(Instance::of(GeometryId(geometry)).transform(m).mask(mask));
+        id[0].write(i.0);
+        Ok(())
+    })
+}
+
+/// Gives geometry `geometry` a filter: each candidate hit of it, in any instance, is kept
+/// only when `filter(user, &candidate)` returns nonzero. Replaces an earlier filter.
+///
+/// # Safety
+/// `builder` a live builder handle or NULL; `filter` NULL or a function that honours
+/// `quiver.h`'s contract (callable from any thread, concurrently, with `user`; never
+/// unwinding), for as long as the world built from this builder lives.
+#[no_mangle]
+pub unsafe extern "C" fn qv_world_builder_set_filter(
+    builder: *mut QvWorldBuilder,
+    geometry: u32,
+    filter: QvFilterFn,
+    user: *mut c_void,
+) -> QvStatus {
+    guard("qv_world_builder_set_filter", || {
+        // SAFETY: the caller's contract for `builder`.
+        let b = unsafe { builder_mut(builder) }?;
+        let Some(f) = filter else {
+            return Err(Failure::null("filter"));
+        };
+        let user = SharedUser(user);
+        let keep = move |h: &WorldHit| {
+            let candidate = QvHit::of_world(Some(*h));
+            // SAFETY: the caller promised `f` may be called from any thread, concurrently,
+            // with `user`, while the world lives (it is called only by the world's queries);
+            // `candidate` is a valid QvHit for the duration of the call.
+            unsafe { f(user.get(), &candidate) != 0 }
+        };
+        b.builder
+            .set_filter(GeometryId(geometry), keep)
+            .map_err(world_failure)
+    })
+}
+
+/// Builds the world (every geometry's BVH and the top level, on rayon's global pool) and
+/// consumes the builder, whether or not the build succeeds (except when `builder` or `out` is
+/// NULL: then nothing is consumed). `*out` is the world's handle, else NULL.
+///
+/// # Safety
+/// `builder` a live builder handle no other thread uses, or NULL; not used again unless this
+/// returns `QV_NULL_POINTER`. `out` NULL or writable.
+#[no_mangle]
+pub unsafe extern "C" fn qv_world_build(
+    builder: *mut QvWorldBuilder,
+    out: *mut *mut QvWorld,
+) -> QvStatus {
+    guard("qv_world_build", || {
+        non_null(out, "out")?;
+        non_null(builder, "builder")?;
+        // SAFETY: `out` is not NULL (checked) and writable (the caller's contract).
+        unsafe { out.write(std::ptr::null_mut()) };
+        // SAFETY: a live builder handle is a `Box` from `Box::into_raw`, given back once (the
+        // contract: the builder is consumed here) and used by no other thread.
+        let b = unsafe { Box::from_raw(builder) };
+        let world = b
+            .builder
+            .build(&BuildOptions::default())
+            .map_err(world_failure)?;
+        // SAFETY: as above for `out`.
+        unsafe { out.write(Box::into_raw(Box::new(QvWorld { world }))) };
+        Ok(())
+    })
+}
+
+/// Frees a world; NULL is ignored.
+///
+/// # Safety
+/// `world` NULL or a live world handle no other thread uses, not used again.
+#[no_mangle]
+pub unsafe extern "C" fn qv_world_free(world: *mut QvWorld) {
+    guard("qv_world_free", || {
+        if !world.is_null() {
+            // SAFETY: a live handle is a `Box` from `Box::into_raw`, given back once and used
+            // by no other thread (the caller's contract).
+            drop(unsafe { Box::from_raw(world) });
+        }
+        Ok(())
+    });
+}
+
+/// The closest hit of `*ray` into `*hit` (the miss record when nothing is hit).
+///
+/// # Safety
+/// `world` a live world handle or NULL; `ray` readable and `hit` writable, or NULL.
+#[no_mangle]
+pub unsafe extern "C" fn qv_world_closest_hit(
+    world: *const QvWorld,
+    ray: *const QvRay,
+    hit: *mut QvHit,
+) -> QvStatus {
+    guard("qv_world_closest_hit", || {
+        // SAFETY: the caller's contract for each pointer, one element each.
+        let (w, ray, hit) = unsafe {
+            (
+                world_ref(world)?,
+                input(ray, 1, "ray")?,
+                output(hit, 1, "hit")?,
+            )
+        };
+        hit[0].write(QvHit::of_world(w.closest_hit(&ray[0].to_ray())));
+        Ok(())
+    })
+}
+
+/// Whether anything is hit within `*ray`'s interval: `*occluded` is 1 or 0.
+///
+/// # Safety
+/// `world` a live world handle or NULL; `ray` readable and `occluded` writable, or NULL.
+#[no_mangle]
+pub unsafe extern "C" fn qv_world_any_hit(
+    world: *const QvWorld,
+    ray: *const QvRay,
+    occluded: *mut c_int,
+) -> QvStatus {
+    guard("qv_world_any_hit", || {
+        // SAFETY: the caller's contract for each pointer, one element each.
+        let (w, ray, occluded) = unsafe {
+            (
+                world_ref(world)?,
+                input(ray, 1, "ray")?,
+                output(occluded, 1, "occluded")?,
+            )
+        };
+        occluded[0].write(c_int::from(w.any_hit(&ray[0].to_ray())));
+        Ok(())
+    })
+}
+
+/// The closest hits of `n` rays into `hits[0..n]`, traced in parallel.
+///
+/// # Safety
+/// `world` a live world handle or NULL; `rays` readable and `hits` writable for `n`
+/// elements, not overlapping, or NULL.
+#[no_mangle]
+pub unsafe extern "C" fn qv_world_closest_hits(
+    world: *const QvWorld,
+    rays: *const QvRay,
+    n: usize,
+    hits: *mut QvHit,
+) -> QvStatus {
+    guard("qv_world_closest_hits", || {
+        // SAFETY: the caller's contract for each pointer, `n` elements each.
+        let (w, rays, hits) = unsafe {
+            (
+                world_ref(world)?,
+                input(rays, n, "rays")?,
+                output(hits, n, "hits")?,
+            )
+        };
+        trace::closest_hits(w, rays, hits, QvHit::of_world);
+        Ok(())
+    })
+}
+
+/// Whether each of `n` rays hits anything: `occluded[i]` is 1 or 0; traced in parallel.
+///
+/// # Safety
+/// `world` a live world handle or NULL; `rays` readable and `occluded` writable for `n`
+/// elements, not overlapping, or NULL.
+#[no_mangle]
+pub unsafe extern "C" fn qv_world_any_hits(
+    world: *const QvWorld,
+    rays: *const QvRay,
+    n: usize,
+    occluded: *mut u8,
+) -> QvStatus {
+    guard("qv_world_any_hits", || {
+        // SAFETY: the caller's contract for each pointer, `n` elements each.
+        let (w, rays, occluded) = unsafe {
+            (
+                world_ref(world)?,
+                input(rays, n, "rays")?,
+                output(occluded, n, "occluded")?,
+            )
+        };
+        trace::any_hits(w, rays, occluded);
+        Ok(())
+    })
+}
+
+/// Runs `change` as one edit of `world`, committed (the top level refit or rebuilt) before
+/// returning; a refused change changes nothing.
+fn edit<T>(
+    world: &mut World,
+    change: impl FnOnce(&mut WorldEdit<'_>) -> Result<T, WorldError>,
+) -> Result<T, Failure> {
+    let mut e = world.edit();
+    let done = change(&mut e);
+    e.commit();
+    done.map_err(world_failure)
+}
+
+/// Places instance `instance` by `transform` (as `qv_world_builder_add_instance` reads it),
+/// as one committed edit.
+///
+/// # Safety
+/// `world` a live world handle no other thread uses during the call, or NULL; `transform`
+/// NULL or readable for 12 floats.
+#[no_mangle]
+pub unsafe extern "C" fn qv_world_set_transform(
+    world: *mut QvWorld,
+    instance: u32,
+    transform: *const f32,
+) -> QvStatus {
+    guard("qv_world_set_transform", || {
+        // SAFETY: the caller's contract for each pointer.
+        let (w, m) = unsafe { (world_mut(world)?, transform_of(transform)?) };
+        edit(w, |e| e.set_transform(InstanceId(instance), m))
+    })
+}
+
+/// Shows instance `instance` only to rays whose mask shares a bit with `mask`, as one
+/// committed edit.
+///
+/// # Safety
+/// `world` a live world handle no other thread uses during the call, or NULL.
+#[no_mangle]
+pub unsafe extern "C" fn qv_world_set_mask(
+    world: *mut QvWorld,
+    instance: u32,
+    mask: u32,
+) -> QvStatus {
+    guard("qv_world_set_mask", || {
+        // SAFETY: the caller's contract for `world`.
+        let w = unsafe { world_mut(world) }?;
+        edit(w, |e| e.set_mask(InstanceId(instance), mask))
+    })
+}
+
+/// Removes instance `instance` from the world, as one committed edit; its id is not given
+/// again.
+///
+/// # Safety
+/// `world` a live world handle no other thread uses during the call, or NULL.
+#[no_mangle]
+pub unsafe extern "C" fn qv_world_remove_instance(world: *mut QvWorld, instance: u32) -> QvStatus {
+    guard("qv_world_remove_instance", || {
+        // SAFETY: the caller's contract for `world`.
+        let w = unsafe { world_mut(world) }?;
+        edit(w, |e| e.remove_instance(InstanceId(instance)))
+    })
+}
+
+/// Adds an instance of geometry `geometry` (as `qv_world_builder_add_instance`), as one
+/// committed edit (the top level is rebuilt); `*instance_id` is its id, one past every id
+/// given before.
+///
+/// # Safety
+/// `world` a live world handle no other thread uses during the call, or NULL; `transform`
+/// NULL or readable for 12 floats; `instance_id` NULL or writable.
+#[no_mangle]
+pub unsafe extern "C" fn qv_world_add_instance(
+    world: *mut QvWorld,
+    geometry: u32,
+    transform: *const f32,
+    mask: u32,
+    instance_id: *mut u32,
+) -> QvStatus {
+    guard("qv_world_add_instance", || {
+        // SAFETY: the caller's contract for each pointer.
+        let (w, m, id) = unsafe {
+            (
+                world_mut(world)?,
+                transform_of(transform)?,
+                output(instance_id, 1, "instance_id")?,
+            )
+        };
+        let instance = Instance::of(GeometryId(geometry)).transform(m).mask(mask);
+        let i = edit(w, |e| e.add_instance(instance))?;
+        id[0].write(i.0);
+        Ok(())
+    })
+}

@@ -1,0 +1,143 @@
+//! `examples/c/minimal.c` compiled with the system's C compiler against the static library,
+//! run, and its answers compared with the Rust API's for the same rays: the C side (header,
+//! struct layouts, link line) and the Rust side agree. Skipped, with a note, where no `cc`
+//! is on the PATH.
+
+use quiver_rt::glam::{Affine3A, Vec3, Vec3A};
+use quiver_rt::{BuildOptions, Bvh, Instance, Ray, RayQuery, World};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+/// The scene of minimal.c: a unit square of two triangles.
+const VERTICES: [[f32; 3]; 4] = [[0., 0., 0.], [1., 0., 0.], [1., 1., 0.], [0., 1., 0.]];
+const INDICES: [[u32; 3]; 2] = [[0, 1, 2], [0, 2, 3]];
+
+/// The world of minimal.c: the square in place (mask 1), and moved by (2, 0, -1) (mask 2).
+fn world() -> World {
+    let mut b = World::builder();
+    let g = b.add_mesh(&VERTICES, &INDICES).unwrap();
+    b.add_instance(Instance::of(g).mask(1));
+    let moved = Affine3A::from_translation(Vec3::new(2.0, 0.0, -1.0));
+    b.add_instance(Instance::of(g).transform(moved).mask(2));
+    b.build(&BuildOptions::default()).unwrap()
+}
+
+/// The directory holding the static library this test build goes with (`target/<profile>`,
+/// the parent of the `deps` directory this test runs from). Cargo builds the library's every
+/// crate type, the staticlib included, before the tests; should it not have, it is built here
+/// with the same profile.
+fn library_dir() -> PathBuf {
+    let exe = std::env::current_exe().unwrap();
+    let dir = exe.parent().and_then(Path::parent).unwrap().to_path_buf();
+    if !dir.join("libquiver_capi.a").exists() {
+        let profile = dir.file_name().unwrap().to_str().unwrap();
+        let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+        let status = Command::new(cargo)
+            .args(["build", "-p", "quiver-capi", "--profile"])
+            .arg(if profile == "debug" { "dev" } else { profile })
+            .status()
+            .unwrap();
+        assert!(status.success(), "cargo build -p quiver-capi failed");
+    }
+    assert!(
+        dir.join("libquiver_capi.a").exists(),
+        "no libquiver_capi.a in {}",
+        dir.display()
+    );
+    dir
+}
+
+/// What one output line says: which scene, the ray, and the hit
+/// `(prim, geometry, instance, t, u, v)` or `None` for a miss.
+type Line = (String, Ray, Option<(u32, u32, u32, f32, f32, f32)>);
+
+/// Parses a line `SCENE ox oy oz dx dy dz mask -> miss` or `... -> prim P geometry G
+/// instance I t T u U v V`; `None` for other lines.
+fn parse(line: &str) -> Option<Line> {
+    let (ray, hit) = line.split_once(" -> ")?;
+    let mut r = ray.split_whitespace();
+    let scene = r.next()?.to_string();
+    let f: Vec<f32> = r.by_ref().take(6).map(|x| x.parse().unwrap()).collect();
+    let mask: u32 = r.next()?.parse().unwrap();
+    let ray = Ray::new(Vec3A::new(f[0], f[1], f[2]), Vec3A::new(f[3], f[4], f[5])).with_mask(mask);
+    if hit == "miss" {
+        return Some((scene, ray, None));
+    }
+    let w: Vec<&str> = hit.split_whitespace().collect();
+    let u = |i: usize| w[i].parse::<u32>().unwrap();
+    let x = |i: usize| w[i].parse::<f32>().unwrap();
+    Some((scene, ray, Some((u(1), u(3), u(5), x(7), x(9), x(11)))))
+}
+
+#[test]
+fn the_c_example_answers_as_the_rust_api() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    if Command::new("cc").arg("--version").output().is_err() {
+        println!("note: no `cc` on the PATH; the C example was not compiled");
+        return;
+    }
+    let lib = library_dir();
+    let exe = std::env::temp_dir().join(format!("quiver_capi_minimal_{}", std::process::id()));
+    let cc = Command::new("cc")
+        .arg(root.join("examples/c/minimal.c"))
+        .arg("-I")
+        .arg(root.join("include"))
+        .arg(lib.join("libquiver_capi.a"))
+        .args(["-lpthread", "-ldl", "-lm", "-o"])
+        .arg(&exe)
+        .output()
+        .unwrap();
+    assert!(
+        cc.status.success(),
+        "cc failed:\n{}",
+        String::from_utf8_lossy(&cc.stderr)
+    );
+    let run = Command::new(&exe).output().unwrap();
+    let _ = std::fs::remove_file(&exe);
+    let stdout = String::from_utf8(run.stdout).unwrap();
+    assert!(
+        run.status.success(),
+        "minimal failed:\n{stdout}\n{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    assert!(stdout.contains("all answers as expected"), "{stdout}");
+    // The C compiler lays the structs out at the sizes the library uses.
+    let sizes = format!(
+        "sizes QvRay {} QvHit {} QvPointHit {}",
+        size_of::<quiver_capi::QvRay>(),
+        size_of::<quiver_capi::QvHit>(),
+        size_of::<quiver_capi::QvPointHit>()
+    );
+    assert!(stdout.lines().any(|l| l == sizes), "{sizes} in\n{stdout}");
+
+    let bvh = Bvh::from_mesh(&VERTICES, &INDICES).unwrap();
+    let world = world();
+    // The edit minimal.c makes: the second square up to z = 0 and seen by every ray.
+    let mut edited = self::world();
+    let mut e = edited.edit();
+    let to = quiver_rt::InstanceId(1);
+    e.set_transform(to, Affine3A::from_translation(Vec3::new(2.0, 0.0, 0.0)))
+        .unwrap();
+    e.set_mask(to, u32::MAX).unwrap();
+    e.commit();
+
+    let mut counts = [0; 3];
+    for (scene, ray, hit) in stdout.lines().filter_map(parse) {
+        let want = match scene.as_str() {
+            "bvh" => {
+                counts[0] += 1;
+                bvh.closest_hit(&ray)
+                    .map(|h| (h.prim, u32::MAX, u32::MAX, h.t, h.u, h.v))
+            }
+            "world" | "edited" => {
+                let w = if scene == "world" { &world } else { &edited };
+                counts[if scene == "world" { 1 } else { 2 }] += 1;
+                w.closest_hit(&ray)
+                    .map(|h| (h.prim, h.geometry.0, h.instance.0, h.t, h.u, h.v))
+            }
+            other => panic!("an unknown scene {other}"),
+        };
+        assert_eq!(hit, want, "{scene} {ray:?}");
+    }
+    assert_eq!(counts, [3, 4, 1], "{stdout}");
+}
