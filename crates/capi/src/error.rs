@@ -2,7 +2,7 @@
 //! exported function's body runs in, so no panic unwinds into C.
 
 use std::cell::RefCell;
-use std::ffi::{c_char, CString};
+use std::ffi::c_char;
 use std::fmt::Display;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 
@@ -60,15 +60,33 @@ pub(crate) fn non_null<T>(p: *const T, name: &str) -> Result<(), Failure> {
 }
 
 thread_local! {
-    /// The message `qv_last_error` returns: replaced by every exported call on this thread.
-    static LAST_ERROR: RefCell<CString> = RefCell::new(CString::default());
+    /// The message `qv_last_error` returns, NUL-terminated (empty: no message): replaced by
+    /// every exported call on this thread. A byte buffer reused in place, so the calls that
+    /// succeed (clearing it) allocate nothing: a single-ray query is a few dozen nanoseconds,
+    /// and an allocation per call would be a sizeable part of it.
+    static LAST_ERROR: RefCell<Vec<u8>> = const { RefCell::new(Vec::new()) };
 }
 
 /// Records `message` as the thread's last error (NUL bytes, which C cannot hold inside a
 /// string, become spaces).
 fn set_last_error(message: &str) {
-    let text = CString::new(message.replace('\0', " ")).unwrap_or_default();
-    LAST_ERROR.with(|e| *e.borrow_mut() = text);
+    LAST_ERROR.with(|e| {
+        let mut e = e.borrow_mut();
+        e.clear();
+        e.extend(message.bytes().map(|b| if b == 0 { b' ' } else { b }));
+        e.push(0);
+    });
+}
+
+/// Clears the thread's last error (no work when it is clear already).
+fn clear_last_error() {
+    LAST_ERROR.with(|e| {
+        let mut e = e.borrow_mut();
+        if e.len() > 1 {
+            e.clear();
+            e.push(0);
+        }
+    });
 }
 
 /// Runs `f`, returning `fallback` if it panics. Every exported function's body runs inside
@@ -98,7 +116,7 @@ fn panic_message(payload: &(dyn std::any::Any + Send)) -> &str {
 /// to its status (recording the message, prefixed by `name`) and a panic to
 /// [`QvStatus::Panic`].
 pub(crate) fn guard(name: &str, f: impl FnOnce() -> Result<(), Failure>) -> QvStatus {
-    set_last_error("");
+    clear_last_error();
     catch(QvStatus::Panic, || match f() {
         Ok(()) => QvStatus::Ok,
         Err(failure) => {
@@ -115,14 +133,21 @@ pub(crate) fn guard(name: &str, f: impl FnOnce() -> Result<(), Failure>) -> QvSt
 pub extern "C" fn qv_last_error() -> *const c_char {
     // Not through `guard`: reading the message must not clear it.
     catch(c"quiver: qv_last_error panicked".as_ptr(), || {
-        // The CString lives in the thread-local until the next call replaces it, as the
-        // contract says; the pointer is to its heap buffer, which does not move meanwhile.
-        LAST_ERROR.with(|e| e.borrow().as_ptr())
+        // The buffer lives in the thread-local and is only written by the next call, as the
+        // contract says; until then its bytes (NUL-terminated) stay where they are. Never
+        // written yet: the empty message.
+        LAST_ERROR.with(|e| match e.borrow().as_slice() {
+            [] => c"".as_ptr(),
+            bytes => bytes.as_ptr().cast(),
+        })
     })
 }
 
 /// The thread's last error message, for this crate's tests.
 #[cfg(test)]
 pub(crate) fn last_error() -> String {
-    LAST_ERROR.with(|e| e.borrow().to_string_lossy().into_owned())
+    LAST_ERROR.with(|e| {
+        let e = e.borrow();
+        String::from_utf8_lossy(e.strip_suffix(&[0]).unwrap_or(&e)).into_owned()
+    })
 }
