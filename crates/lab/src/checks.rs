@@ -832,17 +832,21 @@ fn edits_against_rebuilt(
     let live: Vec<u32> = (0..state.instances.len() as u32)
         .filter(|&i| !removed[i as usize])
         .collect();
-    let mut b = World::builder();
-    for (g, tris) in state.geometries.iter().enumerate() {
-        let id = b.add_triangles(tris.clone());
-        if let Some(o) = &own[g] {
-            b.set_options(id, o).unwrap();
+    // The state's geometries, each with its own options, and the instances `which`.
+    let built = |which: &[u32]| {
+        let mut b = World::builder();
+        for (g, tris) in state.geometries.iter().enumerate() {
+            let id = b.add_triangles(tris.clone());
+            if let Some(o) = &own[g] {
+                b.set_options(id, o).unwrap();
+            }
         }
-    }
-    for &i in &live {
-        b.add_instance(state.instances[i as usize]);
-    }
-    let fresh = b.build(options).unwrap();
+        for &i in which {
+            b.add_instance(state.instances[i as usize]);
+        }
+        b.build(options).unwrap()
+    };
+    let fresh = built(&live);
     let renamed = |h: WorldHit| WorldHit {
         instance: InstanceId(live[h.instance.0 as usize]),
         ..h
@@ -857,10 +861,29 @@ fn edits_against_rebuilt(
         &mut NoStats,
         &mut NoFilter,
     );
+    // Two instances hit at one distance: the lower is reported where the walk meets both,
+    // but a far, ill-conditioned triangle's computed distance can fall short of its own box's
+    // entry by more than the box test's slack, and then the instance met second is culled at
+    // that distance. Which one the walk meets first differs between a rebuilt top level, a
+    // refit one and a packet, so such a tie may go either way; the instance reported must
+    // then hit the ray, alone, at exactly that distance.
+    let alone = |i: InstanceId, r: &Ray| built(&[i.0]).closest_hit(r).map(|h| h.t);
+    let same = |got: Option<WorldHit>, want: Option<WorldHit>, r: &Ray| match (got, want) {
+        (Some(g), Some(w)) if g != w => g.t == w.t && alone(g.instance, r) == Some(g.t),
+        _ => got == want,
+    };
     for (i, r) in rays.iter().enumerate() {
         let want = fresh.closest_hit(r).map(renamed);
-        assert_eq!(world.closest_hit(r), want, "edited world, ray {r:?}");
-        assert_eq!(hits[i], want, "edited world, packet, ray {r:?}");
+        let got = world.closest_hit(r);
+        assert!(
+            same(got, want, r),
+            "edited world, ray {r:?}: {got:?}, rebuilt {want:?}"
+        );
+        assert!(
+            same(hits[i], want, r),
+            "edited world, packet, ray {r:?}: {:?}, rebuilt {want:?}",
+            hits[i]
+        );
         assert_eq!(
             world.any_hit(r),
             fresh.any_hit(r),
