@@ -240,14 +240,22 @@ pub(crate) fn closest_uv(a: Vec3A, ab: Vec3A, ac: Vec3A, p: Vec3A) -> (f32, f32)
     let e = -exponent(m);
     let s = |w: Vec3A| Vec3A::new(scale2(w.x, e), scale2(w.y, e), scale2(w.z, e));
     let (ab, ac, ap) = (s(ab), s(ac), s(ap));
-    regions(ab, ac, ap).unwrap_or_else(|| closest_uv_wide(ab, ac, ap))
+    regions(wide(ab), wide(ac), wide(ap)).unwrap_or_else(|| closest_uv_wide(ab, ac, ap))
 }
 
-/// Ericson's region test on unit-sized inputs; `None` for a sliver (the sine of the angle
-/// at `a` below 1/8: the face and edge regions' decisions cancel there, see
+/// `v` in f64.
+#[inline]
+fn wide(v: Vec3A) -> glam::DVec3 {
+    glam::DVec3::new(v.x as f64, v.y as f64, v.z as f64)
+}
+
+/// Ericson's region test on unit-sized inputs, in f64: its dot products of differences
+/// cancel, and in f32 a point a few thousandths of the triangle's size from its face could
+/// come back nine f32 epsilons of the size away. `None` for a sliver (the
+/// sine of the angle at `a` below 1/8: the face and edge regions' decisions cancel there, see
 /// [`closest_uv_wide`]) and where the face region's barycentrics come out of the triangle.
 #[inline]
-fn regions(ab: Vec3A, ac: Vec3A, ap: Vec3A) -> Option<(f32, f32)> {
+fn regions(ab: glam::DVec3, ac: glam::DVec3, ap: glam::DVec3) -> Option<(f32, f32)> {
     let n = ab.cross(ac);
     // Also NaN (an overflowed product): the f64 path decides.
     let face = n.length_squared() * 64.0 > ab.length_squared() * ac.length_squared();
@@ -267,7 +275,7 @@ fn regions(ab: Vec3A, ac: Vec3A, ap: Vec3A) -> Option<(f32, f32)> {
     }
     let vc = d1 * d4 - d3 * d2;
     if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
-        return Some((clamp01(d1 / (d1 - d3)), 0.0));
+        return Some((clamp01(d1 / (d1 - d3)) as f32, 0.0));
     }
     let cp = ap - ac;
     let d5 = ab.dot(cp);
@@ -277,22 +285,22 @@ fn regions(ab: Vec3A, ac: Vec3A, ap: Vec3A) -> Option<(f32, f32)> {
     }
     let vb = d5 * d2 - d1 * d6;
     if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
-        return Some((0.0, clamp01(d2 / (d2 - d6))));
+        return Some((0.0, clamp01(d2 / (d2 - d6)) as f32));
     }
     let va = d3 * d6 - d5 * d4;
     let (p, q) = (d4 - d3, d5 - d6);
     if va <= 0.0 && p >= 0.0 && q >= 0.0 {
         let w = clamp01(p / (p + q));
-        return Some((1.0 - w, w));
+        return Some(((1.0 - w) as f32, w as f32));
     }
     let denom = 1.0 / (va + vb + vc);
     let (v, w) = (vb * denom, vc * denom);
-    (v >= 0.0 && w >= 0.0 && v + w <= 1.0).then_some((v, w))
+    (v >= 0.0 && w >= 0.0 && v + w <= 1.0).then_some((v as f32, w as f32))
 }
 
 /// `x` in `[0, 1]`; 0 for NaN (a zero-length edge).
 #[inline]
-fn clamp01(x: f32) -> f32 {
+fn clamp01(x: f64) -> f64 {
     if x > 0.0 {
         x.min(1.0)
     } else {
@@ -309,8 +317,7 @@ fn clamp01(x: f32) -> f32 {
 #[cold]
 #[inline(never)]
 fn closest_uv_wide(ab: Vec3A, ac: Vec3A, ap: Vec3A) -> (f32, f32) {
-    let w = |v: Vec3A| glam::DVec3::new(v.x as f64, v.y as f64, v.z as f64);
-    let (ab, ac, ap) = (w(ab), w(ac), w(ap));
+    let (ab, ac, ap) = (wide(ab), wide(ac), wide(ap));
     let n = ab.cross(ac);
     let nn = n.length_squared();
     let (mut u, mut v) = (-1.0, -1.0);
