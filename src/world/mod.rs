@@ -10,7 +10,12 @@
 //! different instances compare directly. An instance with the identity transform (a world-space
 //! geometry placed once) skips the transform. Equal distances go to the lower instance index,
 //! then, inside one instance, to the lower primitive index: the order of the same scene
-//! flattened instance by instance.
+//! flattened instance by instance. One limit: a triangle large and far from the origin for
+//! its size has a computed distance that can round below its instance box's entry by more than
+//! the box test's slack, and a walk that has already found a hit that near culls the box. Of
+//! two hits within that rounding of each other, which is reported can then depend on the order
+//! of the walk (a single ray, a packet, an edited or a rebuilt top level); both are hits the
+//! f64 oracle admits.
 //!
 //! One level of instancing: an instance places a geometry, not another world. Nested instances
 //! would put a transform, a top-level walk and a stack of ray states on every level; the

@@ -728,7 +728,8 @@ pub fn instanced_against_oracle(data: &[u8]) {
 /// with another layout; rebuild the top level) made to the world of `placements` in two
 /// edits; nothing may panic, a refused edit must be the error its state calls for, and on
 /// tame inputs the edited world answers every ray (single, packets; closest and any hit)
-/// exactly as the same state built afresh does.
+/// exactly as the same state built afresh does, or (closest hit) where the two differ, each
+/// with a hit the f64 oracle over the edited scene admits.
 fn edits_against_rebuilt(
     ops: &[u8],
     mut state: crate::worlds::Placements,
@@ -861,16 +862,21 @@ fn edits_against_rebuilt(
         &mut NoStats,
         &mut NoFilter,
     );
-    // Two instances hit at one distance: the lower is reported where the walk meets both,
-    // but a far, ill-conditioned triangle's computed distance can fall short of its own box's
-    // entry by more than the box test's slack, and then the instance met second is culled at
-    // that distance. Which one the walk meets first differs between a rebuilt top level, a
-    // refit one and a packet, so such a tie may go either way; the instance reported must
-    // then hit the ray, alone, at exactly that distance.
-    let alone = |i: InstanceId, r: &Ray| built(&[i.0]).closest_hit(r).map(|h| h.t);
-    let same = |got: Option<WorldHit>, want: Option<WorldHit>, r: &Ray| match (got, want) {
-        (Some(g), Some(w)) if g != w => g.t == w.t && alone(g.instance, r) == Some(g.t),
-        _ => got == want,
+    // Where the edited world and the rebuilt one differ, both answers must be ones the f64
+    // oracle over the edited scene admits: the walks meet instances in other orders, and a
+    // far, ill-conditioned triangle's computed distance can fall short of its own box's entry
+    // by more than the box test's slack, so one walk may cull a hit another keeps (two
+    // instances tied at one distance, or a hit at t = 0 against one at 1e-12).
+    let slack = state.slack();
+    let admitted = |h: Option<WorldHit>, r: &Ray| {
+        let (flat, names) = state.flattened(|i, _| {
+            !removed[i as usize] && state.instances[i as usize].mask & r.mask != 0
+        });
+        let answer = Oracle::with_slack(&flat, slack).closest_hit(r);
+        crate::worlds::check(&answer, h, &names).is_ok()
+    };
+    let same = |got: Option<WorldHit>, want: Option<WorldHit>, r: &Ray| {
+        got == want || (judgeable(r) && admitted(got, r) && admitted(want, r))
     };
     for (i, r) in rays.iter().enumerate() {
         let want = fresh.closest_hit(r).map(renamed);
