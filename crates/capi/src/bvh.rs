@@ -1,11 +1,11 @@
 //! `qv_bvh_*`: a BVH over one indexed triangle mesh.
 
 use crate::buffers::{bad_mesh, input, output, read_indices, read_vertices};
-use crate::error::{guard, non_null, Failure, QvStatus};
+use crate::error::{free_handle, guard, non_null, Failure, QvStatus};
 use crate::trace;
 use crate::types::{QvHit, QvPointHit, QvRay};
 use quiver_rt::glam::Vec3A;
-use quiver_rt::{Bvh, LoadError, RayQuery};
+use quiver_rt::{Bvh, LoadError};
 use std::ffi::{c_char, c_int, CStr};
 use std::path::PathBuf;
 
@@ -16,6 +16,17 @@ pub struct QvBvh {
     /// The triangles' vertex indices, for `qv_bvh_refit`; `None` for a BVH loaded from a
     /// file (the file format holds the triangles, not the indices).
     indices: Option<Vec<[u32; 3]>>,
+}
+
+impl trace::Traced for QvBvh {
+    const ARGUMENT: &'static str = "bvh";
+    type Scene = Bvh;
+    fn scene(&self) -> &Bvh {
+        &self.bvh
+    }
+    fn to_c(hit: Option<quiver_rt::Hit>) -> QvHit {
+        QvHit::of_bvh(hit)
+    }
 }
 
 /// The BVH behind handle `bvh`.
@@ -87,14 +98,8 @@ pub unsafe extern "C" fn qv_bvh_build_indexed(
 /// `bvh` is NULL or a live handle that no other thread uses, and is not used again.
 #[no_mangle]
 pub unsafe extern "C" fn qv_bvh_free(bvh: *mut QvBvh) {
-    guard("qv_bvh_free", || {
-        if !bvh.is_null() {
-            // SAFETY: a live handle is a `Box<QvBvh>` from `Box::into_raw`, given back once
-            // (the caller's contract) and used by no other thread.
-            drop(unsafe { Box::from_raw(bvh) });
-        }
-        Ok(())
-    });
+    // SAFETY: the caller's contract.
+    unsafe { free_handle("qv_bvh_free", bvh) }
 }
 
 /// The closest hit of `*ray` into `*hit` (the miss record when nothing is hit).
@@ -107,12 +112,8 @@ pub unsafe extern "C" fn qv_bvh_closest_hit(
     ray: *const QvRay,
     hit: *mut QvHit,
 ) -> QvStatus {
-    guard("qv_bvh_closest_hit", || {
-        // SAFETY: the caller's contract for each pointer, one element each.
-        let (b, ray, hit) = unsafe { (get(bvh)?, input(ray, 1, "ray")?, output(hit, 1, "hit")?) };
-        hit[0].write(QvHit::of_bvh(b.bvh.closest_hit(&ray[0].to_ray())));
-        Ok(())
-    })
+    // SAFETY: the caller's contract, which `trace::closest_hit` asks.
+    unsafe { trace::closest_hit("qv_bvh_closest_hit", bvh, ray, hit) }
 }
 
 /// Whether anything is hit within `*ray`'s interval: `*occluded` is 1 or 0.
@@ -125,18 +126,8 @@ pub unsafe extern "C" fn qv_bvh_any_hit(
     ray: *const QvRay,
     occluded: *mut c_int,
 ) -> QvStatus {
-    guard("qv_bvh_any_hit", || {
-        // SAFETY: the caller's contract for each pointer, one element each.
-        let (b, ray, occluded) = unsafe {
-            (
-                get(bvh)?,
-                input(ray, 1, "ray")?,
-                output(occluded, 1, "occluded")?,
-            )
-        };
-        occluded[0].write(c_int::from(b.bvh.any_hit(&ray[0].to_ray())));
-        Ok(())
-    })
+    // SAFETY: the caller's contract, which `trace::any_hit` asks.
+    unsafe { trace::any_hit("qv_bvh_any_hit", bvh, ray, occluded) }
 }
 
 /// The closest hits of `n` rays into `hits[0..n]`, traced in parallel.
@@ -151,13 +142,8 @@ pub unsafe extern "C" fn qv_bvh_closest_hits(
     n: usize,
     hits: *mut QvHit,
 ) -> QvStatus {
-    guard("qv_bvh_closest_hits", || {
-        // SAFETY: the caller's contract for each pointer, `n` elements each.
-        let (b, rays, hits) =
-            unsafe { (get(bvh)?, input(rays, n, "rays")?, output(hits, n, "hits")?) };
-        trace::closest_hits(&b.bvh, rays, hits, QvHit::of_bvh);
-        Ok(())
-    })
+    // SAFETY: the caller's contract, which `trace::closest_hits` asks.
+    unsafe { trace::closest_hits("qv_bvh_closest_hits", bvh, rays, n, hits) }
 }
 
 /// Whether each of `n` rays hits anything: `occluded[i]` is 1 or 0; traced in parallel.
@@ -172,18 +158,8 @@ pub unsafe extern "C" fn qv_bvh_any_hits(
     n: usize,
     occluded: *mut u8,
 ) -> QvStatus {
-    guard("qv_bvh_any_hits", || {
-        // SAFETY: the caller's contract for each pointer, `n` elements each.
-        let (b, rays, occluded) = unsafe {
-            (
-                get(bvh)?,
-                input(rays, n, "rays")?,
-                output(occluded, n, "occluded")?,
-            )
-        };
-        trace::any_hits(&b.bvh, rays, occluded);
-        Ok(())
-    })
+    // SAFETY: the caller's contract, which `trace::any_hits` asks.
+    unsafe { trace::any_hits("qv_bvh_any_hits", bvh, rays, n, occluded) }
 }
 
 /// Refits the BVH to new vertex positions for the same triangles (the index buffer given to

@@ -59,6 +59,21 @@ pub(crate) fn non_null<T>(p: *const T, name: &str) -> Result<(), Failure> {
     }
 }
 
+/// Frees handle `h` (a `Box<T>` turned into a raw pointer) as `name`; NULL is ignored.
+///
+/// # Safety
+/// `h` is NULL or a live handle no other thread uses, not used again.
+pub(crate) unsafe fn free_handle<T>(name: &str, h: *mut T) {
+    guard(name, || {
+        if !h.is_null() {
+            // SAFETY: a live handle is a `Box<T>` from `Box::into_raw`, given back once and
+            // used by no other thread (the caller's contract).
+            drop(unsafe { Box::from_raw(h) });
+        }
+        Ok(())
+    });
+}
+
 thread_local! {
     /// The message `qv_last_error` returns, NUL-terminated (empty: no message): replaced by
     /// every exported call on this thread. A byte buffer reused in place, so the calls that

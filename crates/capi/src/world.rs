@@ -2,14 +2,13 @@
 //! edits.
 
 use crate::buffers::{bad_mesh, input, output, read_indices, read_vertices};
-use crate::error::{guard, non_null, Failure, QvStatus};
+use crate::error::{free_handle, guard, non_null, Failure, QvStatus};
 use crate::trace;
 use crate::types::{affine_of_rows, QvFilterFn, QvHit, QvRay};
 use quiver_rt::glam::Affine3A;
 use quiver_rt::world::{invert, WorldEdit};
 use quiver_rt::{
-    BuildOptions, GeometryId, Instance, InstanceId, RayQuery, World, WorldBuilder, WorldError,
-    WorldHit,
+    BuildOptions, GeometryId, Instance, InstanceId, World, WorldBuilder, WorldError, WorldHit,
 };
 use std::ffi::{c_int, c_void};
 
@@ -55,14 +54,15 @@ unsafe fn builder_mut<'a>(b: *mut QvWorldBuilder) -> Result<&'a mut QvWorldBuild
     Ok(unsafe { &mut *b })
 }
 
-/// The world behind a handle, to query.
-///
-/// # Safety
-/// `w` is NULL or a live world handle no thread changes during the call.
-unsafe fn world_ref<'a>(w: *const QvWorld) -> Result<&'a World, Failure> {
-    non_null(w, "world")?;
-    // SAFETY: not NULL (checked); a live handle not changed meanwhile (the caller's contract).
-    Ok(unsafe { &(*w).world })
+impl trace::Traced for QvWorld {
+    const ARGUMENT: &'static str = "world";
+    type Scene = World;
+    fn scene(&self) -> &World {
+        &self.world
+    }
+    fn to_c(hit: Option<WorldHit>) -> QvHit {
+        QvHit::of_world(hit)
+    }
 }
 
 /// The world behind a handle, to edit.
@@ -124,14 +124,8 @@ pub unsafe extern "C" fn qv_world_builder_new(out: *mut *mut QvWorldBuilder) -> 
 /// `builder` is NULL or a live builder handle no other thread uses, not used again.
 #[no_mangle]
 pub unsafe extern "C" fn qv_world_builder_free(builder: *mut QvWorldBuilder) {
-    guard("qv_world_builder_free", || {
-        if !builder.is_null() {
-            // SAFETY: a live handle is a `Box` from `Box::into_raw`, given back once and used
-            // by no other thread (the caller's contract).
-            drop(unsafe { Box::from_raw(builder) });
-        }
-        Ok(())
-    });
+    // SAFETY: the caller's contract.
+    unsafe { free_handle("qv_world_builder_free", builder) }
 }
 
 /// Adds an indexed triangle mesh as a geometry (buffers as `qv_bvh_build_indexed` reads
@@ -290,14 +284,8 @@ pub unsafe extern "C" fn qv_world_build(
 /// `world` NULL or a live world handle no other thread uses, not used again.
 #[no_mangle]
 pub unsafe extern "C" fn qv_world_free(world: *mut QvWorld) {
-    guard("qv_world_free", || {
-        if !world.is_null() {
-            // SAFETY: a live handle is a `Box` from `Box::into_raw`, given back once and used
-            // by no other thread (the caller's contract).
-            drop(unsafe { Box::from_raw(world) });
-        }
-        Ok(())
-    });
+    // SAFETY: the caller's contract.
+    unsafe { free_handle("qv_world_free", world) }
 }
 
 /// The closest hit of `*ray` into `*hit` (the miss record when nothing is hit).
@@ -310,18 +298,8 @@ pub unsafe extern "C" fn qv_world_closest_hit(
     ray: *const QvRay,
     hit: *mut QvHit,
 ) -> QvStatus {
-    guard("qv_world_closest_hit", || {
-        // SAFETY: the caller's contract for each pointer, one element each.
-        let (w, ray, hit) = unsafe {
-            (
-                world_ref(world)?,
-                input(ray, 1, "ray")?,
-                output(hit, 1, "hit")?,
-            )
-        };
-        hit[0].write(QvHit::of_world(w.closest_hit(&ray[0].to_ray())));
-        Ok(())
-    })
+    // SAFETY: the caller's contract, which `trace::closest_hit` asks.
+    unsafe { trace::closest_hit("qv_world_closest_hit", world, ray, hit) }
 }
 
 /// Whether anything is hit within `*ray`'s interval: `*occluded` is 1 or 0.
@@ -334,18 +312,8 @@ pub unsafe extern "C" fn qv_world_any_hit(
     ray: *const QvRay,
     occluded: *mut c_int,
 ) -> QvStatus {
-    guard("qv_world_any_hit", || {
-        // SAFETY: the caller's contract for each pointer, one element each.
-        let (w, ray, occluded) = unsafe {
-            (
-                world_ref(world)?,
-                input(ray, 1, "ray")?,
-                output(occluded, 1, "occluded")?,
-            )
-        };
-        occluded[0].write(c_int::from(w.any_hit(&ray[0].to_ray())));
-        Ok(())
-    })
+    // SAFETY: the caller's contract, which `trace::any_hit` asks.
+    unsafe { trace::any_hit("qv_world_any_hit", world, ray, occluded) }
 }
 
 /// The closest hits of `n` rays into `hits[0..n]`, traced in parallel.
@@ -360,18 +328,8 @@ pub unsafe extern "C" fn qv_world_closest_hits(
     n: usize,
     hits: *mut QvHit,
 ) -> QvStatus {
-    guard("qv_world_closest_hits", || {
-        // SAFETY: the caller's contract for each pointer, `n` elements each.
-        let (w, rays, hits) = unsafe {
-            (
-                world_ref(world)?,
-                input(rays, n, "rays")?,
-                output(hits, n, "hits")?,
-            )
-        };
-        trace::closest_hits(w, rays, hits, QvHit::of_world);
-        Ok(())
-    })
+    // SAFETY: the caller's contract, which `trace::closest_hits` asks.
+    unsafe { trace::closest_hits("qv_world_closest_hits", world, rays, n, hits) }
 }
 
 /// Whether each of `n` rays hits anything: `occluded[i]` is 1 or 0; traced in parallel.
@@ -386,18 +344,8 @@ pub unsafe extern "C" fn qv_world_any_hits(
     n: usize,
     occluded: *mut u8,
 ) -> QvStatus {
-    guard("qv_world_any_hits", || {
-        // SAFETY: the caller's contract for each pointer, `n` elements each.
-        let (w, rays, occluded) = unsafe {
-            (
-                world_ref(world)?,
-                input(rays, n, "rays")?,
-                output(occluded, n, "occluded")?,
-            )
-        };
-        trace::any_hits(w, rays, occluded);
-        Ok(())
-    })
+    // SAFETY: the caller's contract, which `trace::any_hits` asks.
+    unsafe { trace::any_hits("qv_world_any_hits", world, rays, n, occluded) }
 }
 
 /// Runs `change` as one edit of `world`, committed (the top level refit or rebuilt) before

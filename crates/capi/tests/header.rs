@@ -1,6 +1,7 @@
 //! `include/quiver.h` and the library declare the same functions: every `qv_*(` the header
 //! declares is a `#[no_mangle]` function in `src/`, and every such function is declared.
-//! The header is written by hand, so this is what keeps the two from drifting apart.
+//! The status codes carry the same names and numbers on both sides. The header is written by
+//! hand, so this is what keeps the two from drifting apart.
 
 use std::collections::BTreeSet;
 use std::path::Path;
@@ -109,4 +110,59 @@ fn the_parsers_see_what_they_should() {
     let c = "/* qv_not(a) */ int qv_a(void); // qv_b(x)\nvoid qv_c (int);\n#define QV_X qv_d\nxqv_e(1);";
     let names = declared(&strip_c_comments(c));
     assert_eq!(names.into_iter().collect::<Vec<_>>(), ["qv_a", "qv_c"]);
+}
+
+/// The C name of a status (an exhaustive match: a new status fails to compile here until it
+/// is named, and then [`STATUSES`] and the header's check follow).
+fn c_name(s: quiver_capi::QvStatus) -> &'static str {
+    use quiver_capi::QvStatus::*;
+    match s {
+        Ok => "QV_OK",
+        NullPointer => "QV_NULL_POINTER",
+        InvalidArgument => "QV_INVALID_ARGUMENT",
+        BadMesh => "QV_BAD_MESH",
+        Io => "QV_IO",
+        BadFile => "QV_BAD_FILE",
+        Panic => "QV_PANIC",
+    }
+}
+
+/// Every status.
+const STATUSES: [quiver_capi::QvStatus; 7] = {
+    use quiver_capi::QvStatus::*;
+    [
+        Ok,
+        NullPointer,
+        InvalidArgument,
+        BadMesh,
+        Io,
+        BadFile,
+        Panic,
+    ]
+};
+
+#[test]
+fn the_header_numbers_the_statuses_as_the_library_does() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let header = strip_c_comments(&std::fs::read_to_string(root.join("include/quiver.h")).unwrap());
+    let body = header
+        .split("typedef enum QvStatus {")
+        .nth(1)
+        .and_then(|rest| rest.split('}').next())
+        .expect("quiver.h declares enum QvStatus");
+    let in_header: Vec<(String, i64)> = body
+        .split(',')
+        .filter(|e| !e.trim().is_empty())
+        .map(|e| {
+            let (name, value) = e
+                .split_once('=')
+                .expect("each status has its value written");
+            (name.trim().to_string(), value.trim().parse().unwrap())
+        })
+        .collect();
+    let in_library: Vec<(String, i64)> = STATUSES
+        .iter()
+        .map(|&s| (c_name(s).to_string(), s as i64))
+        .collect();
+    assert_eq!(in_header, in_library);
 }
