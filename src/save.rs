@@ -53,7 +53,7 @@ pub const FORMAT_VERSION: u32 = 1;
 const MAGIC: [u8; 8] = *b"QUIVBVH\x1a";
 
 /// Written in the writer's byte order: read back as this value in the same order only.
-const ENDIAN: u32 = 0x0102_0304;
+pub(crate) const ENDIAN: u32 = 0x0102_0304;
 
 /// The header's size; the sections follow it (a multiple of [`ALIGN`], so they start
 /// aligned; bytes 136 on are reserved, zero).
@@ -69,7 +69,7 @@ const LEAF_TRIANGLE: u8 = 1;
 
 /// Bytes of one saved triangle: nine f32, the three corners (a [`Vec3A`] holds a fourth lane
 /// nothing reads, which is not stored).
-const TRIANGLE_BYTES: usize = 36;
+pub(crate) const TRIANGLE_BYTES: usize = 36;
 
 /// The sections, in file order, with their element sizes where they do not depend on the
 /// layout (the nodes' does).
@@ -242,6 +242,26 @@ pub enum LoadError {
         /// The node.
         node: usize,
     },
+    /// A world file's geometry holds a BVH that does not load (`error` says why).
+    InGeometry {
+        /// The geometry.
+        geometry: usize,
+        /// What is wrong with its BVH.
+        error: Box<LoadError>,
+    },
+    /// A world file's geometry stores another number of triangles than its BVH was built
+    /// over.
+    GeometryLength {
+        /// The geometry.
+        geometry: usize,
+        /// Triangles stored.
+        triangles: u64,
+        /// Triangles its BVH was built over.
+        inputs: u64,
+    },
+    /// A world file's instances do not make a world: one names no geometry, or its transform
+    /// is not finite or not invertible, or there are too many.
+    World(crate::world::WorldError),
 }
 
 impl fmt::Display for LoadError {
@@ -322,6 +342,16 @@ impl fmt::Display for LoadError {
             Unreached { node } => {
                 write!(f, "node {node} is reached by no link and is not padding")
             }
+            InGeometry { geometry, error } => write!(f, "geometry {geometry}'s BVH: {error}"),
+            GeometryLength {
+                geometry,
+                triangles,
+                inputs,
+            } => write!(
+                f,
+                "geometry {geometry} stores {triangles} triangles, its BVH was built over {inputs}"
+            ),
+            World(e) => write!(f, "the world's instances: {e}"),
         }
     }
 }
@@ -384,7 +414,7 @@ fn block_hash(block: &[u8]) -> u64 {
 
 /// The file checksum of `data` (everything before the stored checksum): FNV-1a-64 over the
 /// hashes of its 1 MiB blocks in order ([`block_hash`]), then its length.
-fn checksum(data: &[u8]) -> u64 {
+pub(crate) fn checksum(data: &[u8]) -> u64 {
     use rayon::prelude::*;
     let blocks: Vec<u64> = data.par_chunks(BLOCK).map(block_hash).collect();
     fold_blocks(&blocks, data.len())
@@ -396,15 +426,25 @@ fn fold_blocks(blocks: &[u64], len: usize) -> u64 {
 }
 
 /// A writer that hashes what passes through it, block by block, as [`checksum`] does.
-struct Hashing<'w, W: ?Sized> {
+pub(crate) struct Hashing<'w, W: ?Sized> {
     w: &'w mut W,
     block: Vec<u8>,
     blocks: Vec<u64>,
     len: usize,
 }
 
-impl<W: Write + ?Sized> Hashing<'_, W> {
-    fn put(&mut self, mut bytes: &[u8]) -> io::Result<()> {
+impl<'w, W: Write + ?Sized> Hashing<'w, W> {
+    /// Hashes what is written to `w`.
+    pub(crate) fn new(w: &'w mut W) -> Self {
+        Hashing {
+            w,
+            block: Vec::with_capacity(BLOCK),
+            blocks: Vec::new(),
+            len: 0,
+        }
+    }
+
+    pub(crate) fn put(&mut self, mut bytes: &[u8]) -> io::Result<()> {
         self.w.write_all(bytes)?;
         self.len += bytes.len();
         while !bytes.is_empty() {
@@ -424,12 +464,25 @@ impl<W: Write + ?Sized> Hashing<'_, W> {
         self.put(&[0u8; ALIGN][..padding(len)])
     }
 
-    fn finish(mut self) -> io::Result<()> {
+    /// Writes the checksum of everything put.
+    pub(crate) fn finish(mut self) -> io::Result<()> {
         if !self.block.is_empty() {
             self.blocks.push(block_hash(&self.block));
         }
         let sum = fold_blocks(&self.blocks, self.len);
         self.w.write_all(&sum.to_le_bytes())
+    }
+}
+
+/// A BVH file nested in another (a world's geometry) writes through the outer hash.
+impl<W: Write + ?Sized> Write for Hashing<'_, W> {
+    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+        self.put(buf)?;
+        Ok(buf.len())
+    }
+
+    fn flush(&mut self) -> io::Result<()> {
+        self.w.flush()
     }
 }
 
@@ -733,7 +786,7 @@ fn parts(layout: &AnyLayout<Triangle>) -> Parts<'_> {
 }
 
 /// Appends a triangle's nine coordinates, little-endian.
-fn triangle_bytes(t: &Triangle, out: &mut Vec<u8>) {
+pub(crate) fn triangle_bytes(t: &Triangle, out: &mut Vec<u8>) {
     for v in &t.v {
         for x in [v.x, v.y, v.z] {
             out.extend_from_slice(&x.to_le_bytes());
@@ -781,12 +834,7 @@ impl Bvh<Triangle> {
                 p.far.len() as u64,
             ],
         };
-        let mut out = Hashing {
-            w,
-            block: Vec::with_capacity(BLOCK),
-            blocks: Vec::new(),
-            len: 0,
-        };
+        let mut out = Hashing::new(w);
         out.put(&header.bytes())?;
         // The Pod arrays are written as they are in memory: little-endian on every machine
         // quiver loads on (the header's marker refuses the others).
@@ -956,8 +1004,20 @@ impl Bvh<Triangle> {
 // ---------------------------------------------------------------------------------------
 // Loading and checking.
 
+/// The length of the BVH file `bytes` begin with, as its header gives it (checked for
+/// overflow, not against the bytes present).
+pub(crate) fn saved_len(bytes: &[u8]) -> Result<u64, LoadError> {
+    let header = Header::parse(&bytes[..bytes.len().min(HEADER)])?;
+    Ok(header.extents()?.1)
+}
+
+/// How many input triangles `bvh` was built over (its input indices run below this).
+pub(crate) fn input_count(bvh: &Bvh<Triangle>) -> usize {
+    parts(&bvh.layout).inputs.len
+}
+
 /// The triangles of a section (nine little-endian f32 each).
-fn read_triangles(bytes: &[u8]) -> Vec<Triangle> {
+pub(crate) fn read_triangles(bytes: &[u8]) -> Vec<Triangle> {
     let f: Vec<f32> = bytemuck::pod_collect_to_vec(bytes);
     f.chunks_exact(9)
         .map(|c| {

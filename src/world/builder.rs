@@ -203,12 +203,10 @@ impl<P: Primitive> WorldBuilder<P> {
         if let Some((geometry, error)) = self.bad_mesh {
             return Err(WorldError::Mesh { geometry, error });
         }
-        let placements = self
-            .instances
-            .iter()
-            .enumerate()
-            .map(|(i, inst)| check_instance(i, inst, self.pending.len()))
-            .collect::<Result<Vec<_>, _>>()?;
+        // Checked before the geometries' builds, which are the long part.
+        for (i, inst) in self.instances.iter().enumerate() {
+            check_instance(i, inst, self.pending.len())?;
+        }
         let mut own: Vec<Option<BuildOptions<'_>>> = vec![None; self.pending.len()];
         for (slot, o) in own.iter_mut().zip(self.options) {
             *slot = o.map(|o| o.pool_of(options));
@@ -228,19 +226,60 @@ impl<P: Primitive> WorldBuilder<P> {
                 })
                 .collect()
         });
-        let placed: Vec<InstanceLeaf> = placements
-            .into_iter()
+        let placed = Placed {
+            geometries,
+            instances: self.instances,
+            removed: Vec::new(),
+        };
+        let mut world = placed.world(options)?;
+        world.filters = self.filters;
+        Ok(world)
+    }
+}
+
+/// Built geometries and their instances (`removed[i]`: instance `i` removed; may be shorter
+/// than `instances`): a world but for its top level.
+pub(super) struct Placed<P> {
+    pub geometries: Vec<Geometry<P>>,
+    pub instances: Vec<Instance>,
+    pub removed: Vec<bool>,
+}
+
+impl<P: Primitive> Placed<P> {
+    /// The world, its top level built over the instances (on `options`' pool, for its
+    /// instruction set), no filters set.
+    ///
+    /// # Errors
+    /// [`WorldError`] for an instance naming no geometry or placed by a transform that is not
+    /// finite or not invertible, or more than `u32::MAX` instances or geometries.
+    pub fn world(self, options: &BuildOptions<'_>) -> Result<World<P>, WorldError> {
+        let Placed {
+            geometries,
+            instances,
+            removed,
+        } = self;
+        if instances.len() >= u32::MAX as usize || geometries.len() >= u32::MAX as usize {
+            return Err(WorldError::TooMany);
+        }
+        let placed: Vec<InstanceLeaf> = instances
+            .iter()
             .enumerate()
-            .map(|(i, placement)| InstanceLeaf::new(i, &self.instances[i], placement))
-            .collect();
-        let boxes = options.run(|| world_boxes(&self.instances, &geometries, &[]));
+            .map(|(i, inst)| {
+                Ok(InstanceLeaf::new(
+                    i,
+                    inst,
+                    check_instance(i, inst, geometries.len())?,
+                ))
+            })
+            .collect::<Result<_, WorldError>>()?;
+        let boxes = options.run(|| world_boxes(&instances, &geometries, &removed));
         let top = options.run(|| top_level(&placed, &boxes, options.chosen_isa()));
         let bounds = boxes.iter().fold(Aabb::EMPTY, |b, w| b.union(w));
         Ok(World {
             geometries,
-            instances: self.instances,
-            removed: Vec::new(),
-            filters: self.filters,
+            instances,
+            removed,
+            filters: Vec::new(),
             top,
             bounds,
         })

@@ -61,6 +61,7 @@ mod instance;
 mod packet;
 mod point;
 mod query;
+mod save;
 mod top;
 
 pub use builder::WorldBuilder;

@@ -1786,15 +1786,22 @@ pub fn reseal_saved(file: &mut [u8]) {
 /// BVH or a [`quiver_rt::LoadError`], never panic, hang or allocate past the bytes present;
 /// a loaded BVH must save to bytes that load again and answer every ray (single and packets,
 /// closest and any hit) as it does, and a refit of it must not panic; an unchanged file must
-/// answer as the BVH that wrote it.
+/// answer as the BVH that wrote it. The same for saved worlds ([`quiver_rt::World::from_bytes`];
+/// the mode's bit 2 changes a world file of the triangles placed twice): never a panic, and
+/// an unchanged file answers as the world that wrote it.
 pub fn saved_bvh(data: &[u8]) {
     let mut b = ByteReader(data);
     let mode = b.u8();
     if mode & 1 == 0 {
         let rest = b.0;
+        let rays = fuzz_rays(&mut ByteReader(rest));
         if let Ok(bvh) = Bvh::from_bytes(rest) {
-            let rays = fuzz_rays(&mut ByteReader(rest));
             loaded_answers_again(&bvh, &rays, None);
+        }
+        if let Ok(world) = quiver_rt::World::from_bytes(rest) {
+            for r in &rays {
+                let _ = (world.closest_hit(r), world.any_hit(r));
+            }
         }
         return;
     }
@@ -1804,8 +1811,20 @@ pub fn saved_bvh(data: &[u8]) {
         .map(|_| Triangle::new(b.point(), b.point(), b.point()))
         .collect();
     let rays = fuzz_rays(&mut ByteReader(data));
-    let bvh = Bvh::build(&tris, &BuildOptions::default().layout(layout)).expect("in range");
-    let original = bvh.to_bytes();
+    let options = BuildOptions::default().layout(layout);
+    let bvh = Bvh::build(&tris, &options).expect("in range");
+    // Mode bit 2: the triangles as a world (placed twice), its file changed instead.
+    let world = (mode & 4 == 4).then(|| {
+        use quiver_rt::{glam::Affine3A, Instance, World};
+        let mut w = World::builder();
+        let g = w.add_triangles(tris.clone());
+        w.add_instance(Instance::of(g));
+        w.add_instance(Instance::of(g).transform(Affine3A::from_translation(glam::Vec3::X)));
+        w.build(&options).expect("valid instances")
+    });
+    let original = world
+        .as_ref()
+        .map_or_else(|| bvh.to_bytes(), |w| w.to_bytes());
     let mut file = original.clone();
     let edits = b.u8() % 8;
     for _ in 0..edits {
@@ -1836,6 +1855,20 @@ pub fn saved_bvh(data: &[u8]) {
     }
     if mode & 2 == 2 {
         reseal_saved(&mut file);
+    }
+    if let Some(world) = world {
+        let loaded = quiver_rt::World::from_bytes(&file);
+        if file == original {
+            let loaded = loaded.expect("an unchanged file loads");
+            for r in &rays {
+                assert_eq!(loaded.closest_hit(r), world.closest_hit(r), "{r:?}");
+            }
+        } else if let Ok(loaded) = loaded {
+            for r in &rays {
+                let _ = (loaded.closest_hit(r), loaded.any_hit(r));
+            }
+        }
+        return;
     }
     let loaded = Bvh::from_bytes(&file);
     if file == original {
