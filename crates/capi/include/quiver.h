@@ -245,6 +245,21 @@ QvStatus qv_world_build(QvWorldBuilder *builder, QvWorld **out);
 /* Frees a world. NULL is ignored. The world must not be in use on another thread. */
 void qv_world_free(QvWorld *world);
 
+/* Writes the world to the file `path` (a NUL-terminated file name, created or truncated) in
+ * quiver's world file format (docs/file-format.md): every geometry with its BVH, every
+ * instance (removed ones too, so ids stay). Filters are code and are not saved: a loaded
+ * world has none.
+ * Errors: QV_NULL_POINTER; QV_IO (the message names the path and the OS error). */
+QvStatus qv_world_save(const QvWorld *world, const char *path);
+
+/* Reads a world qv_world_save wrote from the file `path`, checked completely (checksum,
+ * every geometry's BVH, every instance's geometry and transform), and builds its top level
+ * again. On QV_OK *out is the new world (free it with qv_world_free), with no filters; it
+ * answers every query as the saved one did. On failure *out is NULL (when `out` is not NULL).
+ * Errors: QV_NULL_POINTER; QV_IO; QV_BAD_FILE (not a saved world, damaged, another format
+ * version or byte order, an instance that places nothing: the message says which). */
+QvStatus qv_world_load(const char *path, QvWorld **out);
+
 /* The closest hit of *ray among the instances its mask sees, into *hit (the miss record
  * when nothing is hit). Errors: QV_NULL_POINTER. */
 QvStatus qv_world_closest_hit(const QvWorld *world, const QvRay *ray, QvHit *hit);

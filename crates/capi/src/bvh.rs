@@ -2,12 +2,12 @@
 
 use crate::buffers::{bad_mesh, input, output, read_indices, read_vertices};
 use crate::error::{free_handle, guard, non_null, Failure, QvStatus};
+use crate::files::{self, path_of};
 use crate::trace;
 use crate::types::{QvHit, QvPointHit, QvRay};
 use quiver_rt::glam::Vec3A;
-use quiver_rt::{Bvh, LoadError};
-use std::ffi::{c_char, c_int, CStr};
-use std::path::PathBuf;
+use quiver_rt::Bvh;
+use std::ffi::{c_char, c_int};
 
 /// A BVH over an indexed triangle mesh (opaque to C), with the mesh's index buffer kept for
 /// refits.
@@ -219,27 +219,6 @@ pub unsafe extern "C" fn qv_bvh_closest_point(
     })
 }
 
-/// The file path `path` names.
-///
-/// # Safety
-/// `path` is NULL or a NUL-terminated string.
-unsafe fn path_of(path: *const c_char) -> Result<PathBuf, Failure> {
-    non_null(path, "path")?;
-    // SAFETY: not NULL (checked), and NUL-terminated (the caller's contract).
-    let bytes = unsafe { CStr::from_ptr(path) }.to_bytes();
-    #[cfg(unix)]
-    {
-        use std::os::unix::ffi::OsStrExt;
-        Ok(PathBuf::from(std::ffi::OsStr::from_bytes(bytes)))
-    }
-    #[cfg(not(unix))]
-    {
-        std::str::from_utf8(bytes)
-            .map(PathBuf::from)
-            .map_err(|_| Failure::new(QvStatus::InvalidArgument, "path: not UTF-8"))
-    }
-}
-
 /// Writes the BVH to the file `path` (created or truncated) in quiver's file format.
 ///
 /// # Safety
@@ -249,10 +228,7 @@ pub unsafe extern "C" fn qv_bvh_save(bvh: *const QvBvh, path: *const c_char) -> 
     guard("qv_bvh_save", || {
         // SAFETY: the caller's contract for each pointer.
         let (b, path) = unsafe { (get(bvh)?, path_of(path)?) };
-        let io = |e: std::io::Error| Failure::new(QvStatus::Io, format!("{}: {e}", path.display()));
-        let mut file = std::fs::File::create(&path).map_err(io)?;
-        b.bvh.save(&mut file).map_err(io)?;
-        file.sync_all().map_err(io)
+        files::save(&path, |file| b.bvh.save(file))
     })
 }
 
@@ -269,13 +245,7 @@ pub unsafe extern "C" fn qv_bvh_load(path: *const c_char, out: *mut *mut QvBvh) 
             clear_out(out)?;
             path_of(path)?
         };
-        let shown = path.display();
-        let bytes = std::fs::read(&path)
-            .map_err(|e| Failure::new(QvStatus::Io, format!("{shown}: {e}")))?;
-        let bvh = Bvh::from_bytes(&bytes).map_err(|e| match e {
-            LoadError::Io(e) => Failure::new(QvStatus::Io, format!("{shown}: {e}")),
-            e => Failure::new(QvStatus::BadFile, format!("{shown}: {e}")),
-        })?;
+        let bvh = files::load(&path, Bvh::from_bytes)?;
         let handle = Box::new(QvBvh { bvh, indices: None });
         // SAFETY: `out` is not NULL and writable (checked by `clear_out`, the caller's
         // contract).

@@ -617,3 +617,60 @@ fn a_panic_becomes_qv_panic_with_its_message() {
     let c = unsafe { std::ffi::CStr::from_ptr(qv_last_error()) };
     assert_eq!(c.to_str().unwrap(), "quiver panicked: ray 57");
 }
+
+#[test]
+fn a_saved_world_loads_and_answers_the_same() {
+    let dir = std::env::temp_dir().join(format!("quiver-capi-world-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("squares.qwld");
+    let path = std::ffi::CString::new(file.to_str().unwrap()).unwrap();
+    let world = two_squares(None, null_mut());
+    let mut loaded = null_mut();
+    // SAFETY: a live handle, a NUL-terminated path, a writable out.
+    unsafe {
+        assert_eq!(qv_world_set_mask(world, 0, 4), QvStatus::Ok);
+        assert_eq!(
+            qv_world_save(world, path.as_ptr()),
+            QvStatus::Ok,
+            "{}",
+            last_error()
+        );
+        assert_eq!(
+            qv_world_load(path.as_ptr(), &mut loaded),
+            QvStatus::Ok,
+            "{}",
+            last_error()
+        );
+    }
+    let mut hits = 0;
+    for i in 0..400 {
+        let mut ray = down((i % 20) as f32 / 6.0 - 0.2, (i / 20) as f32 / 15.0 - 0.1);
+        ray.mask = [u32::MAX, 4, 2][i % 3];
+        let h = world_hit(world, ray);
+        hits += usize::from(h.prim != QV_INVALID_ID);
+        assert_eq!(world_hit(loaded, ray), h);
+    }
+    assert!(hits > 100, "{hits}");
+    // A damaged file, a BVH file where a world belongs, and NULLs.
+    let mut bytes = std::fs::read(&file).unwrap();
+    bytes[40] ^= 1;
+    std::fs::write(&file, bytes).unwrap();
+    let mut again = null_mut();
+    // SAFETY: NUL-terminated paths, a writable out; NULLs where the test says.
+    unsafe {
+        assert_eq!(qv_world_load(path.as_ptr(), &mut again), QvStatus::BadFile);
+        assert!(last_error().contains("checksum"), "{}", last_error());
+        assert!(again.is_null());
+        let bvh = build(&SQUARE, &INDICES).unwrap();
+        assert_eq!(qv_bvh_save(bvh, path.as_ptr()), QvStatus::Ok);
+        assert_eq!(qv_world_load(path.as_ptr(), &mut again), QvStatus::BadFile);
+        assert!(last_error().contains("magic"), "{}", last_error());
+        assert_eq!(qv_world_load(null(), &mut again), QvStatus::NullPointer);
+        assert_eq!(qv_world_save(null(), path.as_ptr()), QvStatus::NullPointer);
+        assert_eq!(last_error(), "qv_world_save: world is NULL");
+        qv_bvh_free(bvh);
+        qv_world_free(world);
+        qv_world_free(loaded);
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -3,6 +3,7 @@
 
 use crate::buffers::{bad_mesh, input, output, read_indices, read_vertices};
 use crate::error::{free_handle, guard, non_null, Failure, QvStatus};
+use crate::files::{self, path_of};
 use crate::trace;
 use crate::types::{affine_of_rows, QvFilterFn, QvHit, QvRay};
 use quiver_rt::glam::Affine3A;
@@ -10,7 +11,7 @@ use quiver_rt::world::{invert, WorldEdit};
 use quiver_rt::{
     BuildOptions, GeometryId, Instance, InstanceId, World, WorldBuilder, WorldError, WorldHit,
 };
-use std::ffi::{c_int, c_void};
+use std::ffi::{c_char, c_int, c_void};
 
 /// A world being collected: meshes, instances, filters (opaque to C).
 pub struct QvWorldBuilder {
@@ -286,6 +287,42 @@ pub unsafe extern "C" fn qv_world_build(
 pub unsafe extern "C" fn qv_world_free(world: *mut QvWorld) {
     // SAFETY: the caller's contract.
     unsafe { free_handle("qv_world_free", world) }
+}
+
+/// Writes the world to the file `path` (created or truncated) in quiver's world file format;
+/// filters are not saved.
+///
+/// # Safety
+/// `world` a live world handle or NULL; `path` NULL or a NUL-terminated string.
+#[no_mangle]
+pub unsafe extern "C" fn qv_world_save(world: *const QvWorld, path: *const c_char) -> QvStatus {
+    guard("qv_world_save", || {
+        non_null(world, "world")?;
+        // SAFETY: the caller's contract for each pointer; `world` is not NULL (checked).
+        let (w, path) = unsafe { (&(*world).world, path_of(path)?) };
+        files::save(&path, |file| w.save(file))
+    })
+}
+
+/// Reads a world `qv_world_save` wrote from the file `path`, checked completely before it is
+/// returned. On success `*out` is the new handle (free it with `qv_world_free`), else NULL.
+///
+/// # Safety
+/// `path` NULL or a NUL-terminated string; `out` NULL or writable.
+#[no_mangle]
+pub unsafe extern "C" fn qv_world_load(path: *const c_char, out: *mut *mut QvWorld) -> QvStatus {
+    guard("qv_world_load", || {
+        non_null(out, "out")?;
+        // SAFETY: not NULL (checked) and writable (the caller's contract): cleared first, so
+        // a refused call leaves no stale handle.
+        unsafe { out.write(std::ptr::null_mut()) };
+        // SAFETY: the caller's contract for `path`.
+        let path = unsafe { path_of(path)? };
+        let world = files::load(&path, World::from_bytes)?;
+        // SAFETY: as above for `out`.
+        unsafe { out.write(Box::into_raw(Box::new(QvWorld { world }))) };
+        Ok(())
+    })
 }
 
 /// The closest hit of `*ray` into `*hit` (the miss record when nothing is hit).
