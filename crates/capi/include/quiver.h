@@ -183,10 +183,12 @@ QvStatus qv_bvh_refit(QvBvh *bvh, const float *vertices, size_t vertex_count,
 QvStatus qv_bvh_closest_point(const QvBvh *bvh, const float point[3], float max_distance,
                               QvPointHit *hit);
 
-/* Writes the BVH to the file `path` (a NUL-terminated file name, created or truncated) in
- * quiver's file format (docs/file-format.md): qv_bvh_load reads it on any machine of the
- * same byte order. The index buffer is not saved.
- * Errors: QV_NULL_POINTER; QV_IO (the message names the path and the OS error). */
+/* Writes the BVH to the file `path` (a NUL-terminated file name, created or replaced all or
+ * nothing: written beside it as a temporary file, then renamed over it, so a failed save
+ * leaves an existing file as it was) in quiver's file format (docs/file-format.md):
+ * qv_bvh_load reads it on any machine of the same byte order. The index buffer is not saved.
+ * Errors: QV_NULL_POINTER; QV_INVALID_ARGUMENT (a path that names no file, such as "/");
+ * QV_IO (the message names the path and the OS error). */
 QvStatus qv_bvh_save(const QvBvh *bvh, const char *path);
 
 /* Reads a BVH qv_bvh_save wrote from the file `path`, checked completely (checksum and
@@ -245,11 +247,13 @@ QvStatus qv_world_build(QvWorldBuilder *builder, QvWorld **out);
 /* Frees a world. NULL is ignored. The world must not be in use on another thread. */
 void qv_world_free(QvWorld *world);
 
-/* Writes the world to the file `path` (a NUL-terminated file name, created or truncated) in
- * quiver's world file format (docs/file-format.md): every geometry with its BVH, every
- * instance (removed ones too, so ids stay). Filters are code and are not saved: a loaded
+/* Writes the world to the file `path` (a NUL-terminated file name, created or replaced all or
+ * nothing: written beside it as a temporary file, then renamed over it, so a failed save
+ * leaves an existing file as it was) in quiver's world file format (docs/file-format.md):
+ * every geometry with its BVH, every instance (removed ones too, so ids stay). Filters are code and are not saved: a loaded
  * world has none.
- * Errors: QV_NULL_POINTER; QV_IO (the message names the path and the OS error). */
+ * Errors: QV_NULL_POINTER; QV_INVALID_ARGUMENT (a path that names no file, such as "/");
+ * QV_IO (the message names the path and the OS error). */
 QvStatus qv_world_save(const QvWorld *world, const char *path);
 
 /* Reads a world qv_world_save wrote from the file `path`, checked completely (checksum,

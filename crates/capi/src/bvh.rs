@@ -219,7 +219,7 @@ pub unsafe extern "C" fn qv_bvh_closest_point(
     })
 }
 
-/// Writes the BVH to the file `path` (created or truncated) in quiver's file format.
+/// Writes the BVH to the file `path` (created or replaced, all or nothing) in quiver's file format.
 ///
 /// # Safety
 /// `bvh` a live handle or NULL; `path` NULL or a NUL-terminated string.

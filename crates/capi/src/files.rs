@@ -3,8 +3,10 @@
 use crate::error::{non_null, Failure, QvStatus};
 use quiver_rt::LoadError;
 use std::ffi::{c_char, CStr};
+use std::fs::File;
 use std::io;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
 
 /// The file path `path` names.
 ///
@@ -27,15 +29,52 @@ pub(crate) unsafe fn path_of(path: *const c_char) -> Result<PathBuf, Failure> {
     }
 }
 
-/// Writes the file `path` (created or truncated) by `write`, then flushes it to the disk.
+/// Writes the file `path` by `write`, all or nothing: into a new temporary file beside it,
+/// flushed to the disk, then renamed over `path` (atomic). A write that fails leaves `path` as
+/// it was and no temporary file behind.
 pub(crate) fn save(
-    path: &PathBuf,
-    write: impl FnOnce(&mut std::fs::File) -> io::Result<()>,
+    path: &Path,
+    write: impl FnOnce(&mut File) -> io::Result<()>,
 ) -> Result<(), Failure> {
     let io = |e: io::Error| Failure::new(QvStatus::Io, format!("{}: {e}", path.display()));
-    let mut file = std::fs::File::create(path).map_err(io)?;
-    write(&mut file).map_err(io)?;
-    file.sync_all().map_err(io)
+    let name = path.file_name().ok_or_else(|| {
+        Failure::new(
+            QvStatus::InvalidArgument,
+            format!("path: {} names no file", path.display()),
+        )
+    })?;
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    // A name no other writer shares: this process, a counter, and `create_new` refusing one
+    // that exists.
+    static NEXT: AtomicU64 = AtomicU64::new(0);
+    let mut tries = 0;
+    let (temp, mut file) = loop {
+        let mut temp_name = std::ffi::OsString::from(".");
+        temp_name.push(name);
+        temp_name.push(format!(
+            ".{}.{}.partial",
+            std::process::id(),
+            NEXT.fetch_add(1, Ordering::Relaxed)
+        ));
+        let temp = dir.join(temp_name);
+        match File::options().write(true).create_new(true).open(&temp) {
+            Ok(file) => break (temp, file),
+            Err(e) if e.kind() == io::ErrorKind::AlreadyExists && tries < 1000 => tries += 1,
+            Err(e) => return Err(io(e)),
+        }
+    };
+    let written = write(&mut file)
+        .and_then(|()| file.sync_all())
+        .and_then(|()| std::fs::rename(&temp, path));
+    if let Err(e) = written {
+        drop(file);
+        let _ = std::fs::remove_file(&temp);
+        return Err(io(e));
+    }
+    Ok(())
 }
 
 /// The object `parse` reads from the whole file `path`: `QV_IO` when it cannot be read,

@@ -651,6 +651,31 @@ fn a_saved_world_loads_and_answers_the_same() {
         assert_eq!(world_hit(loaded, ray), h);
     }
     assert!(hits > 100, "{hits}");
+    // All or nothing: no temporary file stays; a save that fails (renamed over a directory)
+    // leaves what was there and nothing more; a path naming no file is refused.
+    let names = || {
+        let mut n: Vec<String> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().into_string().unwrap())
+            .collect();
+        n.sort();
+        n
+    };
+    assert_eq!(names(), ["squares.qwld"]);
+    let sub = dir.join("sub");
+    std::fs::create_dir(&sub).unwrap();
+    let sub_path = std::ffi::CString::new(sub.to_str().unwrap()).unwrap();
+    let root = std::ffi::CString::new("/").unwrap();
+    // SAFETY: a live handle and NUL-terminated paths.
+    unsafe {
+        assert_eq!(qv_world_save(world, sub_path.as_ptr()), QvStatus::Io);
+        assert_eq!(
+            qv_world_save(world, root.as_ptr()),
+            QvStatus::InvalidArgument
+        );
+    }
+    assert!(sub.is_dir());
+    assert_eq!(names(), ["squares.qwld", "sub"]);
     // A damaged file, a BVH file where a world belongs, and NULLs.
     let mut bytes = std::fs::read(&file).unwrap();
     bytes[40] ^= 1;

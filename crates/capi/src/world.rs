@@ -289,7 +289,7 @@ pub unsafe extern "C" fn qv_world_free(world: *mut QvWorld) {
     unsafe { free_handle("qv_world_free", world) }
 }
 
-/// Writes the world to the file `path` (created or truncated) in quiver's world file format;
+/// Writes the world to the file `path` (created or replaced, all or nothing) in quiver's world file format;
 /// filters are not saved.
 ///
 /// # Safety
