@@ -85,16 +85,20 @@ typedef struct QvHit {
     uint32_t geometry, instance;
 } QvHit;
 
-/* The nearest point of a BVH's triangles to a query point. On a miss (nothing within the
- * distance asked): prim is QV_INVALID_ID, distance INFINITY, the rest 0. */
+/* The nearest point of a BVH's or a world's triangles to a query point. On a miss (nothing
+ * within the distance asked): prim, geometry and instance are QV_INVALID_ID, distance
+ * INFINITY, the rest 0. */
 typedef struct QvPointHit {
+    /* The point, in world space for a world. */
     float point[3];
-    /* Distance from the query point to point. */
+    /* Distance from the query point to point (in world space for a world). */
     float distance;
     /* Barycentric weights of the triangle's second and third vertex at point. */
     float u, v;
     /* The triangle: its index in the mesh's index buffer. */
     uint32_t prim;
+    /* Worlds: the geometry and instance of the triangle. A lone BVH: QV_INVALID_ID. */
+    uint32_t geometry, instance;
 } QvPointHit;
 
 /* A BVH over one indexed triangle mesh (opaque). */
@@ -246,6 +250,14 @@ QvStatus qv_world_build(QvWorldBuilder *builder, QvWorld **out);
 
 /* Frees a world. NULL is ignored. The world must not be in use on another thread. */
 void qv_world_free(QvWorld *world);
+
+/* The point of the world's triangles nearest point[0..3] within max_distance (inclusive;
+ * INFINITY for any distance), measured in world space through every instance transform
+ * (non-uniform scales and shears included), into *hit: the miss record when none lies that
+ * near, and for a non-finite point or a NaN or negative max_distance. Instance masks and
+ * filters do not apply. Errors: QV_NULL_POINTER. */
+QvStatus qv_world_closest_point(const QvWorld *world, const float point[3], float max_distance,
+                                QvPointHit *hit);
 
 /* Writes the world to the file `path` (a NUL-terminated file name, created or replaced all or
  * nothing: written beside it as a temporary file, then renamed over it, so a failed save

@@ -699,3 +699,29 @@ fn a_saved_world_loads_and_answers_the_same() {
     }
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn a_world_closest_point_names_its_instance() {
+    let world = two_squares(None, null_mut());
+    let mut p = QvPointHit::of(None);
+    // SAFETY: a live handle, three floats, one answer; NULLs where the test says.
+    unsafe {
+        let s = qv_world_closest_point(world, [2.75, 0.25, 3.0].as_ptr(), f32::INFINITY, &mut p);
+        assert_eq!(s, QvStatus::Ok);
+        // Above instance 1 (the square moved to x = 2..3), over its triangle 0.
+        assert_eq!(
+            (p.instance, p.geometry, p.prim, p.point, p.distance),
+            (1, 0, 0, [2.75, 0.25, 0.0], 3.0)
+        );
+        let s = qv_world_closest_point(world, [2.75, 0.25, 3.0].as_ptr(), 2.0, &mut p);
+        assert_eq!(s, QvStatus::Ok);
+        assert_eq!(
+            (p.instance, p.geometry, p.prim, p.distance),
+            (QV_INVALID_ID, QV_INVALID_ID, QV_INVALID_ID, f32::INFINITY)
+        );
+        let s = qv_world_closest_point(world, null(), 1.0, &mut p);
+        assert_eq!(s, QvStatus::NullPointer);
+        assert_eq!(last_error(), "qv_world_closest_point: point is NULL");
+        qv_world_free(world);
+    }
+}

@@ -3,7 +3,7 @@
 
 use quiver_rt::glam::{Affine3A, Vec3A};
 use quiver_rt::point::PointHit;
-use quiver_rt::{Hit, Ray, WorldHit};
+use quiver_rt::{Hit, Ray, WorldHit, WorldPointHit};
 use std::ffi::{c_int, c_void};
 
 /// The id a hit reports where it names nothing: no hit, or the geometry and instance of a
@@ -94,8 +94,9 @@ impl QvHit {
     }
 }
 
-/// The nearest point of a BVH's triangles to a query point; on a miss (nothing within the
-/// distance asked) `prim` is [`QV_INVALID_ID`], `distance` infinite and the rest 0.
+/// The nearest point of a BVH's or a world's triangles to a query point; on a miss (nothing
+/// within the distance asked) `prim`, `geometry` and `instance` are [`QV_INVALID_ID`],
+/// `distance` infinite and the rest 0.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct QvPointHit {
@@ -109,27 +110,47 @@ pub struct QvPointHit {
     pub v: f32,
     /// The triangle: its index in the mesh's index buffer.
     pub prim: u32,
+    /// Worlds: the triangle's geometry. A lone BVH: [`QV_INVALID_ID`].
+    pub geometry: u32,
+    /// Worlds: the triangle's instance. A lone BVH: [`QV_INVALID_ID`].
+    pub instance: u32,
 }
 
 impl QvPointHit {
-    /// The core's answer, or the miss record.
+    /// The record of no point.
+    const MISS: QvPointHit = QvPointHit {
+        point: [0.0; 3],
+        distance: f32::INFINITY,
+        u: 0.0,
+        v: 0.0,
+        prim: QV_INVALID_ID,
+        geometry: QV_INVALID_ID,
+        instance: QV_INVALID_ID,
+    };
+
+    /// A BVH's answer, or the miss record.
     pub(crate) fn of(hit: Option<PointHit>) -> QvPointHit {
-        hit.map_or(
-            QvPointHit {
-                point: [0.0; 3],
-                distance: f32::INFINITY,
-                u: 0.0,
-                v: 0.0,
-                prim: QV_INVALID_ID,
-            },
-            |h| QvPointHit {
-                point: h.point.into(),
-                distance: h.distance,
-                u: h.u,
-                v: h.v,
-                prim: h.prim,
-            },
-        )
+        hit.map_or(QvPointHit::MISS, |h| QvPointHit {
+            point: h.point.into(),
+            distance: h.distance,
+            u: h.u,
+            v: h.v,
+            prim: h.prim,
+            ..QvPointHit::MISS
+        })
+    }
+
+    /// A world's answer, or the miss record.
+    pub(crate) fn of_world(hit: Option<WorldPointHit>) -> QvPointHit {
+        hit.map_or(QvPointHit::MISS, |h| QvPointHit {
+            point: h.point.into(),
+            distance: h.distance,
+            u: h.u,
+            v: h.v,
+            prim: h.prim,
+            geometry: h.geometry.0,
+            instance: h.instance.0,
+        })
     }
 }
 

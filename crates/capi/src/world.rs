@@ -5,8 +5,8 @@ use crate::buffers::{bad_mesh, input, output, read_indices, read_vertices};
 use crate::error::{free_handle, guard, non_null, Failure, QvStatus};
 use crate::files::{self, path_of};
 use crate::trace;
-use crate::types::{affine_of_rows, QvFilterFn, QvHit, QvRay};
-use quiver_rt::glam::Affine3A;
+use crate::types::{affine_of_rows, QvFilterFn, QvHit, QvPointHit, QvRay};
+use quiver_rt::glam::{Affine3A, Vec3A};
 use quiver_rt::world::{invert, WorldEdit};
 use quiver_rt::{
     BuildOptions, GeometryId, Instance, InstanceId, World, WorldBuilder, WorldError, WorldHit,
@@ -287,6 +287,37 @@ pub unsafe extern "C" fn qv_world_build(
 pub unsafe extern "C" fn qv_world_free(world: *mut QvWorld) {
     // SAFETY: the caller's contract.
     unsafe { free_handle("qv_world_free", world) }
+}
+
+/// The point of the world's triangles nearest `point` within `max_distance` (inclusive;
+/// `INFINITY` for any distance), measured in world space, into `*hit` (the miss record when
+/// none lies that near, or for a non-finite point or a NaN or negative distance).
+///
+/// # Safety
+/// `world` a live world handle or NULL; `point` readable for three floats and `hit`
+/// writable, or NULL.
+#[no_mangle]
+pub unsafe extern "C" fn qv_world_closest_point(
+    world: *const QvWorld,
+    point: *const f32,
+    max_distance: f32,
+    hit: *mut QvPointHit,
+) -> QvStatus {
+    guard("qv_world_closest_point", || {
+        non_null(world, "world")?;
+        // SAFETY: the caller's contract for each pointer (three floats at `point`, one hit);
+        // `world` is not NULL (checked) and live.
+        let (w, point, hit) = unsafe {
+            (
+                &(*world).world,
+                input(point, 3, "point")?,
+                output(hit, 1, "hit")?,
+            )
+        };
+        let p = Vec3A::new(point[0], point[1], point[2]);
+        hit[0].write(QvPointHit::of_world(w.closest_point(p, max_distance)));
+        Ok(())
+    })
 }
 
 /// Writes the world to the file `path` (created or replaced, all or nothing) in quiver's world file format;
