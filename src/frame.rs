@@ -226,7 +226,7 @@ impl Frame {
             dir: ray.dir * pow2(-j),
             t_min: scale2(ray.t_min, -back.e),
             t_max: scale2(ray.t_max, -back.e),
-            mask: ray.mask,
+            ..*ray
         };
         (local, back)
     }

@@ -77,7 +77,8 @@ pub use primitive::Primitive;
 pub use save::{LoadError, FORMAT_VERSION};
 pub use traverse::{reference, RayQuery};
 pub use world::{
-    GeometryId, Instance, InstanceId, World, WorldBuilder, WorldError, WorldHit, WorldPointHit,
+    GeometryId, Instance, InstanceId, Interpolation, Motion, World, WorldBuilder, WorldError,
+    WorldHit, WorldPointHit,
 };
 
 /// What a renderer needs in one import: `use quiver_rt::prelude::*;` brings the BVH and its
@@ -104,7 +105,7 @@ pub mod prelude {
     pub use crate::builders::Builder;
     pub use crate::{
         Aabb, BuildError, BuildOptions, Bvh, GeometryId, Hit, Instance, InstanceId, Layout,
-        MeshError, Positions, PrimHit, Primitive, Ray, RayQuery, RefitError, TreeError, Triangle,
-        World, WorldBuilder, WorldError, WorldHit,
+        MeshError, Motion, Positions, PrimHit, Primitive, Ray, RayQuery, RefitError, TreeError,
+        Triangle, World, WorldBuilder, WorldError, WorldHit,
     };
 }

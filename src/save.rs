@@ -459,6 +459,18 @@ impl<'w, W: Write + ?Sized> Hashing<'w, W> {
         Ok(())
     }
 
+    /// Puts each triangle's nine coordinates, little-endian ([`triangle_bytes`]), a few
+    /// large writes at a time.
+    pub(crate) fn put_triangles(&mut self, tris: &[Triangle]) -> io::Result<()> {
+        let mut bytes = Vec::with_capacity(tris.len().min(1 << 16) * TRIANGLE_BYTES);
+        for chunk in tris.chunks(1 << 16) {
+            bytes.clear();
+            chunk.iter().for_each(|t| triangle_bytes(t, &mut bytes));
+            self.put(&bytes)?;
+        }
+        Ok(())
+    }
+
     /// Zeros up to the next [`ALIGN`] boundary after a section of `len` bytes.
     fn pad(&mut self, len: usize) -> io::Result<()> {
         self.put(&[0u8; ALIGN][..padding(len)])
@@ -575,35 +587,11 @@ impl Header {
             need: HEADER as u64,
             have: h.len() as u64,
         };
-        // The magic first (a prefix of it is judged as far as it goes), then the version,
-        // then the byte order: a file of another version may have another header.
-        if h[..h.len().min(8)] != MAGIC[..h.len().min(8)] {
-            return Err(LoadError::BadMagic);
-        }
-        if h.len() < 16 {
-            return Err(truncated());
-        }
-        let u32_at = |at: usize| u32::from_le_bytes(h[at..at + 4].try_into().expect("4"));
-        let version = u32_at(8);
-        if version == 0 || version > FORMAT_VERSION {
-            return Err(LoadError::UnsupportedVersion {
-                found: version,
-                supported: FORMAT_VERSION,
-            });
-        }
-        let marker = u32::from_ne_bytes(h[12..16].try_into().expect("4"));
-        if marker == ENDIAN.swap_bytes() {
-            return Err(LoadError::WrongEndianness);
-        }
-        if marker != ENDIAN {
-            return Err(LoadError::BadHeader {
-                field: "endianness",
-                value: marker as u64,
-            });
-        }
+        preamble(h, &MAGIC, HEADER as u64)?;
         if h.len() < HEADER {
             return Err(truncated());
         }
+        let u32_at = |at: usize| u32::from_le_bytes(h[at..at + 4].try_into().expect("4"));
         let u64_at = |at: usize| u64::from_le_bytes(h[at..at + 8].try_into().expect("8"));
         let f32_at = |at: usize| f32::from_le_bytes(h[at..at + 4].try_into().expect("4"));
         let bad = |field, value| Err(LoadError::BadHeader { field, value });
@@ -785,6 +773,42 @@ fn parts(layout: &AnyLayout<Triangle>) -> Parts<'_> {
     }
 }
 
+/// Checks the first 16 bytes every quiver file starts with (a BVH file's or a world's,
+/// `magic` says which; `h` may be shorter, or longer): the magic first (a prefix of it is
+/// judged as far as it goes), then the format version, then the byte order, since a file of
+/// another version may have another header. [`LoadError::Truncated`] (the header being `need`
+/// bytes) where `h` ends before them.
+pub(crate) fn preamble(h: &[u8], magic: &[u8; 8], need: u64) -> Result<(), LoadError> {
+    if h[..h.len().min(8)] != magic[..h.len().min(8)] {
+        return Err(LoadError::BadMagic);
+    }
+    if h.len() < 16 {
+        return Err(LoadError::Truncated {
+            section: "header",
+            need,
+            have: h.len() as u64,
+        });
+    }
+    let version = u32::from_le_bytes(h[8..12].try_into().expect("4"));
+    if version == 0 || version > FORMAT_VERSION {
+        return Err(LoadError::UnsupportedVersion {
+            found: version,
+            supported: FORMAT_VERSION,
+        });
+    }
+    let marker = u32::from_ne_bytes(h[12..16].try_into().expect("4"));
+    if marker == ENDIAN.swap_bytes() {
+        return Err(LoadError::WrongEndianness);
+    }
+    if marker != ENDIAN {
+        return Err(LoadError::BadHeader {
+            field: "endianness",
+            value: marker as u64,
+        });
+    }
+    Ok(())
+}
+
 /// Appends a triangle's nine coordinates, little-endian.
 pub(crate) fn triangle_bytes(t: &Triangle, out: &mut Vec<u8>) {
     for v in &t.v {
@@ -840,12 +864,7 @@ impl Bvh<Triangle> {
         // quiver loads on (the header's marker refuses the others).
         out.put(p.nodes)?;
         out.pad(p.nodes.len())?;
-        let mut tris = Vec::with_capacity(p.triangles.len().min(1 << 16) * TRIANGLE_BYTES);
-        for chunk in p.triangles.chunks(1 << 16) {
-            tris.clear();
-            chunk.iter().for_each(|t| triangle_bytes(t, &mut tris));
-            out.put(&tris)?;
-        }
+        out.put_triangles(p.triangles)?;
         out.pad(p.triangles.len() * TRIANGLE_BYTES)?;
         for bytes in [
             bytemuck::cast_slice::<u32, u8>(p.ids),

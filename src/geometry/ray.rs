@@ -47,7 +47,17 @@ pub struct Ray {
     /// bit with it is never entered. Every bit set by default (the ray sees everything); a
     /// single BVH has no instances and ignores it.
     pub mask: u32,
+    /// When in the shutter interval the ray is shot, from 0 (opening) to 1 (closing): a
+    /// moving instance of a [`crate::World`] is met where its [`crate::Motion`] places it
+    /// then. 0 by default; a static scene ignores it (its answers are the same at any time).
+    /// Queries clamp it into `[0, 1]` and take NaN as 0 ([`Ray::shutter_time`]). It sits in
+    /// what was padding: a ray is 48 bytes with it or without it.
+    pub time: f32,
 }
+
+// The time field fills the padding after the mask: a larger ray would cost every packet and
+// every ray buffer of a renderer.
+const _: () = assert!(std::mem::size_of::<Ray>() == 48);
 
 impl Ray {
     /// A ray over `[0, +inf]`.
@@ -65,6 +75,7 @@ impl Ray {
             t_min,
             t_max,
             mask: u32::MAX,
+            time: 0.0,
         }
     }
 
@@ -79,6 +90,35 @@ impl Ray {
     #[inline]
     pub fn with_mask(self, mask: u32) -> Self {
         Ray { mask, ..self }
+    }
+
+    /// The same ray shot at `time` in the shutter interval (see [`Ray::time`]).
+    ///
+    /// ```
+    /// use quiver_rt::Ray;
+    /// use glam::Vec3A;
+    /// let r = Ray::new(Vec3A::ZERO, Vec3A::Z).with_time(0.25);
+    /// assert_eq!((r.time, Ray::new(Vec3A::ZERO, Vec3A::Z).time), (0.25, 0.0));
+    /// ```
+    #[inline]
+    pub fn with_time(self, time: f32) -> Self {
+        Ray { time, ..self }
+    }
+
+    /// The time every query uses: [`Ray::time`] clamped into `[0, 1]`, NaN taken as 0 (a
+    /// time out of the shutter is the nearest end of it, never a miss).
+    ///
+    /// ```
+    /// use quiver_rt::Ray;
+    /// use glam::Vec3A;
+    /// let at = |t: f32| Ray::new(Vec3A::ZERO, Vec3A::Z).with_time(t).shutter_time();
+    /// assert_eq!([at(0.5), at(-1.0), at(7.0), at(f32::NAN), at(f32::INFINITY)], [0.5, 0.0, 1.0, 0.0, 1.0]);
+    /// ```
+    #[inline(always)]
+    #[allow(clippy::manual_clamp)] // `clamp` keeps a NaN, and a NaN time must be 0
+    pub fn shutter_time(&self) -> f32 {
+        // `max` returns the other operand for a NaN.
+        self.time.max(0.0).min(1.0)
     }
 
     /// The ray as every query takes it: a `t_min` below zero (or NaN) raised to zero.

@@ -178,7 +178,7 @@ pub(crate) fn unit_frame(tri: &Triangle, ray: &Ray) -> Option<(Triangle, Ray, i3
         dir: scale(ray.dir, -j),
         t_min: f32::NEG_INFINITY,
         t_max: f32::INFINITY,
-        mask: ray.mask,
+        ..*ray
     };
     Some((
         Triangle {

@@ -1,9 +1,9 @@
 //! [`WorldBuilder`]: geometries and instances collected, then built into a [`World`].
 
-use super::instance::check_instance;
+use super::instance::placements;
 use super::top::{top_level, world_boxes, InstanceLeaf};
 use super::{
-    Geometry, GeometryFilter, GeometryId, Instance, InstanceId, World, WorldError, WorldHit,
+    Geometry, GeometryFilter, GeometryId, Instance, InstanceId, Motion, World, WorldError, WorldHit,
 };
 use crate::bvh::{BuildOptions, Bvh};
 use crate::geometry::{Aabb, Triangle};
@@ -30,6 +30,8 @@ pub struct WorldBuilder<P = Triangle> {
     /// The geometries' own filters, by index (empty when none has one).
     filters: Vec<Option<GeometryFilter>>,
     instances: Vec<Instance>,
+    /// The moving instances' motions, by index (empty when none moves).
+    motions: Vec<Option<Motion>>,
     /// The first mesh whose indices did not check out, reported by `build`.
     bad_mesh: Option<(usize, MeshError)>,
 }
@@ -48,6 +50,7 @@ impl<P> Default for WorldBuilder<P> {
             options: Vec::new(),
             filters: Vec::new(),
             instances: Vec::new(),
+            motions: Vec::new(),
             bad_mesh: None,
         }
     }
@@ -183,14 +186,44 @@ impl<P: Primitive> WorldBuilder<P> {
         InstanceId(self.instances.len() as u32 - 1)
     }
 
+    /// Adds an instance that moves by `motion` over the shutter: a ray at time `t`
+    /// ([`Ray::time`](crate::Ray::time)) meets it where [`Motion::at`] places it then.
+    /// `instance`'s own transform is replaced by the motion's first key (what
+    /// [`World::instance`] reports, and where point queries find the instance). The motion is
+    /// checked by [`WorldBuilder::build`] ([`WorldError::Motion`]).
+    ///
+    /// ```
+    /// use quiver_rt::glam::{Affine3A, Vec3, Vec3A};
+    /// use quiver_rt::{BuildOptions, Instance, Motion, Ray, RayQuery, Triangle, World};
+    /// let mut b = World::builder();
+    /// let g = b.add_triangles(vec![Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y)]);
+    /// // Slides 4 along x while the shutter is open.
+    /// let slide = Motion::linear(vec![
+    ///     Affine3A::IDENTITY,
+    ///     Affine3A::from_translation(Vec3::new(4.0, 0.0, 0.0)),
+    /// ]);
+    /// b.add_moving_instance(Instance::of(g), slide);
+    /// let world = b.build(&BuildOptions::default())?;
+    /// let ray = Ray::new(Vec3A::new(2.2, 0.2, 1.0), -Vec3A::Z);
+    /// assert!(world.closest_hit(&ray).is_none()); // at time 0 the triangle is at x in [0, 1]
+    /// assert_eq!(world.closest_hit(&ray.with_time(0.5)).map(|h| h.t), Some(1.0));
+    /// # Ok::<(), quiver_rt::WorldError>(())
+    /// ```
+    pub fn add_moving_instance(&mut self, instance: Instance, motion: Motion) -> InstanceId {
+        let id = self.add_instance(instance.transform(motion.at(0.0)));
+        set_slot(&mut self.motions, id.0 as usize, Some(motion));
+        id
+    }
+
     /// Builds every geometry's BVH with `options` (in parallel, on its pool) and the
     /// top-level BVH over the instances' world boxes (binned SAH, 8-wide nodes, on
     /// `options`' instruction set). The same builder gives the same world on any pool.
     ///
     /// # Errors
-    /// [`WorldError`] for a build setting out of range ([`WorldError::Config`]), an instance
-    /// naming no geometry, a transform that is not finite or not invertible, a bad mesh, or
-    /// more than `u32::MAX` instances. An empty world is not an error: it is hit by nothing.
+    /// [`WorldError`] for a build setting out of range ([`WorldError::Config`]), more than
+    /// `u32::MAX - 1` instances or geometries, a bad mesh, an instance naming no geometry, a
+    /// transform that is not finite or not invertible, or a motion that cannot move an
+    /// instance ([`WorldError::Motion`]). An empty world is not an error: it is hit by nothing.
     pub fn build(self, options: &BuildOptions<'_>) -> Result<World<P>, WorldError> {
         use rayon::prelude::*;
         options.config.check().map_err(WorldError::Config)?;
@@ -204,9 +237,7 @@ impl<P: Primitive> WorldBuilder<P> {
             return Err(WorldError::Mesh { geometry, error });
         }
         // Checked before the geometries' builds, which are the long part.
-        for (i, inst) in self.instances.iter().enumerate() {
-            check_instance(i, inst, self.pending.len())?;
-        }
+        let leaves = placements(&self.instances, &self.motions, self.pending.len())?;
         let mut own: Vec<Option<BuildOptions<'_>>> = vec![None; self.pending.len()];
         for (slot, o) in own.iter_mut().zip(self.options) {
             *slot = o.map(|o| o.pool_of(options));
@@ -229,60 +260,50 @@ impl<P: Primitive> WorldBuilder<P> {
         let placed = Placed {
             geometries,
             instances: self.instances,
+            motions: self.motions,
             removed: Vec::new(),
+            leaves,
         };
-        let mut world = placed.world(options)?;
+        let mut world = placed.world(options);
         world.filters = self.filters;
         Ok(world)
     }
 }
 
-/// Built geometries and their instances (`removed[i]`: instance `i` removed; may be shorter
-/// than `instances`): a world but for its top level.
+/// Built geometries and their instances (`motions[i]`: instance `i`'s motion; `removed[i]`:
+/// instance `i` removed; either may be shorter than `instances`), with the instances' leaf
+/// records ([`placements`], which checked them): a world but for its top level.
 pub(super) struct Placed<P> {
     pub geometries: Vec<Geometry<P>>,
     pub instances: Vec<Instance>,
+    pub motions: Vec<Option<Motion>>,
     pub removed: Vec<bool>,
+    pub leaves: Vec<InstanceLeaf>,
 }
 
 impl<P: Primitive> Placed<P> {
     /// The world, its top level built over the instances (on `options`' pool, for its
     /// instruction set), no filters set.
-    ///
-    /// # Errors
-    /// [`WorldError`] for an instance naming no geometry or placed by a transform that is not
-    /// finite or not invertible, or more than `u32::MAX` instances or geometries.
-    pub fn world(self, options: &BuildOptions<'_>) -> Result<World<P>, WorldError> {
+    pub fn world(self, options: &BuildOptions<'_>) -> World<P> {
         let Placed {
             geometries,
             instances,
+            motions,
             removed,
+            leaves,
         } = self;
-        if instances.len() >= u32::MAX as usize || geometries.len() >= u32::MAX as usize {
-            return Err(WorldError::TooMany);
-        }
-        let placed: Vec<InstanceLeaf> = instances
-            .iter()
-            .enumerate()
-            .map(|(i, inst)| {
-                Ok(InstanceLeaf::new(
-                    i,
-                    inst,
-                    check_instance(i, inst, geometries.len())?,
-                ))
-            })
-            .collect::<Result<_, WorldError>>()?;
-        let boxes = options.run(|| world_boxes(&instances, &geometries, &removed));
-        let top = options.run(|| top_level(&placed, &boxes, options.chosen_isa()));
+        let boxes = options.run(|| world_boxes(&instances, &motions, &geometries, &removed));
+        let top = options.run(|| top_level(&leaves, &boxes, options.chosen_isa()));
         let bounds = boxes.iter().fold(Aabb::EMPTY, |b, w| b.union(w));
-        Ok(World {
+        World {
             geometries,
             instances,
+            motions,
             removed,
             filters: Vec::new(),
             top,
             bounds,
-        })
+        }
     }
 }
 

@@ -3,10 +3,11 @@
 //! the edit ends, the instances' world boxes are recomputed and the top-level BVH refit or
 //! rebuilt, so the world is never seen half edited.
 
-use super::instance::{check_instance, placement};
+use super::builder::set_slot;
+use super::instance::{check_instance, motion_of, placement};
 use super::top::{instance_box, top_level, world_boxes};
 use super::{Geometry, GeometryFilter, GeometryId, InstanceId, InstanceLeaf};
-use super::{World, WorldError};
+use super::{Motion, World, WorldError};
 use crate::geometry::{Aabb, Triangle};
 use crate::layout::moved::RefitTarget;
 use crate::layout::refit::RefitInput;
@@ -194,12 +195,13 @@ impl<P: Primitive> WorldEdit<'_, P> {
         Ok(())
     }
 
-    /// Instance `i`, to be changed to `change(old)`, which is checked as the builder checks an
-    /// instance.
+    /// Instance `i`, to be changed to `change(old)` and, where `motion` is given, to move by
+    /// it (`Some(None)`: to stand still); checked as the builder checks an instance.
     fn instance(
         &mut self,
         InstanceId(i): InstanceId,
         change: impl FnOnce(&mut super::Instance),
+        motion: Option<Option<Motion>>,
     ) -> Result<(), WorldError> {
         let n = self.world.instances.len();
         let Some(old) = self.world.instances.get(i as usize) else {
@@ -213,13 +215,23 @@ impl<P: Primitive> WorldEdit<'_, P> {
         }
         let mut new = *old;
         change(&mut new);
-        check_instance(i as usize, &new, self.world.geometries.len())?;
+        let moving = match &motion {
+            Some(m) => m.as_ref(),
+            None => motion_of(&self.world.motions, i as usize),
+        };
+        check_instance(i as usize, &new, moving, self.world.geometries.len())?;
         self.world.instances[i as usize] = new;
+        match motion {
+            Some(None) if self.world.motions.len() <= i as usize => {}
+            Some(m) => set_slot(&mut self.world.motions, i as usize, m),
+            None => {}
+        }
         mark(&mut self.instances, n, i as usize);
         Ok(())
     }
 
-    /// Places instance `instance` by `transform` (object to world) from now on.
+    /// Places instance `instance` by `transform` (object to world) from now on; an instance
+    /// that moved stands still there.
     ///
     /// # Errors
     /// [`WorldError::NoInstance`], or [`WorldError::Transform`] for a transform that is not
@@ -229,7 +241,36 @@ impl<P: Primitive> WorldEdit<'_, P> {
         instance: InstanceId,
         transform: Affine3A,
     ) -> Result<(), WorldError> {
-        self.instance(instance, |i| i.transform = transform)
+        self.instance(instance, |i| i.transform = transform, Some(None))
+    }
+
+    /// Moves instance `instance` by `motion` from now on (as
+    /// [`WorldBuilder::add_moving_instance`](super::WorldBuilder::add_moving_instance) does:
+    /// its transform becomes the motion's first key).
+    ///
+    /// ```
+    /// use quiver_rt::glam::{Affine3A, Vec3, Vec3A};
+    /// use quiver_rt::{BuildOptions, Instance, Motion, Ray, RayQuery, Triangle, World};
+    /// let mut b = World::builder();
+    /// let g = b.add_triangles(vec![Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y)]);
+    /// let i = b.add_instance(Instance::of(g));
+    /// let mut world = b.build(&BuildOptions::default())?;
+    /// let rise = Motion::linear(vec![Affine3A::IDENTITY, Affine3A::from_translation(Vec3::Z)]);
+    /// world.edit().set_motion(i, rise)?;
+    /// let ray = Ray::new(Vec3A::new(0.2, 0.2, 5.0), -Vec3A::Z).with_time(0.5);
+    /// assert_eq!(world.closest_hit(&ray).map(|h| h.t), Some(4.5));
+    /// world.edit().set_transform(i, Affine3A::IDENTITY)?; // stands still again
+    /// assert!(world.motion(i).is_none());
+    /// assert_eq!(world.closest_hit(&ray).map(|h| h.t), Some(5.0));
+    /// # Ok::<(), quiver_rt::WorldError>(())
+    /// ```
+    ///
+    /// # Errors
+    /// [`WorldError::NoInstance`], [`WorldError::Removed`], or [`WorldError::Motion`] for a
+    /// motion [`super::WorldBuilder::build`] refuses.
+    pub fn set_motion(&mut self, instance: InstanceId, motion: Motion) -> Result<(), WorldError> {
+        let first = motion.keys().first().copied().unwrap_or(Affine3A::IDENTITY);
+        self.instance(instance, |i| i.transform = first, Some(Some(motion)))
     }
 
     /// Shows instance `instance` only to rays whose mask shares a bit with `mask`.
@@ -237,17 +278,17 @@ impl<P: Primitive> WorldEdit<'_, P> {
     /// # Errors
     /// [`WorldError::NoInstance`].
     pub fn set_mask(&mut self, instance: InstanceId, mask: u32) -> Result<(), WorldError> {
-        self.instance(instance, |i| i.mask = mask)
+        self.instance(instance, |i| i.mask = mask, None)
     }
 
     /// Replaces instance `instance` by `new` (another geometry, transform, mask or user
-    /// id); its id stays.
+    /// id; standing still); its id stays.
     ///
     /// # Errors
     /// As [`WorldEdit::set_transform`], and [`WorldError::Geometry`] when `new` names no
     /// geometry.
     pub fn set_instance(&mut self, instance: InstanceId, new: Instance) -> Result<(), WorldError> {
-        self.instance(instance, |i| *i = new)
+        self.instance(instance, |i| *i = new, Some(None))
     }
 
     /// Adds an instance; returns its id, one past every id given before (removed ones
@@ -261,7 +302,7 @@ impl<P: Primitive> WorldEdit<'_, P> {
         if i >= u32::MAX as usize - 1 {
             return Err(WorldError::TooMany);
         }
-        check_instance(i, &instance, self.world.geometries.len())?;
+        check_instance(i, &instance, None, self.world.geometries.len())?;
         self.world.instances.push(instance);
         mark(&mut self.instances, i + 1, i);
         Ok(InstanceId(i as u32))
@@ -273,7 +314,7 @@ impl<P: Primitive> WorldEdit<'_, P> {
     /// # Errors
     /// [`WorldError::NoInstance`], [`WorldError::Removed`] when it was removed before.
     pub fn remove_instance(&mut self, instance: InstanceId) -> Result<(), WorldError> {
-        self.instance(instance, |_| ())?;
+        self.instance(instance, |_| (), None)?;
         let n = self.world.instances.len();
         mark(&mut self.world.removed, n, instance.0 as usize);
         Ok(())
@@ -496,6 +537,8 @@ impl<P: Primitive> Drop for WorldEdit<'_, P> {
 /// The top level's new primitives: each instance as placed now.
 struct InstancesNow<'a, P> {
     instances: &'a [super::Instance],
+    /// The moving instances' motions (shorter than `instances`: the rest do not move).
+    motions: &'a [Option<super::Motion>],
     geometries: &'a [Geometry<P>],
     /// Which instances were removed (shorter than `instances`: the rest were not).
     removed: &'a [bool],
@@ -508,7 +551,8 @@ struct InstancesNow<'a, P> {
 impl<P: Primitive> RefitInput<InstanceLeaf> for InstancesNow<'_, P> {
     fn get(&self, id: u32) -> InstanceLeaf {
         let inst = &self.instances[id as usize];
-        InstanceLeaf::new(id as usize, inst, placement(&inst.transform))
+        let moving = motion_of(self.motions, id as usize).is_some();
+        InstanceLeaf::new(id as usize, inst, placement(&inst.transform), moving)
     }
 
     fn refresh(&self, id: u32, p: &mut InstanceLeaf) {
@@ -523,7 +567,8 @@ impl<P: Primitive> RefitInput<InstanceLeaf> for InstancesNow<'_, P> {
     /// the nodes, and a refit geometry needs no flag of its own).
     fn bounds(&self, id: u32, _: &InstanceLeaf) -> Aabb {
         let gone = self.removed.get(id as usize) == Some(&true);
-        let b = instance_box(&self.instances[id as usize], self.geometries, gone);
+        let motion = motion_of(self.motions, id as usize);
+        let b = instance_box(&self.instances[id as usize], motion, self.geometries, gone);
         if !b.is_finite() {
             self.lost.store(true, Ordering::Relaxed);
         }
@@ -539,6 +584,7 @@ impl<P: Primitive> World<P> {
     fn refit_top(&mut self, moved_instances: &[bool], rebuild: bool) {
         let src = InstancesNow {
             instances: &self.instances,
+            motions: &self.motions,
             geometries: &self.geometries,
             removed: &self.removed,
             moved_instances,
@@ -554,7 +600,7 @@ impl<P: Primitive> World<P> {
         let n = src.instances.len();
         let mut rebuild = rebuild || src.lost.load(Ordering::Relaxed);
         if rebuild || self.top.prims.len() < n {
-            let boxes = world_boxes(src.instances, src.geometries, src.removed);
+            let boxes = world_boxes(src.instances, src.motions, src.geometries, src.removed);
             if !rebuild {
                 // Those the build left out must stay out of range.
                 let mut in_top = vec![false; n];

@@ -28,6 +28,18 @@ pub enum WorldError {
         /// singular for f32 ([`invert`](super::invert)).
         why: &'static str,
     },
+    /// Instance `instance`'s [`Motion`](super::Motion) cannot move it: `why`, at key `key`
+    /// where one key is at fault.
+    Motion {
+        /// The instance.
+        instance: usize,
+        /// The key at fault, if one is.
+        key: Option<usize>,
+        /// Fewer than two keys or too many, a key not finite or not invertible ([`invert`](
+        /// super::invert)), keys that mirror beside keys that do not, or a decomposed step of
+        /// half a turn or more.
+        why: &'static str,
+    },
     /// Geometry `geometry`'s mesh: an index names no vertex, or too many triangles.
     Mesh {
         /// The geometry.
@@ -88,6 +100,16 @@ impl fmt::Display for WorldError {
             WorldError::Transform { instance, why } => {
                 write!(f, "instance {instance}: the transform is {why}")
             }
+            WorldError::Motion {
+                instance,
+                key: Some(key),
+                why,
+            } => write!(f, "instance {instance}: motion key {key}: {why}"),
+            WorldError::Motion {
+                instance,
+                key: None,
+                why,
+            } => write!(f, "instance {instance}: the motion has {why}"),
             WorldError::Mesh { geometry, error } => write!(f, "geometry {geometry}: {error}"),
             WorldError::TooMany => write!(f, "more than 2^32 - 1 instances or geometries"),
             WorldError::NoGeometry {

@@ -2,7 +2,8 @@
 //! id), the ids that name geometries and instances ([`GeometryId`], [`InstanceId`]), and the
 //! checks a placement must pass.
 
-use super::WorldError;
+use super::top::InstanceLeaf;
+use super::{Motion, WorldError};
 use glam::{Affine3A, Mat3A, Vec3A};
 
 /// A geometry's index in its [`World`](super::World), in the order geometries were added:
@@ -91,10 +92,12 @@ impl Instance {
     }
 }
 
-/// The instance's inverse transform and whether it is the identity, or what is wrong with it.
+/// The instance's inverse transform (at time 0, if it moves by `motion`) and whether it is
+/// the identity, or what is wrong with it.
 pub(super) fn check_instance(
     index: usize,
     inst: &Instance,
+    motion: Option<&Motion>,
     geometries: usize,
 ) -> Result<(Affine3A, bool), WorldError> {
     if inst.geometry.0 as usize >= geometries {
@@ -104,12 +107,42 @@ pub(super) fn check_instance(
             geometries,
         });
     }
+    if let Some(m) = motion {
+        m.check(index)?;
+    }
     let m = &inst.transform;
     invert(m).map_err(|why| WorldError::Transform {
         instance: index,
         why,
     })?;
     Ok(placement(m))
+}
+
+/// Instance `i`'s motion in a per-instance list that holds entries up to the last moving one.
+pub(super) fn motion_of(motions: &[Option<Motion>], i: usize) -> Option<&Motion> {
+    motions.get(i).and_then(Option::as_ref)
+}
+
+/// Every instance's record for the top level's leaves, in instance order, each checked as
+/// [`check_instance`] checks it (the first error, in instance order, is the answer), or
+/// [`WorldError::TooMany`] for more than `u32::MAX - 1` instances or geometries.
+pub(super) fn placements(
+    instances: &[Instance],
+    motions: &[Option<Motion>],
+    geometries: usize,
+) -> Result<Vec<InstanceLeaf>, WorldError> {
+    if instances.len() >= u32::MAX as usize || geometries >= u32::MAX as usize {
+        return Err(WorldError::TooMany);
+    }
+    instances
+        .iter()
+        .enumerate()
+        .map(|(i, inst)| {
+            let motion = motion_of(motions, i);
+            let placed = check_instance(i, inst, motion, geometries)?;
+            Ok(InstanceLeaf::new(i, inst, placed, motion.is_some()))
+        })
+        .collect()
 }
 
 /// How far from the identity a transform times its f32 inverse may be, in each entry of the

@@ -17,6 +17,10 @@
 //! of the walk (a single ray, a packet, an edited or a rebuilt top level); both are hits the
 //! f64 oracle admits.
 //!
+//! An instance can move while the shutter is open ([`Motion`], added by
+//! [`WorldBuilder::add_moving_instance`]): a ray at [`Ray::time`] meets it where its motion
+//! places it then, and answers as the world built with every instance placed at that time.
+//!
 //! One level of instancing: an instance places a geometry, not another world. Nested instances
 //! would put a transform, a top-level walk and a stack of ray states on every level; the
 //! scenes quiver serves (the SPD, OBJ groups, a forest of trees) need one, Embree's and
@@ -58,6 +62,7 @@ mod filter;
 mod geometry;
 mod hit;
 mod instance;
+mod motion;
 mod packet;
 mod point;
 mod query;
@@ -71,6 +76,7 @@ pub use filter::GeometryFilter;
 pub use geometry::Geometry;
 pub use hit::WorldHit;
 pub use instance::{invert, GeometryId, Instance, InstanceId, INVERSE_TOLERANCE};
+pub use motion::{Interpolation, Motion, MAX_MOTION_KEYS};
 pub use point::WorldPointHit;
 
 use crate::geometry::{unit_or_zero, Aabb, PrimHit, Ray, Triangle};
@@ -85,6 +91,8 @@ use top::InstanceLeaf;
 pub struct World<P = Triangle> {
     geometries: Vec<Geometry<P>>,
     instances: Vec<Instance>,
+    /// `motions[i]`: instance `i`'s motion, if it moves. Empty until the first moving one.
+    motions: Vec<Option<Motion>>,
     /// `removed[i]`: instance `i` was removed by an edit (its id is never given again). Empty
     /// until the first removal.
     removed: Vec<bool>,
@@ -128,6 +136,21 @@ impl<P: Primitive> World<P> {
         (i.0 as usize) < self.instances.len() && self.removed.get(i.0 as usize) != Some(&true)
     }
 
+    /// Instance `i`'s motion, if it moves (`None` for a static instance or an id the world
+    /// does not have).
+    pub fn motion(&self, i: InstanceId) -> Option<&Motion> {
+        instance::motion_of(&self.motions, i.0 as usize)
+    }
+
+    /// Where instance `inst` (object to world) is at the time `ray` is shot: its motion's
+    /// transform then, or its own transform.
+    fn transform_at(&self, inst: InstanceId, ray: &Ray) -> Option<glam::Affine3A> {
+        match self.motion(inst) {
+            Some(m) => Some(m.at(ray.shutter_time())),
+            None => self.instances.get(inst.0 as usize).map(|i| i.transform),
+        }
+    }
+
     /// Every instance, in the order added, removed ones included (as they were last placed:
     /// [`World::is_live`] tells which are still in the world), so an [`InstanceId`] indexes it.
     pub fn instances(&self) -> &[Instance] {
@@ -145,13 +168,13 @@ impl<P: Primitive> World<P> {
     }
 
     /// The world-space geometric normal at `hit` of `ray` (unit length, on the side the
-    /// primitive's winding faces, as placed: a mirroring transform reverses it), or `None`
-    /// where the primitive type gives no normal
+    /// primitive's winding faces, as placed at the ray's time: a mirroring transform reverses
+    /// it), or `None` where the primitive type gives no normal
     /// ([`Primitive::geometric_normal`]).
     pub fn normal(&self, ray: &Ray, hit: &WorldHit) -> Option<Vec3A> {
-        let inst = self.instances.get(hit.instance.0 as usize)?;
+        let transform = self.transform_at(hit.instance, ray)?;
         let g = self.geometries.get(hit.geometry.0 as usize)?;
-        let to_object = instance::invert(&inst.transform).ok()?;
+        let to_object = instance::invert(&transform).ok()?;
         let at = to_object.transform_point3a(ray.at(hit.t));
         let local = PrimHit {
             t: hit.t,
@@ -163,11 +186,7 @@ impl<P: Primitive> World<P> {
         // reverses the winding, which is what says which side a triangle faces.
         let inverse_t: Mat3A = to_object.matrix3.transpose();
         let n = unit_or_zero(inverse_t * n);
-        Some(if instance::mirrors(&inst.transform) {
-            -n
-        } else {
-            n
-        })
+        Some(if instance::mirrors(&transform) { -n } else { n })
     }
 
     /// Geometry `g`'s own filter, if it has one.

@@ -223,13 +223,16 @@ impl<P: Primitive> World<P> {
                             if m == 0 {
                                 continue;
                             }
-                            if let Some(own) = self.own_filter(p.geometry) {
-                                // A geometry with its own filter: ray by ray.
+                            if p.moving || self.own_filter(p.geometry).is_some() {
+                                // A moving instance (each ray at its own time), or a
+                                // geometry with its own filter: ray by ray.
                                 for i in bits(m) {
-                                    let local = p.local(&rays[i], limit::<A>(rays, best, i));
-                                    let kept = self.search_filtered::<A, B, S, F>(
+                                    let limit = limit::<A>(rays, best, i);
+                                    let Some(local) = self.local_ray(p, &rays[i], limit) else {
+                                        continue;
+                                    };
+                                    let kept = self.search_local::<A, B, S, F>(
                                         p,
-                                        own,
                                         &local,
                                         &mut best[i],
                                         stats,

@@ -73,7 +73,8 @@ impl<P: Primitive> World<P> {
     /// (non-uniform scale and shear included): the instance, geometry and primitive, the
     /// point, its barycentrics and the distance; `None` when nothing lies that near.
     /// Primitives without a triangle ([`Primitive::triangle`]) are skipped; instance masks are
-    /// not consulted (a point query has no ray).
+    /// not consulted (a point query has no ray). A moving instance is where it is at time 0
+    /// (its motion's first key, its [`Instance::transform`](super::Instance::transform)).
     ///
     /// Each candidate triangle is placed in world space by its instance's transform (in f32)
     /// and measured there with [`Triangle::closest_point`]; its distance from the query point

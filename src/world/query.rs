@@ -3,7 +3,7 @@
 //! instance's geometry asked with the nearest hit so far as its limit.
 
 use super::filter::Both;
-use super::{Geometry, GeometryFilter, GeometryId, InstanceId, InstanceLeaf, World, WorldHit};
+use super::{Geometry, GeometryId, InstanceId, InstanceLeaf, World, WorldHit};
 use crate::geometry::{Hit, Ray};
 use crate::isa::Kernels;
 use crate::primitive::Primitive;
@@ -131,9 +131,12 @@ impl<P: Primitive> World<P> {
         if ray.mask & p.mask == 0 {
             return false;
         }
+        if p.moving {
+            return self.search_moving::<A, B, S, F>(p, ray, best, stats, filter);
+        }
         let local = p.local(ray, best.t);
-        if let Some(own) = self.own_filter(p.geometry) {
-            return self.search_filtered::<A, B, S, F>(p, own, &local, best, stats, filter);
+        if self.own_filter(p.geometry).is_some() {
+            return self.search_local::<A, B, S, F>(p, &local, best, stats, filter);
         }
         let g = &self.geometries[p.geometry as usize];
         let mut f = InInstance {
@@ -156,24 +159,85 @@ impl<P: Primitive> World<P> {
         }
     }
 
-    /// The search `A` of `local` (a ray in instance `p`'s object space) in `p`'s geometry,
-    /// whose own filter `own` is asked after the caller's: through the geometry's query, not
-    /// inlined here, so the walks of geometries without a filter are not compiled twice.
-    /// Improves `best`; returns true when it did.
-    #[inline(always)]
-    pub(super) fn search_filtered<A: Ask, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
+    /// The search `A` of `ray` in moving instance `p` (at the ray's time), improving `best`;
+    /// true when it did. Out of line and cold, so the static instances' inlined walk is
+    /// compiled as it is without motion. It needs no wide lanes itself: the transform is
+    /// glam's, and the geometry's query picks its kernels through its own dispatch.
+    #[cold]
+    #[inline(never)]
+    fn search_moving<A: Ask, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
         &self,
         p: &InstanceLeaf,
-        own: &GeometryFilter,
+        ray: &Ray,
+        best: &mut WorldHit,
+        stats: &mut S,
+        filter: &mut F,
+    ) -> bool {
+        match self.moving_local(p, ray, best.t) {
+            Some(local) => self.search_local::<A, B, S, F>(p, &local, best, stats, filter),
+            None => false,
+        }
+    }
+
+    /// `ray` in moving instance `p`'s object space at the ray's time, searching up to
+    /// `t_max`; `None` where the motion's transform then has no inverse.
+    #[inline(always)]
+    pub(super) fn moving_local(&self, p: &InstanceLeaf, ray: &Ray, t_max: f32) -> Option<Ray> {
+        let motion = super::instance::motion_of(&self.motions, p.instance as usize)?;
+        let to_object = motion.to_object(ray.shutter_time())?;
+        Some(Ray {
+            origin: to_object.transform_point3a(ray.origin),
+            dir: to_object.transform_vector3a(ray.dir),
+            t_max,
+            ..*ray
+        })
+    }
+
+    /// `ray` in instance `p`'s object space (at the ray's time, if `p` moves), searching up
+    /// to `t_max`.
+    #[inline(always)]
+    pub(super) fn local_ray(&self, p: &InstanceLeaf, ray: &Ray, t_max: f32) -> Option<Ray> {
+        match p.moving {
+            true => self.moving_local(p, ray, t_max),
+            false => Some(p.local(ray, t_max)),
+        }
+    }
+
+    /// The search `A` of `local` (a ray in instance `p`'s object space) in `p`'s geometry
+    /// through the geometry's query, not inlined here: for an instance that moves, or whose
+    /// geometry has its own filter (asked after the caller's), so the inlined walks of the
+    /// rest are not compiled twice. Improves `best`; returns true when it did.
+    #[inline(always)]
+    pub(super) fn search_local<A: Ask, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
+        &self,
+        p: &InstanceLeaf,
+        local: &Ray,
+        best: &mut WorldHit,
+        stats: &mut S,
+        filter: &mut F,
+    ) -> bool {
+        match self.own_filter(p.geometry) {
+            Some(own) => {
+                let mut both = Both { query: filter, own };
+                self.search_through::<A, B, S, _>(p, local, best, stats, &mut both)
+            }
+            None => self.search_through::<A, B, S, F>(p, local, best, stats, filter),
+        }
+    }
+
+    /// [`World::search_local`] with the filter `filter` (the caller's, or both).
+    #[inline(always)]
+    fn search_through<A: Ask, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
+        &self,
+        p: &InstanceLeaf,
         local: &Ray,
         best: &mut WorldHit,
         stats: &mut S,
         filter: &mut F,
     ) -> bool {
         let g = &self.geometries[p.geometry as usize];
-        let mut both = Both { query: filter, own };
         let mut f = InInstance {
-            filter: &mut both,
+            filter,
             instance: p.instance,
             geometry: p.geometry,
         };

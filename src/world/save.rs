@@ -4,19 +4,22 @@
 //! The format (`docs/file-format.md` has the byte table): a 32-byte header (magic, format
 //! version, endianness marker, geometry and instance counts), then each geometry (its kind,
 //! its triangles in input order, then its BVH as one whole BVH file, [`Bvh::save`]'s bytes),
-//! then the instances (64 bytes each: geometry, mask, user id, removed flag, transform), then
-//! a checksum of everything before it. The top level is not stored: loading builds it again
+//! then the instances (64 bytes each: geometry, mask, user id, flags, transform), then each
+//! moving instance's motion (interpolation, key count, keys), then a checksum of everything
+//! before it. The top level is not stored: loading builds it again
 //! (a few milliseconds per ten thousand instances), from the same instances, as
 //! [`super::WorldBuilder::build`] would. Filters are code and are not stored either: set them
 //! again after loading ([`super::WorldEdit::set_filter`]).
 
-use super::builder::Placed;
-use super::{Geometry, GeometryId, Instance, World};
+use super::builder::{set_slot, Placed};
+use super::instance::placements;
+use super::{
+    Geometry, GeometryId, Instance, InstanceId, Interpolation, Motion, World, MAX_MOTION_KEYS,
+};
 use crate::bvh::{BuildOptions, Bvh};
 use crate::geometry::Triangle;
 use crate::save::{
-    checksum, input_count, read_triangles, saved_len, triangle_bytes, Hashing, ENDIAN,
-    TRIANGLE_BYTES,
+    checksum, input_count, preamble, read_triangles, saved_len, Hashing, ENDIAN, TRIANGLE_BYTES,
 };
 use crate::{LoadError, FORMAT_VERSION};
 use glam::Affine3A;
@@ -31,9 +34,18 @@ const HEAD: usize = 32;
 /// Bytes before a geometry's triangles: its kind, four reserved zero bytes, its count.
 const GEOMETRY_HEAD: usize = 16;
 
-/// Bytes of one instance: geometry, mask, user id, removed flag (u32 each), then the
-/// transform's twelve f32 (the columns of the linear part, then the translation).
+/// Bytes of one instance: geometry, mask, user id, flags (u32 each), then the transform's
+/// twelve f32 (the columns of the linear part, then the translation).
 const INSTANCE_BYTES: usize = 64;
+
+/// The instance flags (the record's fourth word): removed by an edit; moving (its motion
+/// follows the instance table, in instance order).
+const FLAG_REMOVED: u32 = 1;
+const FLAG_MOVING: u32 = 2;
+
+/// A motion's interpolation in the file.
+const MOTION_LINEAR: u32 = 0;
+const MOTION_DECOMPOSED: u32 = 1;
 
 /// A geometry's kind in the file.
 const KIND_TRIANGLES: u32 = 0;
@@ -82,28 +94,35 @@ impl World {
             gh[..4].copy_from_slice(&kind.to_le_bytes());
             gh[8..].copy_from_slice(&(tris.len() as u64).to_le_bytes());
             out.put(&gh)?;
-            let mut bytes = Vec::with_capacity(tris.len().min(1 << 16) * TRIANGLE_BYTES);
-            for chunk in tris.chunks(1 << 16) {
-                bytes.clear();
-                chunk.iter().for_each(|t| triangle_bytes(t, &mut bytes));
-                out.put(&bytes)?;
-            }
+            out.put_triangles(tris)?;
             bvh.save(&mut out)?;
         }
         for (i, inst) in self.instances.iter().enumerate() {
-            let removed = self.removed.get(i) == Some(&true);
-            let mut b = [0u8; INSTANCE_BYTES];
-            let words = [inst.geometry.0, inst.mask, inst.user_id, u32::from(removed)];
-            let floats = inst.transform.to_cols_array();
-            for (slot, w) in b.chunks_exact_mut(4).zip(
-                words
-                    .iter()
-                    .map(|w| w.to_le_bytes())
-                    .chain(floats.iter().map(|f| f.to_le_bytes())),
-            ) {
-                slot.copy_from_slice(&w);
+            let removed = u32::from(self.removed.get(i) == Some(&true));
+            let moving = u32::from(self.motion(InstanceId(i as u32)).is_some());
+            let mut words = [0u32; INSTANCE_BYTES / 4];
+            words[..4].copy_from_slice(&[
+                inst.geometry.0,
+                inst.mask,
+                inst.user_id,
+                (removed * FLAG_REMOVED) | (moving * FLAG_MOVING),
+            ]);
+            words[4..].copy_from_slice(&inst.transform.to_cols_array().map(f32::to_bits));
+            out.put(bytemuck::cast_slice(&words.map(u32::to_le)[..]))?;
+        }
+        for m in self.motions.iter().flatten() {
+            let kind = match m.interpolation() {
+                Interpolation::Linear => MOTION_LINEAR,
+                Interpolation::Decomposed => MOTION_DECOMPOSED,
+            };
+            out.put(bytemuck::cast_slice(
+                &[kind, m.keys().len() as u32].map(u32::to_le)[..],
+            ))?;
+            for key in m.keys() {
+                out.put(bytemuck::cast_slice(
+                    &key.to_cols_array().map(|f| f.to_bits().to_le())[..],
+                ))?;
             }
-            out.put(&b)?;
         }
         out.finish()
     }
@@ -154,9 +173,7 @@ impl World {
     /// [`LoadError`], naming what is wrong and where.
     pub fn from_bytes(bytes: &[u8]) -> Result<World, LoadError> {
         let have = bytes.len() as u64;
-        if bytes.len() >= MAGIC.len() && bytes[..MAGIC.len()] != MAGIC {
-            return Err(LoadError::BadMagic);
-        }
+        preamble(bytes, &MAGIC, (HEAD + 8) as u64)?;
         if bytes.len() < HEAD + 8 {
             return Err(LoadError::Truncated {
                 section: "header",
@@ -164,25 +181,7 @@ impl World {
                 have,
             });
         }
-        let word = |at: usize| u32::from_le_bytes(bytes[at..at + 4].try_into().unwrap());
         let long = |at: usize| u64::from_le_bytes(bytes[at..at + 8].try_into().unwrap());
-        let version = word(8);
-        if version == 0 || version > FORMAT_VERSION {
-            return Err(LoadError::UnsupportedVersion {
-                found: version,
-                supported: FORMAT_VERSION,
-            });
-        }
-        let endian = u32::from_ne_bytes(bytes[12..16].try_into().unwrap());
-        if endian != ENDIAN {
-            return Err(match endian.swap_bytes() == ENDIAN {
-                true => LoadError::WrongEndianness,
-                false => LoadError::BadHeader {
-                    field: "endianness",
-                    value: endian.into(),
-                },
-            });
-        }
         let end = bytes.len() - 8;
         let (stored, computed) = (long(end), checksum(&bytes[..end]));
         if stored != computed {
@@ -208,29 +207,33 @@ impl World {
         let table = at.take(n, "instances")?;
         let mut instances = Vec::with_capacity(table.len() / INSTANCE_BYTES);
         let mut removed = Vec::with_capacity(table.len() / INSTANCE_BYTES);
-        for b in table.chunks_exact(INSTANCE_BYTES) {
-            let w: Vec<u32> = b
-                .chunks_exact(4)
-                .map(|c| u32::from_le_bytes(c.try_into().unwrap()))
-                .collect();
+        let mut moving = Vec::new();
+        for (i, b) in table.chunks_exact(INSTANCE_BYTES).enumerate() {
+            let w: [u32; INSTANCE_BYTES / 4] = std::array::from_fn(|k| {
+                u32::from_le_bytes(b[4 * k..4 * k + 4].try_into().unwrap())
+            });
             let transform =
-                Affine3A::from_cols_array(&std::array::from_fn(|i| f32::from_bits(w[4 + i])));
+                Affine3A::from_cols_array(&std::array::from_fn(|k| f32::from_bits(w[4 + k])));
             instances.push(Instance {
                 geometry: GeometryId(w[0]),
                 transform,
                 mask: w[1],
                 user_id: w[2],
             });
-            removed.push(match w[3] {
-                0 => false,
-                1 => true,
-                value => {
-                    return Err(LoadError::BadHeader {
-                        field: "instance removed flag",
-                        value: value.into(),
-                    })
-                }
-            });
+            if w[3] & !(FLAG_REMOVED | FLAG_MOVING) != 0 {
+                return Err(LoadError::BadHeader {
+                    field: "instance flags",
+                    value: w[3].into(),
+                });
+            }
+            removed.push(w[3] & FLAG_REMOVED != 0);
+            if w[3] & FLAG_MOVING != 0 {
+                moving.push(i);
+            }
+        }
+        let mut motions = Vec::new();
+        for i in moving {
+            set_slot(&mut motions, i, Some(at.motion()?));
         }
         if at.at != end {
             return Err(LoadError::TrailingBytes {
@@ -240,14 +243,16 @@ impl World {
         if !removed.contains(&true) {
             removed.clear();
         }
+        let leaves =
+            placements(&instances, &motions, geometries.len()).map_err(LoadError::World)?;
         let placed = Placed {
             geometries,
             instances,
+            motions,
             removed,
+            leaves,
         };
-        placed
-            .world(&BuildOptions::default())
-            .map_err(LoadError::World)
+        Ok(placed.world(&BuildOptions::default()))
     }
 }
 
@@ -271,6 +276,36 @@ impl<'a> Cursor<'a> {
         let out = &self.bytes[self.at..self.at + n as usize];
         self.at += n as usize;
         Ok(out)
+    }
+
+    /// A moving instance's motion: its interpolation, its key count, its keys.
+    fn motion(&mut self) -> Result<Motion, LoadError> {
+        let head = self.take(8, "motion head")?;
+        let word = |at: usize| u32::from_le_bytes(head[at..at + 4].try_into().unwrap());
+        let (kind, count) = (word(0), word(4));
+        if count as usize > MAX_MOTION_KEYS {
+            return Err(LoadError::BadHeader {
+                field: "motion key count",
+                value: count.into(),
+            });
+        }
+        let keys: Vec<Affine3A> = self
+            .take(u64::from(count) * 48, "motion keys")?
+            .chunks_exact(48)
+            .map(|k| {
+                Affine3A::from_cols_array(&std::array::from_fn(|j| {
+                    f32::from_le_bytes(k[4 * j..4 * j + 4].try_into().unwrap())
+                }))
+            })
+            .collect();
+        match kind {
+            MOTION_LINEAR => Ok(Motion::linear(keys)),
+            MOTION_DECOMPOSED => Ok(Motion::decomposed(keys)),
+            _ => Err(LoadError::BadHeader {
+                field: "motion interpolation",
+                value: kind.into(),
+            }),
+        }
     }
 
     /// Geometry `k`: its head, its triangles, its BVH.
@@ -436,12 +471,21 @@ mod tests {
             }))
         ));
         let mut b = bytes.clone();
-        b[first + 12] = 2; // removed flag
+        b[first + 12] = 4; // flags: neither removed nor moving
         assert!(matches!(
             World::from_bytes(&reseal(b)),
             Err(LoadError::BadHeader {
-                field: "instance removed flag",
-                value: 2
+                field: "instance flags",
+                value: 4
+            })
+        ));
+        let mut b = bytes.clone();
+        b[first + 12] = 2; // moving, but no motion follows
+        assert!(matches!(
+            World::from_bytes(&reseal(b)),
+            Err(LoadError::Truncated {
+                section: "motion head",
+                ..
             })
         ));
         let mut b = bytes.clone();

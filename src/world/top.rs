@@ -1,7 +1,7 @@
 //! The top level of a world: its per-instance leaf records ([`InstanceLeaf`]), each instance's world
 //! box, and the 8-wide BVH over them.
 
-use super::{Geometry, Instance};
+use super::{Geometry, Instance, Motion};
 use crate::builders::{build, BuildConfig, Builder};
 use crate::geometry::{Aabb, PrimHit, Ray};
 use crate::isa::Isa;
@@ -9,8 +9,8 @@ use crate::layout::{bvh2::leaf_order, Bvh8, Inputs};
 use crate::primitive::Primitive;
 use glam::{Affine3A, Mat3A, Vec3A, Vec4, Vec4Swizzles};
 
-/// The world box of an object box placed by `m`: the box of its eight transformed corners.
-fn world_box(m: &Affine3A, b: &Aabb) -> Aabb {
+/// The box of an object box's eight corners placed by `m` (empty for an empty box).
+pub(super) fn corner_box(m: &Affine3A, b: &Aabb) -> Aabb {
     if b.is_empty() {
         return Aabb::EMPTY;
     }
@@ -23,11 +23,19 @@ fn world_box(m: &Affine3A, b: &Aabb) -> Aabb {
         );
         out.grow(m.transform_point3a(c));
     }
-    // The walk meets the geometry through the inverse transform, the box went through the
-    // forward one: widened by 2^-20 of its coordinates' size, rounding in either cannot cull
-    // a hit the object-space walk would find. In halves, and clamped to the finite range, so
-    // a box reaching toward f32::MAX stays finite (an infinite box would drop the instance):
-    // every point the walk can meet is finite, so the clamped box still holds it.
+    out
+}
+
+/// A world box as the top level takes it: the walk meets the geometry through the inverse
+/// transform, the box went through the forward one, so it is widened by 2^-20 of its
+/// coordinates' size, and rounding in either cannot cull a hit the object-space walk would
+/// find. In halves, and clamped to the finite range, so a box reaching toward f32::MAX stays
+/// finite (an infinite box would drop the instance): every point the walk can meet is
+/// finite, so the clamped box still holds it.
+pub(super) fn padded(out: Aabb) -> Aabb {
+    if out.is_empty() {
+        return Aabb::EMPTY;
+    }
     let half = out.min.abs().max(out.max.abs()) * 0.5 + (out.max * 0.5 - out.min * 0.5);
     let pad = half * (1.0 / (1u32 << 19) as f32);
     let finite = |v: Vec3A| v.clamp(Vec3A::splat(f32::MIN), Vec3A::splat(f32::MAX));
@@ -41,8 +49,11 @@ fn world_box(m: &Affine3A, b: &Aabb) -> Aabb {
 /// [`RefitInput::bounds`]: crate::layout::refit::RefitInput::bounds
 /// A removed instance (`removed[i]`, which may be shorter than `instances`) gets the empty
 /// box, which the build leaves out, as it does any box that is not finite.
+/// A moving instance's box holds it over its whole motion (`motions[i]`, which may be
+/// shorter than `instances`).
 pub(super) fn world_boxes<P: Primitive>(
     instances: &[Instance],
+    motions: &[Option<Motion>],
     geometries: &[Geometry<P>],
     removed: &[bool],
 ) -> Vec<Aabb> {
@@ -50,23 +61,29 @@ pub(super) fn world_boxes<P: Primitive>(
     instances
         .par_iter()
         .enumerate()
-        .map(|(i, inst)| instance_box(inst, geometries, removed.get(i) == Some(&true)))
+        .map(|(i, inst)| {
+            let motion = motions.get(i).and_then(Option::as_ref);
+            instance_box(inst, motion, geometries, removed.get(i) == Some(&true))
+        })
         .collect()
 }
 
-/// The world box of instance `inst` as placed now (empty once removed).
+/// The world box of instance `inst` as placed now, over its whole `motion` if it moves
+/// (empty once removed).
 pub(super) fn instance_box<P: Primitive>(
     inst: &Instance,
+    motion: Option<&Motion>,
     geometries: &[Geometry<P>],
     removed: bool,
 ) -> Aabb {
     if removed {
         return Aabb::EMPTY;
     }
-    world_box(
-        &inst.transform,
-        &geometries[inst.geometry.0 as usize].bounds(),
-    )
+    let b = geometries[inst.geometry.0 as usize].bounds();
+    match motion {
+        Some(m) => m.world_box(&b),
+        None => padded(corner_box(&inst.transform, &b)),
+    }
 }
 
 /// The top-level BVH over `placed` (in instance order), whose world boxes are `boxes`:
@@ -111,6 +128,9 @@ pub(crate) struct InstanceLeaf {
     pub(crate) instance: u32,
     /// The identity transform: rays go in as they are.
     pub(crate) identity: bool,
+    /// The instance moves: a ray goes in through its motion's transform at the ray's time
+    /// (`to_object` is the one at time 0, for the point queries).
+    pub(crate) moving: bool,
 }
 
 // One line per instance: a record that grew past it would cost every instance entry a
@@ -118,11 +138,12 @@ pub(crate) struct InstanceLeaf {
 const _: () = assert!(std::mem::size_of::<InstanceLeaf>() == 64);
 
 impl InstanceLeaf {
-    /// Instance `index` (`inst`, with its checked `placement`).
+    /// Instance `index` (`inst`, with its checked `placement`), moving or not.
     pub(super) fn new(
         index: usize,
         inst: &Instance,
         (world_to_object, identity): (Affine3A, bool),
+        moving: bool,
     ) -> InstanceLeaf {
         let (m, t) = (world_to_object.matrix3, world_to_object.translation);
         let col = |c: Vec3A, t: f32| [c.x, c.y, c.z, t];
@@ -131,7 +152,8 @@ impl InstanceLeaf {
             geometry: inst.geometry.0,
             mask: inst.mask,
             instance: index as u32,
-            identity,
+            identity: identity && !moving,
+            moving,
         }
     }
 

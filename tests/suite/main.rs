@@ -13,6 +13,7 @@ mod havran;
 mod inputs;
 mod meshes;
 mod mixed;
+mod motion;
 mod obvhs;
 mod packets;
 mod point;

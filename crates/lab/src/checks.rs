@@ -604,9 +604,11 @@ pub fn mesh_load(data: &[u8], ext: &str) {
 /// may panic and both instruction sets must agree bit for bit; on tame inputs every closest
 /// hit, single and in packets, names the instance, geometry and primitive the f64 oracle
 /// finds over the flattened scene with the masked and rejected triangles left out (bands
-/// widened by the transforms' rounding), and any-hit agrees on decidable rays. Then the bytes
-/// after the instances' drive a sequence of edits, and the edited world must answer as the same
-/// state built afresh (`edits_against_rebuilt`).
+/// widened by the transforms' rounding), and any-hit agrees on decidable rays. Then bytes
+/// further on set instances moving, and the moving world at each ray's time must answer as
+/// the scene placed at that time (`moving_against_rebuilt`); and the bytes after the
+/// instances' drive a sequence of edits, and the edited world must answer as the same state
+/// built afresh (`edits_against_rebuilt`).
 ///
 /// ```
 /// quiver_lab::checks::instanced_against_oracle(&[7u8; 500]);
@@ -719,8 +721,114 @@ pub fn instanced_against_oracle(data: &[u8]) {
             assert_eq!(any, answer.hit.is_some(), "{setup:?} any-hit {r:?}");
         }
     }
+    let motion = control.get(128..).unwrap_or(&[]);
+    moving_against_rebuilt(motion, &placements, &options, &rays, setup.tame);
     let ops = control.get(96..).unwrap_or(&[]);
     edits_against_rebuilt(ops, placements, &options, &rays, setup.tame);
+}
+
+/// The instances of `placements` set moving by `bytes` (two an instance: none, a drift and
+/// growth between two keys, or a decomposed turn of up to 0.45 of a turn a step about an
+/// axis the bytes pick, over three keys), the rays (whose masks repeat every three) shot at
+/// three times, 0, one the bytes pick and 1, in turn. Nothing may panic and both instruction
+/// sets agree bit for bit; on tame inputs every closest hit, single and in packets, is an
+/// answer the f64 oracle over the scene placed at the ray's time admits, the single one is
+/// the static world's built at that time or (where the two walks' top levels meet tied
+/// instances in other orders) both are admitted, and any hit agrees with the oracle on
+/// decidable rays.
+fn moving_against_rebuilt(
+    bytes: &[u8],
+    placements: &crate::worlds::Placements,
+    options: &BuildOptions,
+    rays: &[Ray],
+    tame: bool,
+) {
+    use glam::{Affine3A, Vec3};
+    use quiver_rt::Motion;
+    let byte = |k: usize| bytes.get(k).copied().unwrap_or(0);
+    let motions: Vec<Option<Motion>> = placements
+        .instances
+        .iter()
+        .enumerate()
+        .map(|(i, inst)| {
+            let (kind, v) = (byte(2 * i), byte(2 * i + 1));
+            let base = inst.transform;
+            let amount = (kind / 3) as f32 / 85.0;
+            match kind % 3 {
+                0 => None,
+                1 => {
+                    let drift = Vec3::new(v as f32 / 32.0 - 4.0, (v % 7) as f32 * 0.5, 1.0);
+                    let grow = Affine3A::from_scale(Vec3::splat(1.0 + amount));
+                    Some(Motion::linear(vec![
+                        base,
+                        Affine3A::from_translation(drift) * base * grow,
+                    ]))
+                }
+                _ => {
+                    let axis = [Vec3::X, Vec3::Y, Vec3::Z, Vec3::ONE.normalize()][v as usize % 4];
+                    let step = amount * 0.45 * std::f32::consts::TAU;
+                    let lift = Affine3A::from_translation(Vec3::new(0.0, v as f32 / 64.0, 0.0));
+                    Some(Motion::decomposed(vec![
+                        base,
+                        Affine3A::from_axis_angle(axis, step) * base,
+                        lift * Affine3A::from_axis_angle(axis, 2.0 * step) * base,
+                    ]))
+                }
+            }
+        })
+        .collect();
+    if motions.iter().all(Option::is_none) {
+        return;
+    }
+    let times = [
+        0.0,
+        byte(2 * placements.instances.len()) as f32 / 255.0,
+        1.0,
+    ];
+    let rays: Vec<Ray> = rays
+        .iter()
+        .enumerate()
+        .map(|(i, r)| r.with_time(times[i % 3]))
+        .collect();
+    let world = placements.moving_world(&motions, options);
+    let portable = placements.moving_world(&motions, &options.clone().isa(Isa::Portable));
+    let mut hits = vec![None; rays.len()];
+    world.closest_hit_packet_with::<ConservativeBoxes, _, _>(
+        PacketQuery::new(&rays).mode(PacketMode::Always),
+        &mut hits,
+        &mut NoStats,
+        &mut NoFilter,
+    );
+    let placed: Vec<_> = times
+        .iter()
+        .map(|&t| placements.at_time(&motions, t))
+        .collect();
+    let fresh: Vec<_> = placed.iter().map(|p| p.world(options)).collect();
+    for (i, r) in rays.iter().enumerate() {
+        let got = world.closest_hit(r);
+        assert_eq!(got, portable.closest_hit(r), "isa {r:?}");
+        assert_eq!(world.any_hit(r), portable.any_hit(r), "isa any {r:?}");
+        if !(tame && judgeable(r)) {
+            continue;
+        }
+        let p = &placed[i % 3];
+        let (flat, names) = p.flattened(|k, _| p.instances[k as usize].mask & r.mask != 0);
+        let answer = Oracle::with_slack(&flat, p.slack()).closest_hit(r);
+        let want = fresh[i % 3].closest_hit(r);
+        let admitted = |h| crate::worlds::check(&answer, h, &names).is_ok();
+        assert!(
+            got == want || (admitted(got) && admitted(want)),
+            "{placements:?} {motions:?} {r:?}: {got:?} moving, {want:?} built at the time"
+        );
+        for (what, h) in [("single", got), ("packet", hits[i])] {
+            if let Err(e) = crate::worlds::check(&answer, h, &names) {
+                panic!("{placements:?} {motions:?} {what} {r:?}: {e}");
+            }
+        }
+        if answer.is_decidable() {
+            assert_eq!(world.any_hit(r), answer.hit.is_some(), "any-hit {r:?}");
+        }
+    }
 }
 
 /// A random sequence of structural edits (from `ops`, three bytes each: remove, add, move,

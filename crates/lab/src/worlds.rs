@@ -5,7 +5,9 @@
 use crate::oracle::{Answer, Mismatch};
 use crate::rays::random_rays;
 use glam::Affine3A;
-use quiver_rt::{Aabb, BuildOptions, Hit, Instance, Ray, Triangle, World, WorldHit};
+use quiver_rt::{
+    Aabb, BuildOptions, Hit, Instance, Motion, Ray, Triangle, World, WorldBuilder, WorldHit,
+};
 
 /// A scene to instance: geometries (triangle lists; the second is given to the world as an
 /// indexed mesh) and instances of them with transforms and masks.
@@ -35,7 +37,11 @@ pub struct Placements {
 impl Placements {
     /// The world, every geometry built with `options`; the second geometry as a mesh.
     pub fn world(&self, options: &BuildOptions) -> World {
-        let mut b = World::builder();
+        self.moving_world(&[], options)
+    }
+
+    /// The geometries added to `b`, the second as an indexed mesh.
+    fn add_geometries(&self, b: &mut WorldBuilder) {
         for (g, tris) in self.geometries.iter().enumerate() {
             if g == 1 {
                 let positions: Vec<[f32; 3]> = tris
@@ -50,10 +56,36 @@ impl Placements {
                 b.add_triangles(tris.clone());
             }
         }
-        for inst in &self.instances {
-            b.add_instance(*inst);
+    }
+
+    /// The world whose instances move by `motions` (`motions[i]` for instance `i`; a
+    /// shorter list leaves the rest still), every geometry built with `options`; the second
+    /// geometry as a mesh.
+    ///
+    /// # Panics
+    /// When the world refuses a motion.
+    pub fn moving_world(&self, motions: &[Option<Motion>], options: &BuildOptions) -> World {
+        let mut b = World::builder();
+        self.add_geometries(&mut b);
+        for (i, inst) in self.instances.iter().enumerate() {
+            match motions.get(i).and_then(Option::as_ref) {
+                Some(m) => b.add_moving_instance(*inst, m.clone()),
+                None => b.add_instance(*inst),
+            };
         }
         b.build(options).unwrap()
+    }
+
+    /// The scene placed where `motions` have its instances at `time` (the instances without
+    /// a motion stay).
+    pub fn at_time(&self, motions: &[Option<Motion>], time: f32) -> Placements {
+        let mut out = self.clone();
+        for (inst, motion) in out.instances.iter_mut().zip(motions) {
+            if let Some(m) = motion {
+                inst.transform = m.at(time);
+            }
+        }
+        out
     }
 
     /// The scene flattened instance by instance into world-space triangles, keeping those
