@@ -65,6 +65,7 @@ fn to_c(r: &Ray) -> QvRay {
         dir: r.dir.into(),
         t_max: r.t_max,
         mask: r.mask,
+        time: r.time,
     }
 }
 

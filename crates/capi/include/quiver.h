@@ -69,6 +69,9 @@ typedef struct QvRay {
     float t_max;
     /* 0xFFFFFFFF: every instance. */
     uint32_t mask;
+    /* When in the shutter the ray is shot, 0 to 1: moving instances are met where they are
+     * then (clamped; NaN counts as 0). 0 for a scene without motion. */
+    float time;
 } QvRay;
 
 /* A ray's hit. On a miss: prim, geometry and instance are QV_INVALID_ID, t is INFINITY,
@@ -230,6 +233,21 @@ QvStatus qv_world_builder_add_mesh(QvWorldBuilder *builder, const float *vertice
 QvStatus qv_world_builder_add_instance(QvWorldBuilder *builder, uint32_t geometry,
                                        const float transform[12], uint32_t mask,
                                        uint32_t *instance_id);
+
+/* Places geometry `geometry` moving over the shutter through key_count transforms (keys:
+ * 12 * key_count floats, each key read as qv_world_builder_add_instance reads its transform),
+ * evenly spaced from time 0 to 1: a ray at QvRay.time meets it where the keys place it then,
+ * interpolated linearly (interpolation 0) or decomposed (1: rotation, scale and translation
+ * apart, rotations turning at a constant speed, so a spinning wheel keeps its size). Seen by
+ * rays whose mask shares a bit with `mask`; *instance_id is its id.
+ * Errors: QV_NULL_POINTER; QV_INVALID_ARGUMENT for a geometry not added, fewer than 2 or more
+ * than 256 keys, a key that is not finite or not invertible, keys that mirror beside keys that
+ * do not, a decomposed step of half a turn or more, or another interpolation; a refused
+ * instance adds nothing. */
+QvStatus qv_world_builder_add_moving_instance(QvWorldBuilder *builder, uint32_t geometry,
+                                              const float *keys, uint32_t key_count,
+                                              uint32_t interpolation, uint32_t mask,
+                                              uint32_t *instance_id);
 
 /* Gives geometry `geometry` a filter (see QvFilterFn for the contract): every candidate hit
  * of the geometry, in any instance, is kept only when filter(user, &candidate) returns

@@ -19,6 +19,7 @@ fn down(x: f32, y: f32) -> QvRay {
         dir: [0.0, 0.0, -1.0],
         t_max: f32::INFINITY,
         mask: u32::MAX,
+        time: 0.0,
     }
 }
 
@@ -724,4 +725,73 @@ fn a_world_closest_point_names_its_instance() {
         assert_eq!(last_error(), "qv_world_closest_point: point is NULL");
         qv_world_free(world);
     }
+}
+
+#[test]
+fn a_moving_instance_is_met_where_its_keys_place_it_at_the_ray_time() {
+    let (mut b, mut g, mut i) = (null_mut(), 0, 0);
+    // The unit square sliding from x = 0 to x = 4 over the shutter.
+    let keys = [IDENTITY, [1., 0., 0., 4., 0., 1., 0., 0., 0., 0., 1., 0.]].concat();
+    let mut world = null_mut();
+    // SAFETY: live handles, packed buffers, 12 floats a key, writable outs.
+    unsafe {
+        assert_eq!(qv_world_builder_new(&mut b), QvStatus::Ok);
+        let s = qv_world_builder_add_mesh(
+            b,
+            SQUARE.as_ptr().cast(),
+            4,
+            12,
+            INDICES.as_ptr().cast(),
+            2,
+            12,
+            &mut g,
+        );
+        assert_eq!(s, QvStatus::Ok);
+        for (count, interpolation, want) in [
+            (1, 0, "keys: the motion has fewer than two keys"),
+            (2, 2, "interpolation: 2 is neither 0 nor 1"),
+            (300, 0, "key_count: 300 is more than 256"),
+        ] {
+            let s = qv_world_builder_add_moving_instance(
+                b,
+                g,
+                keys.as_ptr(),
+                count,
+                interpolation,
+                u32::MAX,
+                &mut i,
+            );
+            assert_eq!(s, QvStatus::InvalidArgument);
+            assert!(last_error().contains(want), "{}", last_error());
+        }
+        let flat = [IDENTITY, [0.0; 12]].concat();
+        let s = qv_world_builder_add_moving_instance(b, g, flat.as_ptr(), 2, 0, 1, &mut i);
+        assert_eq!(s, QvStatus::InvalidArgument);
+        assert!(last_error().contains("keys: key 1: "), "{}", last_error());
+        let s = qv_world_builder_add_moving_instance(b, g, keys.as_ptr(), 2, 0, 1, &mut i);
+        assert_eq!((s, i), (QvStatus::Ok, 0));
+        assert_eq!(
+            qv_world_build(b, &mut world),
+            QvStatus::Ok,
+            "{}",
+            last_error()
+        );
+    }
+    // At x = 2.5: met from time 0.375 (the square's right edge gets there) to 0.625.
+    let at = |time: f32| {
+        world_hit(
+            world,
+            QvRay {
+                time,
+                ..down(2.5, 0.5)
+            },
+        )
+    };
+    assert_eq!(at(0.0), QvHit::MISS);
+    assert_eq!(at(1.0), QvHit::MISS);
+    assert_eq!((at(0.5).t, at(0.5).instance), (5.0, 0));
+    assert_eq!(at(0.4).t, 5.0);
+    assert_eq!(at(0.3), QvHit::MISS);
+    // SAFETY: a live world handle, freed once.
+    unsafe { qv_world_free(world) };
 }

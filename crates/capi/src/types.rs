@@ -25,6 +25,9 @@ pub struct QvRay {
     pub t_max: f32,
     /// Which instances the ray sees (`0xFFFFFFFF`: all).
     pub mask: u32,
+    /// When in the shutter the ray is shot, 0 to 1 (moving instances are met where they are
+    /// then; clamped, NaN as 0; a static scene ignores it).
+    pub time: f32,
 }
 
 impl QvRay {
@@ -37,6 +40,7 @@ impl QvRay {
             self.t_max,
         )
         .with_mask(self.mask)
+        .with_time(self.time)
     }
 }
 

@@ -7,9 +7,10 @@ use crate::files::{self, path_of};
 use crate::trace;
 use crate::types::{affine_of_rows, QvFilterFn, QvHit, QvPointHit, QvRay};
 use quiver_rt::glam::{Affine3A, Vec3A};
-use quiver_rt::world::{invert, WorldEdit};
+use quiver_rt::world::{invert, WorldEdit, MAX_MOTION_KEYS};
 use quiver_rt::{
-    BuildOptions, GeometryId, Instance, InstanceId, World, WorldBuilder, WorldError, WorldHit,
+    BuildOptions, GeometryId, Instance, InstanceId, Motion, World, WorldBuilder, WorldError,
+    WorldHit,
 };
 use std::ffi::{c_char, c_int, c_void};
 
@@ -210,6 +211,71 @@ pub unsafe extern "C" fn qv_world_builder_add_instance(
         let i = b
             .builder
             .add_instance(Instance::of(GeometryId(geometry)).transform(m).mask(mask));
+        id[0].write(i.0);
+        Ok(())
+    })
+}
+
+/// Places geometry `geometry` moving over the shutter through `key_count` transforms
+/// (`keys`: `12 * key_count` floats, each key read as `qv_world_builder_add_instance` reads
+/// its transform), evenly spaced from time 0 to 1, interpolated linearly (`interpolation`
+/// 0) or decomposed (1: rotations turn at a constant speed); seen by rays whose mask shares
+/// a bit with `mask`; `*instance_id` is its id.
+///
+/// # Safety
+/// `builder` a live builder handle or NULL; `keys` NULL or readable for `12 * key_count`
+/// floats; `instance_id` NULL or writable.
+#[no_mangle]
+pub unsafe extern "C" fn qv_world_builder_add_moving_instance(
+    builder: *mut QvWorldBuilder,
+    geometry: u32,
+    keys: *const f32,
+    key_count: u32,
+    interpolation: u32,
+    mask: u32,
+    instance_id: *mut u32,
+) -> QvStatus {
+    guard("qv_world_builder_add_moving_instance", || {
+        let bad = |why: String| Failure::new(QvStatus::InvalidArgument, why);
+        if key_count as usize > MAX_MOTION_KEYS {
+            return Err(bad(format!(
+                "key_count: {key_count} is more than {MAX_MOTION_KEYS}"
+            )));
+        }
+        // SAFETY: the caller's contract for each pointer.
+        let (b, floats, id) = unsafe {
+            (
+                builder_mut(builder)?,
+                input(keys, 12 * key_count as usize, "keys")?,
+                output(instance_id, 1, "instance_id")?,
+            )
+        };
+        if geometry >= b.geometries {
+            return Err(bad(format!(
+                "geometry: {geometry} does not exist (the builder has {})",
+                b.geometries
+            )));
+        }
+        let keys: Vec<Affine3A> = floats
+            .chunks_exact(12)
+            .map(|k| affine_of_rows(k.try_into().expect("12 floats")))
+            .collect();
+        let motion = match interpolation {
+            0 => Motion::linear(keys),
+            1 => Motion::decomposed(keys),
+            other => return Err(bad(format!("interpolation: {other} is neither 0 nor 1"))),
+        };
+        motion.check(0).map_err(|e| match e {
+            WorldError::Motion {
+                key: Some(k), why, ..
+            } => bad(format!("keys: key {k}: {why}")),
+            e => bad(format!(
+                "keys: {}",
+                e.to_string().trim_start_matches("instance 0: ")
+            )),
+        })?;
+        let inst = Instance::of(GeometryId(geometry)).mask(mask);
+        let i = b.builder.add_moving_instance(inst, motion);
         id[0].write(i.0);
         Ok(())
     })

@@ -23,22 +23,20 @@ fn world() -> World {
 }
 
 /// The directory holding the static library this test build goes with (`target/<profile>`,
-/// the parent of the `deps` directory this test runs from). Cargo builds the library's every
-/// crate type, the staticlib included, before the tests; should it not have, it is built here
-/// with the same profile.
+/// the parent of the `deps` directory this test runs from). `cargo test` leaves the
+/// staticlib there only as the last `cargo build` made it, which may be older than the
+/// sources, so it is built here with the same profile (nothing to do when it is current).
 fn library_dir() -> PathBuf {
     let exe = std::env::current_exe().unwrap();
     let dir = exe.parent().and_then(Path::parent).unwrap().to_path_buf();
-    if !dir.join("libquiver_capi.a").exists() {
-        let profile = dir.file_name().unwrap().to_str().unwrap();
-        let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
-        let status = Command::new(cargo)
-            .args(["build", "-p", "quiver-capi", "--profile"])
-            .arg(if profile == "debug" { "dev" } else { profile })
-            .status()
-            .unwrap();
-        assert!(status.success(), "cargo build -p quiver-capi failed");
-    }
+    let profile = dir.file_name().unwrap().to_str().unwrap();
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+    let status = Command::new(cargo)
+        .args(["build", "-p", "quiver-capi", "--profile"])
+        .arg(if profile == "debug" { "dev" } else { profile })
+        .status()
+        .unwrap();
+    assert!(status.success(), "cargo build -p quiver-capi failed");
     assert!(
         dir.join("libquiver_capi.a").exists(),
         "no libquiver_capi.a in {}",
