@@ -201,11 +201,19 @@ impl<P: Primitive> World<P> {
     }
 
     /// What the world occupies: the top level, every geometry's BVH once (however often it is
-    /// placed) and the instance records. `nodes` counts the top level's and the geometries'
+    /// placed), the instance records and the motions' keys. `nodes` counts the top level's and the geometries'
     /// node slots.
     pub fn footprint(&self) -> Footprint {
         let top = self.top.footprint();
-        let instances = std::mem::size_of_val(self.instances.as_slice());
+        let motions = self
+            .motions
+            .iter()
+            .flatten()
+            .map(Motion::bytes)
+            .sum::<usize>();
+        let instances = std::mem::size_of_val(self.instances.as_slice())
+            + std::mem::size_of_val(self.motions.as_slice())
+            + motions;
         self.geometries.iter().fold(
             Footprint {
                 nodes: top.nodes,

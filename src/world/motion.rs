@@ -113,6 +113,11 @@ impl Motion {
         self.interpolation
     }
 
+    /// Bytes its keys (and their decomposed parts) take, for [`World::footprint`](super::World::footprint).
+    pub(super) fn bytes(&self) -> usize {
+        std::mem::size_of_val(self.keys.as_slice()) + std::mem::size_of_val(self.parts.as_slice())
+    }
+
     /// The transform (object to world) a ray at `time` meets: `time` clamped into `[0, 1]`
     /// (NaN taken as 0, as [`Ray::shutter_time`](crate::Ray::shutter_time) does), and at a
     /// key's own time exactly that key. (A motion of one key is that key at every time, one

@@ -320,7 +320,7 @@ impl<P: Primitive> World<P> {
                             best[i] = WorldHit::none(ray.t_max);
                         }
                         let found = match at {
-                            AloneIn::Leaf(r) => self.search_leaf::<V, A, B, S, F>(
+                            AloneIn::Leaf(r) => self.search_leaf::<V, A, B, S, F, true>(
                                 cpu,
                                 r.start,
                                 r.len(),

@@ -11,6 +11,7 @@ use crate::traverse::bvh8::{walk, Ray8};
 use crate::traverse::dispatch::{self, LaneKernel};
 use crate::traverse::lane8::F8;
 use crate::traverse::{Ask, BoxTest, Filter, PacketQuery, RayQuery, Stats};
+use glam::Affine3A;
 use std::marker::PhantomData;
 
 /// The caller's filter, asked about a geometry's candidates as world hits of one instance.
@@ -119,7 +120,7 @@ impl<P: Primitive> World<P> {
     /// else through its query. Returns true when `best` changed.
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
-    pub(super) fn search_in<V: F8, A: Ask, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
+    pub(super) fn search_in<V, A, B, S, F, const MOVING: bool>(
         &self,
         cpu: V::Cpu,
         p: &InstanceLeaf,
@@ -127,14 +128,26 @@ impl<P: Primitive> World<P> {
         best: &mut WorldHit,
         stats: &mut S,
         filter: &mut F,
-    ) -> bool {
+    ) -> bool
+    where
+        V: F8,
+        A: Ask,
+        B: BoxTest,
+        S: Stats,
+        F: Filter<WorldHit>,
+    {
         if ray.mask & p.mask == 0 {
             return false;
         }
-        if p.moving {
-            return self.search_moving::<A, B, S, F>(p, ray, best, stats, filter);
-        }
-        let local = p.local(ray, best.t);
+        // A moving instance's transform at the ray's time is made out of line; its geometry
+        // is then walked as a static instance's is.
+        let local = match MOVING && p.moving {
+            true => match self.moving_local(p, ray, best.t) {
+                Some(local) => local,
+                None => return false,
+            },
+            false => p.local(ray, best.t),
+        };
         if self.own_filter(p.geometry).is_some() {
             return self.search_local::<A, B, S, F>(p, &local, best, stats, filter);
         }
@@ -159,38 +172,20 @@ impl<P: Primitive> World<P> {
         }
     }
 
-    /// The search `A` of `ray` in moving instance `p` (at the ray's time), improving `best`;
-    /// true when it did. Out of line and cold, so the static instances' inlined walk is
-    /// compiled as it is without motion. It needs no wide lanes itself: the transform is
-    /// glam's, and the geometry's query picks its kernels through its own dispatch.
-    #[cold]
-    #[inline(never)]
-    fn search_moving<A: Ask, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
-        &self,
-        p: &InstanceLeaf,
-        ray: &Ray,
-        best: &mut WorldHit,
-        stats: &mut S,
-        filter: &mut F,
-    ) -> bool {
-        match self.moving_local(p, ray, best.t) {
-            Some(local) => self.search_local::<A, B, S, F>(p, &local, best, stats, filter),
-            None => false,
-        }
-    }
-
     /// `ray` in moving instance `p`'s object space at the ray's time, searching up to
     /// `t_max`; `None` where the motion's transform then has no inverse.
     #[inline(always)]
     pub(super) fn moving_local(&self, p: &InstanceLeaf, ray: &Ray, t_max: f32) -> Option<Ray> {
-        let motion = super::instance::motion_of(&self.motions, p.instance as usize)?;
-        let to_object = motion.to_object(ray.shutter_time())?;
-        Some(Ray {
-            origin: to_object.transform_point3a(ray.origin),
-            dir: to_object.transform_vector3a(ray.dir),
-            t_max,
-            ..*ray
-        })
+        let to_object = self.moving_to_object(p.instance, ray.shutter_time())?;
+        Some(super::top::into_object(&to_object, ray, t_max))
+    }
+
+    /// Moving instance `instance`'s world-to-object transform at `time`: out of line and
+    /// cold, the interpolation and inverse are no part of a static instance's code.
+    #[cold]
+    #[inline(never)]
+    fn moving_to_object(&self, instance: u32, time: f32) -> Option<Affine3A> {
+        super::instance::motion_of(&self.motions, instance as usize)?.to_object(time)
     }
 
     /// `ray` in instance `p`'s object space (at the ray's time, if `p` moves), searching up
@@ -257,7 +252,7 @@ impl<P: Primitive> World<P> {
     /// changed.
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
-    pub(super) fn search_leaf<V: F8, A: Ask, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
+    pub(super) fn search_leaf<V, A, B, S, F, const MOVING: bool>(
         &self,
         cpu: V::Cpu,
         first: usize,
@@ -266,11 +261,18 @@ impl<P: Primitive> World<P> {
         best: &mut WorldHit,
         stats: &mut S,
         filter: &mut F,
-    ) -> bool {
+    ) -> bool
+    where
+        V: F8,
+        A: Ask,
+        B: BoxTest,
+        S: Stats,
+        F: Filter<WorldHit>,
+    {
         let mut found = false;
         for i in first..first + count {
             let p = &self.top.prims[i];
-            found |= self.search_in::<V, A, B, S, F>(cpu, p, ray, best, stats, filter);
+            found |= self.search_in::<V, A, B, S, F, MOVING>(cpu, p, ray, best, stats, filter);
             if A::ANY && found {
                 break;
             }
@@ -289,6 +291,30 @@ impl<P: Primitive> World<P> {
         stats: &mut S,
         filter: &mut F,
     ) {
+        // As `trace_with` picks it (the packets' rays that go alone come here).
+        match self.motions.is_empty() {
+            true => self.walk_top::<V, A, B, S, F, false>(cpu, ray, root, best, stats, filter),
+            false => self.walk_top::<V, A, B, S, F, true>(cpu, ray, root, best, stats, filter),
+        }
+    }
+
+    /// [`World::search_from`], testing for moving instances if `MOVING`.
+    #[inline(always)]
+    fn walk_top<V, A, B, S, F, const MOVING: bool>(
+        &self,
+        cpu: V::Cpu,
+        ray: &Ray,
+        root: usize,
+        best: &mut WorldHit,
+        stats: &mut S,
+        filter: &mut F,
+    ) where
+        V: F8,
+        A: Ask,
+        B: BoxTest,
+        S: Stats,
+        F: Filter<WorldHit>,
+    {
         let top = &self.top;
         let r8 = Ray8::<V>::new(cpu, ray);
         walk::<V, A, B, S, _>(
@@ -300,7 +326,7 @@ impl<P: Primitive> World<P> {
             #[inline(always)]
             |first, count, limit, stats| {
                 stats.prims(count);
-                let found = self.search_leaf::<V, A, B, S, F>(
+                let found = self.search_leaf::<V, A, B, S, F, MOVING>(
                     cpu,
                     first,
                     count as usize,
@@ -328,8 +354,8 @@ impl<P: Primitive> World<P> {
 }
 
 /// One ray's query of a [`World`], as the kernel [`dispatch`] runs on the top level's lanes
-/// (the geometries' own queries pick their kernels).
-struct Trace<'a, P, A, B, S, F> {
+/// (the geometries' own queries pick their kernels), testing for moving instances if `MOVING`.
+struct Trace<'a, P, A, B, S, F, const MOVING: bool> {
     world: &'a World<P>,
     ray: &'a Ray,
     stats: &'a mut S,
@@ -337,7 +363,7 @@ struct Trace<'a, P, A, B, S, F> {
     ask: PhantomData<(A, B)>,
 }
 
-impl<P, A, B, S, F> LaneKernel for Trace<'_, P, A, B, S, F>
+impl<P, A, B, S, F, const MOVING: bool> LaneKernel for Trace<'_, P, A, B, S, F, MOVING>
 where
     P: Primitive,
     A: Ask,
@@ -352,7 +378,7 @@ where
         let ray = &self.ray.raised_t_min();
         let mut best = WorldHit::none(ray.t_max);
         if self.world.walkable() {
-            self.world.search_from::<V, A, B, S, F>(
+            self.world.walk_top::<V, A, B, S, F, MOVING>(
                 cpu,
                 ray,
                 0,
@@ -365,6 +391,26 @@ where
     }
 }
 
+impl<P: Primitive> World<P> {
+    /// One ray's query on the top level's kernels, testing for moving instances if `MOVING`.
+    #[inline(always)]
+    fn trace_on<A: Ask, B: BoxTest, S: Stats, F: Filter<WorldHit>, const MOVING: bool>(
+        &self,
+        ray: &Ray,
+        stats: &mut S,
+        filter: &mut F,
+    ) -> A::Answer<WorldHit> {
+        let kernel = Trace::<P, A, B, S, F, MOVING> {
+            world: self,
+            ray,
+            stats,
+            filter,
+            ask: PhantomData,
+        };
+        dispatch::run(self.top.kernels, false, kernel)
+    }
+}
+
 impl<P: Primitive> RayQuery for World<P> {
     type Hit = WorldHit;
 
@@ -374,14 +420,13 @@ impl<P: Primitive> RayQuery for World<P> {
         stats: &mut S,
         filter: &mut F,
     ) -> A::Answer<WorldHit> {
-        let kernel = Trace::<P, A, B, S, F> {
-            world: self,
-            ray,
-            stats,
-            filter,
-            ask: PhantomData,
-        };
-        dispatch::run(self.top.kernels, false, kernel)
+        // Picked before the kernels: a world where nothing moves runs code with no motion in
+        // it, not even the test of each instance's flag (a world that once had a moving
+        // instance keeps the test).
+        match self.motions.is_empty() {
+            true => self.trace_on::<A, B, S, F, false>(ray, stats, filter),
+            false => self.trace_on::<A, B, S, F, true>(ray, stats, filter),
+        }
     }
 
     fn trace_packet_with<A: Ask, B: BoxTest, S: Stats, F: Filter<WorldHit>>(

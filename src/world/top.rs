@@ -181,13 +181,19 @@ impl InstanceLeaf {
         if self.identity {
             return Ray { t_max, ..*ray };
         }
-        let to_object = self.world_to_object();
-        Ray {
-            origin: to_object.transform_point3a(ray.origin),
-            dir: to_object.transform_vector3a(ray.dir),
-            t_max,
-            ..*ray
-        }
+        into_object(&self.world_to_object(), ray, t_max)
+    }
+}
+
+/// `ray` through the world-to-object transform `to_object`, searching up to `t_max` (the same
+/// parameter in both spaces: the direction is transformed, not normalized).
+#[inline(always)]
+pub(crate) fn into_object(to_object: &Affine3A, ray: &Ray, t_max: f32) -> Ray {
+    Ray {
+        origin: to_object.transform_point3a(ray.origin),
+        dir: to_object.transform_vector3a(ray.dir),
+        t_max,
+        ..*ray
     }
 }
 
