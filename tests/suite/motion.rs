@@ -340,3 +340,68 @@ fn files_and_edits_keep_motions() {
         Some(Interpolation::Decomposed)
     );
 }
+
+/// The SPD renderer's motion blur (issue 53 point 6), on balls1 with every sphere drifting
+/// ([`scatter`]): traced at time 0 only, the moving scene draws the static scene's image with
+/// its ray counts; a static scene traced at four times traces each ray four times (counts
+/// exactly four times the single render's) and draws its image up to the average's
+/// rounding; the moving scene traced at four times is blurred away from it.
+#[test]
+fn the_renderer_blurs_what_moves_and_nothing_else() {
+    use quiver_scenes::accel::SceneBvh;
+    use quiver_scenes::instanced::scatter;
+    use quiver_scenes::render::{render, RayCounts, RenderConfig};
+    let scene = quiver_scenes::Scene::load("balls1").unwrap();
+    let options = BuildOptions::default();
+    let still = SceneBvh::build_instanced(&scene, 4, &options).unwrap();
+    let moving = SceneBvh::build_instanced_moving(&scene, 4, &options, &scatter).unwrap();
+    let draw = |bvh: &SceneBvh, time_samples: u32| {
+        let config = RenderConfig {
+            res: 48,
+            two_sided: scene.patch_mode_two_sided_materials(),
+            time_samples,
+            ..RenderConfig::default()
+        };
+        render(&scene, bvh, &config, &|_| {})
+    };
+    let base = draw(&still, 1);
+    let at_zero = draw(&moving, 1);
+    assert_eq!(at_zero.rays, base.rays, "time 0: the static scene's rays");
+    assert_eq!(at_zero.rgb, base.rgb, "time 0: the static scene's image");
+    let r = base.rays;
+    let four = RayCounts {
+        eye: 4 * r.eye,
+        eye_hit: 4 * r.eye_hit,
+        reflect: 4 * r.reflect,
+        refract: 4 * r.refract,
+        secondary_hit: 4 * r.secondary_hit,
+        shadow: 4 * r.shadow,
+        shadow_blocked: 4 * r.shadow_blocked,
+    };
+    let still4 = draw(&still, 4);
+    assert_eq!(
+        still4.rays, four,
+        "a static scene at four times: each ray four times"
+    );
+    let off = |a: &[[u8; 3]], b: &[[u8; 3]]| {
+        let channels = a.iter().zip(b).flat_map(|(p, q)| p.iter().zip(q));
+        channels.map(|(x, y)| x.abs_diff(*y)).max()
+    };
+    assert!(
+        off(&still4.rgb, &base.rgb) <= Some(1),
+        "a static scene stays sharp"
+    );
+    let moving4 = draw(&moving, 4);
+    assert_eq!(moving4.rays.eye, four.eye);
+    let blurred = moving4
+        .rgb
+        .iter()
+        .zip(&base.rgb)
+        .filter(|(a, b)| a != b)
+        .count();
+    assert!(
+        blurred > base.rgb.len() / 20,
+        "{blurred} of {} pixels blurred",
+        base.rgb.len()
+    );
+}

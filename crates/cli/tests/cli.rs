@@ -1774,6 +1774,13 @@ fn a_file_past_its_share_of_memory_stops_at_the_line() {
 
 /// `render`'s eye rays that hit, from its JSON report.
 fn eye_hits(dir: &Path, args: &str) -> u64 {
+    render_report(dir, args)["rays"]["eye_hit"]
+        .as_u64()
+        .unwrap()
+}
+
+/// `quiver render ARGS` run in `dir` on one thread: its JSON report.
+fn render_report(dir: &Path, args: &str) -> serde_json::Value {
     let json = dir.join("hits.json");
     run(&format!(
         "render {args} --threads 1 -o /dev/null --json {}",
@@ -1782,9 +1789,20 @@ fn eye_hits(dir: &Path, args: &str) -> u64 {
     .current_dir(dir)
     .assert()
     .success();
-    let r: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
-    r["rays"]["eye_hit"].as_u64().unwrap()
+    serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap()
+}
+
+/// `render --motion` (issue 53 point 6) traces each corner at 16 times by default: 16
+/// (res + 1)² eye rays; at one time (time 0) the moving scene is where the static one is: it
+/// traces the rays `--instanced` traces, with the same hits.
+#[test]
+fn render_motion_traces_each_corner_at_sixteen_times() {
+    let dir = tempfile::tempdir().unwrap();
+    let blurred = render_report(dir.path(), "balls1 --res 16 --motion");
+    assert_eq!(blurred["rays"]["eye"], 16 * 17 * 17);
+    let at_zero = render_report(dir.path(), "balls1 --res 16 --motion --time-samples 1");
+    let still = render_report(dir.path(), "balls1 --res 16 --instanced");
+    assert_eq!(at_zero["rays"], still["rays"]);
 }
 
 /// Item 1: a binary PLY element without properties claims instances of zero bytes; a count of

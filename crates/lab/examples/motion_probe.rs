@@ -11,7 +11,7 @@ use glam::{Affine3A, Vec3};
 use quiver_lab::measure::{median_times_interleaved, mrays_per_s, trace, Query};
 use quiver_lab::rays;
 use quiver_rt::world::Geometry;
-use quiver_rt::{BuildOptions, Motion, Ray, World};
+use quiver_rt::{BuildOptions, Motion, World};
 use quiver_scenes::instanced::Instanced;
 use quiver_scenes::scene::tessellate::DEFAULT_RESOLUTION;
 use quiver_scenes::Scene;
@@ -58,17 +58,9 @@ fn main() {
     };
     let still = rebuilt(inst.world(), None);
     let moving = rebuilt(inst.world(), Some(&move_it));
-    // Each ray at its own time: a stratified sequence, as a renderer's pixel samples are.
-    let timed = |v: Vec<Ray>| -> Vec<Ray> {
-        let n = v.len().max(1);
-        v.into_iter()
-            .enumerate()
-            .map(|(i, r)| r.with_time(((i * 7919) % n) as f32 / n as f32))
-            .collect()
-    };
-    let eye = timed(rays::camera_rays(&scene.camera, res));
+    let eye = rays::timed(rays::camera_rays(&scene.camera, res));
     let light = scene.lights.first().map_or(scene.camera.from, |l| l.pos);
-    let shadow = timed(rays::shadow_rays(&inst, &eye, &[light]));
+    let shadow = rays::timed(rays::shadow_rays(&inst, &eye, &[light]));
     for (label, rays, query) in [
         ("eye", &eye, Query::Closest),
         ("shadow", &shadow, Query::Any),

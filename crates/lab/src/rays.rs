@@ -32,6 +32,23 @@ pub fn random_rays(bounds: &Aabb, n: usize, seed: u64) -> Vec<Ray> {
         .collect()
 }
 
+/// `rays`, each shot at its own time in the shutter (motion blur): ray `i` of `n` at
+/// `(7919 i mod n) / n`, a stratified sequence that puts neighbouring rays at distant times,
+/// as a renderer's pixel samples are.
+///
+/// ```
+/// use quiver_rt::{glam::Vec3A, Ray};
+/// let r = quiver_lab::rays::timed(vec![Ray::new(Vec3A::ZERO, Vec3A::Z); 4]);
+/// assert_eq!(r.iter().map(|r| r.time).collect::<Vec<_>>(), [0.0, 0.75, 0.5, 0.25]);
+/// ```
+pub fn timed(rays: Vec<Ray>) -> Vec<Ray> {
+    let n = rays.len().max(1);
+    rays.into_iter()
+        .enumerate()
+        .map(|(i, r)| r.with_time(((i * 7919) % n) as f32 / n as f32))
+        .collect()
+}
+
 /// `res × res` eye rays through pixel centres, row by row from the top.
 pub fn camera_rays(camera: &Camera, res: usize) -> Vec<Ray> {
     let step = 2.0 / res as f32;

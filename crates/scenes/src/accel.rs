@@ -143,6 +143,25 @@ impl SceneBvh {
         })
     }
 
+    /// [`SceneBvh::build_instanced`] with every placed sphere and cone moving by `motion`
+    /// ([`Instanced::build_moving`]): a scene for motion blur, whose rays see the shapes where
+    /// they are at each ray's time.
+    ///
+    /// # Errors
+    /// As [`Instanced::build_moving`].
+    pub fn build_instanced_moving(
+        scene: &Scene,
+        resolution: u32,
+        options: &BuildOptions,
+        motion: &dyn Fn(u32, glam::Affine3A) -> quiver_rt::Motion,
+    ) -> Result<SceneBvh, quiver_rt::WorldError> {
+        let moving = Instanced::build_moving(scene, resolution, options, motion)?;
+        Ok(SceneBvh {
+            kind: Kind::Instanced(Box::new(moving)),
+            owner: Vec::new(),
+        })
+    }
+
     /// Primitives in the BVH (the flattened count for an instanced scene).
     pub fn primitives(&self) -> usize {
         match &self.kind {

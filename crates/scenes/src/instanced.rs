@@ -29,8 +29,8 @@ use crate::scene::{tessellate, Scene, Shape};
 use glam::{Affine3A, DVec3, Mat3A, Vec3, Vec3A};
 use quiver_rt::traverse::{Ask, BoxTest, Filter, PacketQuery, RayQuery, Stats, PACKET_RAYS};
 use quiver_rt::{
-    BuildOptions, Footprint, GeometryId, Hit, Instance, InstanceId, PrimHit, Ray, Triangle, World,
-    WorldError, WorldHit,
+    BuildOptions, Footprint, GeometryId, Hit, Instance, InstanceId, Motion, PrimHit, Ray, Triangle,
+    World, WorldError, WorldHit,
 };
 
 /// Distinct cone radius ratios that get a unit shape of their own; cones of further ratios
@@ -105,6 +105,32 @@ fn cone_map(c: &Cone) -> Option<(f32, Affine3A)> {
     Some(((ar / br) as f32, m))
 }
 
+/// A motion for each placed sphere and cone, for motion-blur pictures and benchmarks: over
+/// the shutter, the shape drifts in a straight line by its own size (a sphere's radius, a
+/// cone's base radius) along a direction of its own, fixed by its object index `object` (the
+/// golden-angle spiral spreads the directions evenly), from where `placement` puts it.
+///
+/// ```
+/// use quiver_rt::glam::{Affine3A, Vec3};
+/// use quiver_scenes::instanced::scatter;
+/// let at = Affine3A::from_scale_rotation_translation(Vec3::splat(2.0), Default::default(), Vec3::X);
+/// let m = scatter(7, at);
+/// let moved = m.at(1.0).translation - m.at(0.0).translation;
+/// assert!((moved.length() - 2.0).abs() < 1e-5 && m.at(0.0) == at);
+/// ```
+pub fn scatter(object: u32, placement: Affine3A) -> Motion {
+    let k = object as f64;
+    let z = 1.0 - 2.0 * (k * 0.618_033_988_749_895).fract();
+    let (r, phi) = ((1.0 - z * z).max(0.0).sqrt(), k * 2.399_963_229_728_653);
+    let dir = Vec3::new((r * phi.cos()) as f32, (r * phi.sin()) as f32, z as f32);
+    let size = placement.matrix3.x_axis.length();
+    let end = Affine3A::from_translation(dir * size) * placement;
+    Motion::linear(vec![placement, end])
+}
+
+/// How the shapes of [`Instanced::build_moving`] move: `None` for a static scene.
+type Moves<'a> = Option<&'a dyn Fn(u32, Affine3A) -> Motion>;
+
 impl Instanced {
     /// `scene` (in curve mode: spheres and cones as shapes) with its spheres and cones
     /// tessellated at `resolution` as instances of unit shapes, built with `options`.
@@ -116,6 +142,39 @@ impl Instanced {
         scene: &Scene,
         resolution: u32,
         options: &BuildOptions,
+    ) -> Result<Instanced, WorldError> {
+        Self::build_with(scene, resolution, options, None)
+    }
+
+    /// [`Instanced::build`] with every placed sphere and cone moving by `motion(object,
+    /// placement)` (e.g. [`scatter`]) over the shutter: rays see it where it is at their
+    /// [`Ray::time`]. What stays in world space (polygons, patches, the floor) stands still.
+    ///
+    /// ```
+    /// use quiver_rt::{BuildOptions, RayQuery};
+    /// use quiver_scenes::instanced::{scatter, Instanced};
+    /// use quiver_scenes::Scene;
+    /// let scene = Scene::load("balls1").unwrap();
+    /// let inst = Instanced::build_moving(&scene, 4, &BuildOptions::default(), &scatter).unwrap();
+    /// assert!(inst.world().motion(quiver_rt::InstanceId(1)).is_some());
+    /// ```
+    ///
+    /// # Errors
+    /// As [`Instanced::build`], and [`WorldError::Motion`] for a motion the world refuses.
+    pub fn build_moving(
+        scene: &Scene,
+        resolution: u32,
+        options: &BuildOptions,
+        motion: &dyn Fn(u32, Affine3A) -> Motion,
+    ) -> Result<Instanced, WorldError> {
+        Self::build_with(scene, resolution, options, Some(motion))
+    }
+
+    fn build_with(
+        scene: &Scene,
+        resolution: u32,
+        options: &BuildOptions,
+        motion: Moves<'_>,
     ) -> Result<Instanced, WorldError> {
         let sphere = Shapes::of(tessellate::sphere_patches(
             &Sphere {
@@ -203,11 +262,13 @@ impl Instanced {
         let mut starts = vec![0u64, counts[0]];
         let mut object = vec![u32::MAX];
         for &(obj, k, m) in &placed {
-            b.add_instance(
-                Instance::of(GeometryId(1 + k as u32))
-                    .transform(m)
-                    .user_id(obj),
-            );
+            let inst = Instance::of(GeometryId(1 + k as u32))
+                .transform(m)
+                .user_id(obj);
+            match motion {
+                Some(f) => b.add_moving_instance(inst, f(obj, m)),
+                None => b.add_instance(inst),
+            };
             starts.push(starts.last().unwrap() + counts[1 + k]);
             object.push(obj);
         }
@@ -259,23 +320,28 @@ impl Instanced {
     }
 
     /// The triangle of hit number `prim` in its geometry's space, its vertex normals if any,
-    /// and the instance.
-    fn triangle(&self, prim: u32) -> (Triangle, Option<[Vec3A; 3]>, &Instance) {
+    /// and where its instance is (object to world) when `ray` is shot.
+    fn triangle(&self, prim: u32, ray: &Ray) -> (Triangle, Option<[Vec3A; 3]>, Affine3A) {
         let (i, p) = self.split(prim);
-        let inst = self.world.instance(InstanceId(i as u32));
+        let id = InstanceId(i as u32);
+        let inst = self.world.instance(id);
         let g = inst.geometry.0 as usize;
         let tri = match &self.world.geometries()[g] {
             quiver_rt::world::Geometry::Triangles(_, t) => t[p as usize],
             quiver_rt::world::Geometry::Prims(_, t) => t[p as usize],
         };
-        (tri, self.normals[g][p as usize], inst)
+        let placed = match self.world.motion(id) {
+            Some(m) => m.at(ray.shutter_time()),
+            None => inst.transform,
+        };
+        (tri, self.normals[g][p as usize], placed)
     }
 
     /// The shading normal at `hit` of `ray`, as the flattened patch scene's: the patch's
     /// vertex normals interpolated (a plain triangle's face normal) in object space, brought
     /// to world space by the inverse transpose of the placement.
     pub fn normal(&self, ray: &Ray, hit: &Hit) -> Vec3A {
-        let (tri, normals, inst) = self.triangle(hit.prim);
+        let (tri, normals, placed) = self.triangle(hit.prim, ray);
         let th = PrimHit {
             t: hit.t,
             u: hit.u,
@@ -285,10 +351,10 @@ impl Instanced {
             Some(normals) => Prim::Patch(PatchTriangle { tri, normals }).normal(ray, &th),
             None => Prim::Triangle(tri).normal(ray, &th),
         };
-        if inst.transform == Affine3A::IDENTITY {
+        if placed == Affine3A::IDENTITY {
             return local;
         }
-        let to_object = quiver_rt::world::invert(&inst.transform).unwrap_or(Affine3A::IDENTITY);
+        let to_object = quiver_rt::world::invert(&placed).unwrap_or(Affine3A::IDENTITY);
         let inverse_t = to_object.matrix3.transpose();
         (inverse_t * local).normalize_or_zero()
     }
@@ -296,8 +362,8 @@ impl Instanced {
     /// Hit number `prim`'s own test against `ray` (in its instance's object space): the one
     /// test Havran's ideal algorithm makes.
     pub fn intersect_one(&self, ray: &Ray, prim: u32) -> Option<PrimHit> {
-        let (tri, _, inst) = self.triangle(prim);
-        let to_object = quiver_rt::world::invert(&inst.transform).unwrap_or(Affine3A::IDENTITY);
+        let (tri, _, placed) = self.triangle(prim, ray);
+        let to_object = quiver_rt::world::invert(&placed).unwrap_or(Affine3A::IDENTITY);
         let local = Ray {
             origin: to_object.transform_point3a(ray.origin),
             dir: to_object.transform_vector3a(ray.dir),

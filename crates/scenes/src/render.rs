@@ -54,8 +54,16 @@ pub struct RenderConfig {
     /// image without holding a second one (3 bytes a pixel: 805 MB at 16384²).
     pub keep_image: bool,
     /// With [`RenderConfig::counters`], keep the nodes each eye ray visited
-    /// ([`Rendered::eye_nodes`], 4 bytes a corner).
+    /// ([`Rendered::eye_nodes`], 4 bytes a corner; with several time samples, the last
+    /// sample's).
     pub eye_nodes: bool,
+    /// Times in the shutter each corner's eye ray is traced at, its colours averaged: motion
+    /// blur, for a scene that moves (see [`crate::instanced::Instanced::build_moving`]). 1,
+    /// the default, traces each eye ray once at time 0, as the SPD does; `s > 1` traces it
+    /// `s` times, sample `k` at a time jittered within `[k / s, (k + 1) / s)` (the jitter
+    /// fixed by corner and sample, so a render repeats exactly), every secondary ray at its
+    /// eye ray's time. The ray counts are then those of `s` renders.
+    pub time_samples: u32,
 }
 
 impl RenderConfig {
@@ -85,9 +93,11 @@ impl RenderConfig {
         };
         let edges = bands * 2 * n * std::mem::size_of::<Vec3A>() as u64;
         let digests = 8 * res + bands * std::mem::size_of::<RayCounts>() as u64 * 2;
-        // A band's corner colours, its across/down parts, a pixel row, and a packet group's
-        // scratch (rays, hits, surfaces for 16 tiles of 64 corners: well under 1 KB each).
-        let band = TILE as u64 * n * std::mem::size_of::<Vec3A>() as u64
+        // A band's corner colours (twice with time samples: their sum), its across/down
+        // parts, a pixel row, and a packet group's scratch (rays, hits, surfaces for 16 tiles
+        // of 64 corners: well under 1 KB each).
+        let colours = if self.time_samples > 1 { 2 } else { 1 };
+        let band = colours * TILE as u64 * n * std::mem::size_of::<Vec3A>() as u64
             + (n + TILE as u64) * 16
             + 3 * res
             + (TILE * TILE * GROUP) as u64 * 1024;
@@ -187,6 +197,7 @@ impl Default for RenderConfig {
             packets: true,
             keep_image: true,
             eye_nodes: true,
+            time_samples: 1,
         }
     }
 }
@@ -497,6 +508,23 @@ struct BandOutputs<'a> {
     edges: &'a mut [Vec3A],
 }
 
+/// The time of corner `(i, j)`'s eye ray in sample `k` of `samples`: 0 for a single sample;
+/// else within the sample's stratum `[k / samples, (k + 1) / samples)`, jittered by a hash
+/// of the corner and sample (neighbouring corners differ, so the strata blur smoothly
+/// instead of showing `samples` sharp copies, and a render repeats exactly).
+fn shutter_sample(i: usize, j: usize, k: u32, samples: u32) -> f32 {
+    if samples <= 1 {
+        return 0.0;
+    }
+    // splitmix64's finaliser over the packed coordinates.
+    let mut h = (i as u64) << 40 ^ (j as u64) << 16 ^ k as u64;
+    h = (h ^ (h >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    h = (h ^ (h >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    h ^= h >> 31;
+    let jitter = (h >> 40) as f32 / (1u64 << 24) as f32;
+    (k as f32 + jitter) / samples as f32
+}
+
 /// Each pixel averages its four corners.
 fn pixel_row(top: &[Vec3A], bottom: &[Vec3A], out: &mut [[u8; 3]]) {
     for (x, p) in out.iter_mut().enumerate() {
@@ -546,6 +574,8 @@ struct Surface {
     outward: Vec3A,
     /// Shading normal: `outward`, turned toward the viewer on two-sided surfaces.
     n: Vec3A,
+    /// The incoming ray's time: every ray leaving the surface is shot then.
+    time: f32,
 }
 
 /// A packet query and where its answers go.
@@ -617,8 +647,33 @@ impl<W: Work> Tracer<'_, W> {
     /// Colours the corners of rows `rows` (of `n` corners each) into `colors` (row-major):
     /// eye rays in packets of `TILE x TILE` corners, or one by one. When counting, writes the
     /// nodes each eye ray visited into `eye_nodes` (row-major) unless it is empty.
-    #[inline(never)]
     fn band(&mut self, rows: Range<usize>, n: usize, colors: &mut [Vec3A], eye_nodes: &mut [u32]) {
+        let samples = self.config.time_samples.max(1);
+        if samples == 1 {
+            return self.band_at(rows, n, colors, eye_nodes, 0);
+        }
+        let mut sum = vec![Vec3A::ZERO; colors.len()];
+        for k in 0..samples {
+            self.band_at(rows.clone(), n, colors, eye_nodes, k);
+            for (a, c) in sum.iter_mut().zip(colors.iter()) {
+                *a += *c;
+            }
+        }
+        for (c, a) in colors.iter_mut().zip(&sum) {
+            *c = *a / samples as f32;
+        }
+    }
+
+    /// [`Tracer::band`] for time sample `sample` of [`RenderConfig::time_samples`].
+    #[inline(never)]
+    fn band_at(
+        &mut self,
+        rows: Range<usize>,
+        n: usize,
+        colors: &mut [Vec3A],
+        eye_nodes: &mut [u32],
+        sample: u32,
+    ) {
         // Node counts are kept only where the caller gave room for them.
         let keep = W::COUNTS && !eye_nodes.is_empty();
         let view = self.scene.camera.view();
@@ -631,9 +686,11 @@ impl<W: Work> Tracer<'_, W> {
             .map(|j| view.down(1.0 - 2.0 * j as f32 / res))
             .collect();
         let hither = self.scene.hither.max(0.0);
+        let samples = self.config.time_samples.max(1);
         let eye = |i: usize, j: usize| {
             let mut ray = view.ray_through(across[i], down[j - rows.start]);
             ray.t_min = hither;
+            ray.time = shutter_sample(i, j, sample, samples);
             ray
         };
         if !self.config.packets {
@@ -813,6 +870,7 @@ impl<W: Work> Tracer<'_, W> {
             material,
             outward,
             n,
+            time: ray.time,
         }
     }
 
@@ -820,8 +878,10 @@ impl<W: Work> Tracer<'_, W> {
     /// the light is behind the surface (SPD rule 10, transmitters too).
     fn shadow_ray(&self, s: &Surface, light: Vec3A) -> Option<Ray> {
         let to_light = light - s.p;
-        (s.n.dot(to_light) > 0.0)
-            .then(|| self.config.offset.ray(self.size, s.p, s.n, to_light, 1.0))
+        (s.n.dot(to_light) > 0.0).then(|| {
+            let r = self.config.offset.ray(self.size, s.p, s.n, to_light, 1.0);
+            r.with_time(s.time)
+        })
     }
 
     /// The reflection ray off `s`, if its material spawns one: reflective and transmitting
@@ -835,7 +895,8 @@ impl<W: Work> Tracer<'_, W> {
         Some(
             self.config
                 .offset
-                .ray(self.size, s.p, nf, dir, f32::INFINITY),
+                .ray(self.size, s.p, nf, dir, f32::INFINITY)
+                .with_time(s.time),
         )
     }
 
@@ -876,7 +937,9 @@ impl<W: Work> Tracer<'_, W> {
             if k >= 0.0 {
                 self.rays.refract += 1;
                 let dir = d * eta + nf * (eta * cos_i - k.sqrt());
-                let r = offset.ray(self.size, p, -nf, dir, f32::INFINITY);
+                let r = offset
+                    .ray(self.size, p, -nf, dir, f32::INFINITY)
+                    .with_time(s.time);
                 color += self.trace(&r, depth + 1) * m.t;
             } else {
                 // Total internal reflection: the reflection ray takes the transmitted share.

@@ -4,8 +4,10 @@
 //! feature, Embree's instanced scene over the same unit meshes and transforms
 //! (`RTC_GEOMETRY_TYPE_INSTANCE`) and its flattened one: build time, memory, and Mrays/s for
 //! eye, shadow and incoherent rays one at a time, for the eye and shadow rays in 8 x 8 tiles
-//! as packets (Embree's coherent streams), and the price of a filter that accepts everything
-//! and of masks that exclude nothing.
+//! as packets (Embree's coherent streams), the price of a filter that accepts everything
+//! and of masks that exclude nothing, and motion blur's: the same world with every sphere
+//! and cone moving ([`instanced::scatter`]) against it static, on the same rays, each at its
+//! own time.
 
 use super::{measured_threads, pool, Result};
 use crate::output::{outln, write_json};
@@ -18,7 +20,7 @@ use quiver_lab::rays;
 use quiver_rt::traverse::PacketMode;
 use quiver_rt::{Hit, Ray, RayQuery};
 use quiver_scenes::accel::SceneBvh;
-use quiver_scenes::instanced::Instanced;
+use quiver_scenes::instanced::{self, Instanced};
 use quiver_scenes::scene::{tessellate, Scene};
 use serde_json::{json, Value};
 use std::path::PathBuf;
@@ -129,6 +131,9 @@ pub(crate) fn run(s: Settings) -> Result<()> {
             (t, w?)
         };
         let instances = world.world().instances().len();
+        let (moving, moving_ms) =
+            ms(|| SceneBvh::build_instanced_moving(scene, res, &options, &instanced::scatter));
+        let moving = moving?;
         let row = |engine: &str,
                    kernel: &str,
                    rays: &str,
@@ -148,9 +153,18 @@ pub(crate) fn run(s: Settings) -> Result<()> {
             None,
             Some(inst_ms.min(world_ms)),
         ));
+        rows.push(row(
+            "quiver",
+            "instanced+motion",
+            "build",
+            0,
+            None,
+            Some(moving_ms),
+        ));
         let mem = |engine: &str, kernel: &str, bytes: usize| json!({"scene": scene.name, "engine": engine, "kernel": kernel, "bytes": bytes});
         memory.push(mem("quiver", "flattened", flat.footprint().bytes));
         memory.push(mem("quiver", "instanced", inst.footprint().bytes));
+        memory.push(mem("quiver", "instanced+motion", moving.footprint().bytes));
         #[cfg(feature = "embree")]
         let device = EmbreeDevice::new()?;
         #[cfg(feature = "embree")]
@@ -193,6 +207,16 @@ pub(crate) fn run(s: Settings) -> Result<()> {
         let tiles = rays::camera_tiles(&scene.camera, 256, 8);
         let tile_shadow = rays::shadow_rays(&flat, &tiles, &[light]);
         let masked: Vec<Ray> = eye.iter().map(|r| r.with_mask(0b1)).collect();
+        // The same rays, each at its own time in the shutter, for the static and moving worlds.
+        let timed = [
+            ("eye-timed", rays::timed(eye.clone()), Query::Closest),
+            ("shadow-timed", rays::timed(shadow.clone()), Query::Any),
+            (
+                "eye-tiles-timed",
+                rays::timed(tiles.clone()),
+                Query::Closest,
+            ),
+        ];
         for &threads in &thread_counts {
             let p = pool(Some(threads))?;
             // Single rays: flattened, instanced, instanced with an accept-all filter, and
@@ -327,6 +351,29 @@ pub(crate) fn run(s: Settings) -> Result<()> {
                     ));
                 }
             }
+            // Motion blur: the static world against the moving one on the same timed rays
+            // (single rays, then the eye tiles as packets, whose rays differ in time).
+            for (kind, set, query) in &timed {
+                let packets = kind.contains("tiles");
+                let times = p.install(|| {
+                    median_times_interleaved(s.reps, 2, |i| {
+                        let q = [&inst, &moving][i];
+                        let hits = match packets {
+                            true => trace_packets(q, set, *query, PacketMode::Auto),
+                            false => trace_one(q, set, *query == Query::Any),
+                        };
+                        std::hint::black_box(hits);
+                    })
+                });
+                let kernels = match packets {
+                    true => ["instanced-packets", "instanced+motion-packets"],
+                    false => ["instanced", "instanced+motion"],
+                };
+                for (k, t) in kernels.iter().zip(&times) {
+                    let mrays = Some(mrays_per_s(set.len(), *t));
+                    rows.push(row("quiver", k, kind, threads, mrays, None));
+                }
+            }
         }
     }
     print(&rows, &memory);
@@ -348,7 +395,7 @@ fn trace_one<Q: RayQuery + Sync>(q: &Q, rays: &[Ray], any: bool) -> usize {
 /// targets name; then memory.
 fn print(rows: &[Value], memory: &[Value]) {
     outln!(
-        "{:<10} {:<12} {:>3} {:<10} {:<18} {:>10}",
+        "{:<10} {:<15} {:>3} {:<10} {:<24} {:>10}",
         "scene",
         "rays",
         "thr",
@@ -361,7 +408,7 @@ fn print(rows: &[Value], memory: &[Value]) {
             continue;
         };
         outln!(
-            "{:<10} {:<12} {:>3} {:<10} {:<18} {:>10.3}",
+            "{:<10} {:<15} {:>3} {:<10} {:<24} {:>10.3}",
             r["scene"].as_str().unwrap_or(""),
             r["rays"].as_str().unwrap_or(""),
             t,
@@ -372,7 +419,7 @@ fn print(rows: &[Value], memory: &[Value]) {
     }
     for r in rows.iter().filter(|r| r["rays"] == "build") {
         outln!(
-            "{:<10} build {:<10} {:<12} {:>10.1} ms",
+            "{:<10} build {:<10} {:<16} {:>10.1} ms",
             r["scene"].as_str().unwrap_or(""),
             r["engine"].as_str().unwrap_or(""),
             r["kernel"].as_str().unwrap_or(""),
@@ -381,7 +428,7 @@ fn print(rows: &[Value], memory: &[Value]) {
     }
     for m in memory {
         outln!(
-            "{:<10} memory {:<10} {:<12} {:>12} bytes",
+            "{:<10} memory {:<10} {:<16} {:>12} bytes",
             m["scene"].as_str().unwrap_or(""),
             m["engine"].as_str().unwrap_or(""),
             m["kernel"].as_str().unwrap_or(""),

@@ -17,6 +17,7 @@ use crate::budget;
 use quiver_rt::builders::{BuildTree, Builder};
 use quiver_rt::{BuildOptions, Bvh, Layout, ParseError, Triangle};
 use quiver_scenes::accel::SceneBvh;
+use quiver_scenes::instanced;
 use quiver_scenes::scene::{
     tessellate, Budgeted, Census, LoadOptions, NonFinite, Scene, SceneError, GENERATORS,
 };
@@ -432,7 +433,7 @@ fn load_and_build(
     options: &BuildOptions,
     estimate: impl Fn(&[Census], Option<&[Scene]>) -> budget::Estimate,
 ) -> Result<(Scene, SceneBvh, BuildTree, f64)> {
-    let (scene, bvh, tree, ms) = load_and_build_as(name, patches, false, options, estimate)?;
+    let (scene, bvh, tree, ms) = load_and_build_as(name, patches, None, options, estimate)?;
     Ok((
         scene,
         bvh,
@@ -442,21 +443,26 @@ fn load_and_build(
 }
 
 /// [`load_and_build`], or with `instanced` the scene in patch mode with its spheres and cones
-/// as instances of unit shapes: then the scene stays in curve mode (its objects name the
-/// materials) and there is no one build tree.
+/// as instances of unit shapes (`Some(true)`: moving, each by [`instanced::scatter`]): then
+/// the scene stays in curve mode (its objects name the materials) and there is no one build
+/// tree.
 fn load_and_build_as(
     name: &str,
     patches: bool,
-    instanced: bool,
+    instanced: Option<bool>,
     options: &BuildOptions,
     estimate: impl Fn(&[Census], Option<&[Scene]>) -> budget::Estimate,
 ) -> Result<(Scene, SceneBvh, Option<BuildTree>, f64)> {
     let mut scene = load_within(&[name.to_string()], estimate)?
         .pop()
         .ok_or("internal error: no scene loaded")?;
-    if instanced {
+    if let Some(moving) = instanced {
         let start = Instant::now();
-        let bvh = SceneBvh::build_instanced(&scene, tessellate::DEFAULT_RESOLUTION, options)?;
+        let res = tessellate::DEFAULT_RESOLUTION;
+        let bvh = match moving {
+            true => SceneBvh::build_instanced_moving(&scene, res, options, &instanced::scatter)?,
+            false => SceneBvh::build_instanced(&scene, res, options)?,
+        };
         return Ok((scene, bvh, None, start.elapsed().as_secs_f64() * 1e3));
     }
     if patches {

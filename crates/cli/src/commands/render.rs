@@ -37,6 +37,16 @@ pub(crate) struct RenderArgs {
     /// placements' rounding at silhouettes).
     #[arg(long)]
     instanced: bool,
+    /// Motion blur: --instanced with every sphere and cone moving, each in a straight line by
+    /// its own size over the shutter along a direction of its own; each eye ray is traced at
+    /// --time-samples times and its colours averaged.
+    #[arg(long)]
+    motion: bool,
+    /// Times in the shutter each eye ray is traced at, averaged, every secondary ray at its
+    /// eye ray's time (default: 16 with --motion, else 1: time 0, as the SPD traces). The
+    /// ray counts are those of this many renders.
+    #[arg(allow_negative_numbers = true, long, value_parser = clap::value_parser!(u32).range(1..=1024))]
+    time_samples: Option<u32>,
     /// Write a false-colour image of nodes visited per eye ray.
     #[arg(long)]
     heatmap: Option<PathBuf>,
@@ -92,11 +102,15 @@ pub(crate) fn run(args: RenderArgs) -> Result<()> {
         .layout(args.layout)
         .thread_pool(&pool);
     let threads = pool.current_num_threads();
+    let instanced = args.instanced || args.motion;
+    let time_samples = time_samples(&args);
     let what = format!(
         "render {} --res {}{}",
         args.scene,
         args.res,
-        if args.instanced {
+        if args.motion {
+            " --motion"
+        } else if args.instanced {
             " --instanced"
         } else if args.patches {
             " --patches"
@@ -107,10 +121,10 @@ pub(crate) fn run(args: RenderArgs) -> Result<()> {
     let (scene, bvh, tree, build_ms) = load_and_build_as(
         &args.scene,
         args.patches,
-        args.instanced,
+        instanced.then_some(args.motion),
         &options,
         |censuses, scenes| {
-            let mut e = if args.instanced {
+            let mut e = if instanced {
                 super::instanced_estimate(&what, censuses)
             } else {
                 super::build_estimate(&what, censuses, args.patches)
@@ -121,7 +135,7 @@ pub(crate) fn run(args: RenderArgs) -> Result<()> {
     )?;
     let rconfig = RenderConfig {
         res: args.res,
-        two_sided: if args.instanced {
+        two_sided: if instanced {
             scene.patch_mode_two_sided_materials()
         } else {
             scene.two_sided_materials()
@@ -131,6 +145,7 @@ pub(crate) fn run(args: RenderArgs) -> Result<()> {
             OffsetArg::Epsilon => Offset::Epsilon,
         },
         packets: args.packets == OnOff::On,
+        time_samples,
         ..RenderConfig::default()
     };
     let rows = args.res as u64 + 1;
@@ -243,6 +258,12 @@ pub(crate) fn run(args: RenderArgs) -> Result<()> {
     write_json(args.json.as_ref(), &report)
 }
 
+/// The eye rays' times a corner: --time-samples, or its default (16 with --motion, else 1).
+fn time_samples(args: &RenderArgs) -> u32 {
+    args.time_samples
+        .unwrap_or(if args.motion { 16 } else { 1 })
+}
+
 /// Adds what rendering takes beyond the scene and its BVH: the timed pass (the image and its
 /// band buffers), the counting pass (band buffers, node counts per eye ray for --heatmap), and
 /// with --havran the recording BVH's copy and every query it records, at most
@@ -258,6 +279,7 @@ fn render_estimate(
 ) {
     let timed = RenderConfig {
         res: args.res,
+        time_samples: time_samples(args),
         ..RenderConfig::default()
     };
     let counting = RenderConfig {
@@ -289,7 +311,7 @@ fn render_estimate(
     let b = reflective as u64 + transmitting as u64;
     let depth = RenderConfig::default().max_depth;
     let per_eye = (1 + scene.lights.len() as u64) * (0..depth).map(|d| b.pow(d)).sum::<u64>();
-    let eye = (args.res as u64 + 1).pow(2);
+    let eye = (args.res as u64 + 1).pow(2) * timed.time_samples as u64;
     let traced = std::mem::size_of::<quiver_scenes::accel::Traced>() as u64;
     e.add(
         "--havran's copy of the BVH",
