@@ -458,16 +458,18 @@ fn prepared<'p, V: F8>(
 ) -> &'p LeafRay<V> {
     // Written out rather than `get_or_insert_with`: a std combinator taking a closure may be
     // compiled out of line in the caller's crate, outside the kernel's target features.
+    // The outlined shear writes into `prep` itself: returned by value, its 512 bytes were
+    // copied by a `memcpy` call on every ray that reached a leaf.
     if prep.is_none() {
-        *prep = Some(if format == LeafFormat::WatertightTriangles {
+        if format == LeafFormat::WatertightTriangles {
             V::outlined(
                 cpu,
                 #[inline(always)]
-                || LeafRay::<V>::new(cpu, ray, format),
-            )
+                || *prep = Some(LeafRay::<V>::new(cpu, ray, format)),
+            );
         } else {
-            LeafRay::<V>::new(cpu, ray, format)
-        });
+            *prep = Some(LeafRay::<V>::new(cpu, ray, format));
+        }
     }
     match prep {
         Some(r) => r,
