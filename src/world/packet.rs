@@ -256,7 +256,11 @@ impl<P: Primitive> World<P> {
                             };
                             local_packet::<V>(cpu, p, pk, m, &mut lp);
                             for i in bits(m) {
-                                records[i] = Hit::none(limit::<A>(rays, best, i));
+                                // Any hit reads no record but the mark of a hit.
+                                match A::ANY {
+                                    true => records[i].prim = u32::MAX,
+                                    false => records[i] = Hit::none(best[i].t),
+                                }
                             }
                             if !geometry.in_lanes::<V, A, B, S, _>(
                                 kernels,
