@@ -93,6 +93,8 @@ mod ffi {
     pub const RTC_INVALID_GEOMETRY_ID: u32 = u32::MAX;
     /// `RTC_MAX_INSTANCE_LEVEL_COUNT` in `rtcore_config.h` of the Debian build.
     pub const RTC_MAX_INSTANCE_LEVEL_COUNT: usize = 1;
+    /// `RTC_MAX_TIME_STEP_COUNT` in `rtcore_common.h`: the most keys a geometry may have.
+    pub const MAX_TIME_STEPS: usize = 129;
 
     pub type RTCErrorFunction =
         unsafe extern "C" fn(user_ptr: *mut c_void, code: RTCError, str: *const c_char);
@@ -189,6 +191,7 @@ mod ffi {
             xfm: *const c_void,
         );
         pub fn rtcSetGeometryMask(geometry: RTCGeometry, mask: u32);
+        pub fn rtcSetGeometryTimeStepCount(geometry: RTCGeometry, time_step_count: u32);
         pub fn rtcSetNewGeometryBuffer(
             geometry: RTCGeometry,
             ty: RTCBufferType,
@@ -559,6 +562,34 @@ impl EmbreeScene {
         geometries: &[Vec<Triangle>],
         instances: &[(u32, glam::Affine3A, u32)],
     ) -> Result<Self, EmbreeError> {
+        let keyed: Vec<(u32, &[glam::Affine3A], u32)> = instances
+            .iter()
+            .map(|(g, m, mask)| (*g, std::slice::from_ref(m), *mask))
+            .collect();
+        Self::instanced_moving(device, geometries, &keyed)
+    }
+
+    /// [`EmbreeScene::instanced`] with each instance placed by its keys, evenly spaced over
+    /// the shutter [0, 1] (`rtcSetGeometryTimeStepCount`, one `rtcSetGeometryTransform` a
+    /// step; Embree interpolates the matrices linearly, as quiver's
+    /// `Interpolation::Linear` does): motion-blurred instances met at each ray's `time`.
+    /// One key is a static instance.
+    ///
+    /// ```
+    /// use glam::{Affine3A, Vec3, Vec3A};
+    /// use quiver_rt::{Ray, Triangle};
+    /// use quiver_lab::embree::{EmbreeDevice, EmbreeScene};
+    /// let tri = vec![Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y)];
+    /// let keys = [Affine3A::IDENTITY, Affine3A::from_translation(Vec3::new(0.0, 0.0, -2.0))];
+    /// let scene = EmbreeScene::instanced_moving(&EmbreeDevice::new().unwrap(), &[tri], &[(0, &keys, 1)]).unwrap();
+    /// let ray = Ray::new(Vec3A::new(0.25, 0.25, 1.0), -Vec3A::Z);
+    /// assert_eq!(scene.closest_hit(&ray.with_time(0.5)), Some((0, 2.0)));
+    /// ```
+    pub fn instanced_moving(
+        device: &EmbreeDevice,
+        geometries: &[Vec<Triangle>],
+        instances: &[(u32, &[glam::Affine3A], u32)],
+    ) -> Result<Self, EmbreeError> {
         let dev = &device.inner;
         let before = dev.memory.load(Ordering::Relaxed);
         let placed = geometries
@@ -577,7 +608,7 @@ impl EmbreeScene {
             placed,
             _device: dev.clone(),
         };
-        for &(g, m, mask) in instances {
+        for &(g, keys, mask) in instances {
             let Some(child) = scene.placed.get(g as usize) else {
                 return Err(EmbreeError::new(
                     "instances",
@@ -589,24 +620,38 @@ impl EmbreeScene {
                 dev.check("rtcNewGeometry (instance)")?;
                 return Err(EmbreeError::new("rtcNewGeometry", "returned no geometry"));
             }
-            let cols = [
-                m.matrix3.x_axis,
-                m.matrix3.y_axis,
-                m.matrix3.z_axis,
-                m.translation,
-            ];
-            let xfm: [f32; 12] = std::array::from_fn(|k| cols[k / 3][k % 3]);
+            if keys.is_empty() || keys.len() > MAX_TIME_STEPS {
+                // SAFETY: `geom` is a geometry of this device, released once.
+                unsafe { rtcReleaseGeometry(geom) };
+                return Err(EmbreeError::new(
+                    "instances",
+                    format!("{} keys (Embree takes 1 to {MAX_TIME_STEPS})", keys.len()),
+                ));
+            }
             // SAFETY: `geom` is a new instance geometry of this device, `child.raw` a
-            // committed scene of it that `scene.placed` keeps alive, and `xfm` twelve floats
-            // in the column-major 3x4 layout the format names (Embree copies them).
+            // committed scene of it that `scene.placed` keeps alive, the step count within
+            // Embree's limit (checked above), and each transform twelve floats in the
+            // column-major 3x4 layout the format names (Embree copies them).
             unsafe {
                 rtcSetGeometryInstancedScene(geom, child.raw);
-                rtcSetGeometryTransform(
-                    geom,
-                    0,
-                    RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR,
-                    xfm.as_ptr().cast(),
-                );
+                if keys.len() > 1 {
+                    rtcSetGeometryTimeStepCount(geom, keys.len() as u32);
+                }
+                for (step, m) in keys.iter().enumerate() {
+                    let cols = [
+                        m.matrix3.x_axis,
+                        m.matrix3.y_axis,
+                        m.matrix3.z_axis,
+                        m.translation,
+                    ];
+                    let xfm: [f32; 12] = std::array::from_fn(|k| cols[k / 3][k % 3]);
+                    rtcSetGeometryTransform(
+                        geom,
+                        step as u32,
+                        RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR,
+                        xfm.as_ptr().cast(),
+                    );
+                }
                 rtcSetGeometryMask(geom, mask);
                 rtcCommitGeometry(geom);
                 rtcAttachGeometry(raw, geom);
@@ -810,7 +855,7 @@ fn rtc_ray(r: &Ray) -> RTCRay {
         dir_x: r.dir.x,
         dir_y: r.dir.y,
         dir_z: r.dir.z,
-        time: 0.0,
+        time: r.time,
         tfar: r.t_max,
         mask: r.mask,
         id: 0,
@@ -958,6 +1003,99 @@ mod tests {
         for (r, o) in eye.iter().zip(&out) {
             assert_eq!(*o, scene.closest_hit(r));
         }
+    }
+
+    /// Motion-blurred instances (two to four linear keys each) answer, at every time, what
+    /// the brute-force reference answers over the triangles placed by each instance's keys
+    /// interpolated at that time; and a one-key list is a static instance.
+    #[test]
+    fn embree_moving_instances_meet_the_scene_placed_at_the_ray_time() {
+        use glam::{Affine3A, Quat, Vec3};
+        let s = Scene::load("tetra3").unwrap();
+        let unit = s.triangles();
+        let keys: Vec<Vec<Affine3A>> = (0..12)
+            .map(|i| {
+                let at = Vec3::new((i % 4) as f32 * 1.5, (i / 4) as f32 * 1.5, 0.0);
+                let turn = Quat::from_rotation_z(0.3 * i as f32);
+                (0..2 + i % 3)
+                    .map(|k| {
+                        let drift = Vec3::new(0.4, -0.2, 0.3) * k as f32 * (i % 5) as f32;
+                        Affine3A::from_scale_rotation_translation(
+                            Vec3::splat(1.0 + 0.1 * k as f32),
+                            turn,
+                            at + drift,
+                        )
+                    })
+                    .collect()
+            })
+            .collect();
+        let instances: Vec<(u32, &[Affine3A], u32)> =
+            keys.iter().map(|k| (0, k.as_slice(), 1)).collect();
+        let device = EmbreeDevice::new().unwrap();
+        let scene = EmbreeScene::instanced_moving(&device, &[unit.clone()], &instances).unwrap();
+        let mut bounds = quiver_rt::Aabb::EMPTY;
+        for k in keys.iter().flatten() {
+            for t in &unit {
+                for v in t.v {
+                    bounds.grow(k.transform_point3a(v));
+                }
+            }
+        }
+        for time in [0.0, 0.3, 0.5, 1.0] {
+            // Embree interpolates the keys' matrices linearly between the two steps around t.
+            let placed: Vec<Triangle> = keys
+                .iter()
+                .flat_map(|k| {
+                    let f = time * (k.len() - 1) as f32;
+                    let i = (f as usize).min(k.len() - 2);
+                    let w = f - i as f32;
+                    let (a, b) = (k[i], k[i + 1]);
+                    let m = Affine3A {
+                        matrix3: a.matrix3 * (1.0 - w) + b.matrix3 * w,
+                        translation: a.translation * (1.0 - w) + b.translation * w,
+                    };
+                    unit.iter().map(move |t| {
+                        Triangle::new(
+                            m.transform_point3a(t.v[0]),
+                            m.transform_point3a(t.v[1]),
+                            m.transform_point3a(t.v[2]),
+                        )
+                    })
+                })
+                .collect();
+            let rays: Vec<Ray> = rays::random_rays(&bounds, 4000, 9)
+                .into_iter()
+                .map(|r| r.with_time(time))
+                .collect();
+            let mut hits = 0;
+            let mut bad = 0;
+            for r in &rays {
+                let e = scene.closest_hit(r).map(|(_, t)| t);
+                let q = reference::closest_hit(&placed, r).map(|h| h.t);
+                hits += usize::from(q.is_some());
+                let same = match (e, q) {
+                    (None, None) => true,
+                    (Some(et), Some(qt)) => (et - qt).abs() <= 1e-4 * qt.abs().max(et.abs()),
+                    _ => false,
+                };
+                bad += usize::from(!same);
+                assert_eq!(scene.any_hit(r), e.is_some(), "time {time}: {r:?}");
+            }
+            println!("time {time}: {} rays, {hits} hits, {bad} disagreements", rays.len());
+            assert!(hits > rays.len() / 10, "time {time}: {hits} hits");
+            assert!(bad <= rays.len() / 1000, "time {time}: {bad} disagreements");
+        }
+        let one_key = EmbreeScene::instanced_moving(&device, &[unit.clone()], &[(0, &keys[0][..1], 1)]);
+        let fixed = EmbreeScene::instanced(&device, &[unit], &[(0, keys[0][0], 1)]).unwrap();
+        let one_key = one_key.unwrap();
+        let mut hits = 0;
+        for r in rays::random_rays(&bounds, 2000, 3) {
+            let r = r.with_time(0.7);
+            assert_eq!(one_key.closest_hit(&r), fixed.closest_hit(&r), "{r:?}");
+            hits += usize::from(fixed.closest_hit(&r).is_some());
+        }
+        assert!(hits > 0);
+        assert!(EmbreeScene::instanced_moving(&device, &[vec![]], &[(0, &[], 1)]).is_err());
     }
 
     #[test]

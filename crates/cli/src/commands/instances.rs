@@ -50,7 +50,8 @@ fn ms<T>(f: impl FnOnce() -> T) -> (T, f64) {
     (v, t.elapsed().as_secs_f64() * 1e3)
 }
 
-/// The world's unit meshes and instances as Embree takes them.
+/// The world's unit meshes and instances as Embree takes them, a moving instance with its
+/// motion's keys as Embree's time steps (the bench's motions are linear, as Embree's are).
 #[cfg(feature = "embree")]
 fn embree_instanced(world: &quiver_rt::World, device: &EmbreeDevice) -> Result<EmbreeScene> {
     let geometries: Vec<Vec<quiver_rt::Triangle>> = world
@@ -61,12 +62,22 @@ fn embree_instanced(world: &quiver_rt::World, device: &EmbreeDevice) -> Result<E
             quiver_rt::world::Geometry::Prims(_, t) => t.clone(),
         })
         .collect();
-    let instances: Vec<(u32, glam::Affine3A, u32)> = world
+    let keys: Vec<Vec<glam::Affine3A>> = world
         .instances()
         .iter()
-        .map(|i| (i.geometry.0, i.transform, i.mask))
+        .enumerate()
+        .map(|(id, i)| match world.motion(quiver_rt::InstanceId(id as u32)) {
+            Some(m) => m.keys().to_vec(),
+            None => vec![i.transform],
+        })
         .collect();
-    Ok(EmbreeScene::instanced(device, &geometries, &instances)?)
+    let instances: Vec<(u32, &[glam::Affine3A], u32)> = world
+        .instances()
+        .iter()
+        .zip(&keys)
+        .map(|(i, k)| (i.geometry.0, k.as_slice(), i.mask))
+        .collect();
+    Ok(EmbreeScene::instanced_moving(device, &geometries, &instances)?)
 }
 
 /// Loads `names` (or [`DEFAULT_SCENES`]) within the memory limit for the instanced
@@ -176,6 +187,12 @@ pub(crate) fn run(s: Settings) -> Result<()> {
         #[cfg(feature = "embree")]
         let e_inst = e_inst?;
         #[cfg(feature = "embree")]
+        let moving_world = Instanced::build_moving(scene, res, &options, &instanced::scatter)?;
+        #[cfg(feature = "embree")]
+        let (e_moving, e_moving_ms) = ms(|| embree_instanced(moving_world.world(), &device));
+        #[cfg(feature = "embree")]
+        let e_moving = e_moving?;
+        #[cfg(feature = "embree")]
         {
             rows.push(row(
                 "embree",
@@ -195,6 +212,15 @@ pub(crate) fn run(s: Settings) -> Result<()> {
             ));
             memory.push(mem("embree", "flattened", e_flat.bvh_bytes()));
             memory.push(mem("embree", "instanced", e_inst.bvh_bytes()));
+            rows.push(row(
+                "embree",
+                "instanced+motion",
+                "build",
+                0,
+                None,
+                Some(e_moving_ms),
+            ));
+            memory.push(mem("embree", "instanced+motion", e_moving.bvh_bytes()));
         }
         let eye = rays::camera_rays(&scene.camera, 256);
         let light = scene
@@ -352,26 +378,50 @@ pub(crate) fn run(s: Settings) -> Result<()> {
                 }
             }
             // Motion blur: the static world against the moving one on the same timed rays
-            // (single rays, then the eye tiles as packets, whose rays differ in time).
+            // (single rays, then the eye tiles as packets, whose rays differ in time), and
+            // (with the feature) Embree's static and motion-blurred instances, its streams
+            // for the tiles.
             for (kind, set, query) in &timed {
                 let packets = kind.contains("tiles");
+                let any = *query == Query::Any;
+                let n = 2 + 2 * usize::from(cfg!(feature = "embree"));
                 let times = p.install(|| {
-                    median_times_interleaved(s.reps, 2, |i| {
-                        let q = [&inst, &moving][i];
-                        let hits = match packets {
-                            true => trace_packets(q, set, *query, PacketMode::Auto),
-                            false => trace_one(q, set, *query == Query::Any),
+                    median_times_interleaved(s.reps, n, |i| {
+                        let hits = match i {
+                            0 | 1 => {
+                                let q = [&inst, &moving][i];
+                                match packets {
+                                    true => trace_packets(q, set, *query, PacketMode::Auto),
+                                    false => trace_one(q, set, any),
+                                }
+                            }
+                            #[cfg(feature = "embree")]
+                            _ => {
+                                [&e_inst, &e_moving][i - 2].count_hits(set, any, packets)
+                            }
+                            #[cfg(not(feature = "embree"))]
+                            _ => 0,
                         };
                         std::hint::black_box(hits);
                     })
                 });
                 let kernels = match packets {
-                    true => ["instanced-packets", "instanced+motion-packets"],
-                    false => ["instanced", "instanced+motion"],
+                    true => [
+                        ("quiver", "instanced-packets"),
+                        ("quiver", "instanced+motion-packets"),
+                        ("embree", "instanced-stream"),
+                        ("embree", "instanced+motion-stream"),
+                    ],
+                    false => [
+                        ("quiver", "instanced"),
+                        ("quiver", "instanced+motion"),
+                        ("embree", "instanced"),
+                        ("embree", "instanced+motion"),
+                    ],
                 };
-                for (k, t) in kernels.iter().zip(&times) {
+                for (&(e, k), t) in kernels.iter().zip(&times) {
                     let mrays = Some(mrays_per_s(set.len(), *t));
-                    rows.push(row("quiver", k, kind, threads, mrays, None));
+                    rows.push(row(e, k, kind, threads, mrays, None));
                 }
             }
         }
