@@ -66,10 +66,12 @@ fn embree_instanced(world: &quiver_rt::World, device: &EmbreeDevice) -> Result<E
         .instances()
         .iter()
         .enumerate()
-        .map(|(id, i)| match world.motion(quiver_rt::InstanceId(id as u32)) {
-            Some(m) => m.keys().to_vec(),
-            None => vec![i.transform],
-        })
+        .map(
+            |(id, i)| match world.motion(quiver_rt::InstanceId(id as u32)) {
+                Some(m) => m.keys().to_vec(),
+                None => vec![i.transform],
+            },
+        )
         .collect();
     let instances: Vec<(u32, &[glam::Affine3A], u32)> = world
         .instances()
@@ -77,7 +79,11 @@ fn embree_instanced(world: &quiver_rt::World, device: &EmbreeDevice) -> Result<E
         .zip(&keys)
         .map(|(i, k)| (i.geometry.0, k.as_slice(), i.mask))
         .collect();
-    Ok(EmbreeScene::instanced_moving(device, &geometries, &instances)?)
+    Ok(EmbreeScene::instanced_moving(
+        device,
+        &geometries,
+        &instances,
+    )?)
 }
 
 /// Loads `names` (or [`DEFAULT_SCENES`]) within the memory limit for the instanced
@@ -396,9 +402,7 @@ pub(crate) fn run(s: Settings) -> Result<()> {
                                 }
                             }
                             #[cfg(feature = "embree")]
-                            _ => {
-                                [&e_inst, &e_moving][i - 2].count_hits(set, any, packets)
-                            }
+                            _ => [&e_inst, &e_moving][i - 2].count_hits(set, any, packets),
                             #[cfg(not(feature = "embree"))]
                             _ => 0,
                         };
