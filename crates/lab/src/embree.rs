@@ -1032,7 +1032,8 @@ mod tests {
         let instances: Vec<(u32, &[Affine3A], u32)> =
             keys.iter().map(|k| (0, k.as_slice(), 1)).collect();
         let device = EmbreeDevice::new().unwrap();
-        let scene = EmbreeScene::instanced_moving(&device, &[unit.clone()], &instances).unwrap();
+        let scene = EmbreeScene::instanced_moving(&device, std::slice::from_ref(&unit), &instances)
+            .unwrap();
         let mut bounds = quiver_rt::Aabb::EMPTY;
         for k in keys.iter().flatten() {
             for t in &unit {
@@ -1042,18 +1043,12 @@ mod tests {
             }
         }
         for time in [0.0, 0.3, 0.5, 1.0] {
-            // Embree interpolates the keys' matrices linearly between the two steps around t.
+            // Embree interpolates the keys' matrices linearly between the two steps around t,
+            // as a linear `Motion` does.
             let placed: Vec<Triangle> = keys
                 .iter()
                 .flat_map(|k| {
-                    let f = time * (k.len() - 1) as f32;
-                    let i = (f as usize).min(k.len() - 2);
-                    let w = f - i as f32;
-                    let (a, b) = (k[i], k[i + 1]);
-                    let m = Affine3A {
-                        matrix3: a.matrix3 * (1.0 - w) + b.matrix3 * w,
-                        translation: a.translation * (1.0 - w) + b.translation * w,
-                    };
+                    let m = quiver_rt::Motion::linear(k.clone()).at(time);
                     unit.iter().map(move |t| {
                         Triangle::new(
                             m.transform_point3a(t.v[0]),
@@ -1095,8 +1090,11 @@ mod tests {
             assert!(hits > rays.len() / 2, "time {time}: {hits} hits");
             assert!(bad <= rays.len() / 1000, "time {time}: {bad} disagreements");
         }
-        let one_key =
-            EmbreeScene::instanced_moving(&device, &[unit.clone()], &[(0, &keys[0][..1], 1)]);
+        let one_key = EmbreeScene::instanced_moving(
+            &device,
+            std::slice::from_ref(&unit),
+            &[(0, &keys[0][..1], 1)],
+        );
         let fixed = EmbreeScene::instanced(&device, &[unit], &[(0, keys[0][0], 1)]).unwrap();
         let one_key = one_key.unwrap();
         let mut hits = 0;
