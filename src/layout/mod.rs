@@ -20,6 +20,7 @@ pub(crate) mod bvh4;
 mod bvh4_node;
 pub(crate) mod bvh8;
 pub(crate) mod collapse;
+pub(crate) mod ends;
 pub(crate) mod moved;
 pub(crate) mod order;
 mod qbvh4_node;

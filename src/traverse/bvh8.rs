@@ -15,6 +15,7 @@ use super::{slab_reciprocal, Ask, BoxTest, Filter, RayQuery, Stack};
 use crate::builders::MAX_DEPTH;
 use crate::geometry::{Hit, Ray};
 use crate::isa::Kernels;
+use crate::layout::ends::Bvh8Ends;
 use crate::layout::{Bvh8, Bvh8Node};
 use crate::primitive::Primitive;
 use std::marker::PhantomData;
@@ -67,7 +68,17 @@ impl<V: F8> Ray8<V> {
     /// [`Ray8::enter`] with the distances left in lanes.
     #[inline(always)]
     pub(crate) fn enter_lanes<B: BoxTest>(&self, n: &Bvh8Node, t_max: f32) -> (V, u32) {
-        let p = |row: usize| V::load(self.cpu, &n.planes[row]);
+        self.enter_planes::<B>(
+            #[inline(always)]
+            |row| V::load(self.cpu, &n.planes[row]),
+            t_max,
+        )
+    }
+
+    /// [`Ray8::enter_lanes`] with the plane rows given by `p` (row `r` as
+    /// [`Bvh8Node::planes`] orders them).
+    #[inline(always)]
+    fn enter_planes<B: BoxTest>(&self, p: impl Fn(usize) -> V, t_max: f32) -> (V, u32) {
         let slack = V::splat(self.cpu, B::SLACK);
         let mut near = self.t_min;
         let mut far = V::splat(self.cpu, t_max);
@@ -78,6 +89,52 @@ impl<V: F8> Ray8<V> {
             far = tf.mul(slack).min_nan_first(far);
         }
         (near, near.le_bits(far))
+    }
+}
+
+/// How the walk meets node `node`'s eight child boxes: the entry distances in lanes and the
+/// mask of the boxes entered within `[t_min, t_max]`.
+pub(crate) trait Enter8<V: F8> {
+    fn enter_node<B: BoxTest>(&self, node: usize, n: &Bvh8Node, t_max: f32) -> (V, u32);
+}
+
+impl<V: F8> Enter8<V> for Ray8<V> {
+    #[inline(always)]
+    fn enter_node<B: BoxTest>(&self, _: usize, n: &Bvh8Node, t_max: f32) -> (V, u32) {
+        self.enter_lanes::<B>(n, t_max)
+    }
+}
+
+/// A ray at its time against nodes whose boxes move over the shutter ([`Bvh8Ends`], one per
+/// node): each child box taken where it is at that time.
+pub(crate) struct Ray8At<'a, V: F8> {
+    pub(crate) ray: Ray8<V>,
+    time: V,
+    ends: &'a [Bvh8Ends],
+}
+
+impl<'a, V: F8> Ray8At<'a, V> {
+    /// `ray` at its shutter time, against `ends` (one per node of the array walked).
+    #[inline(always)]
+    pub(crate) fn new(cpu: V::Cpu, ray: &Ray, ends: &'a [Bvh8Ends]) -> Self {
+        Ray8At {
+            ray: Ray8::new(cpu, ray),
+            time: V::splat(cpu, ray.shutter_time()),
+            ends,
+        }
+    }
+}
+
+impl<V: F8> Enter8<V> for Ray8At<'_, V> {
+    #[inline(always)]
+    fn enter_node<B: BoxTest>(&self, node: usize, _: &Bvh8Node, t_max: f32) -> (V, u32) {
+        let e = &self.ends[node];
+        let cpu = self.ray.cpu;
+        self.ray.enter_planes::<B>(
+            #[inline(always)]
+            |row| V::load(cpu, &e.start[row]).add(V::load(cpu, &e.delta[row]).mul(self.time)),
+            t_max,
+        )
     }
 }
 
@@ -92,7 +149,7 @@ impl<V: F8> Ray8<V> {
 #[inline(always)]
 pub(crate) fn walk<V, A, B, S, F>(
     nodes: &[Bvh8Node],
-    ray: &Ray8<V>,
+    ray: &impl Enter8<V>,
     root: usize,
     mut limit: f32,
     stats: &mut S,
@@ -112,7 +169,7 @@ pub(crate) fn walk<V, A, B, S, F>(
         let n = &nodes[node];
         stats.node();
         stats.boxes(8);
-        let (near, mask) = ray.enter_lanes::<B>(n, limit * B::SLACK);
+        let (near, mask) = ray.enter_node::<B>(node, n, limit * B::SLACK);
         // The child taken next is held here rather than pushed and popped: the next node's
         // address then does not wait on a store and a load through the stack. The held entry
         // is a plain value each pop replaces: taken through an `Option` chain

@@ -1,7 +1,7 @@
 //! [`WorldBuilder`]: geometries and instances collected, then built into a [`World`].
 
 use super::instance::placements;
-use super::top::{top_level, world_boxes, InstanceLeaf};
+use super::top::{top_level, world_boxes, InstanceLeaf, TopEnds};
 use super::{
     Geometry, GeometryFilter, GeometryId, Instance, InstanceId, Motion, World, WorldError, WorldHit,
 };
@@ -295,6 +295,7 @@ impl<P: Primitive> Placed<P> {
         let boxes = options.run(|| world_boxes(&instances, &motions, &geometries, &removed));
         let top = options.run(|| top_level(&leaves, &boxes, options.chosen_isa()));
         let bounds = boxes.iter().fold(Aabb::EMPTY, |b, w| b.union(w));
+        let ends = TopEnds::of(&top, &instances, &motions, &geometries, &removed);
         World {
             geometries,
             instances,
@@ -302,6 +303,7 @@ impl<P: Primitive> Placed<P> {
             removed,
             filters: Vec::new(),
             top,
+            ends,
             bounds,
         }
     }

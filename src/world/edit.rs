@@ -5,7 +5,7 @@
 
 use super::builder::set_slot;
 use super::instance::{check_instance, motion_of, placement};
-use super::top::{instance_box, top_level, world_boxes};
+use super::top::{instance_box, top_level, world_boxes, TopEnds};
 use super::{Geometry, GeometryFilter, GeometryId, InstanceId, InstanceLeaf};
 use super::{Motion, World, WorldError};
 use crate::geometry::{Aabb, Triangle};
@@ -619,5 +619,12 @@ impl<P: Primitive> World<P> {
         } else {
             self.bounds = self.top.bounds;
         }
+        self.ends = TopEnds::of(
+            &self.top,
+            &self.instances,
+            &self.motions,
+            &self.geometries,
+            &self.removed,
+        );
     }
 }

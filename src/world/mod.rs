@@ -84,7 +84,7 @@ use crate::layout::walk::{NodeVisit, WalkNodes};
 use crate::layout::{Bvh8, Footprint};
 use crate::primitive::Primitive;
 use glam::{Mat3A, Vec3A};
-use top::InstanceLeaf;
+use top::{InstanceLeaf, TopEnds};
 
 /// Geometries placed by instances under one top-level BVH (see the [module](self) docs).
 #[derive(Clone, Debug)]
@@ -99,6 +99,9 @@ pub struct World<P = Triangle> {
     /// `filters[g]`: geometry `g`'s own filter. Empty until the first is set.
     filters: Vec<Option<GeometryFilter>>,
     top: Bvh8<InstanceLeaf>,
+    /// The top level's boxes at both ends of the shutter: what a ray at a time walks in a
+    /// world with moving instances. Empty while `motions` is.
+    ends: TopEnds,
     bounds: Aabb,
 }
 
@@ -213,7 +216,9 @@ impl<P: Primitive> World<P> {
             .sum::<usize>();
         let instances = std::mem::size_of_val(self.instances.as_slice())
             + std::mem::size_of_val(self.motions.as_slice())
-            + motions;
+            + motions
+            + std::mem::size_of_val(self.ends.nodes.as_slice())
+            + std::mem::size_of_val(self.ends.leaves.as_slice());
         self.geometries.iter().fold(
             Footprint {
                 nodes: top.nodes,

@@ -9,6 +9,7 @@ use super::instance::{invert, mirrors};
 use super::top::{corner_box, padded};
 use super::WorldError;
 use crate::geometry::Aabb;
+use crate::layout::ends::pad_ends;
 use glam::{Affine3A, DMat3, DQuat, DVec3, Mat3A, Quat, Vec3A};
 
 /// The most keys a motion may have (Embree allows 129 time steps; a shutter sampled more
@@ -257,6 +258,59 @@ impl Motion {
         }
         padded(out)
     }
+
+    /// Boxes at the shutter's two ends whose linear interpolation at every time holds object
+    /// box `b` where the motion places it then (for the top level's moving boxes,
+    /// [`crate::layout::ends`]), padded for the walk's rounding as [`Motion::world_box`] is.
+    ///
+    /// Each step between keys is held by a box that moves linearly over it (linear motion:
+    /// the keys' own boxes, since every point moves on a straight line between its places
+    /// at them; decomposed: the step's box over its whole arc, still): the ends start as
+    /// the first and last of these and both move out by what any step's box still exceeds
+    /// at either of its times, which keeps every step inside, since two linear bounds that
+    /// hold at a step's two times hold between them.
+    pub(super) fn end_boxes(&self, b: &Aabb) -> [Aabb; 2] {
+        if b.is_empty() {
+            return [Aabb::EMPTY; 2];
+        }
+        let steps = self.keys.len() - 1;
+        // Step k's boxes at its start and its end.
+        let step: Vec<[Aabb; 2]> = match self.interpolation {
+            Interpolation::Linear => (0..steps)
+                .map(|k| {
+                    [
+                        corner_box(&self.keys[k], b),
+                        corner_box(&self.keys[k + 1], b),
+                    ]
+                })
+                .collect(),
+            Interpolation::Decomposed => (0..steps)
+                .map(|k| turning_box(&self.parts[k], &self.parts[k + 1], b))
+                .map(|s| [s, s])
+                .collect(),
+        };
+        let d = |v: Vec3A| DVec3::new(v.x.into(), v.y.into(), v.z.into());
+        let (mut lo, mut hi) = (
+            [d(step[0][0].min), d(step[steps - 1][1].min)],
+            [d(step[0][0].max), d(step[steps - 1][1].max)],
+        );
+        for (k, s) in step.iter().enumerate() {
+            for (j, held) in s.iter().enumerate() {
+                let t = (k + j) as f64 / steps as f64;
+                let over_lo = (lo[0] * (1.0 - t) + lo[1] * t - d(held.min)).max(DVec3::ZERO);
+                let over_hi = (d(held.max) - hi[0] * (1.0 - t) - hi[1] * t).max(DVec3::ZERO);
+                lo = [lo[0] - over_lo, lo[1] - over_lo];
+                hi = [hi[0] + over_hi, hi[1] + over_hi];
+            }
+        }
+        // Rounded outwards to f32 (a relative step), then padded for the walk's arithmetic.
+        let out = |v: DVec3, dir: f64| {
+            let v = v + v.abs() * (dir * f64::from(f32::EPSILON));
+            Vec3A::new(v.x as f32, v.y as f32, v.z as f32)
+        };
+        let end = |j: usize| padded(Aabb::new(out(lo[j], -1.0), out(hi[j], 1.0)));
+        pad_ends([end(0), end(1)])
+    }
 }
 
 /// How many rotations along each step's arc are boxed: the arc between two of them strays
@@ -369,5 +423,60 @@ fn split(m: &Affine3A) -> Parts {
         stretch: Mat3A::from_cols(f(r00, 0.0, 0.0), f(r01, r11, 0.0), f(r02, r12, r22)),
         translation: m.translation,
         half_turn: 0.0,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rng::Rng;
+
+    /// The box the top level's walk meets at `t`, computed as it computes it: the change
+    /// rounded to f32, then `start + t * delta`.
+    fn at(ends: &[Aabb; 2], t: f32) -> Aabb {
+        let (dlo, dhi) = (ends[1].min - ends[0].min, ends[1].max - ends[0].max);
+        Aabb::new(ends[0].min + dlo * t, ends[0].max + dhi * t)
+    }
+
+    #[test]
+    fn the_end_boxes_hold_the_instance_at_every_time() {
+        let mut rng = Rng::new(7);
+        let mut unit = || rng.in_box(Vec3A::ZERO, Vec3A::ONE);
+        let mut tightened = 0;
+        for case in 0..200 {
+            let lo = (unit() - 0.5) * 10.0;
+            let b = Aabb::new(lo, lo + unit() * 3.0 + 0.01);
+            let keys_n = 2 + case % 4;
+            let axis = glam::Vec3::from(unit() - 0.5).normalize_or(glam::Vec3::Y);
+            let turn = unit().x * 0.45 * std::f32::consts::TAU;
+            let keys: Vec<Affine3A> = (0..keys_n)
+                .map(|k| {
+                    let drift = glam::Vec3::from(unit() - 0.5) * 8.0 * (1 + case % 3) as f32;
+                    let grow = glam::Vec3::from(unit()) + 0.5;
+                    Affine3A::from_translation(drift)
+                        * Affine3A::from_quat(Quat::from_axis_angle(axis, turn * k as f32))
+                        * Affine3A::from_scale(grow)
+                })
+                .collect();
+            let m = match case % 2 {
+                0 => Motion::linear(keys),
+                _ => Motion::decomposed(keys),
+            };
+            let ends = m.end_boxes(&b);
+            let whole = m.world_box(&b);
+            for j in 0..=1000 {
+                let t = j as f32 / 1000.0;
+                let held = at(&ends, t);
+                let placed = corner_box(&m.at(t), &b);
+                assert!(
+                    held.contains(&placed),
+                    "case {case} at {t}: {placed:?} outside {held:?}"
+                );
+            }
+            // Where the instance travels farther than its size, the box at a time is
+            // smaller than the box over the whole shutter (what the ends are for).
+            tightened += usize::from(at(&ends, 0.5).half_area() < 0.9 * whole.half_area());
+        }
+        assert!(tightened > 100, "{tightened} of 200 motions tightened");
     }
 }

@@ -204,6 +204,13 @@ impl<P: Primitive> World<P> {
         let mut records = [Hit::none(0.0); PACKET_RAYS];
         let mut lp = RayPacket::empty();
         let kernels = top.kernels;
+        // Each ray's time in lanes, where some instance moves.
+        let mut times = [[0.0f32; LANES]; CHUNKS];
+        if !self.ends.leaves.is_empty() {
+            for i in 0..n {
+                times[i / LANES][i % LANES] = rays[i].shutter_time();
+            }
+        }
         walk::<Bvh8Node, V, B, S, _>(
             cpu,
             &top.nodes,
@@ -219,7 +226,12 @@ impl<P: Primitive> World<P> {
                         stats.prims(range.len() as u32);
                         for pi in range {
                             let p = &top.prims[pi];
-                            let m = seeing(rays, live & pk.active, uniform, p);
+                            let mut m = seeing(rays, live & pk.active, uniform, p);
+                            if p.moving {
+                                // Only the rays that meet its box where it is at their time.
+                                let ends = &self.ends.leaves[pi];
+                                m = pk.entering_moving::<V, B>(cpu, ends, &times, m);
+                            }
                             if m == 0 {
                                 continue;
                             }

@@ -7,7 +7,7 @@ use super::{Geometry, GeometryId, InstanceId, InstanceLeaf, World, WorldHit};
 use crate::geometry::{Hit, Ray};
 use crate::isa::Kernels;
 use crate::primitive::Primitive;
-use crate::traverse::bvh8::{walk, Ray8};
+use crate::traverse::bvh8::{walk, Enter8, Ray8, Ray8At};
 use crate::traverse::dispatch::{self, LaneKernel};
 use crate::traverse::lane8::F8;
 use crate::traverse::{Ask, BoxTest, Filter, PacketQuery, RayQuery, Stats};
@@ -280,7 +280,10 @@ impl<P: Primitive> World<P> {
         found
     }
 
-    /// The search `A` in the top-level subtree of inner node `root`, improving `best`.
+    /// The search `A` in the top-level subtree of inner node `root`, improving `best`. A
+    /// world where nothing moves runs a walk with no motion in it, not even the test of each
+    /// instance's flag; one with motion walks its nodes' boxes where they are at the ray's
+    /// time (a world that once had a moving instance keeps to that walk).
     #[inline(always)]
     pub(super) fn search_from<V: F8, A: Ask, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
         &self,
@@ -291,18 +294,26 @@ impl<P: Primitive> World<P> {
         stats: &mut S,
         filter: &mut F,
     ) {
-        // As `trace_with` picks it (the packets' rays that go alone come here).
         match self.motions.is_empty() {
-            true => self.walk_top::<V, A, B, S, F, false>(cpu, ray, root, best, stats, filter),
-            false => self.walk_top::<V, A, B, S, F, true>(cpu, ray, root, best, stats, filter),
+            true => {
+                let boxes = Ray8::<V>::new(cpu, ray);
+                self.walk_top::<V, A, B, S, F, false>(cpu, &boxes, ray, root, best, stats, filter)
+            }
+            false => {
+                let boxes = Ray8At::<V>::new(cpu, ray, &self.ends.nodes);
+                self.walk_top::<V, A, B, S, F, true>(cpu, &boxes, ray, root, best, stats, filter)
+            }
         }
     }
 
-    /// [`World::search_from`], testing for moving instances if `MOVING`.
+    /// [`World::search_from`] meeting the nodes' boxes through `boxes`, testing for moving
+    /// instances if `MOVING`.
     #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
     fn walk_top<V, A, B, S, F, const MOVING: bool>(
         &self,
         cpu: V::Cpu,
+        boxes: &impl Enter8<V>,
         ray: &Ray,
         root: usize,
         best: &mut WorldHit,
@@ -315,11 +326,9 @@ impl<P: Primitive> World<P> {
         S: Stats,
         F: Filter<WorldHit>,
     {
-        let top = &self.top;
-        let r8 = Ray8::<V>::new(cpu, ray);
         walk::<V, A, B, S, _>(
-            &top.nodes,
-            &r8,
+            &self.top.nodes,
+            boxes,
             root,
             best.t,
             stats,
@@ -354,8 +363,8 @@ impl<P: Primitive> World<P> {
 }
 
 /// One ray's query of a [`World`], as the kernel [`dispatch`] runs on the top level's lanes
-/// (the geometries' own queries pick their kernels), testing for moving instances if `MOVING`.
-struct Trace<'a, P, A, B, S, F, const MOVING: bool> {
+/// (the geometries' own queries pick their kernels).
+struct Trace<'a, P, A, B, S, F> {
     world: &'a World<P>,
     ray: &'a Ray,
     stats: &'a mut S,
@@ -363,7 +372,7 @@ struct Trace<'a, P, A, B, S, F, const MOVING: bool> {
     ask: PhantomData<(A, B)>,
 }
 
-impl<P, A, B, S, F, const MOVING: bool> LaneKernel for Trace<'_, P, A, B, S, F, MOVING>
+impl<P, A, B, S, F> LaneKernel for Trace<'_, P, A, B, S, F>
 where
     P: Primitive,
     A: Ask,
@@ -378,7 +387,7 @@ where
         let ray = &self.ray.raised_t_min();
         let mut best = WorldHit::none(ray.t_max);
         if self.world.walkable() {
-            self.world.walk_top::<V, A, B, S, F, MOVING>(
+            self.world.search_from::<V, A, B, S, F>(
                 cpu,
                 ray,
                 0,
@@ -391,26 +400,6 @@ where
     }
 }
 
-impl<P: Primitive> World<P> {
-    /// One ray's query on the top level's kernels, testing for moving instances if `MOVING`.
-    #[inline(always)]
-    fn trace_on<A: Ask, B: BoxTest, S: Stats, F: Filter<WorldHit>, const MOVING: bool>(
-        &self,
-        ray: &Ray,
-        stats: &mut S,
-        filter: &mut F,
-    ) -> A::Answer<WorldHit> {
-        let kernel = Trace::<P, A, B, S, F, MOVING> {
-            world: self,
-            ray,
-            stats,
-            filter,
-            ask: PhantomData,
-        };
-        dispatch::run(self.top.kernels, false, kernel)
-    }
-}
-
 impl<P: Primitive> RayQuery for World<P> {
     type Hit = WorldHit;
 
@@ -420,13 +409,14 @@ impl<P: Primitive> RayQuery for World<P> {
         stats: &mut S,
         filter: &mut F,
     ) -> A::Answer<WorldHit> {
-        // Picked before the kernels: a world where nothing moves runs code with no motion in
-        // it, not even the test of each instance's flag (a world that once had a moving
-        // instance keeps the test).
-        match self.motions.is_empty() {
-            true => self.trace_on::<A, B, S, F, false>(ray, stats, filter),
-            false => self.trace_on::<A, B, S, F, true>(ray, stats, filter),
-        }
+        let kernel = Trace::<P, A, B, S, F> {
+            world: self,
+            ray,
+            stats,
+            filter,
+            ask: PhantomData,
+        };
+        dispatch::run(self.top.kernels, false, kernel)
     }
 
     fn trace_packet_with<A: Ask, B: BoxTest, S: Stats, F: Filter<WorldHit>>(

@@ -1,10 +1,12 @@
 //! The top level of a world: its per-instance leaf records ([`InstanceLeaf`]), each instance's world
 //! box, and the 8-wide BVH over them.
 
+use super::instance::motion_of;
 use super::{Geometry, Instance, Motion};
 use crate::builders::{build, BuildConfig, Builder};
 use crate::geometry::{Aabb, PrimHit, Ray};
 use crate::isa::Isa;
+use crate::layout::ends::{node_ends, rows, Bvh8Ends};
 use crate::layout::{bvh2::leaf_order, Bvh8, Inputs};
 use crate::primitive::Primitive;
 use glam::{Affine3A, Mat3A, Vec3A, Vec4, Vec4Swizzles};
@@ -83,6 +85,51 @@ pub(super) fn instance_box<P: Primitive>(
     match motion {
         Some(m) => m.world_box(&b),
         None => padded(corner_box(&inst.transform, &b)),
+    }
+}
+
+/// The top level's boxes at both ends of the shutter, for a world with moving instances
+/// (empty for one without): a moving instance's ends move with it ([`Motion::end_boxes`]),
+/// a static one's are its box at both ends, a removed one's empty. A ray at time `t` then
+/// enters each moving instance only near where it is at `t`, not anywhere along its path.
+#[derive(Clone, Debug, Default)]
+pub(super) struct TopEnds {
+    /// One per node of the top level ([`Bvh8Ends`]): what a ray's walk meets.
+    pub(super) nodes: Vec<Bvh8Ends>,
+    /// One per top-level record (leaf order): its planes at time 0 and their change to
+    /// time 1, the same floats as its slot in `nodes`; what a packet's rays meet a moving
+    /// instance by before each goes in alone.
+    pub(super) leaves: Vec<[[f32; 6]; 2]>,
+}
+
+impl TopEnds {
+    /// The ends of `top`'s boxes, over the world's instances as they are now.
+    pub(super) fn of<P: Primitive>(
+        top: &Bvh8<InstanceLeaf>,
+        instances: &[Instance],
+        motions: &[Option<Motion>],
+        geometries: &[Geometry<P>],
+        removed: &[bool],
+    ) -> TopEnds {
+        if motions.is_empty() {
+            return TopEnds::default();
+        }
+        let ends: Vec<[Aabb; 2]> = top
+            .prims
+            .iter()
+            .map(|p| {
+                let i = p.instance as usize;
+                let inst = &instances[i];
+                match (removed.get(i) == Some(&true), motion_of(motions, i)) {
+                    (true, _) => [Aabb::EMPTY; 2],
+                    (false, Some(m)) => m.end_boxes(&geometries[inst.geometry.0 as usize].bounds()),
+                    (false, None) => [instance_box(inst, None, geometries, false); 2],
+                }
+            })
+            .collect();
+        let nodes = node_ends(&top.nodes, |prim| ends[prim]);
+        let leaves = ends.iter().map(|&e| rows(e)).collect();
+        TopEnds { nodes, leaves }
     }
 }
 

@@ -353,11 +353,28 @@ impl RayPacket {
     /// single-ray slab test's arithmetic exactly.
     #[inline(always)]
     fn enter_chunk<V: F8, B: BoxTest>(&self, cpu: V::Cpu, k: usize, b: &[f32; 6]) -> (u32, V) {
+        self.enter_chunk_planes::<V, B>(
+            cpu,
+            k,
+            #[inline(always)]
+            |row| V::splat(cpu, b[row]),
+        )
+    }
+
+    /// [`RayPacket::enter_chunk`] with the box's planes given in lanes by `plane(row)` (rows
+    /// as [`Bvh8Node::planes`](crate::layout::Bvh8Node::planes) orders them).
+    #[inline(always)]
+    fn enter_chunk_planes<V: F8, B: BoxTest>(
+        &self,
+        cpu: V::Cpu,
+        k: usize,
+        plane: impl Fn(usize) -> V,
+    ) -> (u32, V) {
         let slack = V::splat(cpu, B::SLACK);
         let mut near = V::of(cpu, &self.rays.t_min[k]);
         let mut far = V::of(cpu, &self.rays.limit[k]).mul(slack);
         for a in 0..3 {
-            let (lo, hi) = (V::splat(cpu, b[a]), V::splat(cpu, b[3 + a]));
+            let (lo, hi) = (plane(a), plane(3 + a));
             let neg = V::of(cpu, &self.neg[a][k]);
             let (pn, pf) = (neg.select(hi, lo), neg.select(lo, hi));
             let (o, inv) = (V::of(cpu, &self.rays.o[a][k]), V::of(cpu, &self.inv[a][k]));
@@ -367,6 +384,33 @@ impl RayPacket {
             far = tf.mul(slack).min_nan_first(far);
         }
         (near.le_bits(far), near)
+    }
+
+    /// The active rays of `mask` that enter a box moving over the shutter, each meeting it
+    /// where it is at the ray's own time (`times[k][l]` for ray `LANES * k + l`): `ends` holds
+    /// its planes at time 0 and their change to time 1, which lane `l` takes as
+    /// `start + delta * time` (the arithmetic of the single-ray walk over
+    /// [`Bvh8Ends`](crate::layout::ends::Bvh8Ends)). Not counted toward the packet's coherence.
+    #[inline(always)]
+    pub(crate) fn entering_moving<V: F8, B: BoxTest>(
+        &self,
+        cpu: V::Cpu,
+        ends: &[[f32; 6]; 2],
+        times: &[[f32; LANES]; CHUNKS],
+        mask: u64,
+    ) -> u64 {
+        let mut out = 0u64;
+        for (k, bits) in chunks(self.active & mask) {
+            let time = V::load(cpu, &times[k]);
+            let (m, _) = self.enter_chunk_planes::<V, B>(
+                cpu,
+                k,
+                #[inline(always)]
+                |row| V::splat(cpu, ends[0][row]).add(V::splat(cpu, ends[1][row]).mul(time)),
+            );
+            out |= ((bits & m) as u64) << (LANES * k);
+        }
+        out
     }
 
     /// The first active ray of `mask` that enters `b`, with its entry distance.
