@@ -24,9 +24,9 @@
 //! [`traverse`] (single-ray and packet kernels, closest and any hit, statistics).
 //! [`Bvh::new`] and [`Bvh::build`] with [`BuildOptions`] run the first two; [`World`] places
 //! BVHs as instances under one top level; [`geometry`] holds rays, boxes, triangles and hit
-//! records, [`intersect`] the watertight and exact triangle tests, and [`mod@reference`] the
-//! brute-force oracle every kernel is tested against. [`prelude`] imports what a renderer
-//! needs in one line.
+//! records, [`intersect`] the watertight and exact triangle tests, and
+//! [`traverse::reference`](mod@traverse::reference) the brute-force oracle every kernel is
+//! tested against. [`prelude`] imports what a renderer needs in one line.
 //!
 //! This crate depends only on glam, wide, rayon and bytemuck. Scenes (the SPD generators,
 //! NFF and OBJ files), analytic shapes and the SPD renderer live in `quiver-scenes`; the
@@ -52,7 +52,7 @@ pub mod layout;
 mod mask;
 mod mem;
 mod mesh;
-mod names;
+pub mod names;
 pub mod point;
 pub mod predict;
 pub mod primitive;
@@ -63,22 +63,23 @@ mod testing;
 pub mod traverse;
 pub mod world;
 
-// The crate root names what a renderer meets first; the layouts' types, the builders'
-// parameters and the traversal's type parameters live in their modules.
-pub use builders::{BuildError, TreeError};
+// The crate root names what a renderer meets first (25 items, besides the modules and the
+// crates above); the layouts' types, the builders' parameters and the traversal's type
+// parameters live in their modules, as do the rarer names (`builders::TreeError`,
+// `layout::Footprint`, `names::ParseError`, `traverse::reference`, `world::Interpolation`,
+// `world::WorldPointHit`) and the file format's `Bvh::FORMAT_VERSION`.
+pub use builders::BuildError;
 pub use bvh::{BuildOptions, Bvh, RefitError};
 pub use geometry::{Aabb, Hit, PrimHit, Ray, Triangle};
 pub use isa::Isa;
-pub use layout::{Footprint, Layout};
+pub use layout::Layout;
 pub use mesh::{MeshError, Positions};
-pub use names::ParseError;
 pub use point::PointHit;
 pub use primitive::Primitive;
-pub use save::{LoadError, FORMAT_VERSION};
-pub use traverse::{reference, RayQuery};
+pub use save::LoadError;
+pub use traverse::RayQuery;
 pub use world::{
-    GeometryId, Instance, InstanceId, Interpolation, Motion, World, WorldBuilder, WorldError,
-    WorldHit, WorldPointHit,
+    GeometryId, Instance, InstanceId, Motion, World, WorldBuilder, WorldError, WorldHit,
 };
 
 /// What a renderer needs in one import: `use quiver_rt::prelude::*;` brings the BVH and its
@@ -102,10 +103,10 @@ pub use world::{
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
 pub mod prelude {
-    pub use crate::builders::Builder;
+    pub use crate::builders::{Builder, TreeError};
     pub use crate::{
         Aabb, BuildError, BuildOptions, Bvh, GeometryId, Hit, Instance, InstanceId, Layout,
-        MeshError, Motion, Positions, PrimHit, Primitive, Ray, RayQuery, RefitError, TreeError,
-        Triangle, World, WorldBuilder, WorldError, WorldHit,
+        MeshError, Motion, Positions, PrimHit, Primitive, Ray, RayQuery, RefitError, Triangle,
+        World, WorldBuilder, WorldError, WorldHit,
     };
 }

@@ -10,7 +10,8 @@ use std::fmt;
 /// that would have been accepted.
 ///
 /// ```
-/// use quiver_rt::{Layout, ParseError};
+/// use quiver_rt::names::ParseError;
+/// use quiver_rt::Layout;
 /// let e: ParseError = "bvh3".parse::<Layout>().unwrap_err();
 /// assert_eq!((e.what, e.given.as_str()), ("layout", "bvh3"));
 /// assert!(e.expected.contains(&"bvh8-dfs"));

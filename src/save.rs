@@ -36,18 +36,6 @@ use glam::Vec3A;
 use std::fmt;
 use std::io::{self, Read, Write};
 
-/// The format version this quiver writes, and the newest it reads.
-///
-/// Compatibility rule: a reader of version `N` reads every version from 1 to `N` (a new
-/// version may add layouts, sections or header fields, never change what an older version's
-/// bytes mean) and refuses a newer one with [`LoadError::UnsupportedVersion`]; within one
-/// version the layout of the bytes is frozen.
-///
-/// ```
-/// assert_eq!(quiver_rt::FORMAT_VERSION, 1);
-/// ```
-pub const FORMAT_VERSION: u32 = 1;
-
 /// The first eight bytes of every file: a name, and a DOS end-of-file byte so the file does
 /// not read as text.
 const MAGIC: [u8; 8] = *b"QUIVBVH\x1a";
@@ -94,7 +82,7 @@ pub enum LoadError {
     Io(io::Error),
     /// The first eight bytes are not quiver's magic: not a saved BVH.
     BadMagic,
-    /// A format version this quiver does not read (see [`FORMAT_VERSION`]).
+    /// A format version this quiver does not read (see [`Bvh::FORMAT_VERSION`]).
     UnsupportedVersion {
         /// The file's version.
         found: u32,
@@ -562,7 +550,7 @@ impl Header {
     fn bytes(&self) -> [u8; HEADER] {
         let mut h = [0u8; HEADER];
         h[0..8].copy_from_slice(&MAGIC);
-        h[8..12].copy_from_slice(&FORMAT_VERSION.to_le_bytes());
+        h[8..12].copy_from_slice(&Bvh::FORMAT_VERSION.to_le_bytes());
         // Native order: a reader of the other order sees the bytes reversed.
         h[12..16].copy_from_slice(&ENDIAN.to_ne_bytes());
         h[16] = layout_tag(self.layout);
@@ -790,10 +778,10 @@ pub(crate) fn preamble(h: &[u8], magic: &[u8; 8], need: u64) -> Result<(), LoadE
         });
     }
     let version = u32::from_le_bytes(h[8..12].try_into().expect("4"));
-    if version == 0 || version > FORMAT_VERSION {
+    if version == 0 || version > Bvh::FORMAT_VERSION {
         return Err(LoadError::UnsupportedVersion {
             found: version,
-            supported: FORMAT_VERSION,
+            supported: Bvh::FORMAT_VERSION,
         });
     }
     let marker = u32::from_ne_bytes(h[12..16].try_into().expect("4"));
@@ -819,6 +807,19 @@ pub(crate) fn triangle_bytes(t: &Triangle, out: &mut Vec<u8>) {
 }
 
 impl Bvh<Triangle> {
+    /// The format version this quiver writes, and the newest it reads (world files,
+    /// [`World::save`](crate::World::save)'s, carry the same).
+    ///
+    /// Compatibility rule: a reader of version `N` reads every version from 1 to `N` (a new
+    /// version may add layouts, sections or header fields, never change what an older
+    /// version's bytes mean) and refuses a newer one with [`LoadError::UnsupportedVersion`];
+    /// within one version the layout of the bytes is frozen.
+    ///
+    /// ```
+    /// assert_eq!(quiver_rt::Bvh::FORMAT_VERSION, 1);
+    /// ```
+    pub const FORMAT_VERSION: u32 = 1;
+
     /// Writes the BVH to `w` in quiver's file format (`docs/file-format.md`): the node and
     /// leaf arrays as they are in memory, with a header and a checksum. [`Bvh::load`] reads
     /// it back, on this machine or another of the same byte order, whatever its instruction
@@ -1662,7 +1663,7 @@ mod tests {
             Bvh::from_bytes(&newer),
             Err(LoadError::UnsupportedVersion {
                 found: 7,
-                supported: FORMAT_VERSION
+                supported: Bvh::FORMAT_VERSION
             })
         ));
         let mut swapped = bytes.clone();

@@ -27,7 +27,8 @@ use options::frame_prims;
 /// A laid-out BVH in any [`crate::Layout`], answering every query of [`RayQuery`].
 ///
 /// ```
-/// use quiver_rt::{reference, BuildOptions, Bvh, Layout, Ray, RayQuery, Triangle};
+/// use quiver_rt::traverse::reference;
+/// use quiver_rt::{BuildOptions, Bvh, Layout, Ray, RayQuery, Triangle};
 /// use glam::Vec3A;
 /// let tris: Vec<Triangle> = (0..50)
 ///     .map(|i| {
@@ -334,7 +335,7 @@ mod tests {
                 );
                 assert_eq!(
                     from_mesh.closest_hit(&ray),
-                    crate::reference::closest_hit(&tris, &ray),
+                    crate::traverse::reference::closest_hit(&tris, &ray),
                     "{layout}"
                 );
             }
@@ -360,7 +361,7 @@ mod tests {
         let ray = Ray::new(Vec3A::new(0.25, 0.25, 1.0), -Vec3A::Z);
         assert_eq!(
             bvh.closest_hit(&ray),
-            crate::reference::closest_hit(&tris, &ray)
+            crate::traverse::reference::closest_hit(&tris, &ray)
         );
     }
 

@@ -92,7 +92,8 @@ impl BuildOptions<'static> {
     /// rebuild after large motion.
     ///
     /// ```
-    /// use quiver_rt::{reference, BuildOptions, Bvh, Ray, RayQuery, Triangle};
+    /// use quiver_rt::traverse::reference;
+    /// use quiver_rt::{BuildOptions, Bvh, Ray, RayQuery, Triangle};
     /// use glam::Vec3A;
     /// // Long slivers crossing each other, one above the other: spatial splits cut them.
     /// let tris: Vec<Triangle> = (0..64)

@@ -75,7 +75,8 @@ impl<P: Primitive> Bvh<P> {
     /// rebuilding is the way to get it back.
     ///
     /// ```
-    /// use quiver_rt::{reference, Bvh, Ray, RayQuery, RefitError, Triangle};
+    /// use quiver_rt::traverse::reference;
+    /// use quiver_rt::{Bvh, Ray, RayQuery, RefitError, Triangle};
     /// use glam::Vec3A;
     /// // A strip of 100 triangles, waved up and down by `phase`.
     /// let strip = |phase: f32| -> Vec<Triangle> {

@@ -2,8 +2,8 @@
 //!
 //! Conventions every kernel in quiver shares:
 //! - a ray accepts hits with `t_min <= t <= t_max` (a closed interval); every query (the
-//!   [`crate::reference`], every layout and kernel, packets, [`crate::World`]) takes a
-//!   `t_min` below zero, `-inf` or NaN as zero: nothing behind the origin is ever hit (see
+//!   [`reference`](crate::traverse::reference), every layout and kernel, packets, [`crate::World`])
+//!   takes a `t_min` below zero, `-inf` or NaN as zero: nothing behind the origin is ever hit (see
 //!   [`Ray`]);
 //! - among hits at the same distance the lower primitive index wins, so every kernel, whatever
 //!   order it visits primitives in, reports the same primitive as the brute-force reference;

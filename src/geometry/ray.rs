@@ -7,13 +7,14 @@ use glam::Vec3A;
 ///
 /// `dir` need not be normalised; `t` is measured in units of `dir`.
 ///
-/// Queries search `[max(t_min, 0), t_max]`: a `t_min` below zero, `-inf` or NaN counts as
-/// zero in the [`crate::reference`], every layout, packets and [`crate::World`] alike, so a
-/// ray never hits what lies behind its origin. (A primitive's own test, called directly, takes
+/// Queries search `[max(t_min, 0), t_max]`: a `t_min` below zero, `-inf` or NaN counts as zero in
+/// the [`reference`](crate::traverse::reference), every layout, packets and [`crate::World`] alike,
+/// so a ray never hits what lies behind its origin. (A primitive's own test, called directly, takes
 /// the interval as given; the queries hand it the raised one.)
 ///
 /// ```
-/// use quiver_rt::{reference, Bvh, Ray, RayQuery, Triangle};
+/// use quiver_rt::traverse::reference;
+/// use quiver_rt::{Bvh, Ray, RayQuery, Triangle};
 /// use glam::Vec3A;
 /// let behind = Triangle::new(Vec3A::new(0.0, 0.0, -5.0), Vec3A::new(1.0, 0.0, -5.0), Vec3A::new(0.0, 1.0, -5.0));
 /// let ahead = Triangle::new(Vec3A::new(0.0, 0.0, 3.0), Vec3A::new(1.0, 0.0, 3.0), Vec3A::new(0.0, 1.0, 3.0));

@@ -96,7 +96,8 @@ mod sealed {
 ///
 /// ```
 /// use quiver_rt::layout::{Bvh4, Bvh4Mapping, QBvh4};
-/// use quiver_rt::{reference, BuildOptions, Bvh, Isa, Ray, RayQuery, Triangle};
+/// use quiver_rt::traverse::reference;
+/// use quiver_rt::{BuildOptions, Bvh, Isa, Ray, RayQuery, Triangle};
 /// use glam::Vec3A;
 /// let tris: Vec<Triangle> = (0..100)
 ///     .map(|i| {

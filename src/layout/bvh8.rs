@@ -55,7 +55,8 @@ impl Bvh8Node {
 ///
 /// ```
 /// use quiver_rt::layout::Bvh8;
-/// use quiver_rt::{reference, BuildOptions, Bvh, Isa, Layout, Ray, RayQuery, Triangle};
+/// use quiver_rt::traverse::reference;
+/// use quiver_rt::{BuildOptions, Bvh, Isa, Layout, Ray, RayQuery, Triangle};
 /// use glam::Vec3A;
 /// let tris: Vec<Triangle> = (0..300)
 ///     .map(|i| {

@@ -23,15 +23,17 @@ use glam::Vec3A;
 /// - The walks call it with `t_max` lowered to the nearest hit found so far, so one primitive
 ///   is asked about several intervals of the same ray; the answer for a shorter interval must
 ///   be the longer interval's answer when that lies inside it (no state, no randomness).
-/// - A returned hit is a *candidate*: the walk keeps the nearest one, and among hits at equal
-///   `t` the one of the lowest primitive index (input order). A candidate at the current
-///   `t_max` from a higher index is therefore offered and rejected. Every layout, the packet
-///   kernels and [`crate::reference`] apply the same rule, so all of them return the same hit.
+/// - A returned hit is a *candidate*: the walk keeps the nearest one, and among hits at equal `t`
+///   the one of the lowest primitive index (input order). A candidate at the current `t_max` from a
+///   higher index is therefore offered and rejected. Every layout, the packet kernels and
+///   [`reference`](crate::traverse::reference) apply the same rule, so all of them return the same
+///   hit.
 ///
 /// Two coincident squares, hit at the same distance: the lower index wins in every layout.
 ///
 /// ```
-/// use quiver_rt::{reference, Aabb, BuildOptions, Bvh, Layout, PrimHit, Primitive, Ray, RayQuery};
+/// use quiver_rt::traverse::reference;
+/// use quiver_rt::{Aabb, BuildOptions, Bvh, Layout, PrimHit, Primitive, Ray, RayQuery};
 /// use glam::Vec3A;
 ///
 /// /// An axis-aligned unit square in the plane `z = z`.
@@ -94,17 +96,18 @@ pub trait Primitive: Clone + Send + Sync {
     /// How quiver tests this type: as itself ([`LeafFormat::Plain`], the default: through
     /// [`Primitive::intersect`]), or as a triangle.
     ///
-    /// A triangle format makes quiver test each primitive as the triangle
-    /// [`Primitive::triangle`] returns, with [`Triangle::intersect`]'s arithmetic
-    /// ([`LeafFormat::FastTriangles`]) or [`crate::intersect::Watertight`]'s
-    /// ([`LeafFormat::WatertightTriangles`]), in every layout (the wide ones store it in SIMD
-    /// groups of four), every packet kernel and [`crate::reference`]; `intersect` is then never
-    /// called by quiver. A type that must decide hits itself (an alpha-tested triangle, say)
-    /// keeps `Plain` and does so in `intersect`.
+    /// A triangle format makes quiver test each primitive as the triangle [`Primitive::triangle`]
+    /// returns, with [`Triangle::intersect`]'s arithmetic ([`LeafFormat::FastTriangles`]) or
+    /// [`crate::intersect::Watertight`]'s ([`LeafFormat::WatertightTriangles`]), in every layout
+    /// (the wide ones store it in SIMD groups of four), every packet kernel and
+    /// [`reference`](crate::traverse::reference); `intersect` is then never called by quiver. A
+    /// type that must decide hits itself (an alpha-tested triangle, say) keeps `Plain` and does so
+    /// in `intersect`.
     ///
     /// ```
     /// use quiver_rt::primitive::LeafFormat;
-    /// use quiver_rt::{reference, Aabb, Bvh, PrimHit, Primitive, Ray, RayQuery, Triangle};
+    /// use quiver_rt::traverse::reference;
+    /// use quiver_rt::{Aabb, Bvh, PrimHit, Primitive, Ray, RayQuery, Triangle};
     /// use glam::Vec3A;
     ///
     /// /// A triangle carrying a material: tested as its triangle.

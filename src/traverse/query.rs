@@ -313,7 +313,8 @@ pub trait RayQuery {
     /// coherent ([`PacketMode::Auto`]). Each answer is exactly [`RayQuery::closest_hit`]'s.
     ///
     /// ```
-    /// use quiver_rt::{reference, Bvh, Ray, RayQuery, Triangle};
+    /// use quiver_rt::traverse::reference;
+    /// use quiver_rt::{Bvh, Ray, RayQuery, Triangle};
     /// use glam::Vec3A;
     /// let tris: Vec<Triangle> = (0..64)
     ///     .map(|i| {

@@ -1,7 +1,8 @@
 //! Brute-force ray queries over all primitives, no acceleration structure: the oracle.
 //!
 //! ```
-//! use quiver_rt::{reference, Ray, Triangle};
+//! use quiver_rt::traverse::reference;
+//! use quiver_rt::{Ray, Triangle};
 //! use glam::Vec3A;
 //! let tris = [Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y)];
 //! let ray = Ray::new(Vec3A::new(0.1, 0.1, 1.0), -Vec3A::Z);

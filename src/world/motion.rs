@@ -38,7 +38,7 @@ pub enum Interpolation {
 ///
 /// ```
 /// use quiver_rt::glam::{Affine3A, Vec3};
-/// use quiver_rt::{Interpolation, Motion};
+/// use quiver_rt::world::{Interpolation, Motion};
 /// let slide = Motion::linear(vec![
 ///     Affine3A::from_translation(Vec3::ZERO),
 ///     Affine3A::from_translation(Vec3::new(2.0, 0.0, 0.0)),

@@ -21,7 +21,7 @@ use crate::geometry::Triangle;
 use crate::save::{
     checksum, input_count, preamble, read_triangles, saved_len, Hashing, ENDIAN, TRIANGLE_BYTES,
 };
-use crate::{LoadError, FORMAT_VERSION};
+use crate::LoadError;
 use glam::Affine3A;
 use std::io::{self, Read, Write};
 
@@ -80,7 +80,7 @@ impl World {
         let mut out = Hashing::new(w);
         let mut head = [0u8; HEAD];
         head[..8].copy_from_slice(&MAGIC);
-        head[8..12].copy_from_slice(&FORMAT_VERSION.to_le_bytes());
+        head[8..12].copy_from_slice(&Bvh::FORMAT_VERSION.to_le_bytes());
         head[12..16].copy_from_slice(&ENDIAN.to_ne_bytes());
         head[16..24].copy_from_slice(&(self.geometries.len() as u64).to_le_bytes());
         head[24..32].copy_from_slice(&(self.instances.len() as u64).to_le_bytes());

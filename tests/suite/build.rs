@@ -7,7 +7,8 @@ use quiver_rt::builders::{
     build, optimize, prim_bounds, BuildConfig, BuildTree, Builder, NodeKind, MAX_DEPTH,
 };
 use quiver_rt::layout::{Bvh2, Bvh2Mapping};
-use quiver_rt::{reference, Aabb, Bvh, RayQuery, Triangle};
+use quiver_rt::traverse::reference;
+use quiver_rt::{Aabb, Bvh, RayQuery, Triangle};
 use quiver_scenes::rng::Rng;
 use quiver_scenes::Scene;
 

@@ -1,8 +1,10 @@
 //! Helpers every test module shares: thread pools, builds, reference answers, small inputs.
 
 use glam::Vec3A;
-use quiver_rt::traverse::{ConservativeBoxes, NoFilter, NoStats, PacketMode, PacketQuery};
-use quiver_rt::{reference, BuildOptions, Bvh, Hit, Layout, Primitive, Ray, RayQuery, Triangle};
+use quiver_rt::traverse::{
+    reference, ConservativeBoxes, NoFilter, NoStats, PacketMode, PacketQuery,
+};
+use quiver_rt::{BuildOptions, Bvh, Hit, Layout, Primitive, Ray, RayQuery, Triangle};
 use rayon::prelude::*;
 
 /// The 4- and 8-wide layouts: the ones with a packet kernel.

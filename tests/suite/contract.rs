@@ -11,10 +11,9 @@ use quiver_rt::builders::{
 use quiver_rt::intersect::Watertight;
 use quiver_rt::layout::{Bvh2, Bvh2Mapping, Bvh4, Bvh4Mapping, Bvh8, QBvh4};
 use quiver_rt::primitive::LeafFormat;
-use quiver_rt::traverse::{ConservativeBoxes, NoStats, PacketMode, PacketQuery};
+use quiver_rt::traverse::{reference, ConservativeBoxes, NoStats, PacketMode, PacketQuery};
 use quiver_rt::{
-    reference, Aabb, BuildOptions, Bvh, Hit, Isa, Layout, PrimHit, Primitive, Ray, RayQuery,
-    Triangle,
+    Aabb, BuildOptions, Bvh, Hit, Isa, Layout, PrimHit, Primitive, Ray, RayQuery, Triangle,
 };
 
 /// The seeded random soup of `n` triangles in the unit cube.

@@ -17,8 +17,8 @@ use quiver_lab::oracle::{Answer, Oracle};
 use quiver_lab::rays;
 use quiver_rt::builders::{build, prim_bounds, BuildConfig, Builder};
 use quiver_rt::intersect::Watertight;
-use quiver_rt::traverse::Counters;
-use quiver_rt::{reference, BuildOptions, Bvh, Hit, Layout, Primitive, Ray, RayQuery, Triangle};
+use quiver_rt::traverse::{reference, Counters};
+use quiver_rt::{BuildOptions, Bvh, Hit, Layout, Primitive, Ray, RayQuery, Triangle};
 use quiver_scenes::Scene;
 use rayon::prelude::*;
 

@@ -6,8 +6,8 @@ use crate::common::{build, packet_answers, unit_tri};
 use glam::Vec3A;
 use quiver_lab::accuracy::edge_points;
 use quiver_rt::intersect::{Exact, Watertight};
-use quiver_rt::traverse::{ConservativeBoxes, FastBoxes, NoFilter, NoStats};
-use quiver_rt::{reference, Layout, Primitive, Ray, RayQuery, Triangle};
+use quiver_rt::traverse::{reference, ConservativeBoxes, FastBoxes, NoFilter, NoStats};
+use quiver_rt::{Layout, Primitive, Ray, RayQuery, Triangle};
 use quiver_scenes::Scene;
 use rayon::prelude::*;
 

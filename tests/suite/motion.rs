@@ -8,9 +8,9 @@ use glam::{Affine3A, Quat, Vec3, Vec3A};
 use quiver_lab::oracle::Oracle;
 use quiver_lab::worlds::{check, Placements as Setup};
 use quiver_rt::traverse::{NoFilter, NoStats, PacketMode, PacketQuery};
+use quiver_rt::world::Interpolation;
 use quiver_rt::{
-    BuildOptions, Instance, InstanceId, Interpolation, Isa, Layout, Motion, Ray, RayQuery, World,
-    WorldError,
+    BuildOptions, Instance, InstanceId, Isa, Layout, Motion, Ray, RayQuery, World, WorldError,
 };
 use quiver_scenes::rng::Rng;
 

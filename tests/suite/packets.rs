@@ -9,9 +9,9 @@ use glam::Vec3A;
 use quiver_lab::rays;
 use quiver_rt::intersect::Watertight;
 use quiver_rt::traverse::{
-    BoxTest, ConservativeBoxes, FastBoxes, NoFilter, NoStats, PacketMode, PacketQuery,
+    reference, BoxTest, ConservativeBoxes, FastBoxes, NoFilter, NoStats, PacketMode, PacketQuery,
 };
-use quiver_rt::{reference, BuildOptions, Bvh, Hit, Isa, Layout, Primitive, Ray, RayQuery};
+use quiver_rt::{BuildOptions, Bvh, Hit, Isa, Layout, Primitive, Ray, RayQuery};
 use quiver_scenes::rng::Rng;
 use quiver_scenes::Scene;
 use rayon::prelude::*;

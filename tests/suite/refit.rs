@@ -13,10 +13,10 @@ use glam::{Affine3A, Quat, Vec3, Vec3A};
 use quiver_lab::oracle::{Answer, Oracle};
 use quiver_lab::rays::random_rays;
 use quiver_lab::worlds::{check as check_world, Placements};
-use quiver_rt::traverse::PacketMode;
+use quiver_rt::traverse::{reference, PacketMode};
 use quiver_rt::{
-    reference, BuildOptions, Bvh, GeometryId, Hit, Instance, InstanceId, Isa, Layout, MeshError,
-    Ray, RayQuery, RefitError, Triangle, World, WorldError,
+    BuildOptions, Bvh, GeometryId, Hit, Instance, InstanceId, Isa, Layout, MeshError, Ray,
+    RayQuery, RefitError, Triangle, World, WorldError,
 };
 use quiver_scenes::rng::Rng;
 use quiver_scenes::Scene;

@@ -4,7 +4,8 @@
 
 use quiver_lab::oracle::Oracle;
 use quiver_lab::rays;
-use quiver_rt::{reference, BuildOptions, Bvh, Layout, LoadError, RayQuery};
+use quiver_rt::traverse::reference;
+use quiver_rt::{BuildOptions, Bvh, Layout, LoadError, RayQuery};
 use quiver_scenes::Scene;
 use rayon::prelude::*;
 

@@ -11,7 +11,8 @@ use quiver_lab::oracle::{Answer, Oracle};
 use quiver_lab::rays;
 use quiver_rt::builders::{build, prim_bounds, BuildConfig, BuildTree, Builder};
 use quiver_rt::intersect::Watertight;
-use quiver_rt::{reference, BuildOptions, Bvh, Isa, Layout, Primitive, Ray, RayQuery, Triangle};
+use quiver_rt::traverse::reference;
+use quiver_rt::{BuildOptions, Bvh, Isa, Layout, Primitive, Ray, RayQuery, Triangle};
 use rayon::prelude::*;
 
 /// A small deterministic generator (xorshift64*), so the scenes need no other crate.

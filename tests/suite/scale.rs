@@ -252,8 +252,8 @@ fn one_triangle_at_the_edge_of_f32() {
         for dir in [Vec3A::Z, Vec3A::new(0.1, 0.0, 1.0) * s] {
             let ray = quiver_rt::Ray::new(Vec3A::new(0.3 * s, 0.25 * s, -s), dir);
             let want = oracle.closest_hit(&ray).hit.expect("the oracle hits").t;
-            let fast = quiver_rt::reference::closest_hit(&tris, &ray);
-            let water = quiver_rt::reference::closest_hit(&wt, &ray);
+            let fast = quiver_rt::traverse::reference::closest_hit(&tris, &ray);
+            let water = quiver_rt::traverse::reference::closest_hit(&wt, &ray);
             for (name, got) in [("fast", fast), ("watertight", water)] {
                 let t = got.unwrap_or_else(|| panic!("{s} {name}: missed")).t;
                 assert!(t.is_finite(), "{s} {name}: t = {t}");
@@ -321,17 +321,17 @@ fn huge_scenes_build_valid_trees_with_finite_costs() {
 
 /// One BVH over unit triangles and triangles at 1e15, 1e20, 1e30 and f32::MAX / 4 (each
 /// ahead of the origin along its own axis) and at 1e-30 (beside the origin): too spread to be
-/// scaled as a whole, so the SIMD leaf groups see the raw sizes, where the fast and the
-/// watertight arithmetic overflow (huge) or underflow (tiny). Every layout and instruction
-/// set, closest, any and counted queries, packets in both modes, answer exactly what the
-/// scalar tests answer (`quiver_rt::reference`, which rescales), and the reference is the f64
-/// oracle's on every decidable ray; every far triangle is hit. Before far groups, the 4- and
-/// 8-wide layouts missed the far triangles.
+/// scaled as a whole, so the SIMD leaf groups see the raw sizes, where the fast and the watertight
+/// arithmetic overflow (huge) or underflow (tiny). Every layout and instruction set, closest, any
+/// and counted queries, packets in both modes, answer exactly what the scalar tests answer
+/// (`quiver_rt::traverse::reference`, which rescales), and the reference is the f64 oracle's on
+/// every decidable ray; every far triangle is hit. Before far groups, the 4- and 8-wide layouts
+/// missed the far triangles.
 #[test]
 fn mixed_scales_in_one_bvh_answer_as_the_scalar_tests() {
     use crate::common::{each_isa, packet_answers};
-    use quiver_rt::traverse::{Counters, PacketMode};
-    use quiver_rt::{reference, Ray};
+    use quiver_rt::traverse::{reference, Counters, PacketMode};
+    use quiver_rt::Ray;
     let mut tris: Vec<Triangle> = (0..16)
         .map(|i| {
             let p = Vec3A::new((i % 4) as f32, (i / 4) as f32, 0.0) - 1.5;

@@ -129,7 +129,7 @@ fn obj_files_load_as_triangles_with_a_framing_camera() {
     std::fs::write(&path, "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n").unwrap();
     let s = Scene::load(path.to_str().unwrap()).unwrap();
     assert_eq!(s.triangles().len(), 2);
-    let hit = quiver_rt::reference::closest_hit(&s.triangles(), &s.camera.ray(0.0, 0.0));
+    let hit = quiver_rt::traverse::reference::closest_hit(&s.triangles(), &s.camera.ray(0.0, 0.0));
     assert!(hit.is_some(), "the framing camera looks at the mesh");
     std::fs::write(&path, "v 0 0 0\nf 1 2 3\n").unwrap();
     let err = Scene::load(path.to_str().unwrap()).unwrap_err().to_string();

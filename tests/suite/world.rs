@@ -7,10 +7,10 @@
 use glam::{Affine3A, Quat, Vec3, Vec3A};
 use quiver_lab::oracle::Oracle;
 use quiver_lab::rays::random_rays;
-use quiver_rt::traverse::{ConservativeBoxes, NoStats, PacketMode, PacketQuery};
+use quiver_rt::traverse::{reference, ConservativeBoxes, NoStats, PacketMode, PacketQuery};
 use quiver_rt::{
-    reference, Aabb, BuildOptions, GeometryId, Hit, Instance, InstanceId, Isa, Layout, Ray,
-    RayQuery, Triangle, World, WorldError, WorldHit,
+    Aabb, BuildOptions, GeometryId, Hit, Instance, InstanceId, Isa, Layout, Ray, RayQuery,
+    Triangle, World, WorldError, WorldHit,
 };
 use quiver_scenes::rng::Rng;
 use quiver_scenes::Scene;

@@ -3,7 +3,8 @@
 
 use quiver_rt::glam::{Affine3A, Vec3A};
 use quiver_rt::point::PointHit;
-use quiver_rt::{Hit, Ray, WorldHit, WorldPointHit};
+use quiver_rt::world::WorldPointHit;
+use quiver_rt::{Hit, Ray, WorldHit};
 use std::ffi::{c_int, c_void};
 
 /// The id a hit reports where it names nothing: no hit, or the geometry and instance of a

@@ -1172,15 +1172,14 @@ fn fuzz_tree(
 
 /// Build trees from outside: arbitrary bytes decoded into up to 12 triangles (on a grid of
 /// 1/8, one of them sometimes with a NaN corner) and a [`quiver_rt::builders::BuildTree`] over them —
-/// arbitrary nodes, a random valid shape, or a builder's tree with links, leaf ranges, indices
-/// or the dropped count changed (see `fuzz_tree`) — laid out by [`Bvh::from_tree`] in every
-/// layout and by each layout type's own `from_tree`. A tree [`quiver_rt::builders::BuildTree::check`]
-/// refuses must be refused by all of them; one it accepts must be accepted (unless a leaf is
-/// too large for the layout) and then every query must answer as
-/// [`quiver_rt::reference::closest_hit`] over the same triangles: a hit or a miss alike, the
-/// same `t` to rounding (a hit on an edge two triangles share at the same distance may be
-/// either's, and a hit at an interval end may round in or out), any-hit alike. Nothing may
-/// panic or loop.
+/// arbitrary nodes, a random valid shape, or a builder's tree with links, leaf ranges, indices or
+/// the dropped count changed (see `fuzz_tree`) — laid out by [`Bvh::from_tree`] in every layout and
+/// by each layout type's own `from_tree`. A tree [`quiver_rt::builders::BuildTree::check`] refuses
+/// must be refused by all of them; one it accepts must be accepted (unless a leaf is too large for
+/// the layout) and then every query must answer as [`quiver_rt::traverse::reference::closest_hit`]
+/// over the same triangles: a hit or a miss alike, the same `t` to rounding (a hit on an edge two
+/// triangles share at the same distance may be either's, and a hit at an interval end may round in
+/// or out), any-hit alike. Nothing may panic or loop.
 pub fn from_tree_against_reference(data: &[u8]) {
     let mut b = ByteReader(data);
     let n = b.u8() as usize % 13;
@@ -1308,7 +1307,7 @@ fn trees_against_reference<P: Primitive>(
     );
 }
 
-/// `q` answers every ray as [`quiver_rt::reference`] does over `prims` (see
+/// `q` answers every ray as [`quiver_rt::traverse::reference`] does over `prims` (see
 /// [`from_tree_against_reference`] for the rounding it allows).
 fn same_as_reference<P: Primitive>(
     q: &impl RayQuery<Hit = quiver_rt::Hit>,
@@ -1318,7 +1317,7 @@ fn same_as_reference<P: Primitive>(
 ) {
     let close = |a: f32, b: f32| (a - b).abs() <= 1e-4 * (1.0 + a.abs().max(b.abs()));
     for r in rays {
-        let want = quiver_rt::reference::closest_hit(prims, r);
+        let want = quiver_rt::traverse::reference::closest_hit(prims, r);
         let got = q.closest_hit(r);
         let at_end = want.is_some_and(|h| close(h.t, r.t_min) || close(h.t, r.t_max));
         match (want, got) {
@@ -1327,7 +1326,10 @@ fn same_as_reference<P: Primitive>(
                 if g.prim != w.prim {
                     // Another primitive at (about) the same distance: it must really be hit
                     // there.
-                    let own = quiver_rt::reference::closest_hit(&prims[g.prim as usize..][..1], r);
+                    let own = quiver_rt::traverse::reference::closest_hit(
+                        &prims[g.prim as usize..][..1],
+                        r,
+                    );
                     assert!(
                         own.is_some_and(|h| h.t == g.t),
                         "{what}: {r:?}: {g:?}, reference {w:?}"

@@ -896,7 +896,7 @@ fn occluded(r: &RTCRay) -> bool {
 mod tests {
     use super::*;
     use crate::rays;
-    use quiver_rt::reference;
+    use quiver_rt::traverse::reference;
     use quiver_scenes::Scene;
     use rayon::prelude::*;
 

@@ -1,10 +1,10 @@
 //! An oracle for closest-hit queries over triangles that shares no arithmetic with quiver's
 //! kernels, and says for every ray whether an f32 kernel's answer can be judged exactly.
 //!
-//! quiver's brute-force reference (`quiver_rt::reference`) calls the very `Triangle::intersect`
-//! the kernels call, so comparing the two checks traversal but not the triangle test. This
-//! oracle computes in f64 with its own formulation, signed volumes (Plücker's side test
-//! written with the vertices relative to the ray origin): with `A`, `B`, `C` the vertices
+//! quiver's brute-force reference (`quiver_rt::traverse::reference`) calls the very
+//! `Triangle::intersect` the kernels call, so comparing the two checks traversal but not the
+//! triangle test. This oracle computes in f64 with its own formulation, signed volumes (Plücker's
+//! side test written with the vertices relative to the ray origin): with `A`, `B`, `C` the vertices
 //! minus the origin and `d` the direction,
 //!
 //! - `w0 = d·(B×C)`, `w1 = d·(C×A)`, `w2 = d·(A×B)` are the volumes the ray spans with each

@@ -52,8 +52,8 @@
 
 use glam::{DAffine3, DVec3, Vec3A};
 use quiver_rt::point::PointHit;
-use quiver_rt::world::Geometry;
-use quiver_rt::{Triangle, World, WorldPointHit};
+use quiver_rt::world::{Geometry, WorldPointHit};
+use quiver_rt::{Triangle, World};
 use rayon::prelude::*;
 
 /// The tolerance factor: an answer may be off by `TOL_K·ε·(d + size)` (see the module docs).

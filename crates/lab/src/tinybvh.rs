@@ -369,7 +369,7 @@ mod tests {
     use super::*;
     use crate::rays;
     use glam::Vec3A;
-    use quiver_rt::reference;
+    use quiver_rt::traverse::reference;
     use quiver_scenes::Scene;
     use rayon::prelude::*;
 

@@ -27,10 +27,11 @@
 use crate::primitive::{Cone, PatchTriangle, Prim, Sphere};
 use crate::scene::{tessellate, Scene, Shape};
 use glam::{Affine3A, DVec3, Mat3A, Vec3, Vec3A};
+use quiver_rt::layout::Footprint;
 use quiver_rt::traverse::{Ask, BoxTest, Filter, PacketQuery, RayQuery, Stats, PACKET_RAYS};
 use quiver_rt::{
-    BuildOptions, Footprint, GeometryId, Hit, Instance, InstanceId, Motion, PrimHit, Ray, Triangle,
-    World, WorldError, WorldHit,
+    BuildOptions, GeometryId, Hit, Instance, InstanceId, Motion, PrimHit, Ray, Triangle, World,
+    WorldError, WorldHit,
 };
 
 /// Distinct cone radius ratios that get a unit shape of their own; cones of further ratios

@@ -15,7 +15,8 @@ pub(crate) mod render;
 
 use crate::budget;
 use quiver_rt::builders::{BuildTree, Builder};
-use quiver_rt::{BuildOptions, Bvh, Layout, ParseError, Triangle};
+use quiver_rt::names::ParseError;
+use quiver_rt::{BuildOptions, Bvh, Layout, Triangle};
 use quiver_scenes::accel::SceneBvh;
 use quiver_scenes::instanced;
 use quiver_scenes::scene::{
