@@ -1,5 +1,6 @@
-//! [`World::closest_point`]: the closest point of a world's triangles, measured in world
-//! space through every instance's transform.
+//! [`World::closest_point`] and [`World::closest_point_at`]: the closest point of a world's
+//! triangles, measured in world space through every instance's transform (a moving
+//! instance's at the query's time).
 //!
 //! The top level is walked nearest box first with the world radius. An instance's geometry is
 //! searched in object space, where a non-uniform scale or a shear does not keep distances: a
@@ -7,8 +8,12 @@
 //! part, `‖·‖` its largest singular value, bounded here by the Frobenius norm), so the
 //! object-space walk runs with that radius, a superset, and each candidate triangle is
 //! placed in world space and measured there. Barycentrics are kept by affine maps, so the
-//! world triangle's are the object triangle's.
+//! world triangle's are the object triangle's. The top level's box of a moving instance holds
+//! it over its whole motion, so the walk is the same at any time; only the instance's
+//! transform (and so its stretch) is taken at the time.
 
+use super::instance::motion_of;
+use super::top::InstanceLeaf;
 use super::{Geometry, GeometryId, InstanceId, World};
 use crate::geometry::Triangle;
 use crate::point::{wide, PointWalk, PrimAt};
@@ -74,7 +79,8 @@ impl<P: Primitive> World<P> {
     /// point, its barycentrics and the distance; `None` when nothing lies that near.
     /// Primitives without a triangle ([`Primitive::triangle`]) are skipped; instance masks are
     /// not consulted (a point query has no ray). A moving instance is where it is at time 0
-    /// (its motion's first key, its [`Instance::transform`](super::Instance::transform)).
+    /// (its motion's first key, its [`Instance::transform`](super::Instance::transform)):
+    /// [`World::closest_point_at`] at time 0, which measures at any other time.
     ///
     /// Each candidate triangle is placed in world space by its instance's transform (in f32)
     /// and measured there with [`Triangle::closest_point`]; its distance from the query point
@@ -95,6 +101,42 @@ impl<P: Primitive> World<P> {
     /// assert_eq!(world.closest_point(Vec3A::NAN, 1.0), None);
     /// ```
     pub fn closest_point(&self, point: Vec3A, max_distance: f32) -> Option<WorldPointHit> {
+        self.closest_point_at(point, max_distance, 0.0)
+    }
+
+    /// [`World::closest_point`] at shutter time `time`: each moving instance measured where
+    /// its [`Motion`](super::Motion) places it then ([`Motion::at`](super::Motion::at)), the
+    /// others where they stand. `time` is taken as a ray's is
+    /// ([`Ray::shutter_time`](crate::Ray::shutter_time)): clamped into `[0, 1]`, NaN as 0. The
+    /// answer is the one the world built with every instance placed at `time` gives. A
+    /// linear motion at a time its interpolated transform has no f32 inverse (a flat matrix,
+    /// halfway through a half turn) is skipped then, as rays at that time miss it.
+    ///
+    /// ```
+    /// use quiver_rt::glam::{Affine3A, Vec3, Vec3A};
+    /// use quiver_rt::{BuildOptions, Instance, Motion, Triangle, World};
+    /// let mut b = World::builder();
+    /// let g = b.add_triangles(vec![Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y)]);
+    /// // Rises from z = 0 to z = 4 while the shutter is open.
+    /// let rise = Motion::linear(vec![Affine3A::IDENTITY, Affine3A::from_translation(Vec3::new(0.0, 0.0, 4.0))]);
+    /// let i = b.add_moving_instance(Instance::of(g), rise);
+    /// let world = b.build(&BuildOptions::default()).unwrap();
+    /// let p = Vec3A::new(0.25, 0.25, 3.0);
+    /// let start = world.closest_point_at(p, f32::INFINITY, 0.0).unwrap();
+    /// assert_eq!((start.instance, start.point, start.distance), (i, Vec3A::new(0.25, 0.25, 0.0), 3.0));
+    /// let half = world.closest_point_at(p, f32::INFINITY, 0.5).unwrap();
+    /// assert_eq!((half.point, half.distance), (Vec3A::new(0.25, 0.25, 2.0), 1.0));
+    /// // Past the shutter is its end (z = 4); NaN is time 0; no time is `closest_point`'s 0.
+    /// assert_eq!(world.closest_point_at(p, f32::INFINITY, 7.0).map(|h| h.distance), Some(1.0));
+    /// assert_eq!(world.closest_point_at(p, f32::INFINITY, f32::NAN), Some(start));
+    /// assert_eq!(world.closest_point(p, f32::INFINITY), Some(start));
+    /// ```
+    pub fn closest_point_at(
+        &self,
+        point: Vec3A,
+        max_distance: f32,
+        time: f32,
+    ) -> Option<WorldPointHit> {
         if !(point.is_finite() && max_distance >= 0.0) {
             return None;
         }
@@ -107,11 +149,12 @@ impl<P: Primitive> World<P> {
                 let PrimAt::Prim(leaf) = leaf else {
                     return true;
                 };
-                let inst = &self.instances[leaf.instance as usize];
                 let Some(geometry) = self.geometries.get(leaf.geometry as usize) else {
                     return true;
                 };
-                let (to_object, identity) = (leaf.world_to_object(), leaf.identity);
+                let Some((to_world, to_object, identity)) = self.placed_at(leaf, time) else {
+                    return true;
+                };
                 let (local, stretch) = if identity {
                     (point, 1.0)
                 } else {
@@ -125,7 +168,7 @@ impl<P: Primitive> World<P> {
                     let Some(tri) = tri else {
                         return true;
                     };
-                    let tri = placed(&inst.transform, identity, tri);
+                    let tri = placed(&to_world, identity, tri);
                     let (q, u, v) = tri.closest_point(point);
                     let d = (p - wide(q)).length();
                     let better = match best {
@@ -163,5 +206,21 @@ impl<P: Primitive> World<P> {
                 true
             });
         hit
+    }
+
+    /// Where instance `leaf` is at `time`: its object-to-world and world-to-object
+    /// transforms, and whether they are the identity. A static instance's are those it was
+    /// placed with; a moving one's its motion's at `time` (clamped by [`Motion::at`]) and
+    /// the inverse rays enter it through then, or `None` where that has no f32 inverse.
+    ///
+    /// [`Motion::at`]: super::Motion::at
+    fn placed_at(&self, leaf: &InstanceLeaf, time: f32) -> Option<(Affine3A, Affine3A, bool)> {
+        let i = leaf.instance as usize;
+        if !leaf.moving {
+            let to_world = self.instances.get(i)?.transform;
+            return Some((to_world, leaf.world_to_object(), leaf.identity));
+        }
+        let motion = motion_of(&self.motions, i)?;
+        Some((motion.at(time), motion.to_object(time)?, false))
     }
 }

@@ -2,10 +2,13 @@
 //! answers, judged by the f64 oracle over the triangles placed by each motion's transform at
 //! `t`, and bit for bit what a static world built at `t` answers; in every layout and
 //! instruction set, single rays and packets of mixed times; times out of the shutter are its
-//! nearest end; bad motions are errors; files and edits keep motions.
+//! nearest end; bad motions are errors; files and edits keep motions. Point queries at a time
+//! (`World::closest_point_at`) likewise, judged by the f64 `PointOracle` over the scene
+//! placed at that time.
 
 use glam::{Affine3A, Quat, Vec3, Vec3A};
 use quiver_lab::oracle::Oracle;
+use quiver_lab::point_oracle::{points, PointOracle};
 use quiver_lab::worlds::{check, Placements as Setup};
 use quiver_rt::traverse::{NoFilter, NoStats, PacketMode, PacketQuery};
 use quiver_rt::world::Interpolation;
@@ -181,6 +184,95 @@ fn a_ray_at_time_t_meets_the_scene_placed_at_t() {
             }
         }
     }
+}
+
+/// [`moving`]'s world with the instances it leaves still at `i % 4 == 2` decomposed too,
+/// each key scaled unevenly (0.5 to 1.8 per axis, a different scale at every key) as it
+/// turns and drifts: every kind of motion, non-uniform scale changing over the shutter
+/// included.
+fn moving_and_stretching(seed: u64) -> (Setup, Vec<Option<Motion>>) {
+    let (s, mut motions) = moving(seed);
+    let mut rng = Rng::new(seed + 200);
+    let mut unit = || rng.in_box(Vec3A::ZERO, Vec3A::ONE);
+    for (i, (inst, m)) in s.instances.iter().zip(&mut motions).enumerate() {
+        if i % 4 != 2 {
+            continue;
+        }
+        let axis = (Vec3::from(unit()) - 0.5).normalize_or(Vec3::X);
+        let step = unit().x * 0.3 * std::f32::consts::TAU;
+        let keys = (0..2 + i % 3)
+            .map(|k| {
+                let scale = Vec3::splat(0.5) + Vec3::from(unit()) * 1.3;
+                let turn = Quat::from_axis_angle(axis, step * k as f32);
+                let drift = (Vec3::from(unit()) - 0.5) * 2.0;
+                Affine3A::from_translation(drift)
+                    * Affine3A::from_quat(turn)
+                    * inst.transform
+                    * Affine3A::from_scale(scale)
+            })
+            .collect();
+        *m = Some(Motion::decomposed(keys));
+    }
+    (s, motions)
+}
+
+#[test]
+fn the_point_nearest_at_time_t_is_the_nearest_of_the_scene_placed_at_t() {
+    let (s, motions) = moving_and_stretching(25);
+    let kinds = |k: Interpolation| {
+        motions
+            .iter()
+            .flatten()
+            .filter(|m| m.interpolation() == k)
+            .count()
+    };
+    assert!(kinds(Interpolation::Linear) >= 8 && kinds(Interpolation::Decomposed) >= 16);
+    let w = world(&s, &motions, &BuildOptions::default());
+    let (mut moved, mut checked) = (0, 0);
+    for (k, &time) in TIMES.iter().enumerate() {
+        // The scene at the time a ray at `time` is shot (the ray's own rule for times out of
+        // the shutter and NaN), each moving instance's triangles placed by its motion then.
+        let clamped = Ray::new(Vec3A::ZERO, Vec3A::Z)
+            .with_time(time)
+            .shutter_time();
+        let placed = at_time(&s, &motions, clamped);
+        let fresh = world(
+            &placed,
+            &vec![None; motions.len()],
+            &BuildOptions::default(),
+        );
+        let oracle = PointOracle::for_world(&fresh);
+        // Inside the placed scene's box, on its vertices and edges, and up to 100 sizes away.
+        let (flat, _) = placed.flattened(|_, _| true);
+        let pts = points(&flat, 60, 100.0, 60 + k as u64);
+        for (j, &p) in pts.iter().enumerate() {
+            let at = format!("time {time}, point {j} {p}");
+            let hit = w.closest_point_at(p, f32::INFINITY, time);
+            if let Err(e) = oracle.check_world(p, f32::INFINITY, hit.as_ref()) {
+                panic!("{at}: {e}");
+            }
+            assert_eq!(
+                hit,
+                fresh.closest_point(p, f32::INFINITY),
+                "{at}: against the world built at t"
+            );
+            // The cut-off, either side of the oracle's distance.
+            let d = oracle.answer(p, f32::INFINITY).distance as f32;
+            let max = d * [0.5, 0.95, 1.05, 3.0][j % 4];
+            let cut = w.closest_point_at(p, max, time);
+            if let Err(e) = oracle.check_world(p, max, cut.as_ref()) {
+                panic!("{at}, max {max}: {e}");
+            }
+            moved += usize::from(hit != w.closest_point(p, f32::INFINITY));
+            checked += 1;
+        }
+    }
+    // Five of the eight times are not 0 once clamped: a query that ignored the time would
+    // answer many of their points as at time 0, and fail above.
+    assert!(
+        moved > checked / 4,
+        "{moved} of {checked} answers differ from time 0's"
+    );
 }
 
 #[test]

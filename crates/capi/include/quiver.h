@@ -273,9 +273,16 @@ void qv_world_free(QvWorld *world);
  * INFINITY for any distance), measured in world space through every instance transform
  * (non-uniform scales and shears included), into *hit: the miss record when none lies that
  * near, and for a non-finite point or a NaN or negative max_distance. Instance masks and
- * filters do not apply. Errors: QV_NULL_POINTER. */
+ * filters do not apply. A moving instance is measured where it is at time 0 (its first key):
+ * qv_world_closest_point_at with time 0. Errors: QV_NULL_POINTER. */
 QvStatus qv_world_closest_point(const QvWorld *world, const float point[3], float max_distance,
                                 QvPointHit *hit);
+
+/* As qv_world_closest_point, with each moving instance measured where its keys place it at
+ * shutter time `time`, taken as QvRay.time is (clamped into [0, 1], NaN as 0): the answer of
+ * the world with every instance placed at that time. Errors: QV_NULL_POINTER. */
+QvStatus qv_world_closest_point_at(const QvWorld *world, const float point[3],
+                                   float max_distance, float time, QvPointHit *hit);
 
 /* Writes the world to the file `path` (a NUL-terminated file name, created or replaced all or
  * nothing: written beside it as a temporary file, then renamed over it, so a failed save
@@ -321,6 +328,17 @@ QvStatus qv_world_any_hits(const QvWorld *world, const QvRay *rays, size_t n,
  * it). Errors: QV_NULL_POINTER; QV_INVALID_ARGUMENT for an instance that does not exist or
  * was removed, or a transform that is not finite or not invertible. */
 QvStatus qv_world_set_transform(QvWorld *world, uint32_t instance, const float transform[12]);
+
+/* Moves instance `instance` from now on through key_count keys (12 * key_count floats,
+ * interpolation 0 linear or 1 decomposed: read as qv_world_builder_add_moving_instance reads
+ * them); rays at QvRay.time and qv_world_closest_point_at meet it where the keys place it
+ * then. qv_world_set_transform makes it stand still again.
+ * Errors: QV_NULL_POINTER (world, or keys when key_count is not 0); QV_INVALID_ARGUMENT for
+ * an instance that does not exist or was removed, fewer than 2 or more than 256 keys, a key
+ * that is not finite or not invertible, keys that mirror beside keys that do not, a
+ * decomposed step of half a turn or more, or another interpolation. */
+QvStatus qv_world_set_motion(QvWorld *world, uint32_t instance, const float *keys,
+                             uint32_t key_count, uint32_t interpolation);
 
 /* Shows instance `instance` only to rays whose mask shares a bit with `mask`.
  * Errors: QV_NULL_POINTER; QV_INVALID_ARGUMENT for an instance that does not exist or was

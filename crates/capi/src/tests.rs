@@ -795,3 +795,151 @@ fn a_moving_instance_is_met_where_its_keys_place_it_at_the_ray_time() {
     // SAFETY: a live world handle, freed once.
     unsafe { qv_world_free(world) };
 }
+
+#[test]
+fn set_motion_moves_a_built_instance_and_closest_point_at_measures_it_at_a_time() {
+    let world = two_squares(None, null_mut());
+    // Instance 0 (the unit square at z = 0) rising to z = 4 over the shutter.
+    let up4 = [1., 0., 0., 0., 0., 1., 0., 0., 0., 0., 1., 4.];
+    let rise = [IDENTITY, up4].concat();
+    let p = [0.25, 0.25, 3.0];
+    let at = |time: f32| {
+        let mut h = QvPointHit::of(None);
+        // SAFETY: a live handle, three floats, one answer.
+        let s =
+            unsafe { qv_world_closest_point_at(world, p.as_ptr(), f32::INFINITY, time, &mut h) };
+        assert_eq!(s, QvStatus::Ok, "{}", last_error());
+        (h.instance, h.prim, h.point, h.distance)
+    };
+    let still = at(0.5);
+    assert_eq!((still.0, still.3), (0, 3.0), "standing still, at any time");
+    // SAFETY: a live handle used by this thread only; key buffers as long as their counts
+    // say (NULL where the test says).
+    unsafe {
+        // Refused motions name what is wrong and change nothing.
+        let nan = [IDENTITY, [f32::NAN; 12]].concat();
+        for (instance, keys, count, interpolation, status, want) in [
+            (
+                9,
+                rise.as_ptr(),
+                2,
+                0,
+                QvStatus::InvalidArgument,
+                "instance 9 does not exist",
+            ),
+            (
+                0,
+                null(),
+                0,
+                0,
+                QvStatus::InvalidArgument,
+                "keys: the motion has fewer than two keys",
+            ),
+            (
+                0,
+                rise.as_ptr(),
+                1,
+                1,
+                QvStatus::InvalidArgument,
+                "fewer than two keys",
+            ),
+            (
+                0,
+                rise.as_ptr(),
+                300,
+                0,
+                QvStatus::InvalidArgument,
+                "key_count: 300 is more than 256",
+            ),
+            (
+                0,
+                nan.as_ptr(),
+                2,
+                0,
+                QvStatus::InvalidArgument,
+                "keys: key 1: not finite",
+            ),
+            (
+                0,
+                rise.as_ptr(),
+                2,
+                7,
+                QvStatus::InvalidArgument,
+                "interpolation: 7 is neither 0 nor 1",
+            ),
+            (0, null(), 2, 0, QvStatus::NullPointer, "keys is NULL"),
+        ] {
+            let s = qv_world_set_motion(world, instance, keys, count, interpolation);
+            assert_eq!(s, status, "{want}: {}", last_error());
+            assert!(
+                last_error().starts_with("qv_world_set_motion: "),
+                "{}",
+                last_error()
+            );
+            assert!(last_error().contains(want), "{}", last_error());
+            assert_eq!(at(0.5), still, "a refused motion changes nothing");
+        }
+        assert_eq!(
+            qv_world_set_motion(null_mut(), 0, rise.as_ptr(), 2, 0),
+            QvStatus::NullPointer
+        );
+        assert_eq!(
+            qv_world_set_motion(world, 0, rise.as_ptr(), 2, 0),
+            QvStatus::Ok
+        );
+    }
+    // Measured where the keys place the square: z = 0 at time 0 (and NaN, and before the
+    // shutter), z = 2 half way, z = 4 at its end and after.
+    for (time, z, distance) in [
+        (0.0, 0.0, 3.0),
+        (f32::NAN, 0.0, 3.0),
+        (-1.0, 0.0, 3.0),
+        (0.5, 2.0, 1.0),
+        (1.0, 4.0, 1.0),
+        (9.0, 4.0, 1.0),
+    ] {
+        let (instance, _, point, d) = at(time);
+        assert_eq!(
+            (instance, point, d),
+            (0, [0.25, 0.25, z], distance),
+            "time {time}"
+        );
+    }
+    let mut h = QvPointHit::of(None);
+    // SAFETY: a live handle, three floats, one answer; NULLs where the test says.
+    unsafe {
+        let s = qv_world_closest_point(world, p.as_ptr(), f32::INFINITY, &mut h);
+        assert_eq!(s, QvStatus::Ok);
+        assert_eq!((h.instance, h.prim, h.point, h.distance), at(0.0));
+        // A ray at half time meets it at z = 2.
+        let ray = QvRay {
+            time: 0.5,
+            ..down(0.25, 0.25)
+        };
+        assert_eq!(world_hit(world, ray).t, 3.0);
+        // Decomposed keys too: instance 1 (x = 2..3) sliding 4 along y.
+        let slide = [
+            [1., 0., 0., 2., 0., 1., 0., 0., 0., 0., 1., 0.],
+            [1., 0., 0., 2., 0., 1., 0., 4., 0., 0., 1., 0.],
+        ]
+        .concat();
+        assert_eq!(
+            qv_world_set_motion(world, 1, slide.as_ptr(), 2, 1),
+            QvStatus::Ok
+        );
+        let q = [2.5, 2.5, 1.0];
+        let s = qv_world_closest_point_at(world, q.as_ptr(), f32::INFINITY, 0.5, &mut h);
+        assert_eq!(s, QvStatus::Ok);
+        assert_eq!((h.instance, h.point, h.distance), (1, [2.5, 2.5, 0.0], 1.0));
+        let s = qv_world_closest_point_at(world, null(), 1.0, 0.5, &mut h);
+        assert_eq!(s, QvStatus::NullPointer);
+        assert_eq!(last_error(), "qv_world_closest_point_at: point is NULL");
+        // Set still again by a transform.
+        assert_eq!(
+            qv_world_set_transform(world, 0, IDENTITY.as_ptr()),
+            QvStatus::Ok
+        );
+        assert_eq!(at(0.5), still);
+        qv_world_free(world);
+    }
+}

@@ -10,7 +10,7 @@ use quiver_rt::glam::{Affine3A, Vec3A};
 use quiver_rt::world::{invert, WorldEdit, MAX_MOTION_KEYS};
 use quiver_rt::{
     BuildOptions, GeometryId, Instance, InstanceId, Motion, World, WorldBuilder, WorldError,
-    WorldHit,
+    WorldHit, WorldPointHit,
 };
 use std::ffi::{c_char, c_int, c_void};
 
@@ -99,6 +99,46 @@ unsafe fn transform_of(transform: *const f32) -> Result<Affine3A, Failure> {
     invert(&m)
         .map_err(|why| Failure::new(QvStatus::InvalidArgument, format!("transform: {why}")))?;
     Ok(m)
+}
+
+/// The motion through the `key_count` keys at `keys` (12 floats each, read as
+/// [`transform_of`] reads one), interpolated linearly (`interpolation` 0) or decomposed (1),
+/// checked as a world checks a motion; refusals name the argument (and the key) at fault.
+///
+/// # Safety
+/// `keys` is NULL or readable for `12 * key_count` floats.
+unsafe fn motion_of(
+    keys: *const f32,
+    key_count: u32,
+    interpolation: u32,
+) -> Result<Motion, Failure> {
+    let bad = |why: String| Failure::new(QvStatus::InvalidArgument, why);
+    if key_count as usize > MAX_MOTION_KEYS {
+        return Err(bad(format!(
+            "key_count: {key_count} is more than {MAX_MOTION_KEYS}"
+        )));
+    }
+    // SAFETY: the caller's contract: `12 * key_count` floats (at most 3,072, no overflow).
+    let floats = unsafe { input(keys, 12 * key_count as usize, "keys") }?;
+    let keys: Vec<Affine3A> = floats
+        .chunks_exact(12)
+        .map(|k| affine_of_rows(k.try_into().expect("12 floats")))
+        .collect();
+    let motion = match interpolation {
+        0 => Motion::linear(keys),
+        1 => Motion::decomposed(keys),
+        other => return Err(bad(format!("interpolation: {other} is neither 0 nor 1"))),
+    };
+    motion.check(0).map_err(|e| match e {
+        WorldError::Motion {
+            key: Some(k), why, ..
+        } => bad(format!("keys: key {k}: {why}")),
+        e => bad(format!(
+            "keys: {}",
+            e.to_string().trim_start_matches("instance 0: ")
+        )),
+    })?;
+    Ok(motion)
 }
 
 /// Starts an empty world builder: `*out` is its handle, else NULL. Free it with
@@ -236,44 +276,23 @@ pub unsafe extern "C" fn qv_world_builder_add_moving_instance(
     instance_id: *mut u32,
 ) -> QvStatus {
     guard("qv_world_builder_add_moving_instance", || {
-        let bad = |why: String| Failure::new(QvStatus::InvalidArgument, why);
-        if key_count as usize > MAX_MOTION_KEYS {
-            return Err(bad(format!(
-                "key_count: {key_count} is more than {MAX_MOTION_KEYS}"
-            )));
-        }
         // SAFETY: the caller's contract for each pointer.
-        let (b, floats, id) = unsafe {
+        let (b, motion, id) = unsafe {
             (
                 builder_mut(builder)?,
-                input(keys, 12 * key_count as usize, "keys")?,
+                motion_of(keys, key_count, interpolation)?,
                 output(instance_id, 1, "instance_id")?,
             )
         };
         if geometry >= b.geometries {
-            return Err(bad(format!(
-                "geometry: {geometry} does not exist (the builder has {})",
-                b.geometries
-            )));
+            return Err(Failure::new(
+                QvStatus::InvalidArgument,
+                format!(
+                    "geometry: {geometry} does not exist (the builder has {})",
+                    b.geometries
+                ),
+            ));
         }
-        let keys: Vec<Affine3A> = floats
-            .chunks_exact(12)
-            .map(|k| affine_of_rows(k.try_into().expect("12 floats")))
-            .collect();
-        let motion = match interpolation {
-            0 => Motion::linear(keys),
-            1 => Motion::decomposed(keys),
-            other => return Err(bad(format!("interpolation: {other} is neither 0 nor 1"))),
-        };
-        motion.check(0).map_err(|e| match e {
-            WorldError::Motion {
-                key: Some(k), why, ..
-            } => bad(format!("keys: key {k}: {why}")),
-            e => bad(format!(
-                "keys: {}",
-                e.to_string().trim_start_matches("instance 0: ")
-            )),
-        })?;
         let inst = Instance::of(GeometryId(geometry)).mask(mask);
         let i = b.builder.add_moving_instance(inst, motion);
         id[0].write(i.0);
@@ -357,7 +376,8 @@ pub unsafe extern "C" fn qv_world_free(world: *mut QvWorld) {
 
 /// The point of the world's triangles nearest `point` within `max_distance` (inclusive;
 /// `INFINITY` for any distance), measured in world space, into `*hit` (the miss record when
-/// none lies that near, or for a non-finite point or a NaN or negative distance).
+/// none lies that near, or for a non-finite point or a NaN or negative distance); moving
+/// instances where they are at time 0.
 ///
 /// # Safety
 /// `world` a live world handle or NULL; `point` readable for three floats and `hit`
@@ -369,7 +389,49 @@ pub unsafe extern "C" fn qv_world_closest_point(
     max_distance: f32,
     hit: *mut QvPointHit,
 ) -> QvStatus {
-    guard("qv_world_closest_point", || {
+    // SAFETY: the caller's contract, which `closest_point` asks.
+    unsafe {
+        closest_point("qv_world_closest_point", world, point, hit, |w, p| {
+            w.closest_point(p, max_distance)
+        })
+    }
+}
+
+/// As `qv_world_closest_point`, with each moving instance where its keys place it at `time`
+/// (clamped into [0, 1], NaN as 0, as a ray's time is).
+///
+/// # Safety
+/// As `qv_world_closest_point`.
+#[no_mangle]
+pub unsafe extern "C" fn qv_world_closest_point_at(
+    world: *const QvWorld,
+    point: *const f32,
+    max_distance: f32,
+    time: f32,
+    hit: *mut QvPointHit,
+) -> QvStatus {
+    // SAFETY: the caller's contract, which `closest_point` asks.
+    unsafe {
+        closest_point("qv_world_closest_point_at", world, point, hit, |w, p| {
+            w.closest_point_at(p, max_distance, time)
+        })
+    }
+}
+
+/// The body of exported function `name`: `query`'s answer for the world and the point at
+/// `point` into `*hit`.
+///
+/// # Safety
+/// `world` a live world handle or NULL; `point` readable for three floats and `hit`
+/// writable, or NULL.
+unsafe fn closest_point(
+    name: &str,
+    world: *const QvWorld,
+    point: *const f32,
+    hit: *mut QvPointHit,
+    query: impl FnOnce(&World, Vec3A) -> Option<WorldPointHit>,
+) -> QvStatus {
+    guard(name, || {
         non_null(world, "world")?;
         // SAFETY: the caller's contract for each pointer (three floats at `point`, one hit);
         // `world` is not NULL (checked) and live.
@@ -381,7 +443,7 @@ pub unsafe extern "C" fn qv_world_closest_point(
             )
         };
         let p = Vec3A::new(point[0], point[1], point[2]);
-        hit[0].write(QvPointHit::of_world(w.closest_point(p, max_distance)));
+        hit[0].write(QvPointHit::of_world(query(w, p)));
         Ok(())
     })
 }
@@ -510,6 +572,33 @@ pub unsafe extern "C" fn qv_world_set_transform(
         // SAFETY: the caller's contract for each pointer.
         let (w, m) = unsafe { (world_mut(world)?, transform_of(transform)?) };
         edit(w, |e| e.set_transform(InstanceId(instance), m))
+    })
+}
+
+/// Moves instance `instance` through `key_count` keys (read as
+/// `qv_world_builder_add_moving_instance` reads them) from now on, as one committed edit;
+/// `qv_world_set_transform` makes it stand still again.
+///
+/// # Safety
+/// `world` a live world handle no other thread uses during the call, or NULL; `keys` NULL or
+/// readable for `12 * key_count` floats.
+#[no_mangle]
+pub unsafe extern "C" fn qv_world_set_motion(
+    world: *mut QvWorld,
+    instance: u32,
+    keys: *const f32,
+    key_count: u32,
+    interpolation: u32,
+) -> QvStatus {
+    guard("qv_world_set_motion", || {
+        // SAFETY: the caller's contract for each pointer.
+        let (w, motion) = unsafe {
+            (
+                world_mut(world)?,
+                motion_of(keys, key_count, interpolation)?,
+            )
+        };
+        edit(w, |e| e.set_motion(InstanceId(instance), motion))
     })
 }
 

@@ -1,10 +1,10 @@
 //! `examples/c/minimal.c` compiled with the system's C compiler against the static library,
-//! run, and its answers compared with the Rust API's for the same rays: the C side (header,
-//! struct layouts, link line) and the Rust side agree. Skipped, with a note, where no `cc`
+//! run, and its answers compared with the Rust API's for the same rays and closest points:
+//! the C side (header, struct layouts, link line) and the Rust side agree. Skipped, with a note, where no `cc`
 //! is on the PATH.
 
 use quiver_rt::glam::{Affine3A, Vec3, Vec3A};
-use quiver_rt::{BuildOptions, Bvh, Instance, Ray, RayQuery, World};
+use quiver_rt::{BuildOptions, Bvh, Instance, InstanceId, Motion, Ray, RayQuery, World};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -49,15 +49,18 @@ fn library_dir() -> PathBuf {
 /// `(prim, geometry, instance, t, u, v)` or `None` for a miss.
 type Line = (String, Ray, Option<(u32, u32, u32, f32, f32, f32)>);
 
-/// Parses a line `SCENE ox oy oz dx dy dz mask -> miss` or `... -> prim P geometry G
-/// instance I t T u U v V`; `None` for other lines.
+/// Parses a line `SCENE ox oy oz dx dy dz mask time -> miss` or `... -> prim P geometry G
+/// instance I t T u U v V`; `None` for other lines (closest points included).
 fn parse(line: &str) -> Option<Line> {
     let (ray, hit) = line.split_once(" -> ")?;
     let mut r = ray.split_whitespace();
-    let scene = r.next()?.to_string();
+    let scene = r.next().filter(|&s| s != "point")?.to_string();
     let f: Vec<f32> = r.by_ref().take(6).map(|x| x.parse().unwrap()).collect();
     let mask: u32 = r.next()?.parse().unwrap();
-    let ray = Ray::new(Vec3A::new(f[0], f[1], f[2]), Vec3A::new(f[3], f[4], f[5])).with_mask(mask);
+    let time: f32 = r.next()?.parse().unwrap();
+    let ray = Ray::new(Vec3A::new(f[0], f[1], f[2]), Vec3A::new(f[3], f[4], f[5]))
+        .with_mask(mask)
+        .with_time(time);
     if hit == "miss" {
         return Some((scene, ray, None));
     }
@@ -65,6 +68,36 @@ fn parse(line: &str) -> Option<Line> {
     let u = |i: usize| w[i].parse::<u32>().unwrap();
     let x = |i: usize| w[i].parse::<f32>().unwrap();
     Some((scene, ray, Some((u(1), u(3), u(5), x(7), x(9), x(11)))))
+}
+
+/// What one closest-point line says: the scene, the query `(point, max_distance, time)`, and
+/// the answer `(prim, geometry, instance, point, u, v, distance)` or `None` for a miss.
+type PointLine = (
+    String,
+    (Vec3A, f32, f32),
+    Option<(u32, u32, u32, Vec3A, f32, f32, f32)>,
+);
+
+/// Parses a line `point SCENE px py pz max time -> miss` or `... -> prim P geometry G
+/// instance I point X Y Z u U v V distance D`; `None` for other lines.
+fn parse_point(line: &str) -> Option<PointLine> {
+    let (query, hit) = line.strip_prefix("point ")?.split_once(" -> ")?;
+    let mut q = query.split_whitespace();
+    let scene = q.next()?.to_string();
+    let f: Vec<f32> = q.map(|x| x.parse().unwrap()).collect();
+    let query = (Vec3A::new(f[0], f[1], f[2]), f[3], f[4]);
+    if hit == "miss" {
+        return Some((scene, query, None));
+    }
+    let w: Vec<&str> = hit.split_whitespace().collect();
+    let u = |i: usize| w[i].parse::<u32>().unwrap();
+    let x = |i: usize| w[i].parse::<f32>().unwrap();
+    let point = Vec3A::new(x(7), x(8), x(9));
+    Some((
+        scene,
+        query,
+        Some((u(1), u(3), u(5), point, x(11), x(13), x(15))),
+    ))
 }
 
 /// minimal.c compiled with `cc` and `flags` against the static library, run; its standard
@@ -154,8 +187,15 @@ fn the_c_example_answers_as_the_rust_api() {
         .unwrap();
     e.set_mask(to, u32::MAX).unwrap();
     e.commit();
+    // Then the first square set rising from z = 0 to z = 4 over the shutter.
+    let mut moving = edited.clone();
+    let rise = Motion::linear(vec![
+        Affine3A::IDENTITY,
+        Affine3A::from_translation(Vec3::new(0.0, 0.0, 4.0)),
+    ]);
+    moving.edit().set_motion(InstanceId(0), rise).unwrap();
 
-    let mut counts = [0; 3];
+    let mut counts = [0; 5];
     for (scene, ray, hit) in stdout.lines().filter_map(parse) {
         let want = match scene.as_str() {
             "bvh" => {
@@ -163,9 +203,13 @@ fn the_c_example_answers_as_the_rust_api() {
                 bvh.closest_hit(&ray)
                     .map(|h| (h.prim, u32::MAX, u32::MAX, h.t, h.u, h.v))
             }
-            "world" | "edited" => {
-                let w = if scene == "world" { &world } else { &edited };
-                counts[if scene == "world" { 1 } else { 2 }] += 1;
+            "world" | "edited" | "moving" => {
+                let (w, k) = match scene.as_str() {
+                    "world" => (&world, 1),
+                    "edited" => (&edited, 2),
+                    _ => (&moving, 3),
+                };
+                counts[k] += 1;
                 w.closest_hit(&ray)
                     .map(|h| (h.prim, h.geometry.0, h.instance.0, h.t, h.u, h.v))
             }
@@ -173,5 +217,21 @@ fn the_c_example_answers_as_the_rust_api() {
         };
         assert_eq!(hit, want, "{scene} {ray:?}");
     }
-    assert_eq!(counts, [3, 4, 1], "{stdout}");
+    for (scene, (p, max, time), hit) in stdout.lines().filter_map(parse_point) {
+        assert_eq!(scene, "moving");
+        counts[4] += 1;
+        let want = moving.closest_point_at(p, max, time).map(|h| {
+            (
+                h.prim,
+                h.geometry.0,
+                h.instance.0,
+                h.point,
+                h.u,
+                h.v,
+                h.distance,
+            )
+        });
+        assert_eq!(hit, want, "point {p} max {max} time {time}");
+    }
+    assert_eq!(counts, [3, 4, 1, 1, 5], "{stdout}");
 }

@@ -1,6 +1,7 @@
 /*
  * quiver from C: a two-triangle mesh as a BVH and as a world of two instances; rays traced
- * one at a time and as arrays; the answers printed and checked.
+ * one at a time and as arrays; the world edited, one instance set moving, and its closest
+ * points asked at shutter times; the answers printed and checked.
  *
  * Build (from the repository root):
  *   cargo build --release -p quiver-capi
@@ -9,8 +10,10 @@
  *   ./minimal
  *
  * Returns 0 when every answer is the expected one, 1 otherwise. Each traced ray prints one
- * line, "bvh" or "world", the ray, then the hit (or "miss"), which crates/capi/tests/c_example.rs
- * compares with what the Rust API answers for the same rays.
+ * line, its scene ("bvh", "world", "edited", "moving"), the ray, then the hit (or "miss");
+ * each closest point a line "point", its scene, the query, then the answer; which
+ * crates/capi/tests/c_example.rs compares with what the Rust API answers for the same rays
+ * and points.
  */
 #include <math.h>
 #include <stdio.h>
@@ -45,13 +48,26 @@ static QvRay down(float x, float y, uint32_t mask) {
 }
 
 static void print_hit(const char *what, const QvRay *r, const QvHit *h) {
-    printf("%s %.9g %.9g %.9g %.9g %.9g %.9g %u -> ", what, r->org[0], r->org[1], r->org[2],
-           r->dir[0], r->dir[1], r->dir[2], r->mask);
+    printf("%s %.9g %.9g %.9g %.9g %.9g %.9g %u %.9g -> ", what, r->org[0], r->org[1],
+           r->org[2], r->dir[0], r->dir[1], r->dir[2], r->mask, r->time);
     if (h->prim == QV_INVALID_ID) {
         printf("miss\n");
     } else {
         printf("prim %u geometry %u instance %u t %.9g u %.9g v %.9g\n", h->prim, h->geometry,
                h->instance, h->t, h->u, h->v);
+    }
+}
+
+static void print_point(const char *what, const float p[3], float max_distance, float time,
+                        const QvPointHit *h) {
+    printf("point %s %.9g %.9g %.9g %.9g %.9g -> ", what, p[0], p[1], p[2], max_distance, time);
+    if (h->prim == QV_INVALID_ID) {
+        printf("miss\n");
+    } else {
+        printf("prim %u geometry %u instance %u point %.9g %.9g %.9g u %.9g v %.9g distance "
+               "%.9g\n",
+               h->prim, h->geometry, h->instance, h->point[0], h->point[1], h->point[2], h->u,
+               h->v, h->distance);
     }
 }
 
@@ -143,6 +159,39 @@ int main(void) {
     ok(qv_world_closest_hit(world, &wrays[2], &edited), "qv_world_closest_hit");
     print_hit("edited", &wrays[2], &edited);
     check(edited.instance == far && edited.t == 5.0f, "world: the edit moved the instance");
+
+    /* Motion: the first square set rising from z = 0 to z = 4 over the shutter (two keys,
+     * linear), met where the keys place it at a ray's time and at a closest point's. */
+    const float rise[24] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0,
+                            1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 4};
+    ok(qv_world_set_motion(world, near, rise, 2, 0), "qv_world_set_motion");
+    QvRay late = down(0.25f, 0.25f, ~0u);
+    late.time = 0.5f;
+    QvHit risen;
+    ok(qv_world_closest_hit(world, &late, &risen), "qv_world_closest_hit");
+    print_hit("moving", &late, &risen);
+    check(risen.instance == near && risen.t == 3.0f, "moving: met at z = 2 half way");
+    const float above[3] = {0.25f, 0.25f, 3.0f};
+    const float times[4] = {0.0f, 0.5f, 1.0f, 2.0f}; /* 2: past the shutter, its end */
+    const float want_z[4] = {0.0f, 2.0f, 4.0f, 4.0f};
+    QvPointHit nearest[4];
+    for (int i = 0; i < 4; i++) {
+        ok(qv_world_closest_point_at(world, above, INFINITY, times[i], &nearest[i]),
+           "qv_world_closest_point_at");
+        print_point("moving", above, INFINITY, times[i], &nearest[i]);
+        check(nearest[i].instance == near && nearest[i].point[2] == want_z[i] &&
+                  nearest[i].distance == fabsf(3.0f - want_z[i]),
+              "moving: the closest point where the keys place the square");
+    }
+    QvPointHit at_zero;
+    ok(qv_world_closest_point(world, above, INFINITY, &at_zero), "qv_world_closest_point");
+    print_point("moving", above, INFINITY, 0.0f, &at_zero);
+    check(memcmp(&at_zero, &nearest[0], sizeof(QvPointHit)) == 0,
+          "moving: qv_world_closest_point is time 0");
+    /* A refused motion says why and changes nothing. */
+    s = qv_world_set_motion(world, 7, rise, 2, 0);
+    check(s == QV_INVALID_ARGUMENT, "a motion of no instance is QV_INVALID_ARGUMENT");
+    printf("refused: %s\n", qv_last_error());
 
     qv_world_free(world);
     if (failures == 0)
