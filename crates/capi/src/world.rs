@@ -7,10 +7,10 @@ use crate::files::{self, path_of};
 use crate::trace;
 use crate::types::{affine_of_rows, QvFilterFn, QvHit, QvPointHit, QvRay};
 use quiver_rt::glam::{Affine3A, Vec3A};
-use quiver_rt::world::{invert, WorldEdit, MAX_MOTION_KEYS};
+use quiver_rt::world::{invert, WorldEdit, WorldPointHit, MAX_MOTION_KEYS};
 use quiver_rt::{
     BuildOptions, GeometryId, Instance, InstanceId, Motion, World, WorldBuilder, WorldError,
-    WorldHit, WorldPointHit,
+    WorldHit,
 };
 use std::ffi::{c_char, c_int, c_void};
 
