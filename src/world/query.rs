@@ -280,10 +280,7 @@ impl<P: Primitive> World<P> {
         found
     }
 
-    /// The search `A` in the top-level subtree of inner node `root`, improving `best`. A
-    /// world where nothing moves runs a walk with no motion in it, not even the test of each
-    /// instance's flag; one with motion walks its nodes' boxes where they are at the ray's
-    /// time (a world that once had a moving instance keeps to that walk).
+    /// The search `A` in the top-level subtree of inner node `root`, improving `best`.
     #[inline(always)]
     pub(super) fn search_from<V: F8, A: Ask, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
         &self,
@@ -294,14 +291,39 @@ impl<P: Primitive> World<P> {
         stats: &mut S,
         filter: &mut F,
     ) {
+        // As `trace_with` picks it (the packets' rays that go alone come here).
         match self.motions.is_empty() {
+            true => self.walk_at::<V, A, B, S, F, false>(cpu, ray, root, best, stats, filter),
+            false => self.walk_at::<V, A, B, S, F, true>(cpu, ray, root, best, stats, filter),
+        }
+    }
+
+    /// [`World::search_from`] in a world with moving instances if `MOVING`: its walk then
+    /// meets the nodes' boxes where they are at the ray's time.
+    #[inline(always)]
+    fn walk_at<V, A, B, S, F, const MOVING: bool>(
+        &self,
+        cpu: V::Cpu,
+        ray: &Ray,
+        root: usize,
+        best: &mut WorldHit,
+        stats: &mut S,
+        filter: &mut F,
+    ) where
+        V: F8,
+        A: Ask,
+        B: BoxTest,
+        S: Stats,
+        F: Filter<WorldHit>,
+    {
+        match MOVING {
             true => {
-                let boxes = Ray8::<V>::new(cpu, ray);
-                self.walk_top::<V, A, B, S, F, false>(cpu, &boxes, ray, root, best, stats, filter)
-            }
-            false => {
                 let boxes = Ray8At::<V>::new(cpu, ray, &self.ends.nodes);
                 self.walk_top::<V, A, B, S, F, true>(cpu, &boxes, ray, root, best, stats, filter)
+            }
+            false => {
+                let boxes = Ray8::<V>::new(cpu, ray);
+                self.walk_top::<V, A, B, S, F, false>(cpu, &boxes, ray, root, best, stats, filter)
             }
         }
     }
@@ -363,8 +385,8 @@ impl<P: Primitive> World<P> {
 }
 
 /// One ray's query of a [`World`], as the kernel [`dispatch`] runs on the top level's lanes
-/// (the geometries' own queries pick their kernels).
-struct Trace<'a, P, A, B, S, F> {
+/// (the geometries' own queries pick their kernels), testing for moving instances if `MOVING`.
+struct Trace<'a, P, A, B, S, F, const MOVING: bool> {
     world: &'a World<P>,
     ray: &'a Ray,
     stats: &'a mut S,
@@ -372,7 +394,7 @@ struct Trace<'a, P, A, B, S, F> {
     ask: PhantomData<(A, B)>,
 }
 
-impl<P, A, B, S, F> LaneKernel for Trace<'_, P, A, B, S, F>
+impl<P, A, B, S, F, const MOVING: bool> LaneKernel for Trace<'_, P, A, B, S, F, MOVING>
 where
     P: Primitive,
     A: Ask,
@@ -387,7 +409,7 @@ where
         let ray = &self.ray.raised_t_min();
         let mut best = WorldHit::none(ray.t_max);
         if self.world.walkable() {
-            self.world.search_from::<V, A, B, S, F>(
+            self.world.walk_at::<V, A, B, S, F, MOVING>(
                 cpu,
                 ray,
                 0,
@@ -400,6 +422,26 @@ where
     }
 }
 
+impl<P: Primitive> World<P> {
+    /// One ray's query on the top level's kernels, testing for moving instances if `MOVING`.
+    #[inline(always)]
+    fn trace_on<A: Ask, B: BoxTest, S: Stats, F: Filter<WorldHit>, const MOVING: bool>(
+        &self,
+        ray: &Ray,
+        stats: &mut S,
+        filter: &mut F,
+    ) -> A::Answer<WorldHit> {
+        let kernel = Trace::<P, A, B, S, F, MOVING> {
+            world: self,
+            ray,
+            stats,
+            filter,
+            ask: PhantomData,
+        };
+        dispatch::run(self.top.kernels, false, kernel)
+    }
+}
+
 impl<P: Primitive> RayQuery for World<P> {
     type Hit = WorldHit;
 
@@ -409,14 +451,13 @@ impl<P: Primitive> RayQuery for World<P> {
         stats: &mut S,
         filter: &mut F,
     ) -> A::Answer<WorldHit> {
-        let kernel = Trace::<P, A, B, S, F> {
-            world: self,
-            ray,
-            stats,
-            filter,
-            ask: PhantomData,
-        };
-        dispatch::run(self.top.kernels, false, kernel)
+        // Picked before the kernels: a world where nothing moves runs code with no motion in
+        // it, not even the test of each instance's flag (a world that once had a moving
+        // instance keeps the test).
+        match self.motions.is_empty() {
+            true => self.trace_on::<A, B, S, F, false>(ray, stats, filter),
+            false => self.trace_on::<A, B, S, F, true>(ray, stats, filter),
+        }
     }
 
     fn trace_packet_with<A: Ask, B: BoxTest, S: Stats, F: Filter<WorldHit>>(
