@@ -108,7 +108,7 @@ impl<V: F8> Enter8<V> for Ray8<V> {
 /// A ray at its time against nodes whose boxes move over the shutter ([`Bvh8Ends`], one per
 /// node): each child box taken where it is at that time.
 pub(crate) struct Ray8At<'a, V: F8> {
-    pub(crate) ray: Ray8<V>,
+    ray: Ray8<V>,
     time: V,
     ends: &'a [Bvh8Ends],
 }
