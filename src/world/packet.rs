@@ -36,10 +36,13 @@ fn seeing(rays: &[Ray], live: u64, uniform: Option<u32>, p: &InstanceLeaf) -> u6
     }
 }
 
-/// The mask every ray of `rays` shares, if they all share one.
+/// The mask every ray of `rays` shares, if they all share one. Every ray is read (no early
+/// exit): packets of one mask are the rule, and a loop without a branch per ray is shorter.
+#[inline(always)]
 fn uniform_mask(rays: &[Ray]) -> Option<u32> {
     let m = rays.first()?.mask;
-    rays.iter().all(|r| r.mask == m).then_some(m)
+    let differ = rays.iter().fold(0, |d, r| d | (r.mask ^ m));
+    (differ == 0).then_some(m)
 }
 
 /// Chunk `k` of packet `pk` in instance `p`'s object space, in lanes `V`: its origin and
@@ -198,9 +201,6 @@ impl<P: Primitive> World<P> {
         let top = &self.top;
         let uniform = uniform_mask(rays);
         let n = rays.len();
-        let mut local = [Ray::new(Vec3A::ZERO, Vec3A::ZERO); PACKET_RAYS];
-        let mut active = [false; PACKET_RAYS];
-        let mut found = [A::Answer::<Hit>::default(); PACKET_RAYS];
         let mut records = [Hit::none(0.0); PACKET_RAYS];
         let mut lp = RayPacket::empty();
         let kernels = top.kernels;
@@ -282,6 +282,11 @@ impl<P: Primitive> World<P> {
                                 stats,
                                 &mut f,
                             ) {
+                                // Made here, not per packet: the geometries walked in lanes
+                                // (8-wide BVHs on the world's kernels) never need them.
+                                let mut local = [Ray::new(Vec3A::ZERO, Vec3A::ZERO); PACKET_RAYS];
+                                let mut active = [false; PACKET_RAYS];
+                                let mut found = [A::Answer::<Hit>::default(); PACKET_RAYS];
                                 local_rays::<V>(
                                     cpu,
                                     p,
@@ -314,14 +319,16 @@ impl<P: Primitive> World<P> {
                                 }
                             }
                             // Straight from the records: one pass over the rays.
+                            // Any hit: the ray retires, and its record is never read.
                             for i in bits(m) {
                                 let h = &records[i];
-                                if h.prim != u32::MAX && f.improve::<A>(&mut best[i], h) {
-                                    if A::ANY {
-                                        pk.retire(i);
-                                    } else {
-                                        pk.set_limit(i, h.t);
-                                    }
+                                if h.prim == u32::MAX {
+                                    continue;
+                                }
+                                if A::ANY {
+                                    pk.retire(i);
+                                } else if f.improve::<A>(&mut best[i], h) {
+                                    pk.set_limit(i, h.t);
                                 }
                             }
                         }
@@ -421,7 +428,8 @@ where
                 }
                 let mut found = 0u64;
                 if packet {
-                    let mut pk = RayPacket::new(rays, on);
+                    let mut pk = RayPacket::empty();
+                    pk.pack(rays, on);
                     let traced = pk.active;
                     world.trace_packet::<V, A, B, S, F>(
                         cpu, rays, &mut pk, &mut best, stats, filter,

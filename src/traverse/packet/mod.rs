@@ -40,6 +40,7 @@ pub(crate) use walk::{walk, AloneIn, Visit};
 use crate::geometry::Ray;
 pub use crate::primitive::PACKET_RAYS;
 use crate::primitive::{CHUNKS, LANES};
+use crate::traverse::simd::bits;
 
 /// How a packet query chooses between packet and single-ray traversal.
 ///
@@ -175,15 +176,11 @@ fn coherent(rays: &[Ray], active: u64) -> bool {
     if active.count_ones() < 4 {
         return false;
     }
-    // Every fourth ray and the last, where active (at least four rays, so `n >= 4`).
+    // Every fourth ray and the last, where active (at least four rays, so `n >= 4`), as bits:
+    // the same samples in the same order as an index loop, with no iterator state to step.
     let n = rays.len();
-    let last = (!(n - 1).is_multiple_of(4)).then_some(n - 1);
-    let samples = || {
-        (0..n)
-            .step_by(4)
-            .chain(last)
-            .filter(move |&i| active >> i & 1 == 1)
-    };
+    let sampled = (0x1111_1111_1111_1111 | 1 << (n - 1)) & active;
+    let samples = || bits(sampled);
     // Whether two axes' sign bits are the same in every sample: set in `all`, clear in `any`.
     let shared = |all: u32, any: u32| ((all | !any) & 0b111).count_ones() >= 2;
     let (mut all, mut any) = (u32::MAX, 0u32);

@@ -101,7 +101,8 @@ where
                 }
                 let mut found = 0u64;
                 if packet {
-                    let mut pk = RayPacket::new(rays, on);
+                    let mut pk = RayPacket::empty();
+                    pk.pack(rays, on);
                     let traced = pk.active;
                     trace_packet::<N, V, A, B, P, S, F>(
                         cpu,
