@@ -202,6 +202,14 @@ impl<P: Primitive> World<P> {
                             measure(id, prims.get(id as usize).and_then(|p| p.triangle()), r)
                         })
                     }
+                    // Every triangle measured where it is at `time`: a scan, no tree.
+                    Geometry::MovingTriangles(m) => {
+                        let mut r = r_obj;
+                        for (id, tri) in m.triangles_at(time).enumerate() {
+                            measure(id as u32, Some(tri), &mut r);
+                        }
+                        true
+                    }
                 };
                 true
             });
