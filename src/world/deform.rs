@@ -152,16 +152,34 @@ impl MovingTriangles {
     }
 
     /// Triangles in the mesh (at each step).
+    ///
+    /// ```
+    /// use quiver_rt::glam::Vec3A;
+    /// use quiver_rt::world::Geometry;
+    /// use quiver_rt::{Aabb, BuildOptions, Triangle, World};
+    /// let tri = |z: f32| Triangle::new(Vec3A::new(0.0, 0.0, z), Vec3A::new(1.0, 0.0, z), Vec3A::new(0.0, 1.0, z));
+    /// let mut b = World::builder();
+    /// b.add_moving_triangles(vec![vec![tri(0.0); 3], vec![tri(-2.0); 3]])?;
+    /// let world = b.build(&BuildOptions::default())?;
+    /// let Geometry::MovingTriangles(m) = &world.geometries()[0] else { unreachable!() };
+    /// assert_eq!((m.len(), m.is_empty()), (3, false));
+    /// // Its box holds it all shutter long.
+    /// assert_eq!(m.bounds(), Aabb::new(Vec3A::new(0.0, 0.0, -2.0), Vec3A::new(1.0, 1.0, 0.0)));
+    /// // Its footprint counts both steps' triangles and its segment's nodes and ends.
+    /// assert!(m.footprint().bytes > 2 * 3 * std::mem::size_of::<Triangle>() + 384);
+    /// # Ok::<(), quiver_rt::WorldError>(())
+    /// ```
     pub fn len(&self) -> usize {
         self.steps[0].len()
     }
 
-    /// True for a mesh of no triangles.
+    /// True for a mesh of no triangles (see [`MovingTriangles::len`]).
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }
 
-    /// The box around every step's triangles (so around the mesh at every time).
+    /// The box around every step's triangles, so around the mesh at every time (see
+    /// [`MovingTriangles::len`]).
     pub fn bounds(&self) -> Aabb {
         self.bounds
     }
@@ -224,7 +242,8 @@ impl MovingTriangles {
         self.segments[0].bvh.kernels
     }
 
-    /// What its segments' nodes and ends occupy, and the steps (kept for the walks' leaves).
+    /// What its segments' nodes and ends occupy, and the steps (kept for the walks' leaves;
+    /// see [`MovingTriangles::len`]). The ends count as node bytes.
     pub fn footprint(&self) -> Footprint {
         let steps: usize = self
             .steps

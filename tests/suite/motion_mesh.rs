@@ -393,6 +393,49 @@ fn steps_that_cannot_make_a_moving_mesh_are_errors_naming_them() {
 }
 
 #[test]
+fn an_empty_moving_mesh_is_hit_by_nothing_and_a_filter_sees_its_hits() {
+    let tri = |z: f32| {
+        Triangle::new(
+            Vec3A::new(0.0, 0.0, z),
+            Vec3A::X + Vec3A::new(0.0, 0.0, z),
+            Vec3A::Y + Vec3A::new(0.0, 0.0, z),
+        )
+    };
+    let mut b = World::builder();
+    let empty = b.add_moving_triangles(vec![Vec::new(); 3]).unwrap();
+    let sinking = b
+        .add_moving_triangles(vec![vec![tri(0.0), tri(-1.0)], vec![tri(-4.0), tri(-1.0)]])
+        .unwrap();
+    b.add_instance(Instance::of(empty));
+    b.add_instance(Instance::of(sinking));
+    // The first triangle cut out past t = 2: rays beyond it meet the second.
+    b.set_filter(sinking, |h: &quiver_rt::WorldHit| h.prim != 0 || h.t <= 2.0)
+        .unwrap();
+    let w = b.build(&BuildOptions::default()).unwrap();
+    assert!(w.geometries()[0].is_empty());
+    let ray = Ray::new(Vec3A::new(0.2, 0.2, 1.0), -Vec3A::Z);
+    let hit = |time: f32| w.closest_hit(&ray.with_time(time)).map(|h| (h.prim, h.t));
+    assert_eq!(hit(0.0), Some((0, 1.0)));
+    assert_eq!(hit(0.125), Some((0, 1.5)));
+    assert_eq!(hit(0.5), Some((1, 2.0)));
+    assert_eq!(hit(1.0), Some((1, 2.0)));
+    let mut found = [None; 4];
+    let rays = [0.0, 0.125, 0.5, 1.0].map(|t| ray.with_time(t));
+    w.closest_hit_packet(&rays, &mut found);
+    assert_eq!(
+        found.map(|h| h.map(|h| (h.prim, h.t))),
+        [0.0, 0.125, 0.5, 1.0].map(hit)
+    );
+    let miss = Ray::new(Vec3A::new(5.0, 5.0, 1.0), -Vec3A::Z);
+    assert!(!w.any_hit(&miss));
+    assert_eq!(
+        w.closest_point_at(Vec3A::new(0.2, 0.2, 1.0), 10.0, 0.5)
+            .map(|h| h.distance),
+        Some(2.0)
+    );
+}
+
+#[test]
 fn a_world_with_a_moving_mesh_is_not_saved_and_counts_its_memory() {
     let d = deforming(36);
     let w = d.world(&BuildOptions::default());
