@@ -113,9 +113,9 @@ impl<P: Primitive> WorldBuilder<P> {
     /// instruction set with the binned SAH builder, whatever preset or layout the options name.
     ///
     /// Packets go into it ray by ray (each at its time); point queries at a time
-    /// ([`World::closest_point_at`](super::World::closest_point_at)) measure every triangle
-    /// where it is then, by a scan (no tree); a world holding one cannot be saved
-    /// ([`World::save`](super::World::save) refuses it).
+    /// ([`World::closest_point_at`](super::World::closest_point_at)) measure its triangles
+    /// where they are then (walking the tree of that time's segment); a world holding one
+    /// cannot be saved ([`World::save`](super::World::save) refuses it).
     ///
     /// ```
     /// use quiver_rt::glam::Vec3A;

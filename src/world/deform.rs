@@ -216,10 +216,14 @@ impl MovingTriangles {
         Some(lerp(a, b, u))
     }
 
-    /// Every triangle at shutter time `time`, in input order (see
-    /// [`MovingTriangles::triangle_at`]).
-    pub(super) fn triangles_at(&self, time: f32) -> impl Iterator<Item = Triangle> + '_ {
-        (0..self.len() as u32).filter_map(move |i| self.triangle_at(i, time))
+    /// The tree of the segment shutter time `time` (clamped as [`MovingTriangles::triangle_at`]
+    /// clamps it) falls in: its nodes' boxes hold each triangle all segment long (they are
+    /// the unions of its boxes at both ends), what a point query walks.
+    pub(super) fn tree_at(&self, time: f32) -> &Bvh8<TriIndex> {
+        let time = Ray::new(Vec3A::ZERO, Vec3A::Z)
+            .with_time(time)
+            .shutter_time();
+        &self.segments[segment_at(self.segments.len(), time).0].bvh
     }
 
     /// The same mesh at new `steps` (checked by the caller: as many as it has, each of as
@@ -387,13 +391,28 @@ impl Segment {
         s
     }
 
-    /// Its nodes' ends computed for the triangles moving from `from` to `to` (the tree kept).
+    /// Its nodes' ends computed for the triangles moving from `from` to `to` (the tree kept),
+    /// and each node's boxes made the union of its ends' (which hold the triangles at every
+    /// time of the segment), for the walks that read a node's static boxes (point queries, a
+    /// census of the nodes).
     fn refit(&mut self, from: &[Triangle], to: &[Triangle]) {
         let ids = &self.bvh.prim_ids;
         self.ends = node_ends(&self.bvh.nodes, |slot| {
             let i = ids[slot] as usize;
             pad_ends([from[i].bounds(), to[i].bounds()])
         });
+        for (n, e) in self.bvh.nodes.iter_mut().zip(&self.ends) {
+            for r in 0..6 {
+                for i in 0..8 {
+                    let (a, d) = (e.start[r][i], e.delta[r][i]);
+                    // An unused slot has no change: its inverted box stays.
+                    n.planes[r][i] = match r < 3 {
+                        true => a.min(a + d),
+                        false => a.max(a + d),
+                    };
+                }
+            }
+        }
     }
 }
 

@@ -202,13 +202,13 @@ impl<P: Primitive> World<P> {
                             measure(id, prims.get(id as usize).and_then(|p| p.triangle()), r)
                         })
                     }
-                    // Every triangle measured where it is at `time`: a scan, no tree.
+                    // The tree of the segment `time` falls in, whose boxes hold each
+                    // triangle all segment long; each measured where it is at `time`.
                     Geometry::MovingTriangles(m) => {
                         let mut r = r_obj;
-                        for (id, tri) in m.triangles_at(time).enumerate() {
-                            measure(id as u32, Some(tri), &mut r);
-                        }
-                        true
+                        m.tree_at(time).point_walk(local, &mut r, &mut |id, _, r| {
+                            measure(id, m.triangle_at(id, time), r)
+                        })
                     }
                 };
                 true

@@ -283,6 +283,13 @@ fn the_point_nearest_at_time_t_is_the_nearest_of_the_meshes_at_t() {
             if let Err(e) = oracle.check_world(p, f32::INFINITY, hit.as_ref()) {
                 panic!("time {time}, point {j} {p}: {e}");
             }
+            // The cut-off, either side of the oracle's distance.
+            let d = oracle.answer(p, f32::INFINITY).distance as f32;
+            let max = d * [0.5, 0.95, 1.05, 3.0][j % 4];
+            let cut = w.closest_point_at(p, max, time);
+            if let Err(e) = oracle.check_world(p, max, cut.as_ref()) {
+                panic!("time {time}, point {j} {p}, max {max}: {e}");
+            }
             moved += usize::from(hit != w.closest_point(p, f32::INFINITY));
             total += 1;
         }
@@ -333,6 +340,18 @@ fn a_refit_answers_for_the_new_steps() {
         d.steps[g] = fresh.steps[g].clone();
     }
     check_world(&w, &judged_rays(&d, 100, 11), "refit");
+    // Point queries walk the refit trees.
+    for (k, &time) in TIMES.iter().enumerate() {
+        let placed = d.at(clamped(time));
+        let oracle = PointOracle::for_world(&placed.world(&BuildOptions::default()));
+        let (flat, _) = placed.flattened(|_, _| true);
+        for p in points(&flat, 15, 10.0, 90 + k as u64) {
+            let hit = w.closest_point_at(p, f32::INFINITY, time);
+            if let Err(e) = oracle.check_world(p, f32::INFINITY, hit.as_ref()) {
+                panic!("refit, time {time}, point {p}: {e}");
+            }
+        }
+    }
     // A rebuild of the refit tree answers the same.
     w.edit()
         .rebuild_geometry(GeometryId(2), &BuildOptions::default())
