@@ -8,7 +8,7 @@ use super::deform::check_steps;
 use super::instance::{check_instance, motion_of, placement};
 use super::top::{instance_box, top_level, world_boxes, TopEnds};
 use super::{Geometry, GeometryFilter, GeometryId, InstanceId, InstanceLeaf};
-use super::{Motion, World, WorldError};
+use super::{Motion, MovingTriangles, World, WorldError};
 use crate::geometry::{Aabb, Triangle};
 use crate::layout::moved::RefitTarget;
 use crate::layout::refit::RefitInput;
@@ -403,6 +403,37 @@ impl<P: Primitive> WorldEdit<'_, P> {
     ) -> Result<GeometryId, WorldError> {
         let g = built(tris, options, Geometry::Triangles)?;
         self.push_geometry(g)
+    }
+
+    /// Adds a moving mesh as a new geometry, its BVHs built now on `options`' instruction set
+    /// (as [`super::WorldBuilder::add_moving_triangles`] builds them); returns its id.
+    ///
+    /// ```
+    /// use quiver_rt::glam::Vec3A;
+    /// use quiver_rt::{BuildOptions, Instance, Ray, RayQuery, Triangle, World};
+    /// let tri = |z: f32| Triangle::new(Vec3A::new(0.0, 0.0, z), Vec3A::new(1.0, 0.0, z), Vec3A::new(0.0, 1.0, z));
+    /// let mut world = World::builder().build(&BuildOptions::default())?;
+    /// let mut edit = world.edit();
+    /// let g = edit.add_moving_triangles(vec![vec![tri(0.0)], vec![tri(-2.0)]], &BuildOptions::default())?;
+    /// edit.add_instance(Instance::of(g))?;
+    /// edit.commit();
+    /// let ray = Ray::new(Vec3A::new(0.2, 0.2, 1.0), -Vec3A::Z);
+    /// assert_eq!(world.closest_hit(&ray.with_time(0.5)).map(|h| h.t), Some(2.0));
+    /// # Ok::<(), quiver_rt::WorldError>(())
+    /// ```
+    ///
+    /// # Errors
+    /// [`WorldError::Steps`] for steps that cannot make a moving mesh (as the builder checks
+    /// them), [`WorldError::Config`], [`WorldError::TooMany`].
+    pub fn add_moving_triangles(
+        &mut self,
+        steps: Vec<Vec<Triangle>>,
+        options: &BuildOptions<'_>,
+    ) -> Result<GeometryId, WorldError> {
+        check_steps(&steps).map_err(|e| WorldError::steps(self.world.geometries.len(), e))?;
+        options.config.check().map_err(WorldError::Config)?;
+        let m = options.run(|| MovingTriangles::new(steps, options.chosen_isa()));
+        self.push_geometry(Geometry::MovingTriangles(m))
     }
 
     /// Adds an indexed mesh as a new geometry ([`WorldEdit::add_triangles`]).

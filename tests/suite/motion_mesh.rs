@@ -335,10 +335,31 @@ fn a_refit_answers_for_the_new_steps() {
         edit.refit_triangles(GeometryId(0), &fresh.steps[0][0]),
         Err(WorldError::GeometryKind { geometry: 0, .. })
     ));
+    // A moving mesh added by the edit, placed moved and scaled.
+    let added = deforming_mesh(80, 4, 77);
+    assert_eq!(
+        edit.add_moving_triangles(vec![added[0].clone()], &BuildOptions::default()),
+        Err(WorldError::Steps {
+            geometry: 4,
+            step: None,
+            why: "fewer than two time steps"
+        })
+    );
+    let g = edit
+        .add_moving_triangles(added.clone(), &BuildOptions::default())
+        .unwrap();
+    let placed = Instance::of(g).transform(
+        Affine3A::from_translation(Vec3::new(0.1, 0.8, 0.0))
+            * Affine3A::from_scale(Vec3::splat(0.8)),
+    );
+    edit.add_instance(placed).unwrap();
     edit.commit();
     for g in 0..3 {
         d.steps[g] = fresh.steps[g].clone();
     }
+    d.steps.push(added);
+    d.instances.push(placed);
+    d.motions.push(None);
     check_world(&w, &judged_rays(&d, 100, 11), "refit");
     // Point queries walk the refit trees.
     for (k, &time) in TIMES.iter().enumerate() {
