@@ -3,7 +3,8 @@
 use super::instance::placements;
 use super::top::{top_level, world_boxes, InstanceLeaf, TopEnds};
 use super::{
-    Geometry, GeometryFilter, GeometryId, Instance, InstanceId, Motion, World, WorldError, WorldHit,
+    Geometry, GeometryFilter, GeometryId, Instance, InstanceId, Motion, MovingTriangles, World,
+    WorldError, WorldHit,
 };
 use crate::bvh::{BuildOptions, Bvh};
 use crate::geometry::{Aabb, Triangle};
@@ -34,6 +35,8 @@ pub struct WorldBuilder<P = Triangle> {
     motions: Vec<Option<Motion>>,
     /// The first mesh whose indices did not check out, reported by `build`.
     bad_mesh: Option<(usize, MeshError)>,
+    /// The first moving mesh whose steps did not check out, reported by `build`.
+    bad_steps: Option<WorldError>,
 }
 
 /// A geometry before its BVH is built.
@@ -41,6 +44,8 @@ pub struct WorldBuilder<P = Triangle> {
 enum PendingGeometry<P> {
     Triangles(Vec<Triangle>),
     Prims(Vec<P>),
+    /// A moving mesh's time steps, checked.
+    MovingTriangles(Vec<Vec<Triangle>>),
 }
 
 impl<P> Default for WorldBuilder<P> {
@@ -52,6 +57,7 @@ impl<P> Default for WorldBuilder<P> {
             instances: Vec::new(),
             motions: Vec::new(),
             bad_mesh: None,
+            bad_steps: None,
         }
     }
 }
@@ -95,6 +101,63 @@ impl<P: Primitive> WorldBuilder<P> {
     pub fn add_triangles(&mut self, tris: Vec<Triangle>) -> GeometryId {
         self.pending.push(PendingGeometry::Triangles(tris));
         GeometryId(self.pending.len() as u32 - 1)
+    }
+
+    /// Adds a deforming triangle mesh as a geometry: `steps[j]` its triangles at time
+    /// `j / (steps.len() - 1)` of the shutter, the same triangles in the same order at every
+    /// step. A ray at time `t` ([`Ray::time`](crate::Ray::time), clamped into `[0, 1]`, NaN
+    /// as 0) meets the triangles interpolated to `t`
+    /// ([`MovingTriangles::triangle_at`](super::MovingTriangles::triangle_at)); its hits name
+    /// the triangle's index in a step. It is placed by instances as any geometry is (moving
+    /// instances too). Its BVHs (one per pair of neighbouring steps) are built on the build's
+    /// instruction set with the binned SAH builder, whatever preset or layout the options name.
+    ///
+    /// Packets go into it ray by ray (each at its time); point queries at a time
+    /// ([`World::closest_point_at`](super::World::closest_point_at)) measure its triangles
+    /// where they are then (walking the tree of that time's segment); a world holding one
+    /// cannot be saved ([`World::save`](super::World::save) refuses it).
+    ///
+    /// ```
+    /// use quiver_rt::glam::Vec3A;
+    /// use quiver_rt::{BuildOptions, Instance, Ray, RayQuery, Triangle, World, WorldError};
+    /// let tri = |x: f32| Triangle::new(Vec3A::new(x, 0.0, 0.0), Vec3A::new(x + 1.0, 0.0, 0.0), Vec3A::new(x, 1.0, 0.0));
+    /// let mut b = World::builder();
+    /// // Slides 4 along x while the shutter is open.
+    /// let g = b.add_moving_triangles(vec![vec![tri(0.0)], vec![tri(4.0)]])?;
+    /// b.add_instance(Instance::of(g));
+    /// let world = b.build(&BuildOptions::default())?;
+    /// let ray = Ray::new(Vec3A::new(2.2, 0.2, 1.0), -Vec3A::Z);
+    /// assert!(world.closest_hit(&ray).is_none());
+    /// assert_eq!(world.closest_hit(&ray.with_time(0.5)).map(|h| h.prim), Some(0));
+    ///
+    /// // Steps that cannot make a moving mesh are refused, naming what is wrong.
+    /// let mut b = World::builder();
+    /// let e = b.add_moving_triangles(vec![vec![tri(0.0)], vec![]]).unwrap_err();
+    /// assert_eq!(e, WorldError::Steps { geometry: 0, step: Some(1), why: "a different number of triangles than step 0" });
+    /// # Ok::<(), WorldError>(())
+    /// ```
+    ///
+    /// # Errors
+    /// [`WorldError::Steps`] for fewer than two steps, steps of different triangle counts or
+    /// a vertex that is not finite (also reported by [`WorldBuilder::build`]; the id is then
+    /// taken by an empty geometry, so the ids after it stay).
+    pub fn add_moving_triangles(
+        &mut self,
+        steps: Vec<Vec<Triangle>>,
+    ) -> Result<GeometryId, WorldError> {
+        let g = self.pending.len();
+        match super::deform::check_steps(&steps) {
+            Ok(()) => {
+                self.pending.push(PendingGeometry::MovingTriangles(steps));
+                Ok(GeometryId(g as u32))
+            }
+            Err(e) => {
+                let e = WorldError::steps(g, e);
+                self.pending.push(PendingGeometry::Triangles(Vec::new()));
+                self.bad_steps.get_or_insert(e.clone());
+                Err(e)
+            }
+        }
     }
 
     /// Adds primitives of the world's type as a geometry.
@@ -236,6 +299,9 @@ impl<P: Primitive> WorldBuilder<P> {
         if let Some((geometry, error)) = self.bad_mesh {
             return Err(WorldError::Mesh { geometry, error });
         }
+        if let Some(e) = self.bad_steps {
+            return Err(e);
+        }
         // Checked before the geometries' builds, which are the long part.
         let leaves = placements(&self.instances, &self.motions, self.pending.len())?;
         let mut own: Vec<Option<BuildOptions<'_>>> = vec![None; self.pending.len()];
@@ -253,6 +319,9 @@ impl<P: Primitive> WorldBuilder<P> {
                             Geometry::Triangles(checked(&t, options), t)
                         }
                         PendingGeometry::Prims(p) => Geometry::Prims(checked(&p, options), p),
+                        PendingGeometry::MovingTriangles(s) => {
+                            Geometry::MovingTriangles(MovingTriangles::new(s, options.chosen_isa()))
+                        }
                     }
                 })
                 .collect()

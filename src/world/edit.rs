@@ -4,10 +4,11 @@
 //! rebuilt, so the world is never seen half edited.
 
 use super::builder::set_slot;
+use super::deform::check_steps;
 use super::instance::{check_instance, motion_of, placement};
 use super::top::{instance_box, top_level, world_boxes, TopEnds};
 use super::{Geometry, GeometryFilter, GeometryId, InstanceId, InstanceLeaf};
-use super::{Motion, World, WorldError};
+use super::{Motion, MovingTriangles, World, WorldError};
 use crate::geometry::{Aabb, Triangle};
 use crate::layout::moved::RefitTarget;
 use crate::layout::refit::RefitInput;
@@ -133,6 +134,7 @@ impl<P: Primitive> WorldEdit<'_, P> {
         let done = match self.geometry(geometry)? {
             Geometry::Triangles(bvh, kept) => refit_kept(geometry, bvh, kept, tris),
             Geometry::Prims(..) => Err(prims_not_triangles(geometry)),
+            Geometry::MovingTriangles(_) => Err(moving_not_triangles(geometry)),
         };
         self.refit(done)
     }
@@ -166,6 +168,7 @@ impl<P: Primitive> WorldEdit<'_, P> {
                 Ok(())
             }
             Geometry::Prims(..) => Err(prims_not_triangles(geometry)),
+            Geometry::MovingTriangles(_) => Err(moving_not_triangles(geometry)),
         };
         self.refit(done)
     }
@@ -184,6 +187,75 @@ impl<P: Primitive> WorldEdit<'_, P> {
                 geometry: geometry.0,
                 holds: "triangles",
             }),
+            Geometry::MovingTriangles(_) => Err(moving_not_triangles(geometry)),
+        };
+        self.refit(done)
+    }
+
+    /// Refits moving mesh `geometry` (added by
+    /// [`super::WorldBuilder::add_moving_triangles`]) to new time steps: as many steps as it
+    /// has, each of its triangles in the same order, moved. Each segment's tree is kept and
+    /// its boxes at both ends computed afresh (a refit, not a rebuild: a tree that motion has
+    /// loosened is built again by [`WorldEdit::rebuild_geometry`]).
+    ///
+    /// ```
+    /// use quiver_rt::glam::Vec3A;
+    /// use quiver_rt::{BuildOptions, Instance, Ray, RayQuery, Triangle, World, WorldError};
+    /// let tri = |z: f32| Triangle::new(Vec3A::new(0.0, 0.0, z), Vec3A::new(1.0, 0.0, z), Vec3A::new(0.0, 1.0, z));
+    /// let mut b = World::builder();
+    /// let g = b.add_moving_triangles(vec![vec![tri(0.0)], vec![tri(-2.0)]])?;
+    /// b.add_instance(Instance::of(g));
+    /// let mut world = b.build(&BuildOptions::default())?;
+    /// let ray = Ray::new(Vec3A::new(0.2, 0.2, 1.0), -Vec3A::Z).with_time(0.5);
+    /// assert_eq!(world.closest_hit(&ray).map(|h| h.t), Some(2.0));
+    ///
+    /// let mut edit = world.edit();
+    /// edit.refit_moving_triangles(g, vec![vec![tri(-4.0)], vec![tri(-6.0)]])?;
+    /// // Three steps where the mesh has two: refused, nothing changed.
+    /// let three = vec![vec![tri(0.0)]; 3];
+    /// assert!(matches!(edit.refit_moving_triangles(g, three), Err(WorldError::Steps { .. })));
+    /// edit.commit();
+    /// assert_eq!(world.closest_hit(&ray).map(|h| h.t), Some(6.0));
+    /// # Ok::<(), WorldError>(())
+    /// ```
+    ///
+    /// # Errors
+    /// [`WorldError::NoGeometry`], [`WorldError::GeometryKind`] for a geometry that is not a
+    /// moving mesh, [`WorldError::Steps`] for steps that could not make one (as
+    /// [`super::WorldBuilder::add_moving_triangles`] checks them) or of another count of
+    /// steps or triangles than the mesh has.
+    pub fn refit_moving_triangles(
+        &mut self,
+        geometry: GeometryId,
+        steps: Vec<Vec<Triangle>>,
+    ) -> Result<(), WorldError> {
+        let g = geometry.0 as usize;
+        let done = match self.geometry(geometry)? {
+            Geometry::MovingTriangles(m) => {
+                check_steps(&steps).map_err(|e| WorldError::steps(g, e))?;
+                if steps.len() != m.steps().len() {
+                    return Err(WorldError::steps(
+                        g,
+                        (None, "a different number of steps than the mesh refit"),
+                    ));
+                }
+                if steps[0].len() != m.len() {
+                    return Err(WorldError::steps(
+                        g,
+                        (
+                            Some(0),
+                            "a different number of triangles than the mesh refit",
+                        ),
+                    ));
+                }
+                m.refit(steps);
+                Ok(())
+            }
+            Geometry::Triangles(..) => Err(WorldError::GeometryKind {
+                geometry: geometry.0,
+                holds: "triangles",
+            }),
+            Geometry::Prims(..) => Err(prims_not_triangles(geometry)),
         };
         self.refit(done)
     }
@@ -333,6 +405,37 @@ impl<P: Primitive> WorldEdit<'_, P> {
         self.push_geometry(g)
     }
 
+    /// Adds a moving mesh as a new geometry, its BVHs built now on `options`' instruction set
+    /// (as [`super::WorldBuilder::add_moving_triangles`] builds them); returns its id.
+    ///
+    /// ```
+    /// use quiver_rt::glam::Vec3A;
+    /// use quiver_rt::{BuildOptions, Instance, Ray, RayQuery, Triangle, World};
+    /// let tri = |z: f32| Triangle::new(Vec3A::new(0.0, 0.0, z), Vec3A::new(1.0, 0.0, z), Vec3A::new(0.0, 1.0, z));
+    /// let mut world = World::builder().build(&BuildOptions::default())?;
+    /// let mut edit = world.edit();
+    /// let g = edit.add_moving_triangles(vec![vec![tri(0.0)], vec![tri(-2.0)]], &BuildOptions::default())?;
+    /// edit.add_instance(Instance::of(g))?;
+    /// edit.commit();
+    /// let ray = Ray::new(Vec3A::new(0.2, 0.2, 1.0), -Vec3A::Z);
+    /// assert_eq!(world.closest_hit(&ray.with_time(0.5)).map(|h| h.t), Some(2.0));
+    /// # Ok::<(), quiver_rt::WorldError>(())
+    /// ```
+    ///
+    /// # Errors
+    /// [`WorldError::Steps`] for steps that cannot make a moving mesh (as the builder checks
+    /// them), [`WorldError::Config`], [`WorldError::TooMany`].
+    pub fn add_moving_triangles(
+        &mut self,
+        steps: Vec<Vec<Triangle>>,
+        options: &BuildOptions<'_>,
+    ) -> Result<GeometryId, WorldError> {
+        check_steps(&steps).map_err(|e| WorldError::steps(self.world.geometries.len(), e))?;
+        options.config.check().map_err(WorldError::Config)?;
+        let m = options.run(|| MovingTriangles::new(steps, options.chosen_isa()));
+        self.push_geometry(Geometry::MovingTriangles(m))
+    }
+
     /// Adds an indexed mesh as a new geometry ([`WorldEdit::add_triangles`]).
     ///
     /// # Errors
@@ -423,6 +526,10 @@ impl<P: Primitive> WorldEdit<'_, P> {
         let g = match self.geometry(geometry)? {
             Geometry::Triangles(_, t) => built(t.clone(), options, Geometry::Triangles)?,
             Geometry::Prims(_, p) => built(p.clone(), options, Geometry::Prims)?,
+            Geometry::MovingTriangles(m) => {
+                options.config.check().map_err(WorldError::Config)?;
+                Geometry::MovingTriangles(options.run(|| m.rebuilt(options.chosen_isa())))
+            }
         };
         self.set_geometry(geometry, g)
     }
@@ -519,6 +626,13 @@ fn mesh_triangles(
     Ok((0..indices.len() as u32)
         .map(|i| mesh.triangle(i))
         .collect())
+}
+
+fn moving_not_triangles(geometry: GeometryId) -> WorldError {
+    WorldError::GeometryKind {
+        geometry: geometry.0,
+        holds: "a moving mesh (refit by WorldEdit::refit_moving_triangles)",
+    }
 }
 
 fn prims_not_triangles(geometry: GeometryId) -> WorldError {

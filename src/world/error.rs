@@ -73,8 +73,23 @@ pub enum WorldError {
     GeometryKind {
         /// The geometry.
         geometry: u32,
-        /// What it holds: "triangles" or "primitives of the world's type".
+        /// What it holds: "triangles", "primitives of the world's type" or "a moving mesh
+        /// ...".
         holds: &'static str,
+    },
+    /// Geometry `geometry`'s time steps cannot make a moving mesh
+    /// ([`WorldBuilder::add_moving_triangles`](super::WorldBuilder::add_moving_triangles),
+    /// [`WorldEdit::refit_moving_triangles`](super::WorldEdit::refit_moving_triangles)): `why`,
+    /// at step `step` where one step is at fault.
+    Steps {
+        /// The geometry (the index it has or would have had).
+        geometry: usize,
+        /// The step at fault, if one is.
+        step: Option<usize>,
+        /// Fewer than two steps, a step of a different number of triangles than step 0, a
+        /// vertex that is not finite, or (a refit) a different number of steps than the mesh
+        /// has.
+        why: &'static str,
     },
     /// Geometry `geometry` could not be refit to the primitives given.
     Refit {
@@ -133,6 +148,16 @@ impl fmt::Display for WorldError {
                 write!(f, "geometry {geometry} holds {holds}, and takes only those")
             }
             WorldError::Refit { geometry, error } => write!(f, "geometry {geometry}: {error}"),
+            WorldError::Steps {
+                geometry,
+                step: Some(step),
+                why,
+            } => write!(f, "geometry {geometry}: time step {step} has {why}"),
+            WorldError::Steps {
+                geometry,
+                step: None,
+                why,
+            } => write!(f, "geometry {geometry}: the moving mesh has {why}"),
         }
     }
 }

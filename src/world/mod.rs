@@ -56,6 +56,7 @@
 //! ```
 
 mod builder;
+mod deform;
 mod edit;
 mod error;
 mod filter;
@@ -70,6 +71,7 @@ mod save;
 mod top;
 
 pub use builder::WorldBuilder;
+pub use deform::MovingTriangles;
 pub use edit::WorldEdit;
 pub use error::WorldError;
 pub use filter::GeometryFilter;
@@ -184,7 +186,7 @@ impl<P: Primitive> World<P> {
             u: hit.u,
             v: hit.v,
         };
-        let n = g.normal(hit.prim, at, &local)?;
+        let n = g.normal(hit.prim, at, &local, ray.shutter_time())?;
         // Normals go by the inverse transpose of the linear part; a mirroring transform also
         // reverses the winding, which is what says which side a triangle faces.
         let inverse_t: Mat3A = to_object.matrix3.transpose();
@@ -248,6 +250,7 @@ impl<P: Primitive> WalkNodes for World<P> {
             match g {
                 Geometry::Triangles(b, _) => b.walk_nodes(f),
                 Geometry::Prims(b, _) => b.walk_nodes(f),
+                Geometry::MovingTriangles(m) => m.segment_trees().for_each(|b| b.walk_nodes(f)),
             }
         }
     }

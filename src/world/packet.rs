@@ -126,6 +126,8 @@ impl<P: Primitive> Geometry<P> {
             Geometry::Prims(b, _) => {
                 b.in_lanes::<V, A, B, S, F>(kernels, cpu, pk, best, stats, filter)
             }
+            // Its packet query, which takes the rays one by one, each at its time.
+            Geometry::MovingTriangles(_) => false,
         }
     }
 }

@@ -202,6 +202,14 @@ impl<P: Primitive> World<P> {
                             measure(id, prims.get(id as usize).and_then(|p| p.triangle()), r)
                         })
                     }
+                    // The tree of the segment `time` falls in, whose boxes hold each
+                    // triangle all segment long; each measured where it is at `time`.
+                    Geometry::MovingTriangles(m) => {
+                        let mut r = r_obj;
+                        m.tree_at(time).point_walk(local, &mut r, &mut |id, _, r| {
+                            measure(id, m.triangle_at(id, time), r)
+                        })
+                    }
                 };
                 true
             });

@@ -69,6 +69,7 @@ impl<P: Primitive> RayQuery for Geometry<P> {
         match self {
             Geometry::Triangles(b, _) => b.trace_with::<A, B, S, F>(ray, stats, filter),
             Geometry::Prims(b, _) => b.trace_with::<A, B, S, F>(ray, stats, filter),
+            Geometry::MovingTriangles(m) => m.trace_with::<A, B, S, F>(ray, stats, filter),
         }
     }
 
@@ -84,6 +85,9 @@ impl<P: Primitive> RayQuery for Geometry<P> {
                 b.trace_packet_with::<A, B, S, F>(query, hits, stats, filter)
             }
             Geometry::Prims(b, _) => b.trace_packet_with::<A, B, S, F>(query, hits, stats, filter),
+            Geometry::MovingTriangles(m) => {
+                m.trace_packet_with::<A, B, S, F>(query, hits, stats, filter)
+            }
         }
     }
 }
@@ -110,6 +114,8 @@ impl<P: Primitive> Geometry<P> {
             Geometry::Prims(b, _) => {
                 b.one_ray::<V, A, B, S, F>(kernels, cpu, ray, best, stats, filter)
             }
+            // Through its own query, at the ray's time.
+            Geometry::MovingTriangles(_) => false,
         }
     }
 }

@@ -75,8 +75,33 @@ impl World {
     /// ```
     ///
     /// # Errors
-    /// What `w` returns.
+    /// What `w` returns; [`io::ErrorKind::Unsupported`], with nothing written, for a world
+    /// holding a moving mesh ([`Geometry::MovingTriangles`]), which the format does not hold.
+    ///
+    /// ```
+    /// use quiver_rt::glam::Vec3A;
+    /// use quiver_rt::{BuildOptions, Triangle, World};
+    /// let tri = Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y);
+    /// let mut b = World::builder();
+    /// b.add_moving_triangles(vec![vec![tri], vec![tri]])?;
+    /// let world = b.build(&BuildOptions::default())?;
+    /// let mut file = Vec::new();
+    /// let e = world.save(&mut file).unwrap_err();
+    /// assert_eq!(e.kind(), std::io::ErrorKind::Unsupported);
+    /// assert!(file.is_empty());
+    /// # Ok::<(), quiver_rt::WorldError>(())
+    /// ```
     pub fn save<W: Write + ?Sized>(&self, w: &mut W) -> io::Result<()> {
+        if let Some(g) = self
+            .geometries
+            .iter()
+            .position(|g| matches!(g, Geometry::MovingTriangles(_)))
+        {
+            return Err(io::Error::new(
+                io::ErrorKind::Unsupported,
+                format!("geometry {g} is a moving mesh, which a world file does not hold"),
+            ));
+        }
         let mut out = Hashing::new(w);
         let mut head = [0u8; HEAD];
         head[..8].copy_from_slice(&MAGIC);
@@ -89,6 +114,7 @@ impl World {
             let (kind, bvh, tris) = match g {
                 Geometry::Triangles(b, t) => (KIND_TRIANGLES, b, t),
                 Geometry::Prims(b, t) => (KIND_PRIMS, b, t),
+                Geometry::MovingTriangles(_) => unreachable!("refused above"),
             };
             let mut gh = [0u8; GEOMETRY_HEAD];
             gh[..4].copy_from_slice(&kind.to_le_bytes());
@@ -128,6 +154,9 @@ impl World {
     }
 
     /// The world as the bytes [`World::save`] writes.
+    ///
+    /// # Panics
+    /// For a world holding a moving mesh, which [`World::save`] refuses.
     pub fn to_bytes(&self) -> Vec<u8> {
         let mut out = Vec::new();
         self.save(&mut out).expect("writing to a Vec does not fail");

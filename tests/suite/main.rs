@@ -14,6 +14,7 @@ mod inputs;
 mod meshes;
 mod mixed;
 mod motion;
+mod motion_mesh;
 mod obvhs;
 mod packets;
 mod point;

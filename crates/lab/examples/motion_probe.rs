@@ -24,6 +24,7 @@ fn rebuilt(w: &World, motion: Option<&dyn Fn(Affine3A) -> Motion>) -> World {
         match g {
             Geometry::Triangles(_, tris) => b.add_triangles(tris.clone()),
             Geometry::Prims(_, tris) => b.add_prims(tris.clone()),
+            Geometry::MovingTriangles(m) => b.add_moving_triangles(m.steps().to_vec()).unwrap(),
         };
     }
     for inst in w.instances() {

@@ -330,6 +330,9 @@ impl Instanced {
         let tri = match &self.world.geometries()[g] {
             quiver_rt::world::Geometry::Triangles(_, t) => t[p as usize],
             quiver_rt::world::Geometry::Prims(_, t) => t[p as usize],
+            quiver_rt::world::Geometry::MovingTriangles(m) => m
+                .triangle_at(p, ray.shutter_time())
+                .expect("a hit names a triangle of its geometry"),
         };
         let placed = match self.world.motion(id) {
             Some(m) => m.at(ray.shutter_time()),

@@ -60,6 +60,8 @@ fn embree_instanced(world: &quiver_rt::World, device: &EmbreeDevice) -> Result<E
         .map(|g| match g {
             quiver_rt::world::Geometry::Triangles(_, t) => t.clone(),
             quiver_rt::world::Geometry::Prims(_, t) => t.clone(),
+            // Embree is given the mesh at time 0 (its moving meshes are not bridged).
+            quiver_rt::world::Geometry::MovingTriangles(m) => m.steps()[0].clone(),
         })
         .collect();
     let keys: Vec<Vec<glam::Affine3A>> = world
