@@ -576,7 +576,7 @@ fn against_flattened(s: &Setup, rays: &[Ray], what: &str) -> usize {
 fn instances_at_every_scale_answer_as_the_flattened_scene() {
     for exp in [-30, -20, -13, -5, 0, 5, 13, 20, 30] {
         let k = 10f32.powi(exp);
-        let s = scaled_setup(k, 7 + exp as u64, 1.0);
+        let s = scaled_setup(k, 7u64.wrapping_add(exp as u64), 1.0);
         for inst in &s.instances {
             assert!(
                 quiver_rt::world::invert(&inst.transform).is_ok(),
