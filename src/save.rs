@@ -82,7 +82,8 @@ pub enum LoadError {
     Io(io::Error),
     /// The first eight bytes are not quiver's magic: not a saved BVH.
     BadMagic,
-    /// A format version this quiver does not read (see [`Bvh::FORMAT_VERSION`]).
+    /// A format version this quiver does not read (see [`Bvh::FORMAT_VERSION`], and
+    /// [`World::FORMAT_VERSION`](crate::World::FORMAT_VERSION) for world files).
     UnsupportedVersion {
         /// The file's version.
         found: u32,
@@ -575,7 +576,7 @@ impl Header {
             need: HEADER as u64,
             have: h.len() as u64,
         };
-        preamble(h, &MAGIC, HEADER as u64)?;
+        preamble(h, &MAGIC, HEADER as u64, Bvh::FORMAT_VERSION)?;
         if h.len() < HEADER {
             return Err(truncated());
         }
@@ -765,8 +766,14 @@ fn parts(layout: &AnyLayout<Triangle>) -> Parts<'_> {
 /// `magic` says which; `h` may be shorter, or longer): the magic first (a prefix of it is
 /// judged as far as it goes), then the format version, then the byte order, since a file of
 /// another version may have another header. [`LoadError::Truncated`] (the header being `need`
-/// bytes) where `h` ends before them.
-pub(crate) fn preamble(h: &[u8], magic: &[u8; 8], need: u64) -> Result<(), LoadError> {
+/// bytes) where `h` ends before them. The version (1 to `newest`, the newest this quiver reads
+/// of the file's kind) is the answer.
+pub(crate) fn preamble(
+    h: &[u8],
+    magic: &[u8; 8],
+    need: u64,
+    newest: u32,
+) -> Result<u32, LoadError> {
     if h[..h.len().min(8)] != magic[..h.len().min(8)] {
         return Err(LoadError::BadMagic);
     }
@@ -778,10 +785,10 @@ pub(crate) fn preamble(h: &[u8], magic: &[u8; 8], need: u64) -> Result<(), LoadE
         });
     }
     let version = u32::from_le_bytes(h[8..12].try_into().expect("4"));
-    if version == 0 || version > Bvh::FORMAT_VERSION {
+    if version == 0 || version > newest {
         return Err(LoadError::UnsupportedVersion {
             found: version,
-            supported: Bvh::FORMAT_VERSION,
+            supported: newest,
         });
     }
     let marker = u32::from_ne_bytes(h[12..16].try_into().expect("4"));
@@ -794,7 +801,7 @@ pub(crate) fn preamble(h: &[u8], magic: &[u8; 8], need: u64) -> Result<(), LoadE
             value: marker as u64,
         });
     }
-    Ok(())
+    Ok(version)
 }
 
 /// Appends a triangle's nine coordinates, little-endian.

@@ -115,7 +115,8 @@ impl<P: Primitive> WorldBuilder<P> {
     /// Packets go into it ray by ray (each at its time); point queries at a time
     /// ([`World::closest_point_at`](super::World::closest_point_at)) measure its triangles
     /// where they are then (walking the tree of that time's segment); a world holding one
-    /// cannot be saved ([`World::save`](super::World::save) refuses it).
+    /// is saved with its steps ([`World::save`](super::World::save), world file version 2),
+    /// its trees built again at load.
     ///
     /// ```
     /// use quiver_rt::glam::Vec3A;

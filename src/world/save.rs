@@ -3,7 +3,8 @@
 //!
 //! The format (`docs/file-format.md` has the byte table): a 32-byte header (magic, format
 //! version, endianness marker, geometry and instance counts), then each geometry (its kind,
-//! its triangles in input order, then its BVH as one whole BVH file, [`Bvh::save`]'s bytes),
+//! its triangles in input order, then its BVH as one whole BVH file, [`Bvh::save`]'s bytes;
+//! a moving mesh its steps' triangles, its trees built again at load),
 //! then the instances (64 bytes each: geometry, mask, user id, flags, transform), then each
 //! moving instance's motion (interpolation, key count, keys), then a checksum of everything
 //! before it. The top level is not stored: loading builds it again
@@ -12,9 +13,11 @@
 //! again after loading ([`super::WorldEdit::set_filter`]).
 
 use super::builder::{set_slot, Placed};
+use super::deform::check_steps;
 use super::instance::placements;
 use super::{
-    Geometry, GeometryId, Instance, InstanceId, Interpolation, Motion, World, MAX_MOTION_KEYS,
+    Geometry, GeometryId, Instance, InstanceId, Interpolation, Motion, MovingTriangles, World,
+    WorldError, MAX_MOTION_KEYS,
 };
 use crate::bvh::{BuildOptions, Bvh};
 use crate::geometry::Triangle;
@@ -50,8 +53,28 @@ const MOTION_DECOMPOSED: u32 = 1;
 /// A geometry's kind in the file.
 const KIND_TRIANGLES: u32 = 0;
 const KIND_PRIMS: u32 = 1;
+/// A moving mesh (format version 2 on): its step count, then each step's triangle count and
+/// triangles; no BVH (its segments' trees are built again at load).
+const KIND_MOVING: u32 = 2;
+
+/// The first world format version that holds moving meshes (version 1 is version 2 without
+/// [`KIND_MOVING`]).
+const MOVING_VERSION: u32 = 2;
+
+/// Bytes of a step's head: its triangle count (u64).
+const STEP_HEAD: u64 = 8;
 
 impl World {
+    /// The newest world file format version this quiver writes and reads (it reads every
+    /// version from 1 on). Version 2 adds moving meshes ([`Geometry::MovingTriangles`]) and is
+    /// written only for a world holding one: any other world is written as version 1, byte
+    /// for byte as before, so older quivers read it.
+    ///
+    /// ```
+    /// assert_eq!(quiver_rt::World::FORMAT_VERSION, 2);
+    /// ```
+    pub const FORMAT_VERSION: u32 = MOVING_VERSION;
+
     /// Writes the world to `w`: every geometry (its triangles and its BVH as
     /// [`Bvh::save`] writes it), every instance (removed ones included, so ids stay), and a
     /// checksum. Filters are not written (they are code); the top level is built again by
@@ -74,38 +97,41 @@ impl World {
     /// # Ok::<(), Box<dyn std::error::Error>>(())
     /// ```
     ///
-    /// # Errors
-    /// What `w` returns; [`io::ErrorKind::Unsupported`], with nothing written, for a world
-    /// holding a moving mesh ([`Geometry::MovingTriangles`]), which the format does not hold.
+    /// A moving mesh ([`Geometry::MovingTriangles`]) is stored as its steps' triangles (the
+    /// file is then of version 2, [`World::FORMAT_VERSION`]); its trees are built again at
+    /// load, as [`super::WorldBuilder::build`] builds them, so a mesh refit by an edit
+    /// ([`super::WorldEdit::refit_moving_triangles`]) loads with fresh trees (the same hits,
+    /// but two at the same distance may be reported the other way round).
     ///
     /// ```
     /// use quiver_rt::glam::Vec3A;
-    /// use quiver_rt::{BuildOptions, Triangle, World};
-    /// let tri = Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y);
+    /// use quiver_rt::{BuildOptions, Instance, Ray, RayQuery, Triangle, World};
+    /// let tri = |z: f32| Triangle::new(Vec3A::new(0.0, 0.0, z), Vec3A::X, Vec3A::Y);
     /// let mut b = World::builder();
-    /// b.add_moving_triangles(vec![vec![tri], vec![tri]])?;
+    /// let g = b.add_moving_triangles(vec![vec![tri(0.0)], vec![tri(-2.0)], vec![tri(-1.0)]])?;
+    /// b.add_instance(Instance::of(g));
     /// let world = b.build(&BuildOptions::default())?;
-    /// let mut file = Vec::new();
-    /// let e = world.save(&mut file).unwrap_err();
-    /// assert_eq!(e.kind(), std::io::ErrorKind::Unsupported);
-    /// assert!(file.is_empty());
-    /// # Ok::<(), quiver_rt::WorldError>(())
+    /// let bytes = world.to_bytes();
+    /// assert_eq!(bytes[8..12], 2u32.to_le_bytes()); // version 2: a moving mesh
+    /// let loaded = World::from_bytes(&bytes)?;
+    /// let ray = Ray::new(Vec3A::new(0.1, 0.1, 1.0), -Vec3A::Z).with_time(0.3);
+    /// assert_eq!(loaded.closest_hit(&ray), world.closest_hit(&ray));
+    /// assert_eq!(loaded.to_bytes(), bytes);
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
     /// ```
+    ///
+    /// # Errors
+    /// What `w` returns.
     pub fn save<W: Write + ?Sized>(&self, w: &mut W) -> io::Result<()> {
-        if let Some(g) = self
+        let moving = self
             .geometries
             .iter()
-            .position(|g| matches!(g, Geometry::MovingTriangles(_)))
-        {
-            return Err(io::Error::new(
-                io::ErrorKind::Unsupported,
-                format!("geometry {g} is a moving mesh, which a world file does not hold"),
-            ));
-        }
+            .any(|g| matches!(g, Geometry::MovingTriangles(_)));
+        let version = if moving { MOVING_VERSION } else { 1 };
         let mut out = Hashing::new(w);
         let mut head = [0u8; HEAD];
         head[..8].copy_from_slice(&MAGIC);
-        head[8..12].copy_from_slice(&Bvh::FORMAT_VERSION.to_le_bytes());
+        head[8..12].copy_from_slice(&version.to_le_bytes());
         head[12..16].copy_from_slice(&ENDIAN.to_ne_bytes());
         head[16..24].copy_from_slice(&(self.geometries.len() as u64).to_le_bytes());
         head[24..32].copy_from_slice(&(self.instances.len() as u64).to_le_bytes());
@@ -114,7 +140,18 @@ impl World {
             let (kind, bvh, tris) = match g {
                 Geometry::Triangles(b, t) => (KIND_TRIANGLES, b, t),
                 Geometry::Prims(b, t) => (KIND_PRIMS, b, t),
-                Geometry::MovingTriangles(_) => unreachable!("refused above"),
+                Geometry::MovingTriangles(m) => {
+                    let mut gh = [0u8; GEOMETRY_HEAD + 8];
+                    gh[..4].copy_from_slice(&KIND_MOVING.to_le_bytes());
+                    gh[8..16].copy_from_slice(&(m.len() as u64).to_le_bytes());
+                    gh[16..].copy_from_slice(&(m.steps().len() as u64).to_le_bytes());
+                    out.put(&gh)?;
+                    for step in m.steps() {
+                        out.put(&(step.len() as u64).to_le_bytes())?;
+                        out.put_triangles(step)?;
+                    }
+                    continue;
+                }
             };
             let mut gh = [0u8; GEOMETRY_HEAD];
             gh[..4].copy_from_slice(&kind.to_le_bytes());
@@ -154,9 +191,6 @@ impl World {
     }
 
     /// The world as the bytes [`World::save`] writes.
-    ///
-    /// # Panics
-    /// For a world holding a moving mesh, which [`World::save`] refuses.
     pub fn to_bytes(&self) -> Vec<u8> {
         let mut out = Vec::new();
         self.save(&mut out).expect("writing to a Vec does not fail");
@@ -202,7 +236,7 @@ impl World {
     /// [`LoadError`], naming what is wrong and where.
     pub fn from_bytes(bytes: &[u8]) -> Result<World, LoadError> {
         let have = bytes.len() as u64;
-        preamble(bytes, &MAGIC, (HEAD + 8) as u64)?;
+        let version = preamble(bytes, &MAGIC, (HEAD + 8) as u64, World::FORMAT_VERSION)?;
         if bytes.len() < HEAD + 8 {
             return Err(LoadError::Truncated {
                 section: "header",
@@ -220,6 +254,7 @@ impl World {
         let mut at = Cursor {
             bytes: &bytes[..end],
             at: HEAD,
+            version,
         };
         // Each geometry takes at least its head: the count is bounded by the bytes present.
         let mut geometries =
@@ -289,6 +324,8 @@ impl World {
 struct Cursor<'a> {
     bytes: &'a [u8],
     at: usize,
+    /// The file's format version.
+    version: u32,
 }
 
 impl<'a> Cursor<'a> {
@@ -343,7 +380,11 @@ impl<'a> Cursor<'a> {
         let kind = u32::from_le_bytes(head[..4].try_into().unwrap());
         let reserved = u32::from_le_bytes(head[4..8].try_into().unwrap());
         let count = u64::from_le_bytes(head[8..].try_into().unwrap());
-        if kind > KIND_PRIMS {
+        let newest = match self.version >= MOVING_VERSION {
+            true => KIND_MOVING,
+            false => KIND_PRIMS,
+        };
+        if kind > newest {
             return Err(LoadError::BadHeader {
                 field: "geometry kind",
                 value: kind.into(),
@@ -360,6 +401,9 @@ impl<'a> Cursor<'a> {
             .ok_or(LoadError::LengthOverflow {
                 section: "geometry triangles",
             })?;
+        if kind == KIND_MOVING {
+            return self.moving(k, count, n);
+        }
         let tris: Vec<Triangle> = read_triangles(self.take(n, "geometry triangles")?);
         let rest = &self.bytes[self.at..];
         let in_geometry = |error| LoadError::InGeometry {
@@ -382,6 +426,41 @@ impl<'a> Cursor<'a> {
             _ => Geometry::Prims(bvh, tris),
         })
     }
+
+    /// Geometry `k`, a moving mesh of `count` triangles (`n` bytes a step), after its head:
+    /// its step count, then each step's triangle count and triangles, checked as
+    /// [`super::WorldBuilder::add_moving_triangles`] checks them; then its trees, built.
+    fn moving(&mut self, k: usize, count: u64, n: u64) -> Result<Geometry, LoadError> {
+        let steps_n =
+            u64::from_le_bytes(self.take(8, "moving mesh step count")?.try_into().unwrap());
+        let steps_error = |step, why| LoadError::World(WorldError::steps(k, (step, why)));
+        if steps_n < 2 {
+            return Err(steps_error(None, "fewer than two time steps"));
+        }
+        // Every step takes at least its head: the count is bounded by the bytes left.
+        let left = (self.bytes.len() - self.at) as u64;
+        if steps_n > left / STEP_HEAD {
+            return Err(LoadError::Truncated {
+                section: "moving mesh steps",
+                need: (self.at as u64).saturating_add(steps_n.saturating_mul(STEP_HEAD)),
+                have: self.bytes.len() as u64,
+            });
+        }
+        let mut steps = Vec::with_capacity(steps_n as usize);
+        for j in 0..steps_n as usize {
+            let head = self.take(STEP_HEAD, "moving mesh step head")?;
+            if u64::from_le_bytes(head.try_into().unwrap()) != count {
+                return Err(steps_error(
+                    Some(j),
+                    "a different number of triangles than the mesh",
+                ));
+            }
+            steps.push(read_triangles(self.take(n, "moving mesh triangles")?));
+        }
+        check_steps(&steps).map_err(|e| LoadError::World(WorldError::steps(k, e)))?;
+        let isa = BuildOptions::default().chosen_isa();
+        Ok(Geometry::MovingTriangles(MovingTriangles::new(steps, isa)))
+    }
 }
 
 #[cfg(test)]
@@ -391,7 +470,7 @@ mod tests {
     use crate::testing::soup;
     use crate::traverse::RayQuery;
     use crate::{InstanceId, Ray};
-    use glam::{Quat, Vec3};
+    use glam::{Quat, Vec3, Vec3A};
 
     /// Three geometries (one with its own layout), instances moved, scaled, masked, one
     /// removed by an edit.
@@ -540,5 +619,182 @@ mod tests {
             World::from_bytes(&reseal(b)),
             Err(LoadError::InGeometry { geometry: 0, .. })
         ));
+    }
+
+    /// A world of a moving mesh of three steps (geometry 0, `MOVING_TRIS` triangles), a
+    /// static one, a moving mesh of two steps, and instances of each, one moving.
+    const MOVING_TRIS: usize = 4;
+
+    fn moving_world() -> World {
+        let mut b = World::builder();
+        let steps: Vec<Vec<Triangle>> = (0..3).map(|j| soup(MOVING_TRIS, 10 + j)).collect();
+        let m = b.add_moving_triangles(steps).unwrap();
+        let s = b.add_triangles(soup(20, 4));
+        let two = b
+            .add_moving_triangles(vec![soup(7, 5), soup(7, 6)])
+            .unwrap();
+        b.add_instance(Instance::of(m));
+        b.add_instance(Instance::of(s).transform(Affine3A::from_translation(Vec3::X)));
+        b.add_moving_instance(
+            Instance::of(two),
+            Motion::linear(vec![
+                Affine3A::IDENTITY,
+                Affine3A::from_translation(Vec3::Y),
+            ]),
+        );
+        b.add_instance(Instance::of(m).transform(Affine3A::from_rotation_z(0.5)));
+        b.build(&BuildOptions::default()).unwrap()
+    }
+
+    fn reseal(mut b: Vec<u8>) -> Vec<u8> {
+        let end = b.len() - 8;
+        let sum = checksum(&b[..end]);
+        b[end..].copy_from_slice(&sum.to_le_bytes());
+        b
+    }
+
+    #[test]
+    fn a_world_without_moving_meshes_is_version_1_and_with_one_version_2() {
+        assert_eq!(edited_world().to_bytes()[8..12], 1u32.to_le_bytes());
+        let world = moving_world();
+        let bytes = world.to_bytes();
+        assert_eq!(bytes[8..12], 2u32.to_le_bytes());
+        let loaded = World::from_bytes(&bytes).unwrap();
+        assert_eq!(loaded.to_bytes(), bytes);
+        let Geometry::MovingTriangles(m) = &loaded.geometries()[0] else {
+            panic!("geometry 0 is a moving mesh")
+        };
+        let Geometry::MovingTriangles(want) = &world.geometries()[0] else {
+            unreachable!()
+        };
+        assert_eq!(m.steps(), want.steps());
+        let mut rng = crate::rng::Rng::new(3);
+        let b = world.bounds();
+        for _ in 0..2000 {
+            let from = rng.in_box(b.min, b.max);
+            let to = rng.in_box(b.min, b.max);
+            let time = rng.in_box(Vec3A::ZERO, Vec3A::ONE).x;
+            let r = Ray::new(from, to - from).with_time(time);
+            assert_eq!(loaded.closest_hit(&r), world.closest_hit(&r), "{r:?}");
+        }
+        // A newer version than this quiver reads.
+        let mut b = bytes.clone();
+        b[8..12].copy_from_slice(&3u32.to_le_bytes());
+        assert!(matches!(
+            World::from_bytes(&reseal(b)),
+            Err(LoadError::UnsupportedVersion {
+                found: 3,
+                supported: 2
+            })
+        ));
+        // Version 1 holds no moving mesh.
+        let mut b = bytes;
+        b[8..12].copy_from_slice(&1u32.to_le_bytes());
+        assert!(matches!(
+            World::from_bytes(&reseal(b)),
+            Err(LoadError::BadHeader {
+                field: "geometry kind",
+                value: 2
+            })
+        ));
+    }
+
+    #[test]
+    fn every_cut_and_every_bad_field_of_a_moving_mesh_is_an_error() {
+        let bytes = moving_world().to_bytes();
+        for n in 0..bytes.len() {
+            assert!(World::from_bytes(&bytes[..n]).is_err(), "{n} bytes");
+            // Cut and resealed: the lengths must still refuse it.
+            if n >= HEAD + 16 {
+                let mut b = bytes[..n - 8].to_vec();
+                b.extend_from_slice(&[0; 8]);
+                assert!(World::from_bytes(&reseal(b)).is_err(), "{n} bytes resealed");
+            }
+        }
+        // Geometry 0: kind at 32, count at 40, step count at 48, step j's count at
+        // 56 + j * (8 + 36 * MOVING_TRIS), its triangles after it.
+        let (kind, count, steps) = (HEAD, HEAD + 8, HEAD + 16);
+        let step = |j: usize| HEAD + 24 + j * (8 + TRIANGLE_BYTES * MOVING_TRIS);
+        let set = |at: usize, v: u64| {
+            let mut b = bytes.clone();
+            b[at..at + 8].copy_from_slice(&v.to_le_bytes());
+            World::from_bytes(&reseal(b))
+        };
+        let steps_error = |r: Result<World, LoadError>| match r {
+            Err(LoadError::World(WorldError::Steps {
+                geometry: 0,
+                step,
+                why,
+            })) => (step, why),
+            other => panic!("{other:?}"),
+        };
+        assert_eq!(
+            steps_error(set(steps, 1)),
+            (None, "fewer than two time steps")
+        );
+        assert_eq!(
+            steps_error(set(steps, 0)),
+            (None, "fewer than two time steps")
+        );
+        // One more reads the next geometry's head as a step: its count is not the mesh's.
+        assert!(set(steps, 4).is_err());
+        for v in [1 << 20, u64::MAX / 8, u64::MAX] {
+            assert!(
+                matches!(set(steps, v), Err(LoadError::Truncated { .. })),
+                "{v} steps"
+            );
+        }
+        for v in [0, 3, 5, u64::MAX] {
+            assert_eq!(
+                steps_error(set(step(1), v)),
+                (Some(1), "a different number of triangles than the mesh"),
+                "{v} triangles"
+            );
+        }
+        assert!(matches!(
+            set(count, u64::MAX),
+            Err(LoadError::LengthOverflow {
+                section: "geometry triangles"
+            })
+        ));
+        for v in [0, 5, 1 << 40] {
+            assert!(set(count, v).is_err(), "{v} triangles");
+        }
+        let mut b = bytes.clone();
+        b[kind + 4] = 1; // reserved
+        assert!(matches!(
+            World::from_bytes(&reseal(b)),
+            Err(LoadError::BadHeader {
+                field: "geometry reserved",
+                ..
+            })
+        ));
+        for bad in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
+            let mut b = bytes.clone();
+            let at = step(2) + 8 + TRIANGLE_BYTES + 4; // step 2, triangle 1, v0.y
+            b[at..at + 4].copy_from_slice(&bad.to_le_bytes());
+            assert_eq!(
+                steps_error(World::from_bytes(&reseal(b))),
+                (Some(2), "a vertex that is not finite")
+            );
+        }
+        // Every byte of the mesh's fields set to each of a few values, resealed: an error
+        // or a world, never a panic.
+        for at in HEAD..step(0) + 8 {
+            for v in [0u8, 1, 2, 3, 0x7f, 0x80, 0xff] {
+                let mut b = bytes.clone();
+                b[at] = v;
+                let _ = World::from_bytes(&reseal(b));
+            }
+        }
+        // Any byte flipped without resealing: the checksum.
+        for at in (HEAD..bytes.len() - 8).step_by(7) {
+            let mut b = bytes.clone();
+            b[at] ^= 0x10;
+            assert!(matches!(
+                World::from_bytes(&b),
+                Err(LoadError::Checksum { .. })
+            ));
+        }
     }
 }

@@ -223,6 +223,22 @@ QvStatus qv_world_builder_add_mesh(QvWorldBuilder *builder, const float *vertice
                                    const uint32_t *indices, size_t triangle_count,
                                    size_t index_stride_bytes, uint32_t *geometry_id);
 
+/* Adds a deforming indexed triangle mesh as a geometry: step_count (at least 2) time steps
+ * of the same triangles, step j at shutter time j / (step_count - 1). `vertices` holds
+ * step_count * vertex_count positions, step j's vertex i at position j * vertex_count + i
+ * (each vertex_stride_bytes after the last); `indices` the triangle_count triangles every
+ * step shares (indices below vertex_count). Buffers read as qv_bvh_build_indexed reads them
+ * (copied during the call). A ray at time t meets the triangles interpolated linearly to t
+ * between the two steps around it. *geometry_id is its id, as qv_world_builder_add_mesh's.
+ * Errors: as qv_bvh_build_indexed; QV_INVALID_ARGUMENT for step_count below 2, a vertex
+ * count times step_count that overflows, or more than 65536 steps of no vertices; a refused
+ * mesh adds nothing. */
+QvStatus qv_world_builder_add_moving_mesh(QvWorldBuilder *builder, const float *vertices,
+                                          size_t vertex_count, size_t vertex_stride_bytes,
+                                          size_t step_count, const uint32_t *indices,
+                                          size_t triangle_count, size_t index_stride_bytes,
+                                          uint32_t *geometry_id);
+
 /* Places geometry `geometry` in the world by `transform`, object to world: 12 floats, a
  * row-major 3x4 matrix (row r is transform[4r .. 4r+3], the last column the translation;
  * the identity is {1,0,0,0, 0,1,0,0, 0,0,1,0}). The instance is seen by rays whose mask

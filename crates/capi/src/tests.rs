@@ -943,3 +943,271 @@ fn set_motion_moves_a_built_instance_and_closest_point_at_measures_it_at_a_time(
         qv_world_free(world);
     }
 }
+
+/// The square at three steps (z = 0, sunk to z = -2 and moved along x, back up to z = -1),
+/// each vertex 16 bytes after the last: step `j`'s vertex `i` at `4 * j + i`.
+fn moving_square() -> Vec<[f32; 4]> {
+    let mut out = Vec::new();
+    for (dx, z) in [(0.0, 0.0), (0.5, -2.0), (0.25, -1.0)] {
+        for v in SQUARE {
+            out.push([v[0] + dx, v[1], z, f32::NAN]);
+        }
+    }
+    out
+}
+
+/// Adds `vertices` (16-byte stride, `vertex_count` a step) at `steps` steps over `INDICES`.
+///
+/// # Safety
+/// `builder` a live builder handle or NULL.
+unsafe fn add_moving(
+    builder: *mut QvWorldBuilder,
+    vertices: &[[f32; 4]],
+    vertex_count: usize,
+    steps: usize,
+    indices: &[[u32; 3]],
+) -> Result<u32, (QvStatus, String)> {
+    assert!(vertices.len() >= vertex_count * steps);
+    let mut g = u32::MAX;
+    // SAFETY: the buffers are as long as the counts say (asserted); the caller's builder.
+    let s = unsafe {
+        qv_world_builder_add_moving_mesh(
+            builder,
+            vertices.as_ptr().cast(),
+            vertex_count,
+            16,
+            steps,
+            indices.as_ptr().cast(),
+            indices.len(),
+            12,
+            &mut g,
+        )
+    };
+    match s {
+        QvStatus::Ok => Ok(g),
+        s => Err((s, last_error())),
+    }
+}
+
+#[test]
+fn a_moving_mesh_answers_as_the_rust_apis() {
+    use quiver_rt::glam::{Affine3A, Vec3, Vec3A};
+    use quiver_rt::{BuildOptions, Instance, RayQuery, Triangle, World};
+    let verts = moving_square();
+    let moved = [1., 0., 0., 2., 0., 1., 0., 0., 0., 0., 1., 0.];
+    let keys = [IDENTITY, moved].concat();
+    let (mut b, mut i, mut world) = (null_mut(), 0, null_mut());
+    // SAFETY: live handles, buffers as long as their counts, writable outs.
+    unsafe {
+        assert_eq!(qv_world_builder_new(&mut b), QvStatus::Ok);
+        assert_eq!(add_moving(b, &verts, 4, 3, &INDICES), Ok(0));
+        assert_eq!(
+            qv_world_builder_add_instance(b, 0, IDENTITY.as_ptr(), 1, &mut i),
+            QvStatus::Ok
+        );
+        assert_eq!(
+            qv_world_builder_add_moving_instance(b, 0, keys.as_ptr(), 2, 0, 2, &mut i),
+            QvStatus::Ok
+        );
+        assert_eq!(i, 1);
+        assert_eq!(
+            qv_world_build(b, &mut world),
+            QvStatus::Ok,
+            "{}",
+            last_error()
+        );
+    }
+    // The same world from Rust.
+    let steps: Vec<Vec<Triangle>> = (0..3)
+        .map(|j| {
+            INDICES
+                .iter()
+                .map(|t| {
+                    let v = |k: usize| {
+                        let p = verts[4 * j + t[k] as usize];
+                        Vec3A::new(p[0], p[1], p[2])
+                    };
+                    Triangle::new(v(0), v(1), v(2))
+                })
+                .collect()
+        })
+        .collect();
+    let mut rb = World::builder();
+    let g = rb.add_moving_triangles(steps).unwrap();
+    rb.add_instance(Instance::of(g).mask(1));
+    rb.add_moving_instance(
+        Instance::of(g).mask(2),
+        quiver_rt::Motion::linear(vec![
+            Affine3A::IDENTITY,
+            Affine3A::from_translation(Vec3::new(2.0, 0.0, 0.0)),
+        ]),
+    );
+    let want = rb.build(&BuildOptions::default()).unwrap();
+    let mut hits = 0;
+    for k in 0..400 {
+        let (x, y) = ((k % 20) as f32 * 0.19 - 0.3, (k / 20) as f32 * 0.06 - 0.1);
+        for time in [0.0, 0.1, 0.3, 0.5, 0.77, 1.0, 1.5, f32::NAN] {
+            let ray = QvRay { time, ..down(x, y) };
+            let got = world_hit(world, ray);
+            let w = want.closest_hit(&ray.to_ray());
+            hits += usize::from(w.is_some());
+            assert_eq!(
+                (got.t.to_bits(), got.prim, got.geometry, got.instance),
+                w.map_or(
+                    (
+                        QvHit::MISS.t.to_bits(),
+                        QvHit::MISS.prim,
+                        QV_INVALID_ID,
+                        QV_INVALID_ID
+                    ),
+                    |h| (h.t.to_bits(), h.prim, h.geometry.0, h.instance.0)
+                ),
+                "({x}, {y}) at {time}"
+            );
+        }
+    }
+    assert!(hits > 400, "{hits} hits");
+    // Saved (world file version 2) and loaded: the same answers, bit for bit.
+    let dir = std::env::temp_dir().join(format!("quiver-capi-moving-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = std::ffi::CString::new(dir.join("moving.qwld").to_str().unwrap()).unwrap();
+    let mut loaded = null_mut();
+    // SAFETY: a live handle, a NUL-terminated path, a writable out.
+    unsafe {
+        assert_eq!(
+            qv_world_save(world, path.as_ptr()),
+            QvStatus::Ok,
+            "{}",
+            last_error()
+        );
+        assert_eq!(
+            qv_world_load(path.as_ptr(), &mut loaded),
+            QvStatus::Ok,
+            "{}",
+            last_error()
+        );
+    }
+    for k in 0..400 {
+        let (x, y) = ((k % 20) as f32 * 0.19 - 0.3, (k / 20) as f32 * 0.06 - 0.1);
+        for time in [0.0, 0.3, 0.5, 0.9, 1.0] {
+            let ray = QvRay { time, ..down(x, y) };
+            let (a, b) = (world_hit(world, ray), world_hit(loaded, ray));
+            assert_eq!(
+                (a.t.to_bits(), a.prim, a.instance),
+                (b.t.to_bits(), b.prim, b.instance)
+            );
+        }
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+    // SAFETY: live handles, not used again.
+    unsafe {
+        qv_world_free(world);
+        qv_world_free(loaded);
+    }
+}
+
+#[test]
+fn bad_moving_meshes_are_refused_adding_nothing() {
+    let verts = moving_square();
+    let mut nan = verts.clone();
+    nan[9][1] = f32::NAN; // step 2, vertex 1
+    let mut b = null_mut();
+    let mut g = 0;
+    // SAFETY: live handles, buffers as long as their counts (or NULL), writable outs.
+    unsafe {
+        assert_eq!(qv_world_builder_new(&mut b), QvStatus::Ok);
+        let refused = |r: Result<u32, (QvStatus, String)>, status: QvStatus, words: &str| {
+            let (s, e) = r.unwrap_err();
+            assert_eq!(s, status, "{e}");
+            assert!(e.contains(words), "{e}");
+            assert!(e.starts_with("qv_world_builder_add_moving_mesh"), "{e}");
+        };
+        refused(
+            add_moving(null_mut(), &verts, 4, 3, &INDICES),
+            QvStatus::NullPointer,
+            "builder",
+        );
+        for steps in [0, 1] {
+            refused(
+                add_moving(b, &verts, 4, steps, &INDICES),
+                QvStatus::InvalidArgument,
+                "step_count",
+            );
+        }
+        refused(
+            add_moving(b, &[], 0, 1 << 20, &[]),
+            QvStatus::InvalidArgument,
+            "step_count",
+        );
+        refused(
+            add_moving(b, &nan, 4, 3, &INDICES),
+            QvStatus::BadMesh,
+            "vertex 9 has a non-finite",
+        );
+        // Index 4 is step 1's vertex 0, not this step's: out of range.
+        refused(
+            add_moving(b, &verts, 4, 3, &[[0, 1, 4]]),
+            QvStatus::BadMesh,
+            "vertex 4",
+        );
+        let s = qv_world_builder_add_moving_mesh(
+            b,
+            null(),
+            4,
+            16,
+            3,
+            INDICES.as_ptr().cast(),
+            2,
+            12,
+            &mut g,
+        );
+        assert_eq!(s, QvStatus::NullPointer);
+        let s = qv_world_builder_add_moving_mesh(
+            b,
+            verts.as_ptr().cast(),
+            4,
+            16,
+            3,
+            null(),
+            2,
+            12,
+            &mut g,
+        );
+        assert_eq!(s, QvStatus::NullPointer);
+        let s = qv_world_builder_add_moving_mesh(
+            b,
+            verts.as_ptr().cast(),
+            4,
+            16,
+            3,
+            INDICES.as_ptr().cast(),
+            2,
+            12,
+            null_mut(),
+        );
+        assert_eq!(s, QvStatus::NullPointer);
+        let s = qv_world_builder_add_moving_mesh(
+            b,
+            verts.as_ptr().cast(),
+            usize::MAX / 2,
+            16,
+            3,
+            INDICES.as_ptr().cast(),
+            2,
+            12,
+            &mut g,
+        );
+        assert_eq!(s, QvStatus::InvalidArgument, "{}", last_error());
+        // Nothing was added: the first good mesh is geometry 0, an empty one geometry 1.
+        assert_eq!(add_moving(b, &verts, 4, 3, &INDICES), Ok(0));
+        assert_eq!(add_moving(b, &[], 0, 5, &[]), Ok(1));
+        let mut world = null_mut();
+        assert_eq!(
+            qv_world_build(b, &mut world),
+            QvStatus::Ok,
+            "{}",
+            last_error()
+        );
+        qv_world_free(world);
+    }
+}

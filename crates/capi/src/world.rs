@@ -9,8 +9,8 @@ use crate::types::{affine_of_rows, QvFilterFn, QvHit, QvPointHit, QvRay};
 use quiver_rt::glam::{Affine3A, Vec3A};
 use quiver_rt::world::{invert, WorldEdit, WorldPointHit, MAX_MOTION_KEYS};
 use quiver_rt::{
-    BuildOptions, GeometryId, Instance, InstanceId, Motion, World, WorldBuilder, WorldError,
-    WorldHit,
+    BuildOptions, GeometryId, Instance, InstanceId, Motion, Triangle, World, WorldBuilder,
+    WorldError, WorldHit,
 };
 use std::ffi::{c_char, c_int, c_void};
 
@@ -209,6 +209,95 @@ pub unsafe extern "C" fn qv_world_builder_add_mesh(
             .builder
             .add_mesh(&positions, &tris)
             .map_err(|e| bad_mesh("indices", e))?;
+        b.geometries += 1;
+        id[0].write(g.0);
+        Ok(())
+    })
+}
+
+/// The most time steps `qv_world_builder_add_moving_mesh` takes for a mesh of no vertices
+/// (whose steps are in no buffer of the caller's to bound them).
+const MAX_EMPTY_STEPS: usize = 1 << 16;
+
+/// Adds a deforming indexed triangle mesh as a geometry: `step_count` (at least 2) time
+/// steps of the same topology, step `j` at time `j / (step_count - 1)` of the shutter.
+/// `vertices` holds `step_count * vertex_count` positions, step `j`'s vertex `i` at position
+/// `j * vertex_count + i` (every position `vertex_stride_bytes` after the last, read as
+/// `qv_world_builder_add_mesh` reads them); `indices` the `triangle_count` triangles every
+/// step shares. Copied now; `*geometry_id` is its id. A ray at time `t` meets the triangles
+/// interpolated to `t` (as `WorldBuilder::add_moving_triangles`).
+///
+/// # Safety
+/// `builder` a live builder handle or NULL; the buffers NULL or readable for their counts and
+/// strides; `geometry_id` NULL or writable.
+#[no_mangle]
+#[allow(clippy::too_many_arguments)]
+pub unsafe extern "C" fn qv_world_builder_add_moving_mesh(
+    builder: *mut QvWorldBuilder,
+    vertices: *const f32,
+    vertex_count: usize,
+    vertex_stride_bytes: usize,
+    step_count: usize,
+    indices: *const u32,
+    triangle_count: usize,
+    index_stride_bytes: usize,
+    geometry_id: *mut u32,
+) -> QvStatus {
+    guard("qv_world_builder_add_moving_mesh", || {
+        // SAFETY: the caller's contract for each pointer.
+        let (b, id) = unsafe {
+            (
+                builder_mut(builder)?,
+                output(geometry_id, 1, "geometry_id")?,
+            )
+        };
+        if step_count < 2 {
+            return Err(Failure::new(
+                QvStatus::InvalidArgument,
+                format!("step_count: {step_count} time steps (a moving mesh takes at least 2)"),
+            ));
+        }
+        // Steps of no vertices read no bytes: bounded here, not by the caller's buffer.
+        if vertex_count == 0 && step_count > MAX_EMPTY_STEPS {
+            return Err(Failure::new(
+                QvStatus::InvalidArgument,
+                format!(
+                    "step_count: {step_count} time steps of no vertices (at most \
+                     {MAX_EMPTY_STEPS})"
+                ),
+            ));
+        }
+        let total = vertex_count.checked_mul(step_count).ok_or_else(|| {
+            Failure::new(
+                QvStatus::InvalidArgument,
+                format!("vertex_count: {vertex_count} vertices at {step_count} steps overflow"),
+            )
+        })?;
+        // SAFETY: the caller's contract for the buffers, passed on unchanged.
+        let positions = unsafe { read_vertices(vertices, total, vertex_stride_bytes) }?;
+        // SAFETY: as above.
+        let tris =
+            unsafe { read_indices(indices, triangle_count, index_stride_bytes, vertex_count) }?;
+        if b.geometries == u32::MAX - 1 {
+            return Err(world_failure(WorldError::TooMany));
+        }
+        let steps: Vec<Vec<Triangle>> = (0..step_count)
+            .map(|j| {
+                let p = &positions[j * vertex_count..(j + 1) * vertex_count];
+                tris.iter()
+                    .map(|t| {
+                        let v = |k: usize| Vec3A::from(p[t[k] as usize]);
+                        Triangle::new(v(0), v(1), v(2))
+                    })
+                    .collect()
+            })
+            .collect();
+        // Checked above (the steps, their sizes, finite vertices), so the builder never
+        // records bad steps (which would fail its build).
+        let g = b
+            .builder
+            .add_moving_triangles(steps)
+            .map_err(world_failure)?;
         b.geometries += 1;
         id[0].write(g.0);
         Ok(())
