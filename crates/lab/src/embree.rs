@@ -492,7 +492,40 @@ impl EmbreeScene {
     /// (medium) and scene flags, committed. Triangles with non-finite vertices are skipped by
     /// Embree as by quiver.
     pub fn on_device(device: &EmbreeDevice, tris: &[Triangle]) -> Result<Self, EmbreeError> {
+        Self::deforming_on_device(device, &[tris])
+    }
+
+    /// [`EmbreeScene::on_device`] over a deforming mesh: `steps` holds its triangles at
+    /// evenly spaced times over the shutter [0, 1], the same triangles in the same order at
+    /// every step (`rtcSetGeometryTimeStepCount`, one vertex buffer slot a step; Embree
+    /// interpolates the vertices linearly, as quiver's moving meshes do). One step is a
+    /// static mesh.
+    ///
+    /// ```
+    /// use glam::Vec3A;
+    /// use quiver_rt::{Ray, Triangle};
+    /// use quiver_lab::embree::{EmbreeDevice, EmbreeScene};
+    /// let near = Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y);
+    /// let far = Triangle::new(-2.0 * Vec3A::Z, Vec3A::X - 2.0 * Vec3A::Z, Vec3A::Y - 2.0 * Vec3A::Z);
+    /// let scene = EmbreeScene::deforming_on_device(&EmbreeDevice::new().unwrap(), &[&[near], &[far]]).unwrap();
+    /// let ray = Ray::new(Vec3A::new(0.25, 0.25, 1.0), -Vec3A::Z);
+    /// assert_eq!(scene.closest_hit(&ray.with_time(0.5)), Some((0, 2.0)));
+    /// ```
+    pub fn deforming_on_device(
+        device: &EmbreeDevice,
+        steps: &[&[Triangle]],
+    ) -> Result<Self, EmbreeError> {
         let dev = &device.inner;
+        let tris = steps.first().copied().unwrap_or(&[]);
+        if steps.len() > MAX_TIME_STEPS || steps.iter().any(|s| s.len() != tris.len()) {
+            return Err(EmbreeError::new(
+                "time steps",
+                format!(
+                    "{} steps (Embree takes 1 to {MAX_TIME_STEPS}, each of as many triangles)",
+                    steps.len()
+                ),
+            ));
+        }
         let vertices = tris
             .len()
             .checked_mul(3)
@@ -523,7 +556,12 @@ impl EmbreeScene {
                 dev.check("rtcNewGeometry")?;
                 return Err(EmbreeError::new("rtcNewGeometry", "returned no geometry"));
             }
-            let filled = fill_buffers(dev, geom, tris, vertices);
+            if steps.len() > 1 {
+                // SAFETY: `geom` is a new triangle geometry of this device, the count within
+                // Embree's limit (checked above), set before any buffer.
+                unsafe { rtcSetGeometryTimeStepCount(geom, steps.len() as u32) };
+            }
+            let filled = fill_buffers(dev, geom, steps, vertices);
             if filled.is_ok() {
                 unsafe {
                     rtcCommitGeometry(geom);
@@ -590,11 +628,23 @@ impl EmbreeScene {
         geometries: &[Vec<Triangle>],
         instances: &[(u32, &[glam::Affine3A], u32)],
     ) -> Result<Self, EmbreeError> {
+        let steps: Vec<[&[Triangle]; 1]> = geometries.iter().map(|g| [&g[..]]).collect();
+        let steps: Vec<&[&[Triangle]]> = steps.iter().map(|s| &s[..]).collect();
+        Self::instanced_deforming(device, &steps, instances)
+    }
+
+    /// [`EmbreeScene::instanced_moving`] over geometries that may deform: geometry `g` is
+    /// `geometries[g]`'s time steps, as [`EmbreeScene::deforming_on_device`] takes them.
+    pub fn instanced_deforming(
+        device: &EmbreeDevice,
+        geometries: &[&[&[Triangle]]],
+        instances: &[(u32, &[glam::Affine3A], u32)],
+    ) -> Result<Self, EmbreeError> {
         let dev = &device.inner;
         let before = dev.memory.load(Ordering::Relaxed);
         let placed = geometries
             .iter()
-            .map(|g| EmbreeScene::on_device(device, g))
+            .map(|g| EmbreeScene::deforming_on_device(device, g))
             .collect::<Result<Vec<_>, _>>()?;
         let raw = unsafe { rtcNewScene(dev.raw) };
         if raw.is_null() {
@@ -796,20 +846,37 @@ impl EmbreeScene {
 fn fill_buffers(
     dev: &Device,
     geom: RTCGeometry,
-    tris: &[Triangle],
+    steps: &[&[Triangle]],
     vertices: usize,
 ) -> Result<(), EmbreeError> {
-    let vb = unsafe {
-        rtcSetNewGeometryBuffer(
-            geom,
-            RTC_BUFFER_TYPE_VERTEX,
-            0,
-            RTC_FORMAT_FLOAT3,
-            12,
-            vertices,
-        )
-    };
-    dev.check("rtcSetNewGeometryBuffer (vertices)")?;
+    let tris = steps[0];
+    for (slot, step) in steps.iter().enumerate() {
+        let vb = unsafe {
+            rtcSetNewGeometryBuffer(
+                geom,
+                RTC_BUFFER_TYPE_VERTEX,
+                slot as u32,
+                RTC_FORMAT_FLOAT3,
+                12,
+                vertices,
+            )
+        };
+        dev.check("rtcSetNewGeometryBuffer (vertices)")?;
+        if vb.is_null() {
+            return Err(EmbreeError::new(
+                "rtcSetNewGeometryBuffer",
+                "returned no buffer",
+            ));
+        }
+        // SAFETY: Embree allocated `vertices` × 12 bytes, 4-byte aligned (at least 16), for
+        // this buffer; every step holds `vertices / 3` triangles (checked by the caller).
+        let vb = unsafe { std::slice::from_raw_parts_mut(vb.cast::<[f32; 3]>(), vertices) };
+        for (i, t) in step.iter().enumerate() {
+            for (k, v) in t.v.iter().enumerate() {
+                vb[3 * i + k] = v.to_array();
+            }
+        }
+    }
     let ib = unsafe {
         rtcSetNewGeometryBuffer(
             geom,
@@ -821,26 +888,17 @@ fn fill_buffers(
         )
     };
     dev.check("rtcSetNewGeometryBuffer (indices)")?;
-    if vb.is_null() || ib.is_null() {
+    if ib.is_null() {
         return Err(EmbreeError::new(
             "rtcSetNewGeometryBuffer",
             "returned no buffer",
         ));
     }
-    // SAFETY: Embree allocated `vertices` × 12 and `tris.len()` × 12 bytes, 4-byte aligned
-    // (at least 16), for these two buffers.
-    let (vb, ib) = unsafe {
-        (
-            std::slice::from_raw_parts_mut(vb.cast::<[f32; 3]>(), vertices),
-            std::slice::from_raw_parts_mut(ib.cast::<[u32; 3]>(), tris.len()),
-        )
-    };
-    for (i, t) in tris.iter().enumerate() {
-        for (k, v) in t.v.iter().enumerate() {
-            vb[3 * i + k] = v.to_array();
-        }
+    // SAFETY: Embree allocated `tris.len()` × 12 bytes, 4-byte aligned, for this buffer.
+    let ib = unsafe { std::slice::from_raw_parts_mut(ib.cast::<[u32; 3]>(), tris.len()) };
+    for (i, idx) in ib.iter_mut().enumerate() {
         let base = 3 * i as u32;
-        ib[i] = [base, base + 1, base + 2];
+        *idx = [base, base + 1, base + 2];
     }
     Ok(())
 }
