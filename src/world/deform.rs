@@ -66,6 +66,9 @@ struct Segment {
     bvh: Bvh8<TriIndex>,
     /// One per node: its children's boxes at the segment's start and their change to its end.
     ends: Vec<Bvh8Ends>,
+    /// Each leaf slot's triangle at the segment's two steps, in leaf order: a leaf's
+    /// triangles are read from one run of memory, not gathered from two input-order arrays.
+    tris: Vec<[Triangle; 2]>,
 }
 
 /// A leaf slot of a segment's BVH, holding nothing: its triangle's input index is the
@@ -246,8 +249,9 @@ impl MovingTriangles {
         self.segments[0].bvh.kernels
     }
 
-    /// What its segments' nodes and ends occupy, and the steps (kept for the walks' leaves;
-    /// see [`MovingTriangles::len`]). The ends count as node bytes.
+    /// What its segments' nodes, ends and leaf-order triangles occupy, and the steps (kept
+    /// for normals, refits and saving; see [`MovingTriangles::len`]). The ends count as node
+    /// bytes.
     pub fn footprint(&self) -> Footprint {
         let steps: usize = self
             .steps
@@ -264,10 +268,11 @@ impl MovingTriangles {
             |f, s| {
                 let b = s.bvh.footprint();
                 let ends = std::mem::size_of_val(s.ends.as_slice());
+                let tris = std::mem::size_of_val(s.tris.as_slice());
                 Footprint {
                     nodes: f.nodes + b.nodes,
                     node_bytes: f.node_bytes + b.node_bytes + ends,
-                    bytes: f.bytes + b.bytes + ends,
+                    bytes: f.bytes + b.bytes + ends + tris,
                     kept: f.kept + b.kept,
                 }
             },
@@ -295,7 +300,6 @@ impl MovingTriangles {
         if seg.bvh.prim_ids.is_empty() {
             return;
         }
-        let (from, to) = (&self.steps[k], &self.steps[k + 1]);
         let boxes = Ray8At::<V>::new(cpu, &Ray { time: u, ..*ray }, &seg.ends);
         walk::<V, A, B, S, _>(
             &seg.bvh.nodes,
@@ -305,8 +309,9 @@ impl MovingTriangles {
             stats,
             #[inline(always)]
             |first, count, limit, stats| {
-                let ids = &seg.bvh.prim_ids[first..first + count as usize];
-                let found = test_leaf::<A, S, F>(ids, from, to, u, ray, best, stats, filter);
+                let slots = first..first + count as usize;
+                let (ids, tris) = (&seg.bvh.prim_ids[slots.clone()], &seg.tris[slots]);
+                let found = test_leaf::<A, S, F>(ids, tris, u, ray, best, stats, filter);
                 if A::ANY {
                     return found;
                 }
@@ -319,15 +324,13 @@ impl MovingTriangles {
     }
 }
 
-/// Tests the triangles `ids` (input indices) at `u` between `from` and `to` for the search
-/// `A` at `best`, as a static leaf's are ([`prim_hit`], [`offer`]). Returns true when `best`
-/// changed.
+/// Tests the triangles `ids` (input indices; `tris` holds each at the segment's two steps) at
+/// `u` for the search `A` at `best`, as a static leaf's are ([`prim_hit`], [`offer`]).
+/// Returns true when `best` changed.
 #[inline(always)]
-#[allow(clippy::too_many_arguments)]
 fn test_leaf<A: Ask, S: Stats, F: Filter<Hit>>(
     ids: &[u32],
-    from: &[Triangle],
-    to: &[Triangle],
+    tris: &[[Triangle; 2]],
     u: f32,
     ray: &Ray,
     best: &mut Hit,
@@ -335,8 +338,8 @@ fn test_leaf<A: Ask, S: Stats, F: Filter<Hit>>(
     filter: &mut F,
 ) -> bool {
     let mut found = false;
-    for (j, &i) in ids.iter().enumerate() {
-        let tri = lerp(&from[i as usize], &to[i as usize], u);
+    for (j, (&i, [a, b])) in ids.iter().zip(tris).enumerate() {
+        let tri = lerp(a, b, u);
         // The interval up to the best hit so far (any hit searches the whole ray).
         let r = Ray {
             t_max: if A::ANY { ray.t_max } else { best.t },
@@ -386,6 +389,7 @@ impl Segment {
         let mut s = Segment {
             bvh,
             ends: Vec::new(),
+            tris: Vec::new(),
         };
         s.refit(from, to);
         s
@@ -397,6 +401,10 @@ impl Segment {
     /// census of the nodes).
     fn refit(&mut self, from: &[Triangle], to: &[Triangle]) {
         let ids = &self.bvh.prim_ids;
+        self.tris = ids
+            .iter()
+            .map(|&i| [from[i as usize], to[i as usize]])
+            .collect();
         self.ends = node_ends(&self.bvh.nodes, |slot| {
             let i = ids[slot] as usize;
             pad_ends([from[i].bounds(), to[i].bounds()])
