@@ -22,6 +22,7 @@ mod triangle;
 
 pub use aabb::Aabb;
 pub use hit::{Hit, PrimHit};
+pub(crate) use ray::shutter;
 pub use ray::{offset_ray_origin, Ray};
 pub(crate) use scale::{exponent, pow2, scale2};
 pub use scale::{unit_or_zero, unit_scale};

@@ -116,10 +116,8 @@ impl Ray {
     /// assert_eq!([at(0.5), at(-1.0), at(7.0), at(f32::NAN), at(f32::INFINITY)], [0.5, 0.0, 1.0, 0.0, 1.0]);
     /// ```
     #[inline(always)]
-    #[allow(clippy::manual_clamp)] // `clamp` keeps a NaN, and a NaN time must be 0
     pub fn shutter_time(&self) -> f32 {
-        // `max` returns the other operand for a NaN.
-        self.time.max(0.0).min(1.0)
+        shutter(self.time)
     }
 
     /// The ray as every query takes it: a `t_min` below zero (or NaN) raised to zero.
@@ -167,4 +165,12 @@ pub fn offset_ray_origin(p: Vec3A, n: Vec3A) -> Vec3A {
         }
     };
     Vec3A::new(one(p.x, n.x), one(p.y, n.y), one(p.z, n.z))
+}
+
+/// `time` as every query takes it ([`Ray::shutter_time`]): clamped into `[0, 1]`, NaN as 0.
+#[inline(always)]
+#[allow(clippy::manual_clamp)] // `clamp` keeps a NaN, and a NaN time must be 0
+pub(crate) fn shutter(time: f32) -> f32 {
+    // `max` returns the other operand for a NaN.
+    time.max(0.0).min(1.0)
 }

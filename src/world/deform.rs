@@ -12,7 +12,7 @@
 
 use super::error::WorldError;
 use crate::builders::{build, BuildConfig, Builder};
-use crate::geometry::{Aabb, Hit, PrimHit, Ray, Triangle};
+use crate::geometry::{shutter, Aabb, Hit, PrimHit, Ray, Triangle};
 use crate::isa::{Isa, Kernels};
 use crate::layout::ends::{node_ends, pad_ends, Bvh8Ends};
 use crate::layout::{bvh2::leaf_order, Bvh8, Footprint, Inputs};
@@ -208,10 +208,7 @@ impl MovingTriangles {
     /// # Ok::<(), quiver_rt::WorldError>(())
     /// ```
     pub fn triangle_at(&self, prim: u32, time: f32) -> Option<Triangle> {
-        let time = Ray::new(Vec3A::ZERO, Vec3A::Z)
-            .with_time(time)
-            .shutter_time();
-        let (k, u) = segment_at(self.segments.len(), time);
+        let (k, u) = segment_at(self.segments.len(), shutter(time));
         let (a, b) = (
             self.steps[k].get(prim as usize)?,
             &self.steps[k + 1][prim as usize],
@@ -223,10 +220,7 @@ impl MovingTriangles {
     /// clamps it) falls in: its nodes' boxes hold each triangle all segment long (they are
     /// the unions of its boxes at both ends), what a point query walks.
     pub(super) fn tree_at(&self, time: f32) -> &Bvh8<TriIndex> {
-        let time = Ray::new(Vec3A::ZERO, Vec3A::Z)
-            .with_time(time)
-            .shutter_time();
-        &self.segments[segment_at(self.segments.len(), time).0].bvh
+        &self.segments[segment_at(self.segments.len(), shutter(time)).0].bvh
     }
 
     /// The same mesh at new `steps` (checked by the caller: as many as it has, each of as

@@ -124,12 +124,11 @@ impl Motion {
     /// key's own time exactly that key. (A motion of one key is that key at every time, one
     /// of none the identity; neither is one a world takes.)
     #[inline(always)]
-    #[allow(clippy::manual_clamp)] // `clamp` keeps a NaN, and a NaN time must be 0
     pub fn at(&self, time: f32) -> Affine3A {
         if self.keys.len() < 2 {
             return self.keys.first().copied().unwrap_or(Affine3A::IDENTITY);
         }
-        let (k, f) = self.segment(time.max(0.0).min(1.0));
+        let (k, f) = self.segment(crate::geometry::shutter(time));
         if f == 0.0 {
             return self.keys[k];
         }
