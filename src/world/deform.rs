@@ -109,7 +109,9 @@ pub(super) fn check_steps(steps: &[Vec<Triangle>]) -> Result<(), (Option<usize>,
 #[inline(always)]
 fn segment_at(segments: usize, time: f32) -> (usize, f32) {
     let x = time * segments as f32;
-    let k = (x as usize).min(segments - 1);
+    // Through u32, as `Motion`'s segment (a cheaper conversion): `x` lies in [0, segments],
+    // and `check_steps` keeps `segments` below 2^32.
+    let k = (x as u32 as usize).min(segments - 1);
     (k, x - k as f32)
 }
 

@@ -148,20 +148,26 @@ impl Motion {
                     translation: mix(a.translation, b.translation),
                 }
             }
-            Interpolation::Decomposed => {
-                let (a, b) = (&self.parts[k], &self.parts[k + 1]);
-                let mix = |x: Vec3A, y: Vec3A| x * (1.0 - f) + y * f;
-                let stretch = Mat3A::from_cols(
-                    mix(a.stretch.x_axis, b.stretch.x_axis),
-                    mix(a.stretch.y_axis, b.stretch.y_axis),
-                    mix(a.stretch.z_axis, b.stretch.z_axis),
-                );
-                let rotation = slerp(a.rotation, b.rotation, a.half_turn, f);
-                Affine3A {
-                    matrix3: Mat3A::from_quat(rotation) * stretch,
-                    translation: mix(a.translation, b.translation),
-                }
-            }
+            Interpolation::Decomposed => self.decomposed_at(k, f),
+        }
+    }
+
+    /// The decomposed interpolation between keys `k` and `k + 1` at `f` (strictly between
+    /// them): out of line, so the walks that inline a linear motion's transform do not carry
+    /// the slerp's trigonometry.
+    #[inline(never)]
+    fn decomposed_at(&self, k: usize, f: f32) -> Affine3A {
+        let (a, b) = (&self.parts[k], &self.parts[k + 1]);
+        let mix = |x: Vec3A, y: Vec3A| x * (1.0 - f) + y * f;
+        let stretch = Mat3A::from_cols(
+            mix(a.stretch.x_axis, b.stretch.x_axis),
+            mix(a.stretch.y_axis, b.stretch.y_axis),
+            mix(a.stretch.z_axis, b.stretch.z_axis),
+        );
+        let rotation = slerp(a.rotation, b.rotation, a.half_turn, f);
+        Affine3A {
+            matrix3: Mat3A::from_quat(rotation) * stretch,
+            translation: mix(a.translation, b.translation),
         }
     }
 
@@ -180,7 +186,9 @@ impl Motion {
     fn segment(&self, time: f32) -> (usize, f32) {
         let steps = self.keys.len() - 1;
         let s = time * steps as f32;
-        let k = (s as usize).min(steps - 1);
+        // Through u32 (`s` lies in [0, 255]): f32 to usize, an unsigned 64-bit conversion
+        // that saturates, costs a dozen instructions more on x86.
+        let k = (s as u32 as usize).min(steps - 1);
         (k, s - k as f32)
     }
 

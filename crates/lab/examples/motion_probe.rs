@@ -11,12 +11,14 @@
 //! sheared by a tenth of its height over the shutter). Built with `--features embree` (and not
 //! `DECOMPOSED=1`, which Embree's linear keys do not express), Embree 3's world of the same
 //! geometries, instances, keys and time steps runs beside them on the same rays
-//! (`rtcIntersect1` / `rtcOccluded1`).
+//! (`rtcIntersect1` / `rtcOccluded1`). With `PROFILE=1` it only prints each world's nodes,
+//! leaves and primitive tests per eye ray and traces the moving world (the static one with
+//! `STILL=1`) REPS times, for a profiler.
 use glam::{Affine3A, Vec3, Vec3A};
 use quiver_lab::measure::{median_times_interleaved, mrays_per_s, trace, Query};
 use quiver_lab::rays;
 use quiver_rt::world::Geometry;
-use quiver_rt::{Aabb, BuildOptions, Motion, Triangle, World};
+use quiver_rt::{Aabb, BuildOptions, Motion, RayQuery, Triangle, World};
 use quiver_scenes::instanced::Instanced;
 use quiver_scenes::scene::tessellate::DEFAULT_RESOLUTION;
 use quiver_scenes::Scene;
@@ -88,6 +90,36 @@ fn main() {
     let eye = rays::timed(rays::camera_rays(&scene.camera, res));
     let light = scene.lights.first().map_or(scene.camera.from, |l| l.pos);
     let shadow = rays::timed(rays::shadow_rays(&inst, &eye, &[light]));
+    // PROFILE=1 traces the moving world alone, REPS times, for a profiler to read.
+    if std::env::var("PROFILE").is_ok_and(|v| v == "1") {
+        for (label, w) in [("static", &still), ("moving", &moving)] {
+            let mut c = quiver_rt::traverse::Counters::default();
+            for r in eye.iter().step_by(16) {
+                w.closest_hit_with::<quiver_rt::traverse::FastBoxes, _, _>(
+                    r,
+                    &mut c,
+                    &mut quiver_rt::traverse::NoFilter,
+                );
+            }
+            let n = eye.len().div_ceil(16) as f64;
+            println!(
+                "{label}: per eye ray {:.2} nodes, {:.2} leaves, {:.2} prim tests",
+                c.nodes as f64 / n,
+                c.leaves as f64 / n,
+                c.prim_tests as f64 / n
+            );
+        }
+        let w = match std::env::var("STILL").is_ok_and(|v| v == "1") {
+            true => &still,
+            false => &moving,
+        };
+        for _ in 0..reps {
+            let e = trace(w, &eye, Query::Closest);
+            let s = trace(w, &shadow, Query::Any);
+            println!("{name} moving alone: {e} eye hits, {s} shadow hits");
+        }
+        return;
+    }
     #[cfg(feature = "embree")]
     let embree = (!decomposed).then(|| embree_world(inst.world(), &move_it, mesh));
     for (label, rays, query) in [
