@@ -196,13 +196,22 @@ impl<P: Primitive> World<P> {
     }
 
     /// `ray` in instance `p`'s object space (at the ray's time, if `p` moves), searching up
-    /// to `t_max`.
+    /// to `t_max`. For the paths that test `p.moving` as they run (packets, whose code also
+    /// serves worlds where nothing moves): a moving instance's transform is made out of line
+    /// there, so it costs their static instances nothing.
     #[inline(always)]
     pub(super) fn local_ray(&self, p: &InstanceLeaf, ray: &Ray, t_max: f32) -> Option<Ray> {
         match p.moving {
-            true => self.moving_local(p, ray, t_max),
+            true => self.moving_local_cold(p, ray, t_max),
             false => Some(p.local(ray, t_max)),
         }
+    }
+
+    /// [`World::moving_local`], out of line and cold (see [`World::local_ray`]).
+    #[cold]
+    #[inline(never)]
+    fn moving_local_cold(&self, p: &InstanceLeaf, ray: &Ray, t_max: f32) -> Option<Ray> {
+        self.moving_local(p, ray, t_max)
     }
 
     /// The search `A` of `local` (a ray in instance `p`'s object space) in `p`'s geometry
