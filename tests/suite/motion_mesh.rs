@@ -1,14 +1,15 @@
 //! Moving meshes (issue 53, point 3): a geometry of triangles at two or more evenly spaced
 //! time steps. A ray at time `t` answers what the scene with each mesh interpolated to `t`
-//! answers, judged by the f64 oracle over those triangles (interpolated here, by the rule
-//! `WorldBuilder::add_moving_triangles` documents); single rays, any hit, packets of mixed
+//! answers, judged by the f64 oracle over those triangles (interpolated by
+//! `quiver_lab::worlds::interpolated`, by the rule `WorldBuilder::add_moving_triangles`
+//! documents, which the instanced fuzz check shares); single rays, any hit, packets of mixed
 //! times and point queries; times out of the shutter and NaN are its nearest end (NaN: 0);
 //! bad steps are errors naming them; a refit answers for the new steps.
 
 use glam::{Affine3A, Vec3, Vec3A};
 use quiver_lab::oracle::Oracle;
 use quiver_lab::point_oracle::{points, PointOracle};
-use quiver_lab::worlds::{check, Placements};
+use quiver_lab::worlds::{check, clamped, interpolated, Placements};
 use quiver_rt::traverse::{FastBoxes, NoFilter, NoStats, PacketMode, PacketQuery};
 use quiver_rt::{
     BuildOptions, GeometryId, Instance, Isa, Motion, Ray, RayQuery, Triangle, World, WorldError,
@@ -83,64 +84,25 @@ fn deforming(seed: u64) -> Deforming {
     }
 }
 
-/// A shutter time as a ray takes it: clamped into `[0, 1]`, NaN as 0.
-fn clamped(time: f32) -> f32 {
-    Ray::new(Vec3A::ZERO, Vec3A::Z)
-        .with_time(time)
-        .shutter_time()
-}
-
-/// Triangles `steps` at shutter time `c` (in `[0, 1]`), by the documented rule: segment
-/// `k = floor(c * (S - 1))` (the last at 1), `u = c * (S - 1) - k`, each vertex
-/// `a * (1 - u) + b * u`.
-fn interpolated(steps: &[Vec<Triangle>], c: f32) -> Vec<Triangle> {
-    if steps.len() == 1 {
-        return steps[0].clone();
-    }
-    let segments = steps.len() - 1;
-    let x = c * segments as f32;
-    let k = (x.floor() as usize).min(segments - 1);
-    let u = x - k as f32;
-    let lerp = |a: Vec3A, b: Vec3A| a * (1.0 - u) + b * u;
-    steps[k]
-        .iter()
-        .zip(&steps[k + 1])
-        .map(|(a, b)| {
-            Triangle::new(
-                lerp(a.v[0], b.v[0]),
-                lerp(a.v[1], b.v[1]),
-                lerp(a.v[2], b.v[2]),
-            )
-        })
-        .collect()
-}
-
 impl Deforming {
+    /// The scene at time 0 with the meshes' steps beside it: what the lab's helpers take.
+    fn still(&self) -> Placements {
+        Placements {
+            geometries: self.steps.iter().map(|s| s[0].clone()).collect(),
+            instances: self.instances.clone(),
+        }
+    }
+
     /// The world: the moving meshes as moving meshes, the moving instance moving.
     fn world(&self, options: &BuildOptions) -> World {
-        let mut b = World::builder();
-        for s in &self.steps {
-            match s.len() {
-                1 => b.add_triangles(s[0].clone()),
-                _ => b.add_moving_triangles(s.clone()).unwrap(),
-            };
-        }
-        for (inst, m) in self.instances.iter().zip(&self.motions) {
-            match m {
-                Some(m) => b.add_moving_instance(*inst, m.clone()),
-                None => b.add_instance(*inst),
-            };
-        }
-        b.build(options).unwrap()
+        (self.still())
+            .deforming_world(&self.steps, &self.motions, options)
+            .unwrap()
     }
 
     /// The static scene at shutter time `c`: every mesh interpolated, every instance placed.
     fn at(&self, c: f32) -> Placements {
-        let still = Placements {
-            geometries: self.steps.iter().map(|s| interpolated(s, c)).collect(),
-            instances: self.instances.clone(),
-        };
-        still.at_time(&self.motions, c)
+        self.still().deformed_at(&self.steps, &self.motions, c)
     }
 }
 

@@ -50,10 +50,11 @@
 //! assert_eq!(oracle.answer(Vec3A::new(0.2, 0.2, 0.5), f32::INFINITY).admissible.len(), 2);
 //! ```
 
+use crate::worlds::Placements;
 use glam::{DAffine3, DVec3, Vec3A};
 use quiver_rt::point::PointHit;
 use quiver_rt::world::{Geometry, WorldPointHit};
-use quiver_rt::{Triangle, World};
+use quiver_rt::{Instance, Triangle, World};
 use rayon::prelude::*;
 
 /// The tolerance factor: an answer may be off by `TOL_K·ε·(d + size)` (see the module docs).
@@ -196,13 +197,30 @@ impl PointOracle {
     /// The oracle over a world's triangle geometries, each instance's triangles placed by
     /// its transform in f64 (ids `(instance, primitive)`).
     pub fn for_world(world: &World) -> PointOracle {
+        Self::placed(world.instances(), |g| {
+            match world.geometries().get(g as usize) {
+                Some(Geometry::Triangles(_, g)) => g,
+                _ => &[],
+            }
+        })
+    }
+
+    /// The oracle over a scene of instances ([`Placements`]), as [`PointOracle::for_world`]
+    /// over its world: what `World::closest_point` on the world of a moving scene placed at
+    /// a time ([`Placements::deformed_at`]) is judged by, with no world built.
+    pub fn for_placements(placements: &Placements) -> PointOracle {
+        Self::placed(&placements.instances, |g| {
+            &placements.geometries[g as usize]
+        })
+    }
+
+    /// Each instance's triangles (`geometry(g)` for its geometry `g`), placed by its
+    /// transform in f64.
+    fn placed<'a>(instances: &[Instance], geometry: impl Fn(u32) -> &'a [Triangle]) -> PointOracle {
         let mut tris = Vec::new();
-        for (i, inst) in world.instances().iter().enumerate() {
-            let Some(Geometry::Triangles(_, g)) = world.geometries().get(inst.geometry.0 as usize)
-            else {
-                continue;
-            };
+        for (i, inst) in instances.iter().enumerate() {
             let m = DAffine3::from_cols_array(&inst.transform.to_cols_array().map(f64::from));
+            let g = geometry(inst.geometry.0);
             for (j, t) in g.iter().enumerate().filter(|(_, t)| t.is_finite()) {
                 tris.push(Tri {
                     v: t.v.map(|p| m.transform_point3(wide(p))),
