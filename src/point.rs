@@ -15,6 +15,7 @@
 //! f64), and distances are measured between the caller's point and the found point brought
 //! back to the caller's units.
 
+use crate::builders::MAX_DEPTH;
 use crate::bvh::Bvh;
 use crate::geometry::{closest_uv, Triangle};
 use crate::layout::bvh2::{compact_children, Addressing};
@@ -22,6 +23,7 @@ use crate::layout::tri4::groups;
 use crate::layout::{Bvh2, Bvh4, Bvh8, Bvh8Node, Node4, Tri4};
 use crate::primitive::{LeafFormat, Primitive};
 use crate::traverse::leaves::Leaves;
+use crate::traverse::stack::Stack;
 use glam::{DVec3, Vec3A};
 
 /// The closest point of a [`Bvh`]'s triangles to a query point ([`Bvh::closest_point`]).
@@ -93,6 +95,11 @@ enum Item {
     Leaf(u32, u32),
 }
 
+/// The walks' stack: at most the (up to eight) children of every node on the path from the
+/// root pushed at once, and trees are at most [`MAX_DEPTH`] deep. A fixed array rather than a
+/// heap allocation per query (a world's query walks one tree per instance it enters).
+type PointStack = Stack<(f64, Item), { 7 * MAX_DEPTH + 8 }>;
+
 /// The distance from `p` to the box `min..max` in f64; infinite for an empty (inverted) box.
 #[inline]
 fn box_distance(min: Vec3A, max: Vec3A, p: Vec3A) -> f64 {
@@ -114,11 +121,11 @@ fn best_first(
     p: Vec3A,
     radius: &mut f64,
     root: (f64, Item),
-    mut children: impl FnMut(u32, &mut Vec<(f64, Item)>),
+    mut children: impl FnMut(u32, &mut PointStack),
     mut leaf: impl FnMut(u32, u32, &mut f64) -> bool,
 ) -> bool {
     let reach = p.abs().max_element() as f64;
-    let mut stack = Vec::with_capacity(64);
+    let mut stack = PointStack::new();
     stack.push(root);
     while let Some((d, item)) = stack.pop() {
         let slack = (2.0 * *radius + reach) * (1.0 / (1u64 << 20) as f64);
@@ -136,8 +143,16 @@ fn best_first(
             Item::Node(i) => {
                 let at = stack.len();
                 children(i, &mut stack);
-                // Farthest first, so the nearest child is popped next.
-                stack[at..].sort_unstable_by(|a, b| b.0.total_cmp(&a.0));
+                // Farthest first, so the nearest child is popped next: an insertion sort of
+                // the (at most eight) children just pushed.
+                let pushed = stack.above_mut(at);
+                for k in 1..pushed.len() {
+                    let mut j = k;
+                    while j > 0 && pushed[j - 1].0 < pushed[j].0 {
+                        pushed.swap(j - 1, j);
+                        j -= 1;
+                    }
+                }
             }
         }
     }

@@ -23,7 +23,7 @@ pub(crate) mod query;
 pub mod reference;
 pub(crate) mod search;
 pub(crate) mod simd;
-mod stack;
+pub(crate) mod stack;
 mod stats;
 mod tri4;
 

@@ -24,6 +24,22 @@ impl<T: Copy, const N: usize> Stack<T, N> {
         self.len += 1;
     }
 
+    /// How many entries it holds.
+    #[inline(always)]
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    /// The entries pushed since the stack held `from` (all of them when `from` is 0), to
+    /// reorder in place.
+    #[inline(always)]
+    pub fn above_mut(&mut self, from: usize) -> &mut [T] {
+        let items = &mut self.items[from.min(self.len)..self.len];
+        // SAFETY: every slot below `len` was written by `push`; `MaybeUninit<T>` has `T`'s
+        // layout, so the initialised slots are a `[T]`.
+        unsafe { &mut *(items as *mut [std::mem::MaybeUninit<T>] as *mut [T]) }
+    }
+
     #[inline(always)]
     pub fn pop(&mut self) -> Option<T> {
         if self.len == 0 {

@@ -20,6 +20,7 @@
 //! the tied triangles, quiver the lowest index: the two may disagree on rays through edges and
 //! at equal distances (the tests below allow one ray in 1,000).
 
+use glam::{Affine3A, Vec3A};
 use quiver_rt::{Ray, Triangle};
 use std::ffi::{c_char, c_void, CStr, CString};
 use std::mem::MaybeUninit;
@@ -151,7 +152,57 @@ mod ffi {
         pub hit: RTCHit,
     }
 
+    /// `struct RTC_ALIGN(16) RTCPointQuery`: the query point (world space), its time and
+    /// radius, which a callback may shrink.
+    #[repr(C, align(16))]
+    #[derive(Clone, Copy)]
+    pub struct RTCPointQuery {
+        pub x: f32,
+        pub y: f32,
+        pub z: f32,
+        pub time: f32,
+        pub radius: f32,
+    }
+
+    /// `struct RTC_ALIGN(16) RTCPointQueryContext` with `RTC_MAX_INSTANCE_LEVEL_COUNT == 1`:
+    /// the instance stack (4x4 column-major matrices, undefined while `instStackSize` is 0).
+    #[repr(C, align(16))]
+    #[derive(Clone, Copy)]
+    pub struct RTCPointQueryContext {
+        pub world2inst: [[f32; 16]; RTC_MAX_INSTANCE_LEVEL_COUNT],
+        pub inst2world: [[f32; 16]; RTC_MAX_INSTANCE_LEVEL_COUNT],
+        pub instID: [u32; RTC_MAX_INSTANCE_LEVEL_COUNT],
+        pub instStackSize: u32,
+    }
+
+    /// `struct RTC_ALIGN(16) RTCPointQueryFunctionArguments`: what a point query callback
+    /// is handed for each primitive whose box the query's sphere reaches.
+    #[repr(C, align(16))]
+    pub struct RTCPointQueryFunctionArguments {
+        pub query: *mut RTCPointQuery,
+        pub userPtr: *mut c_void,
+        pub primID: u32,
+        pub geomID: u32,
+        pub context: *mut RTCPointQueryContext,
+        /// The current instance's world-to-instance scale when it is a similarity (distances
+        /// in instance space divided by it are world distances), 0 when it is not, 1 without
+        /// an instance.
+        pub similarityScale: f32,
+    }
+
+    /// `RTCPointQueryFunction`: true when it shrank the query's radius.
+    pub type RTCPointQueryFunction =
+        unsafe extern "C" fn(args: *mut RTCPointQueryFunctionArguments) -> bool;
+
     // The layouts the library was compiled with (sizeof in C on x86_64 and aarch64).
+    const _: () = assert!(std::mem::size_of::<RTCPointQuery>() == 32);
+    const _: () = assert!(std::mem::size_of::<RTCPointQueryContext>() == 144);
+    const _: () = assert!(std::mem::align_of::<RTCPointQueryContext>() == 16);
+    const _: () = assert!(std::mem::offset_of!(RTCPointQueryContext, instStackSize) == 132);
+    const _: () = assert!(std::mem::size_of::<RTCPointQueryFunctionArguments>() == 48);
+    const _: () = assert!(std::mem::offset_of!(RTCPointQueryFunctionArguments, context) == 24);
+    const _: () =
+        assert!(std::mem::offset_of!(RTCPointQueryFunctionArguments, similarityScale) == 32);
     const _: () = assert!(std::mem::size_of::<RTCRay>() == 48);
     const _: () = assert!(std::mem::size_of::<RTCHit>() == 32);
     const _: () = assert!(std::mem::size_of::<RTCRayHit>() == 80);
@@ -221,6 +272,13 @@ mod ffi {
             m: u32,
             byte_stride: usize,
         );
+        pub fn rtcPointQuery(
+            scene: RTCScene,
+            query: *mut RTCPointQuery,
+            context: *mut RTCPointQueryContext,
+            queryFunc: Option<RTCPointQueryFunction>,
+            userPtr: *mut c_void,
+        ) -> bool;
     }
 
     /// `rtcInitIntersectContext`, a `static inline` function in `rtcore_common.h` and so not in
@@ -230,6 +288,17 @@ mod ffi {
             flags,
             filter: None,
             instID: [RTC_INVALID_GEOMETRY_ID; RTC_MAX_INSTANCE_LEVEL_COUNT],
+        }
+    }
+
+    /// `rtcInitPointQueryContext`, `static inline` in `rtcore_common.h`: an empty instance
+    /// stack (the header leaves the matrices undefined; zeros here).
+    pub fn init_point_query_context() -> RTCPointQueryContext {
+        RTCPointQueryContext {
+            world2inst: [[0.0; 16]; RTC_MAX_INSTANCE_LEVEL_COUNT],
+            inst2world: [[0.0; 16]; RTC_MAX_INSTANCE_LEVEL_COUNT],
+            instID: [RTC_INVALID_GEOMETRY_ID; RTC_MAX_INSTANCE_LEVEL_COUNT],
+            instStackSize: 0,
         }
     }
 }
@@ -465,6 +534,12 @@ pub struct EmbreeScene {
     bvh_bytes: i64,
     /// The scenes an instanced scene places, kept alive as long as it.
     placed: Vec<EmbreeScene>,
+    /// A triangle scene's triangles (at its first time step), which its point queries
+    /// measure; empty for an instanced scene.
+    tris: Vec<Triangle>,
+    /// An instanced scene's instances (by Embree's geometry ID, their order): the index in
+    /// `placed` of the scene each places.
+    instance_scene: Vec<u32>,
     /// Keeps the device (and its error slot) alive as long as the scene.
     _device: Arc<Device>,
 }
@@ -547,6 +622,8 @@ impl EmbreeScene {
             streams: device.ray_streams(),
             bvh_bytes: 0,
             placed: Vec::new(),
+            tris: tris.to_vec(),
+            instance_scene: Vec::new(),
             _device: dev.clone(),
         };
         // An empty scene is one without geometry, rather than one with zero-sized buffers.
@@ -633,6 +710,65 @@ impl EmbreeScene {
         Self::instanced_deforming(device, &steps, instances)
     }
 
+    /// Embree's scene of a quiver `World`: its geometries (a moving mesh at its first step,
+    /// Embree being given no deforming geometry here) and instances with their masks, a moving
+    /// instance with its motion's keys as Embree's time steps (as linear motions
+    /// interpolate them), by [`EmbreeScene::instanced_moving`]. Instance `i` of the world is
+    /// instance `i` of the scene.
+    pub fn of_world(device: &EmbreeDevice, world: &quiver_rt::World) -> Result<Self, EmbreeError> {
+        let (geometries, keys) = world_parts(world);
+        Self::instanced_moving(device, &geometries, &placements(world, &keys))
+    }
+
+    /// [`EmbreeScene::of_world`] for [`EmbreeScene::closest_point`] on Embree 3.13, whose
+    /// instanced point queries are wrong under a similarity that shrinks (an instance scaled
+    /// by `s < 1`): in instance space its node test culls with the world radius where the
+    /// radius times `1/s` is needed (`PointQueryContext::query_radius` is not scaled by
+    /// `similarityScale`; Embree 4 scales it), so nearer triangles are missed. Here each
+    /// geometry is stored shrunk by a power of two `k` and its instances enlarged by `k`
+    /// (exact in f32: the placed vertices are the same bits), `k` the least that leaves no
+    /// instance of it scaled below 1; Embree's culling is then conservative (a larger radius
+    /// than needed in instances scaled above 1), so the answers are right and its speed is
+    /// Embree's own traversal paying that slack. Instance and triangle numbers are
+    /// [`EmbreeScene::of_world`]'s.
+    pub fn of_world_for_points(
+        device: &EmbreeDevice,
+        world: &quiver_rt::World,
+    ) -> Result<Self, EmbreeError> {
+        let (mut geometries, mut keys) = world_parts(world);
+        for (g, tris) in geometries.iter_mut().enumerate() {
+            let smallest = world
+                .instances()
+                .iter()
+                .zip(&keys)
+                .filter(|(i, _)| i.geometry.0 as usize == g)
+                .flat_map(|(_, k)| k.iter())
+                .map(|m| {
+                    let c = &m.matrix3;
+                    c.x_axis
+                        .length()
+                        .min(c.y_axis.length())
+                        .min(c.z_axis.length())
+                })
+                .fold(f32::INFINITY, f32::min);
+            if !(smallest > 0.0 && smallest < 1.0) {
+                continue;
+            }
+            let k = 2f32.powi((1.0 / smallest).log2().ceil() as i32);
+            for t in tris.iter_mut() {
+                t.v = t.v.map(|v| v / k);
+            }
+            for (i, ks) in world.instances().iter().zip(keys.iter_mut()) {
+                if i.geometry.0 as usize == g {
+                    for m in ks.iter_mut() {
+                        m.matrix3 *= k;
+                    }
+                }
+            }
+        }
+        Self::instanced_moving(device, &geometries, &placements(world, &keys))
+    }
+
     /// [`EmbreeScene::instanced_moving`] over geometries that may deform: geometry `g` is
     /// `geometries[g]`'s time steps, as [`EmbreeScene::deforming_on_device`] takes them.
     pub fn instanced_deforming(
@@ -656,6 +792,8 @@ impl EmbreeScene {
             streams: device.ray_streams(),
             bvh_bytes: 0,
             placed,
+            tris: Vec::new(),
+            instance_scene: Vec::with_capacity(instances.len()),
             _device: dev.clone(),
         };
         for &(g, keys, mask) in instances {
@@ -704,10 +842,26 @@ impl EmbreeScene {
                 }
                 rtcSetGeometryMask(geom, mask);
                 rtcCommitGeometry(geom);
-                rtcAttachGeometry(raw, geom);
-                rtcReleaseGeometry(geom);
             }
+            // SAFETY: `geom` is a committed geometry of this device, attached to the scene
+            // (which keeps its own reference) and released once.
+            let id = unsafe {
+                let id = rtcAttachGeometry(raw, geom);
+                rtcReleaseGeometry(geom);
+                id
+            };
             dev.check("instance geometry")?;
+            // A new scene numbers its geometries in attach order; point queries rely on it.
+            if id as usize != scene.instance_scene.len() {
+                return Err(EmbreeError::new(
+                    "rtcAttachGeometry",
+                    format!(
+                        "instance {} got geometry ID {id}",
+                        scene.instance_scene.len()
+                    ),
+                ));
+            }
+            scene.instance_scene.push(g);
         }
         unsafe { rtcCommitScene(raw) };
         scene.bvh_bytes = dev.memory.load(Ordering::Relaxed) - before;
@@ -741,6 +895,73 @@ impl EmbreeScene {
         let mut ctx = init_intersect_context(RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT);
         unsafe { rtcOccluded1(self.raw, &mut ctx, &mut r) };
         occluded(&r)
+    }
+
+    /// The point of the scene's triangles nearest `point` within `max_distance` (inclusive),
+    /// by `rtcPointQuery` with a callback that measures each triangle Embree offers by
+    /// quiver's own [`Triangle::closest_point`] (on the bridge's copy of the triangles, so
+    /// the per-primitive work is quiver's) and shrinks the query's radius to the best
+    /// distance. `None` when nothing lies that near, or for a NaN or non-finite point or a
+    /// NaN or negative distance.
+    ///
+    /// Distances are world-space, as `World::closest_point`'s: in an instanced scene a
+    /// triangle under a similarity transform (Embree's `similarityScale` > 0) is measured in
+    /// instance space from the point brought in by Embree's world-to-instance matrix and the
+    /// distance divided by the scale; under any other transform it is placed in world space
+    /// by Embree's instance-to-world matrix and measured there (as Embree's `closest_point`
+    /// tutorial does). Equal distances go to the lower instance, then the lower triangle, as
+    /// in quiver, among the triangles Embree offers. A deforming scene is measured at its
+    /// first step and moving instances at their first key (time 0).
+    ///
+    /// ```
+    /// use glam::{Affine3A, Vec3, Vec3A};
+    /// use quiver_rt::Triangle;
+    /// use quiver_lab::embree::{EmbreeDevice, EmbreePointHit, EmbreeScene};
+    /// let tri = Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y);
+    /// let scene = EmbreeScene::new(&[tri]).unwrap();
+    /// let hit = scene.closest_point(Vec3A::new(0.25, 0.5, 2.0), f32::INFINITY).unwrap();
+    /// assert_eq!(hit, EmbreePointHit { prim: 0, instance: None, point: Vec3A::new(0.25, 0.5, 0.0), distance: 2.0 });
+    /// assert_eq!(scene.closest_point(Vec3A::new(0.25, 0.5, 2.0), 1.5), None);
+    /// // Instances: one stretched four times along x (not a similarity), one raised by 5.
+    /// let stretch = Affine3A::from_scale(Vec3::new(4.0, 1.0, 1.0));
+    /// let up = Affine3A::from_translation(Vec3::new(0.0, 0.0, 5.0));
+    /// let world = EmbreeScene::instanced(&EmbreeDevice::new().unwrap(), &[vec![tri]], &[(0, stretch, 1), (0, up, 1)]).unwrap();
+    /// let hit = world.closest_point(Vec3A::new(2.0, 0.25, 1.5), f32::INFINITY).unwrap();
+    /// assert_eq!((hit.instance, hit.point, hit.distance), (Some(0), Vec3A::new(2.0, 0.25, 0.0), 1.5));
+    /// let hit = world.closest_point(Vec3A::new(0.2, 0.2, 4.0), f32::INFINITY).unwrap();
+    /// assert_eq!((hit.instance, hit.distance), (Some(1), 1.0));
+    /// ```
+    pub fn closest_point(&self, point: Vec3A, max_distance: f32) -> Option<EmbreePointHit> {
+        if !(point.is_finite() && max_distance >= 0.0) {
+            return None;
+        }
+        let mut query = RTCPointQuery {
+            x: point.x,
+            y: point.y,
+            z: point.z,
+            time: 0.0,
+            radius: max_distance,
+        };
+        let mut ctx = init_point_query_context();
+        let mut search = PointSearch {
+            scene: self,
+            point,
+            limit: max_distance as f64,
+            best: None,
+        };
+        // SAFETY: the scene is committed and alive; `query` and `ctx` are initialized and
+        // aligned as Embree's structs; `search` outlives the call, and the callback reads it
+        // (and the scene, through it) only during the call, on this thread.
+        unsafe {
+            rtcPointQuery(
+                self.raw,
+                &mut query,
+                &mut ctx,
+                Some(closest_point_callback),
+                (&mut search as *mut PointSearch).cast(),
+            );
+        }
+        search.best.map(|(_, hit)| hit)
     }
 
     /// [`closest_hit`](Self::closest_hit) for every ray, handed to Embree as coherent streams
@@ -840,6 +1061,187 @@ impl EmbreeScene {
             })
             .sum()
     }
+}
+
+/// A world's geometries (a moving mesh at its first step) and each instance's keys (one for
+/// a static instance), as [`EmbreeScene::of_world`] gives them to Embree.
+fn world_parts(world: &quiver_rt::World) -> (Vec<Vec<Triangle>>, Vec<Vec<Affine3A>>) {
+    use quiver_rt::world::Geometry;
+    let geometries = world
+        .geometries()
+        .iter()
+        .map(|g| match g {
+            Geometry::Triangles(_, t) => t.clone(),
+            Geometry::Prims(_, t) => t.clone(),
+            Geometry::MovingTriangles(m) => m.steps()[0].clone(),
+        })
+        .collect();
+    let keys = world
+        .instances()
+        .iter()
+        .enumerate()
+        .map(
+            |(id, i)| match world.motion(quiver_rt::InstanceId(id as u32)) {
+                Some(m) => m.keys().to_vec(),
+                None => vec![i.transform],
+            },
+        )
+        .collect();
+    (geometries, keys)
+}
+
+/// The world's instances as [`EmbreeScene::instanced_moving`] takes them, with `keys`.
+fn placements<'a>(
+    world: &quiver_rt::World,
+    keys: &'a [Vec<Affine3A>],
+) -> Vec<(u32, &'a [Affine3A], u32)> {
+    world
+        .instances()
+        .iter()
+        .zip(keys)
+        .map(|(i, k)| (i.geometry.0, k.as_slice(), i.mask))
+        .collect()
+}
+
+/// The closest point of an [`EmbreeScene`]'s triangles ([`EmbreeScene::closest_point`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EmbreePointHit {
+    /// The triangle: its index in the scene's (or the instanced geometry's) triangles.
+    pub prim: u32,
+    /// The instance (its index in the instances given) in an instanced scene.
+    pub instance: Option<u32>,
+    /// The nearest point, in world space.
+    pub point: Vec3A,
+    /// The world-space distance from the query point to `point`.
+    pub distance: f32,
+}
+
+/// A closest-point query under way: what [`closest_point_callback`] reads and updates.
+struct PointSearch<'a> {
+    scene: &'a EmbreeScene,
+    /// The query point, world space.
+    point: Vec3A,
+    /// The largest distance still accepted (the best so far, or the caller's limit).
+    limit: f64,
+    /// The best so far: its (instance, triangle) for ties, and the answer.
+    best: Option<((u32, u32), EmbreePointHit)>,
+}
+
+/// A column-major 4x4 matrix of Embree's instance stack as an affine map.
+fn affine_of(m: &[f32; 16]) -> Affine3A {
+    Affine3A::from_cols_array(&[
+        m[0], m[1], m[2], m[4], m[5], m[6], m[8], m[9], m[10], m[12], m[13], m[14],
+    ])
+}
+
+impl PointSearch<'_> {
+    /// Measures triangle `prim` of the scene the query is in (the top scene, or the one
+    /// the instance on `ctx`'s stack places); true when it became the best (and the radius
+    /// shrank). Never panics: what it cannot find it skips.
+    fn offer(
+        &mut self,
+        prim: u32,
+        ctx: Option<&RTCPointQueryContext>,
+        similarity: f32,
+        query: &mut RTCPointQuery,
+    ) -> bool {
+        let scene = self.scene;
+        let instanced = ctx.filter(|c| c.instStackSize > 0);
+        let (tris, instance) = match instanced {
+            None => (&scene.tris, None),
+            Some(c) => {
+                let inst = c.instID[0];
+                let placed = scene
+                    .instance_scene
+                    .get(inst as usize)
+                    .and_then(|&g| scene.placed.get(g as usize));
+                match placed {
+                    Some(s) => (&s.tris, Some(inst)),
+                    None => return false,
+                }
+            }
+        };
+        let Some(&tri) = tris.get(prim as usize) else {
+            return false;
+        };
+        let p = self.point;
+        let (point, d) = match instanced {
+            None => {
+                let (q, _, _) = tri.closest_point(p);
+                (q, (wide(p) - wide(q)).length())
+            }
+            Some(c) if similarity > 0.0 => {
+                // Measured in instance space and scaled back to world units.
+                let local = affine_of(&c.world2inst[0]).transform_point3a(p);
+                let (q, _, _) = tri.closest_point(local);
+                let d = (wide(local) - wide(q)).length() / similarity as f64;
+                (affine_of(&c.inst2world[0]).transform_point3a(q), d)
+            }
+            Some(c) => {
+                // Not a similarity: the triangle placed in world space and measured there.
+                let m = affine_of(&c.inst2world[0]);
+                let placed = Triangle {
+                    v: tri.v.map(|v| m.transform_point3a(v)),
+                };
+                let (q, _, _) = placed.closest_point(p);
+                (q, (wide(p) - wide(q)).length())
+            }
+        };
+        let key = (instance.unwrap_or(0), prim);
+        let better = match &self.best {
+            None => d <= self.limit,
+            Some((k, _)) => d < self.limit || (d == self.limit && key < *k),
+        };
+        if !better {
+            return false;
+        }
+        self.limit = d;
+        let hit = EmbreePointHit {
+            prim,
+            instance,
+            point,
+            distance: d as f32,
+        };
+        self.best = Some((key, hit));
+        // Embree's radius in f32, rounded up so that it never prunes a box at distance `d`.
+        let mut r = d as f32;
+        if (r as f64) < d {
+            r = r.next_up();
+        }
+        let shrank = r < query.radius;
+        query.radius = query.radius.min(r);
+        shrank
+    }
+}
+
+/// The `RTCPointQueryFunction` of [`EmbreeScene::closest_point`]: measures the primitive
+/// Embree offers and shrinks the radius. Must not unwind into C: [`PointSearch::offer`]
+/// cannot panic, and null pointers are skipped.
+unsafe extern "C" fn closest_point_callback(args: *mut RTCPointQueryFunctionArguments) -> bool {
+    // SAFETY: Embree hands a valid argument struct for the duration of the call (or null,
+    // skipped); its `query` is the caller's `RTCPointQuery` and its `context` the caller's
+    // context, both live for the whole `rtcPointQuery`; `userPtr` is the `PointSearch` that
+    // `EmbreeScene::closest_point` passed, not otherwise touched during the call.
+    let Some(args) = (unsafe { args.as_mut() }) else {
+        return false;
+    };
+    let (Some(search), Some(query)) = (unsafe {
+        (
+            args.userPtr.cast::<PointSearch>().as_mut(),
+            args.query.as_mut(),
+        )
+    }) else {
+        return false;
+    };
+    // SAFETY: as above; the context is only read.
+    let ctx = unsafe { args.context.as_ref() };
+    search.offer(args.primID, ctx, args.similarityScale, query)
+}
+
+/// `v` in f64.
+#[inline]
+fn wide(v: Vec3A) -> glam::DVec3 {
+    glam::DVec3::new(v.x as f64, v.y as f64, v.z as f64)
 }
 
 /// Copies the triangles into Embree-owned buffers (Embree pads them for its 16-byte loads).
@@ -1164,6 +1566,149 @@ mod tests {
         assert!(hits > 0);
         let none: &[Affine3A] = &[];
         assert!(EmbreeScene::instanced_moving(&device, &[vec![]], &[(0, none, 1)]).is_err());
+    }
+
+    /// Whether two closest-point distances agree: equal within a few f32 roundings of the
+    /// distance and the scene's size (exact ties may name different triangles; an instance
+    /// under a similarity is measured in its own space by Embree, in world space by quiver).
+    fn same_distance(a: Option<f32>, b: Option<f32>, size: f32) -> bool {
+        match (a, b) {
+            (None, None) => true,
+            (Some(a), Some(b)) => (a - b).abs() <= 8.0 * f32::EPSILON * (a.max(b) + size),
+            _ => false,
+        }
+    }
+
+    /// `EmbreeScene::closest_point` answers as `Bvh::closest_point` on random points (inside
+    /// the box, on vertices and edges, far away), unlimited and cut off either side of the
+    /// answer.
+    #[test]
+    fn embree_closest_point_agrees_with_quiver() {
+        use crate::point_oracle::points;
+        let tris = Scene::load("tetra4").unwrap().triangles();
+        let scene = EmbreeScene::new(&tris).unwrap();
+        let bvh = quiver_rt::Bvh::new(&tris);
+        let size = scene_size(&tris);
+        let mut same_prim = 0;
+        let pts = points(&tris, 3000, 20.0, 3);
+        for (k, &p) in pts.iter().enumerate() {
+            let q = bvh.closest_point(p, f32::INFINITY).unwrap();
+            let e = scene.closest_point(p, f32::INFINITY).unwrap();
+            assert!(
+                same_distance(Some(q.distance), Some(e.distance), size),
+                "{p}: quiver {q:?}, Embree {e:?}"
+            );
+            assert_eq!(e.instance, None);
+            let on = tris[e.prim as usize].closest_point(p).0;
+            assert_eq!(on, e.point, "{p}");
+            same_prim += usize::from(q.prim == e.prim);
+            let max = q.distance * [0.5, 0.99, 1.01, 2.0][k % 4];
+            let (q, e) = (bvh.closest_point(p, max), scene.closest_point(p, max));
+            let (q, e) = (q.map(|h| h.distance), e.map(|h| h.distance));
+            assert!(same_distance(q, e, size), "{p} within {max}: {q:?} {e:?}");
+        }
+        println!("{same_prim} of {} name the same triangle", pts.len());
+        assert!(same_prim >= pts.len() * 99 / 100);
+        assert_eq!(scene.closest_point(glam::Vec3A::NAN, 1.0), None);
+        assert_eq!(scene.closest_point(glam::Vec3A::ZERO, -1.0), None);
+    }
+
+    /// `of_world_for_points` answers as quiver's `World::closest_point` (world-space
+    /// distances) under rotations with uniform scales (similarities, measured in instance
+    /// space), non-uniform scales and shears (measured in world space), and the identity.
+    #[test]
+    fn embree_instanced_closest_point_agrees_with_the_world() {
+        use crate::point_oracle::points;
+        use glam::{Affine3A, Mat3, Quat, Vec3};
+        let unit = Scene::load("tetra3").unwrap().triangles();
+        let other = Scene::load("soup200").unwrap().triangles();
+        let placements: Vec<(u32, Affine3A)> = (0..16)
+            .map(|i| {
+                let at = Vec3::new((i % 4) as f32 * 1.7, (i / 4) as f32 * 1.7, 0.1 * i as f32);
+                let turn = Quat::from_rotation_z(0.4 * i as f32) * Quat::from_rotation_x(0.3);
+                let m = match i % 4 {
+                    0 => Affine3A::from_translation(at),
+                    1 => Affine3A::from_scale_rotation_translation(Vec3::splat(0.7), turn, at),
+                    2 => Affine3A::from_scale_rotation_translation(
+                        Vec3::new(1.0, 0.4, 2.0),
+                        turn,
+                        at,
+                    ),
+                    _ => Affine3A::from_mat3_translation(
+                        Mat3::from_cols(Vec3::X, Vec3::new(0.6, 1.0, 0.0), Vec3::Z),
+                        at,
+                    ),
+                };
+                ((i % 2) as u32, m)
+            })
+            .collect();
+        let mut b = quiver_rt::World::builder();
+        let ids = [
+            b.add_triangles(unit.clone()),
+            b.add_triangles(other.clone()),
+        ];
+        for &(g, m) in &placements {
+            b.add_instance(quiver_rt::Instance::of(ids[g as usize]).transform(m));
+        }
+        let world = b.build(&quiver_rt::BuildOptions::default()).unwrap();
+        let device = EmbreeDevice::new().unwrap();
+        let scene = EmbreeScene::of_world_for_points(&device, &world).unwrap();
+        // Embree 3.13's own instances miss triangles under the shrinking similarities.
+        let plain = EmbreeScene::of_world(&device, &world).unwrap();
+        let placed: Vec<Triangle> = placements
+            .iter()
+            .flat_map(|&(g, m)| {
+                [&unit, &other][g as usize].iter().map(move |t| Triangle {
+                    v: t.v.map(|v| m.transform_point3a(v)),
+                })
+            })
+            .collect();
+        let size = scene_size(&placed);
+        let pts = points(&placed, 3000, 20.0, 5);
+        let mut same = 0;
+        let mut plain_wrong = 0;
+        for (k, &p) in pts.iter().enumerate() {
+            let q = world.closest_point(p, f32::INFINITY).unwrap();
+            // Beyond the answer by half of it and a few roundings (points on a triangle too).
+            let near = q.distance * 1.5 + 1e-5 * size;
+            let wrong = |s: &EmbreeScene| {
+                let d = s.closest_point(p, near).map(|h| h.distance);
+                !same_distance(Some(q.distance), d, size)
+            };
+            assert!(!wrong(&scene), "{p} within {near}");
+            plain_wrong += usize::from(wrong(&plain));
+            let e = scene.closest_point(p, f32::INFINITY).unwrap();
+            assert!(
+                same_distance(Some(q.distance), Some(e.distance), size),
+                "{p}: quiver {q:?}, Embree {e:?}"
+            );
+            same += usize::from(e.instance == Some(q.instance.0) && e.prim == q.prim);
+            // A cut-off within roundings of the answer may fall either side of it: the two
+            // engines measure an instance under a similarity in different spaces.
+            let max = q.distance * [0.5, 0.99, 1.01, 2.0][k % 4];
+            if same_distance(Some(max), Some(q.distance), size) {
+                continue;
+            }
+            let (q, e) = (world.closest_point(p, max), scene.closest_point(p, max));
+            let (q, e) = (q.map(|h| h.distance), e.map(|h| h.distance));
+            assert!(same_distance(q, e, size), "{p} within {max}: {q:?} {e:?}");
+        }
+        println!(
+            "{same} of {} name the same instance and triangle; Embree's unscaled instances \
+             wrong at {plain_wrong}",
+            pts.len()
+        );
+        // Two in five points lie on vertices or edges, shared by several triangles at equal
+        // distance: Embree breaks those ties by its own rounding in instance space.
+        assert!(same >= pts.len() * 95 / 100);
+    }
+
+    /// The largest coordinate magnitude plus the extent of `tris`' box.
+    fn scene_size(tris: &[Triangle]) -> f32 {
+        let b = tris
+            .iter()
+            .fold(quiver_rt::Aabb::EMPTY, |b, t| b.union(&t.bounds()));
+        (b.max - b.min).max_element() + b.min.abs().max(b.max.abs()).max_element()
     }
 
     #[test]

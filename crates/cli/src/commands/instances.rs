@@ -54,38 +54,7 @@ fn ms<T>(f: impl FnOnce() -> T) -> (T, f64) {
 /// motion's keys as Embree's time steps (the bench's motions are linear, as Embree's are).
 #[cfg(feature = "embree")]
 fn embree_instanced(world: &quiver_rt::World, device: &EmbreeDevice) -> Result<EmbreeScene> {
-    let geometries: Vec<Vec<quiver_rt::Triangle>> = world
-        .geometries()
-        .iter()
-        .map(|g| match g {
-            quiver_rt::world::Geometry::Triangles(_, t) => t.clone(),
-            quiver_rt::world::Geometry::Prims(_, t) => t.clone(),
-            // Embree is given the mesh at time 0 (its moving meshes are not bridged).
-            quiver_rt::world::Geometry::MovingTriangles(m) => m.steps()[0].clone(),
-        })
-        .collect();
-    let keys: Vec<Vec<glam::Affine3A>> = world
-        .instances()
-        .iter()
-        .enumerate()
-        .map(
-            |(id, i)| match world.motion(quiver_rt::InstanceId(id as u32)) {
-                Some(m) => m.keys().to_vec(),
-                None => vec![i.transform],
-            },
-        )
-        .collect();
-    let instances: Vec<(u32, &[glam::Affine3A], u32)> = world
-        .instances()
-        .iter()
-        .zip(&keys)
-        .map(|(i, k)| (i.geometry.0, k.as_slice(), i.mask))
-        .collect();
-    Ok(EmbreeScene::instanced_moving(
-        device,
-        &geometries,
-        &instances,
-    )?)
+    Ok(EmbreeScene::of_world(device, world)?)
 }
 
 /// Loads `names` (or [`DEFAULT_SCENES`]) within the memory limit for the instanced
