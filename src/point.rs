@@ -88,7 +88,8 @@ pub(crate) type Visit<'v, P> = dyn FnMut(u32, PrimAt<'_, P>, &mut f64) -> bool +
 pub(crate) type FramedVisit<'v, P> =
     dyn FnMut(u32, PrimAt<'_, P>, Vec3A, &mut f64, f64) -> bool + 'v;
 
-/// A stack entry: a node to enter or a leaf (first, count) to visit, behind its box distance.
+/// A stack entry: a node to enter or a leaf (first, count) to visit, behind its squared box
+/// distance.
 #[derive(Clone, Copy)]
 enum Item {
     Node(u32),
@@ -100,23 +101,36 @@ enum Item {
 /// heap allocation per query (a world's query walks one tree per instance it enters).
 type PointStack = Stack<(f64, Item), { 7 * MAX_DEPTH + 8 }>;
 
-/// The distance from `p` to the box `min..max` in f64; infinite for an empty (inverted) box.
+/// The squared distance from `p` to the box `min..max` in f64 (no square root per child:
+/// the walk compares squares); infinite for an empty (inverted) box.
 #[inline]
-fn box_distance(min: Vec3A, max: Vec3A, p: Vec3A) -> f64 {
+fn box_distance2(min: Vec3A, max: Vec3A, p: Vec3A) -> f64 {
     let d = (min - p).max(p - max).max(Vec3A::ZERO);
     let d = DVec3::new(d.x as f64, d.y as f64, d.z as f64);
-    if d.is_finite() {
-        d.length()
+    let d2 = d.length_squared();
+    if d2.is_finite() {
+        d2
     } else {
         f64::INFINITY
     }
 }
 
+/// Whether the triangle `v` may have a point within `r` of `p`: the squared distance to its
+/// box, with a slack of a few ulps of the coordinates (for vertices rebuilt from edges, and
+/// for the rounding of the point a measure computes on it). A cheap test before
+/// [`closest_uv`]'s exact one: in a leaf, most triangles lie beyond the radius.
+#[inline]
+pub(crate) fn may_reach(v: [Vec3A; 3], p: Vec3A, r: f64) -> bool {
+    let (min, max) = (v[0].min(v[1]).min(v[2]), v[0].max(v[1]).max(v[2]));
+    let size = min.abs().max(max.abs()).max(p.abs()).max_element() as f64;
+    let reach = r + (r + size) * (1.0 / (1u64 << 20) as f64);
+    box_distance2(min, max, p) <= reach * reach
+}
+
 /// The best-first walk all layouts share: pops the nearest pending item, drops it when its
-/// box lies beyond the radius (with a slack of a few ulps of the lengths involved, so a
-/// primitive whose computed point rounds a hair outside its box is never lost), expands a
-/// node with `children` (which pushes its children behind their box distances) and visits a
-/// leaf with `leaf`. Returns false when a visit stopped it.
+/// box lies beyond the radius, expands a node with `children` (which pushes its children
+/// behind their squared box distances; those beyond the radius are dropped at once) and
+/// visits a leaf with `leaf`. Returns false when a visit stopped it.
 fn best_first(
     p: Vec3A,
     radius: &mut f64,
@@ -125,13 +139,17 @@ fn best_first(
     mut leaf: impl FnMut(u32, u32, &mut f64) -> bool,
 ) -> bool {
     let reach = p.abs().max_element() as f64;
+    // Whether a box this far (squared) may hold a point within the radius: a slack of a few
+    // ulps of the lengths involved, so a primitive whose computed point rounds a hair outside
+    // its box is never lost. A NaN distance (never made: the point is finite) is pruned too.
+    let within = |d2: f64, radius: f64| {
+        let reach = radius + (2.0 * radius + reach) * (1.0 / (1u64 << 20) as f64);
+        d2 <= reach * reach
+    };
     let mut stack = PointStack::new();
     stack.push(root);
-    while let Some((d, item)) = stack.pop() {
-        let slack = (2.0 * *radius + reach) * (1.0 / (1u64 << 20) as f64);
-        // A NaN distance (never made: the point is finite) would be pruned too.
-        let within = d <= *radius + slack;
-        if !within {
+    while let Some((d2, item)) = stack.pop() {
+        if !within(d2, *radius) {
             continue;
         }
         match item {
@@ -143,16 +161,23 @@ fn best_first(
             Item::Node(i) => {
                 let at = stack.len();
                 children(i, &mut stack);
-                // Farthest first, so the nearest child is popped next: an insertion sort of
-                // the (at most eight) children just pushed.
+                // Only the children within the radius stay, farthest first so the nearest is
+                // popped next: an insertion sort of the (at most eight) kept.
                 let pushed = stack.above_mut(at);
-                for k in 1..pushed.len() {
-                    let mut j = k;
-                    while j > 0 && pushed[j - 1].0 < pushed[j].0 {
-                        pushed.swap(j - 1, j);
-                        j -= 1;
+                let mut kept = 0;
+                for k in 0..pushed.len() {
+                    let item = pushed[k];
+                    if within(item.0, *radius) {
+                        let mut j = kept;
+                        while j > 0 && pushed[j - 1].0 < item.0 {
+                            pushed[j] = pushed[j - 1];
+                            j -= 1;
+                        }
+                        pushed[j] = item;
+                        kept += 1;
                     }
                 }
+                stack.truncate(at + kept);
             }
         }
     }
@@ -228,7 +253,7 @@ impl<P: Primitive> PointWalk<P> for Bvh2<P> {
         let addressing = self.mapping.addressing();
         let item = |i: usize| {
             let n = &self.nodes[i];
-            let d = box_distance(n.min.into(), n.max.into(), p);
+            let d = box_distance2(n.min.into(), n.max.into(), p);
             if n.is_leaf() {
                 (d, Item::Leaf(n.link, n.prim_count()))
             } else {
@@ -278,7 +303,7 @@ impl<P: Primitive, N: Node4> PointWalk<P> for Bvh4<P, N> {
                     if let Some(item) = child_item(c, count, leaf) {
                         let min = Vec3A::new(planes[0][k], planes[1][k], planes[2][k]);
                         let max = Vec3A::new(planes[3][k], planes[4][k], planes[5][k]);
-                        stack.push((box_distance(min, max, p), item));
+                        stack.push((box_distance2(min, max, p), item));
                     }
                 }
             },
@@ -306,7 +331,7 @@ impl<P: Primitive> PointWalk<P> for Bvh8<P> {
                     if let Some(item) = child_item(child, count, leaf) {
                         let min = Vec3A::new(pl[0][k], pl[1][k], pl[2][k]);
                         let max = Vec3A::new(pl[3][k], pl[4][k], pl[5][k]);
-                        stack.push((box_distance(min, max, p), item));
+                        stack.push((box_distance2(min, max, p), item));
                     }
                 }
             },
@@ -496,6 +521,9 @@ impl<P: Primitive> Bvh<P> {
             let Some((a, ab, ac)) = prim.edges() else {
                 return true;
             };
+            if !may_reach([a, a + ab, a + ac], local, *r / up) {
+                return true;
+            }
             let (u, v) = closest_uv(a, ab, ac, local);
             let q = a + ab * u + ac * v;
             let world = wide(q) * up;
@@ -521,7 +549,7 @@ impl<P: Primitive> Bvh<P> {
 /// The box distance as the walks measure it, for tests.
 #[cfg(test)]
 pub(crate) fn distance_to_box(b: &crate::Aabb, p: Vec3A) -> f64 {
-    box_distance(b.min, b.max, p)
+    box_distance2(b.min, b.max, p).sqrt()
 }
 
 #[cfg(test)]

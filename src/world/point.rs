@@ -16,7 +16,7 @@ use super::instance::motion_of;
 use super::top::InstanceLeaf;
 use super::{Geometry, GeometryId, InstanceId, World};
 use crate::geometry::Triangle;
-use crate::point::{wide, PointWalk, PrimAt};
+use crate::point::{may_reach, wide, PointWalk, PrimAt};
 use crate::primitive::Primitive;
 use glam::{Affine3A, Vec3A};
 
@@ -179,7 +179,7 @@ impl<P: Primitive> World<P> {
                 let slack = local.abs().max_element() as f64 * (1.0 / (1u64 << 18) as f64);
                 let r_obj = *radius * stretch + slack;
                 let mut measure = |id: u32, tri: Option<Triangle>, r_obj: &mut f64| {
-                    let Some(tri) = tri else {
+                    let Some(tri) = tri.filter(|t| may_reach(t.v, local, *r_obj)) else {
                         return true;
                     };
                     let tri = placed(&to_world, identity, tri);

@@ -20,6 +20,9 @@
 //! may name different triangles (counted as `other`). Environment: `POINTS` (default
 //! 100,000), `REPS` (default 5), `SEED`.
 //!
+//! `PROFILE=flat-near` (or `flat-box`, `world-near`, `world-box`) runs quiver's queries of
+//! that set alone, REPS rounds, and prints their rate: a loop for `perf` or callgrind.
+//!
 //! Without `--features embree` the Embree column is absent.
 use glam::Vec3A;
 use quiver_lab::measure::median_times_interleaved;
@@ -205,6 +208,43 @@ fn brute_points(tris: usize, n: usize) -> usize {
     (20_000_000 / tris.max(1)).clamp(8, n)
 }
 
+/// `PROFILE=flat-near` (or `flat-box`, `world-near`, `world-box`): quiver's queries of that
+/// set alone, REPS rounds, for `perf` or callgrind.
+fn profile(
+    spec: &str,
+    bvh: &Bvh,
+    world: &World,
+    tris: [&Vec<Triangle>; 2],
+    n: usize,
+    seed: u64,
+    reps: usize,
+) {
+    let (what, kind) = spec
+        .split_once('-')
+        .expect("PROFILE=flat-near, world-box, ...");
+    let flat = what == "flat";
+    let set = point_sets(tris[usize::from(!flat)], n, seed)
+        .into_iter()
+        .find(|s| s.kind == kind)
+        .expect("PROFILE's point set: box or near");
+    let start = std::time::Instant::now();
+    let mut found = 0;
+    for _ in 0..reps {
+        for &p in &set.pts {
+            found += usize::from(if flat {
+                bvh.closest_point(p, set.radius).is_some()
+            } else {
+                world.closest_point(p, set.radius).is_some()
+            });
+        }
+    }
+    let queries = (reps * set.pts.len()) as f64;
+    println!(
+        "  {spec}: {:.3} Mq/s, {found} found",
+        queries / start.elapsed().as_secs_f64() / 1e6
+    );
+}
+
 fn main() {
     let mut names: Vec<String> = std::env::args().skip(1).collect();
     if names.is_empty() {
@@ -234,6 +274,10 @@ fn main() {
             world.geometries().len(),
             world_tris.len()
         );
+        if let Ok(spec) = std::env::var("PROFILE") {
+            profile(&spec, &bvh, world, [&flat, &world_tris], n, seed, reps);
+            continue;
+        }
         #[cfg(feature = "embree")]
         let (e_flat, e_world) = (
             quiver_lab::embree::EmbreeScene::on_device(&device, &flat).expect("Embree's scene"),
