@@ -115,6 +115,26 @@ fn box_distance2(min: Vec3A, max: Vec3A, p: Vec3A) -> f64 {
     }
 }
 
+/// The squared distances from `p` to a wide node's `W` child boxes (`planes`: min x, y, z and
+/// max x, y, z, one lane per child), as [`box_distance2`] measures each, lane by lane so the
+/// compiler makes one vector operation of each step (comparisons rather than `f32::max`,
+/// whose NaN rule costs a blend per step: the planes are never NaN, and an empty slot's
+/// infinite planes give an infinite distance either way).
+#[inline]
+fn box_distances2<const W: usize>(planes: &[[f32; W]; 6], p: Vec3A) -> [f64; W] {
+    let mut d2 = [0.0; W];
+    for (k, d2) in d2.iter_mut().enumerate() {
+        let gap = |axis: usize, c: f32| {
+            let (below, above) = (planes[axis][k] - c, c - planes[axis + 3][k]);
+            let g = if below > above { below } else { above };
+            (if g > 0.0 { g } else { 0.0 }) as f64
+        };
+        let (x, y, z) = (gap(0, p.x), gap(1, p.y), gap(2, p.z));
+        *d2 = x * x + y * y + z * z;
+    }
+    d2
+}
+
 /// Whether the triangle `v` may have a point within `r` of `p`: the squared distance to its
 /// box, with a slack of a few ulps of the coordinates (for vertices rebuilt from edges, and
 /// for the rounding of the point a measure computes on it). A cheap test before
@@ -128,28 +148,29 @@ pub(crate) fn may_reach(v: [Vec3A; 3], p: Vec3A, r: f64) -> bool {
 }
 
 /// The best-first walk all layouts share: pops the nearest pending item, drops it when its
-/// box lies beyond the radius, expands a node with `children` (which pushes its children
-/// behind their squared box distances; those beyond the radius are dropped at once) and
-/// visits a leaf with `leaf`. Returns false when a visit stopped it.
+/// box lies beyond the radius, expands a node with `children` (which pushes the children
+/// whose squared box distance is at most the squared reach it is given, behind that distance)
+/// and visits a leaf with `leaf`. Returns false when a visit stopped it.
 fn best_first(
     p: Vec3A,
     radius: &mut f64,
     root: (f64, Item),
-    mut children: impl FnMut(u32, &mut PointStack),
+    mut children: impl FnMut(u32, f64, &mut PointStack),
     mut leaf: impl FnMut(u32, u32, &mut f64) -> bool,
 ) -> bool {
     let reach = p.abs().max_element() as f64;
-    // Whether a box this far (squared) may hold a point within the radius: a slack of a few
-    // ulps of the lengths involved, so a primitive whose computed point rounds a hair outside
-    // its box is never lost. A NaN distance (never made: the point is finite) is pruned too.
-    let within = |d2: f64, radius: f64| {
+    // How far (squared) a box may lie and still hold a point within the radius: a slack of a
+    // few ulps of the lengths involved, so a primitive whose computed point rounds a hair
+    // outside its box is never lost. A NaN distance (never made: the point is finite) is
+    // pruned too.
+    let reach2 = |radius: f64| {
         let reach = radius + (2.0 * radius + reach) * (1.0 / (1u64 << 20) as f64);
-        d2 <= reach * reach
+        reach * reach
     };
     let mut stack = PointStack::new();
     stack.push(root);
     while let Some((d2, item)) = stack.pop() {
-        if !within(d2, *radius) {
+        if d2 > reach2(*radius) {
             continue;
         }
         match item {
@@ -160,24 +181,19 @@ fn best_first(
             }
             Item::Node(i) => {
                 let at = stack.len();
-                children(i, &mut stack);
-                // Only the children within the radius stay, farthest first so the nearest is
-                // popped next: an insertion sort of the (at most eight) kept.
+                children(i, reach2(*radius), &mut stack);
+                // Farthest first, so the nearest is popped next: an insertion sort of the (at
+                // most eight) pushed.
                 let pushed = stack.above_mut(at);
-                let mut kept = 0;
-                for k in 0..pushed.len() {
+                for k in 1..pushed.len() {
                     let item = pushed[k];
-                    if within(item.0, *radius) {
-                        let mut j = kept;
-                        while j > 0 && pushed[j - 1].0 < item.0 {
-                            pushed[j] = pushed[j - 1];
-                            j -= 1;
-                        }
-                        pushed[j] = item;
-                        kept += 1;
+                    let mut j = k;
+                    while j > 0 && pushed[j - 1].0 < item.0 {
+                        pushed[j] = pushed[j - 1];
+                        j -= 1;
                     }
+                    pushed[j] = item;
                 }
-                stack.truncate(at + kept);
             }
         }
     }
@@ -264,7 +280,7 @@ impl<P: Primitive> PointWalk<P> for Bvh2<P> {
             p,
             radius,
             item(0),
-            |i, stack| {
+            |i, reach2, stack| {
                 let i = i as usize;
                 let n = &self.nodes[i];
                 let (l, r) = match addressing {
@@ -273,8 +289,11 @@ impl<P: Primitive> PointWalk<P> for Bvh2<P> {
                     Addressing::Compact if n.count == 0 => compact_children(i, n.link),
                     Addressing::Compact => (n.link as usize, n.count as usize),
                 };
-                stack.push(item(l));
-                stack.push(item(r));
+                for child in [item(l), item(r)] {
+                    if child.0 <= reach2 {
+                        stack.push(child);
+                    }
+                }
             },
             |first, count, radius| {
                 visit_prims(&self.prims, &self.prim_ids, first, count, radius, visit)
@@ -293,17 +312,18 @@ impl<P: Primitive, N: Node4> PointWalk<P> for Bvh4<P, N> {
             p,
             radius,
             (0.0, Item::Node(0)),
-            |i, stack| {
+            |i, reach2, stack| {
                 let n = &self.nodes[i as usize];
-                let planes = n.planes().map(|r| r.to_array());
-                for (k, c) in (0..4).map(|k| (k, n.child(k))) {
-                    let (c, count) = c;
+                let d2 = box_distances2(&n.planes().map(|r| r.to_array()), p);
+                for (k, &d2) in d2.iter().enumerate() {
+                    if d2 > reach2 {
+                        continue;
+                    }
+                    let (c, count) = n.child(k);
                     let leaf = count & crate::layout::Bvh4Node::LEAF != 0;
                     let count = count & !crate::layout::Bvh4Node::LEAF;
                     if let Some(item) = child_item(c, count, leaf) {
-                        let min = Vec3A::new(planes[0][k], planes[1][k], planes[2][k]);
-                        let max = Vec3A::new(planes[3][k], planes[4][k], planes[5][k]);
-                        stack.push((box_distance2(min, max, p), item));
+                        stack.push((d2, item));
                     }
                 }
             },
@@ -322,16 +342,16 @@ impl<P: Primitive> PointWalk<P> for Bvh8<P> {
             p,
             radius,
             (0.0, Item::Node(0)),
-            |i, stack| {
+            |i, reach2, stack| {
                 let n = &self.nodes[i as usize];
-                let pl = &n.planes;
+                let d2 = box_distances2(&n.planes, p);
                 for (k, (&child, &count)) in n.child.iter().zip(&n.count).enumerate() {
+                    if d2[k] > reach2 {
+                        continue;
+                    }
                     let leaf = count & Bvh8Node::LEAF != 0;
-                    let count = count & !Bvh8Node::LEAF;
-                    if let Some(item) = child_item(child, count, leaf) {
-                        let min = Vec3A::new(pl[0][k], pl[1][k], pl[2][k]);
-                        let max = Vec3A::new(pl[3][k], pl[4][k], pl[5][k]);
-                        stack.push((box_distance2(min, max, p), item));
+                    if let Some(item) = child_item(child, count & !Bvh8Node::LEAF, leaf) {
+                        stack.push((d2[k], item));
                     }
                 }
             },

@@ -32,12 +32,6 @@ impl<T: Copy, const N: usize> Stack<T, N> {
         self.len
     }
 
-    /// Drops the entries above the first `len` (none when it holds no more).
-    #[inline(always)]
-    pub fn truncate(&mut self, len: usize) {
-        self.len = self.len.min(len);
-    }
-
     /// The entries pushed since the stack held `from` (all of them when `from` is 0), to
     /// reorder in place.
     #[inline(always)]
