@@ -104,6 +104,31 @@ typedef struct QvPointHit {
     uint32_t geometry, instance;
 } QvPointHit;
 
+/* A build preset: how long a build takes against how fast its BVH is traced. */
+typedef enum QvQuality {
+    /* Binned SAH: the default. */
+    QV_QUALITY_DEFAULT = 0,
+    /* The LBVH builder: several times faster to build, somewhat slower to trace. */
+    QV_QUALITY_FAST = 1,
+    /* Spatial splits: 3 to 4 times the default's build time; faster to trace where
+     * triangles are long or overlap. */
+    QV_QUALITY_HIGH = 2
+} QvQuality;
+
+/* How a BVH is built. Functions taking a `const QvBuildOptions *` accept NULL for the
+ * defaults ({QV_QUALITY_DEFAULT, NULL}), except where they say otherwise; the struct and
+ * the layout string are read during the call only. */
+typedef struct QvBuildOptions {
+    /* A QvQuality value (a uint32_t, so a value outside the enum is refused, not
+     * undefined). */
+    uint32_t quality;
+    /* NULL for the preset's layout (bvh8-dfs), else a NUL-terminated layout name:
+     * "bvh8-dfs", "bvh4-quant", "bvh4-dfs", "bvh4-subtree", "bvh2-dfs", "bvh2-bfs",
+     * "bvh2-shuffled", "bvh2-subtree", "bvh2-subtree-page", "bvh2-compact",
+     * "bvh2-compact-page" (as quiver's command line spells them). */
+    const char *layout;
+} QvBuildOptions;
+
 /* A BVH over one indexed triangle mesh (opaque). */
 typedef struct QvBvh QvBvh;
 /* A world being collected: meshes, instances, filters (opaque). */
@@ -149,6 +174,18 @@ const char *qv_last_error(void);
 QvStatus qv_bvh_build_indexed(const float *vertices, size_t vertex_count,
                               size_t vertex_stride_bytes, const uint32_t *indices,
                               size_t triangle_count, size_t index_stride_bytes, QvBvh **out);
+
+/* As qv_bvh_build_indexed (which is this with options NULL), built with *options: a preset
+ * and a layout (see QvBuildOptions); options may be NULL for the defaults. Presets and
+ * layouts differ in build time, trace speed and footprint (qv_bvh_footprint), not in the
+ * hits a query reports.
+ * Errors: as qv_bvh_build_indexed; QV_INVALID_ARGUMENT for options.quality not a QvQuality
+ * (the message names options.quality), or options.layout not UTF-8 or not a layout name (the
+ * message names options.layout and lists the names). */
+QvStatus qv_bvh_build_indexed_with(const float *vertices, size_t vertex_count,
+                                   size_t vertex_stride_bytes, const uint32_t *indices,
+                                   size_t triangle_count, size_t index_stride_bytes,
+                                   const QvBuildOptions *options, QvBvh **out);
 
 /* Frees a BVH. NULL is ignored. The BVH must not be in use on another thread. */
 void qv_bvh_free(QvBvh *bvh);
@@ -205,6 +242,12 @@ QvStatus qv_bvh_save(const QvBvh *bvh, const char *path);
  * Errors: QV_NULL_POINTER; QV_IO; QV_BAD_FILE (not a saved BVH, damaged, another format
  * version or byte order: the message says which). */
 QvStatus qv_bvh_load(const char *path, QvBvh **out);
+
+/* The bytes the BVH holds into *bytes: its nodes, its leaves' triangles and triangle ids,
+ * and what its layout keeps for refits. Not counted: the copy of the index buffer kept for
+ * qv_bvh_refit (12 bytes a triangle; none for a loaded BVH) and the handle itself.
+ * Errors: QV_NULL_POINTER. */
+QvStatus qv_bvh_footprint(const QvBvh *bvh, size_t *bytes);
 
 /* ---- Worlds ---------------------------------------------------------------------------- */
 
@@ -275,12 +318,32 @@ QvStatus qv_world_builder_add_moving_instance(QvWorldBuilder *builder, uint32_t 
 QvStatus qv_world_builder_set_filter(QvWorldBuilder *builder, uint32_t geometry,
                                      QvFilterFn filter, void *user);
 
+/* Gives geometry `geometry` its own build options (*options, read during the call, as
+ * qv_bvh_build_indexed_with reads them), used for it rather than those given to
+ * qv_world_build_with. Replaces the geometry's earlier options. A moving mesh takes no
+ * preset or layout of its own: its steps are built as qv_world_builder_add_moving_mesh
+ * builds them.
+ * Errors: QV_NULL_POINTER (builder or options: here options may not be NULL);
+ * QV_INVALID_ARGUMENT for a geometry not added, or options refused as
+ * qv_bvh_build_indexed_with refuses them. */
+QvStatus qv_world_builder_set_options(QvWorldBuilder *builder, uint32_t geometry,
+                                      const QvBuildOptions *options);
+
 /* Builds the world: every geometry's BVH and the top level over the instances, in parallel.
  * Consumes the builder whatever the outcome (do not use or free it again), except when
  * `builder` or `out` is NULL (QV_NULL_POINTER: nothing is consumed). On QV_OK *out is the
  * world: free it with qv_world_free; on failure NULL. An empty world is not an error.
  * Errors: QV_NULL_POINTER; QV_INVALID_ARGUMENT (too many instances or geometries). */
 QvStatus qv_world_build(QvWorldBuilder *builder, QvWorld **out);
+
+/* As qv_world_build (which is this with options NULL), with *options (NULL: the defaults)
+ * for the top level and for every geometry without options of its own
+ * (qv_world_builder_set_options). The same rule for the builder: consumed whatever the
+ * outcome, refused options included, except when `builder` or `out` is NULL.
+ * Errors: as qv_world_build; QV_INVALID_ARGUMENT for options refused as
+ * qv_bvh_build_indexed_with refuses them. */
+QvStatus qv_world_build_with(QvWorldBuilder *builder, const QvBuildOptions *options,
+                             QvWorld **out);
 
 /* Frees a world. NULL is ignored. The world must not be in use on another thread. */
 void qv_world_free(QvWorld *world);
@@ -316,6 +379,12 @@ QvStatus qv_world_save(const QvWorld *world, const char *path);
  * Errors: QV_NULL_POINTER; QV_IO; QV_BAD_FILE (not a saved world, damaged, another format
  * version or byte order, an instance that places nothing: the message says which). */
 QvStatus qv_world_load(const char *path, QvWorld **out);
+
+/* The bytes the world holds into *bytes: the top level, every geometry's BVH and triangles
+ * once (however many instances place it), the instance records and the motions' keys. Not
+ * counted: the copies of the mesh index buffers kept for qv_world_refit_mesh (12 bytes a
+ * triangle), filters, and the handle itself. Errors: QV_NULL_POINTER. */
+QvStatus qv_world_footprint(const QvWorld *world, size_t *bytes);
 
 /* The closest hit of *ray among the instances its mask sees, into *hit (the miss record
  * when nothing is hit). Errors: QV_NULL_POINTER. */
@@ -371,6 +440,28 @@ QvStatus qv_world_remove_instance(QvWorld *world, uint32_t instance);
  * Errors: as qv_world_builder_add_instance. */
 QvStatus qv_world_add_instance(QvWorld *world, uint32_t geometry, const float transform[12],
                                uint32_t mask, uint32_t *instance_id);
+
+/* Adds an indexed triangle mesh as a new geometry (buffers read as
+ * qv_world_builder_add_mesh reads them, copied during the call), its BVH built now with
+ * *options (NULL: the defaults; see QvBuildOptions). *geometry_id is its id, one past the
+ * last geometry's. No instance places it yet: add one with qv_world_add_instance.
+ * Errors: as qv_bvh_build_indexed_with; a refused mesh adds nothing. */
+QvStatus qv_world_add_mesh(QvWorld *world, const float *vertices, size_t vertex_count,
+                           size_t vertex_stride_bytes, const uint32_t *indices,
+                           size_t triangle_count, size_t index_stride_bytes,
+                           const QvBuildOptions *options, uint32_t *geometry_id);
+
+/* Refits mesh geometry `geometry` to new vertex positions for the same triangles (the index
+ * buffer it was added with, kept since; vertices read as qv_world_builder_add_mesh reads
+ * them; vertex_count may differ from the mesh's as long as every index names one): its
+ * tree stays, its boxes follow the vertices, and every instance placing it follows.
+ * Everything is checked before anything changes, so a refused refit changes nothing.
+ * Errors: QV_NULL_POINTER; QV_BAD_MESH (stride, an index past the new vertices, a
+ * non-finite coordinate); QV_INVALID_ARGUMENT for a geometry that does not exist, a moving
+ * mesh (qv_world_builder_add_moving_mesh), a geometry of a world from qv_world_load (it
+ * keeps no index buffers), or an overflowing size. */
+QvStatus qv_world_refit_mesh(QvWorld *world, uint32_t geometry, const float *vertices,
+                             size_t vertex_count, size_t vertex_stride_bytes);
 
 #ifdef __cplusplus
 }

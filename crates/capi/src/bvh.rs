@@ -4,9 +4,9 @@ use crate::buffers::{bad_mesh, input, output, read_indices, read_vertices};
 use crate::error::{free_handle, guard, non_null, Failure, QvStatus};
 use crate::files::{self, path_of};
 use crate::trace;
-use crate::types::{QvHit, QvPointHit, QvRay};
+use crate::types::{options_of, QvBuildOptions, QvHit, QvPointHit, QvRay};
 use quiver_rt::glam::Vec3A;
-use quiver_rt::Bvh;
+use quiver_rt::{BuildError, Bvh};
 use std::ffi::{c_char, c_int};
 
 /// A BVH over an indexed triangle mesh (opaque to C), with the mesh's index buffer kept for
@@ -57,7 +57,7 @@ unsafe fn clear_out<T>(out: *mut *mut T) -> Result<(), Failure> {
 /// byte `i * vertex_stride_bytes` of `vertices`, triangle `t`'s three vertex indices the three
 /// `uint32_t` at byte `t * index_stride_bytes` of `indices`. The buffers are copied; hits
 /// name triangle `t`. On success `*out` is the new handle (free it with `qv_bvh_free`), else
-/// NULL.
+/// NULL. `qv_bvh_build_indexed_with` with the default options.
 ///
 /// # Safety
 /// `vertices` and `indices` are NULL or readable for their counts and strides; `out` is NULL
@@ -72,15 +72,109 @@ pub unsafe extern "C" fn qv_bvh_build_indexed(
     index_stride_bytes: usize,
     out: *mut *mut QvBvh,
 ) -> QvStatus {
-    guard("qv_bvh_build_indexed", || {
+    let mesh = Mesh {
+        vertices,
+        vertex_count,
+        vertex_stride_bytes,
+        indices,
+        triangle_count,
+        index_stride_bytes,
+    };
+    // SAFETY: the caller's contract, which `build_indexed` asks; no options.
+    unsafe { build_indexed("qv_bvh_build_indexed", mesh, std::ptr::null(), out) }
+}
+
+/// As `qv_bvh_build_indexed`, built with `*options` (NULL: the defaults): a preset
+/// (`options.quality`) and a layout (`options.layout`, NULL for the preset's).
+///
+/// # Safety
+/// As `qv_bvh_build_indexed`; `options` NULL or readable, its `layout` NULL or a
+/// NUL-terminated string.
+#[no_mangle]
+#[allow(clippy::too_many_arguments)]
+pub unsafe extern "C" fn qv_bvh_build_indexed_with(
+    vertices: *const f32,
+    vertex_count: usize,
+    vertex_stride_bytes: usize,
+    indices: *const u32,
+    triangle_count: usize,
+    index_stride_bytes: usize,
+    options: *const QvBuildOptions,
+    out: *mut *mut QvBvh,
+) -> QvStatus {
+    let mesh = Mesh {
+        vertices,
+        vertex_count,
+        vertex_stride_bytes,
+        indices,
+        triangle_count,
+        index_stride_bytes,
+    };
+    // SAFETY: the caller's contract, which `build_indexed` asks.
+    unsafe { build_indexed("qv_bvh_build_indexed_with", mesh, options, out) }
+}
+
+/// A caller's indexed mesh: its buffers, counts and strides, as the build functions take them.
+#[derive(Clone, Copy)]
+pub(crate) struct Mesh {
+    pub vertices: *const f32,
+    pub vertex_count: usize,
+    pub vertex_stride_bytes: usize,
+    pub indices: *const u32,
+    pub triangle_count: usize,
+    pub index_stride_bytes: usize,
+}
+
+/// A mesh's vertex positions and index triples, read from the caller's buffers.
+pub(crate) type MeshData = (Vec<[f32; 3]>, Vec<[u32; 3]>);
+
+impl Mesh {
+    /// The positions and index triples, copied and checked (strides, indices, finite
+    /// coordinates).
+    ///
+    /// # Safety
+    /// The buffers are NULL or readable for their counts and strides.
+    pub(crate) unsafe fn read(self) -> Result<MeshData, Failure> {
+        // SAFETY: the caller's contract for the buffers, passed on unchanged.
+        let positions =
+            unsafe { read_vertices(self.vertices, self.vertex_count, self.vertex_stride_bytes) }?;
+        // SAFETY: as above.
+        let tris = unsafe {
+            read_indices(
+                self.indices,
+                self.triangle_count,
+                self.index_stride_bytes,
+                self.vertex_count,
+            )
+        }?;
+        Ok((positions, tris))
+    }
+}
+
+/// The body of exported function `name`: the BVH over `mesh` built with `options` into
+/// `*out`.
+///
+/// # Safety
+/// `mesh`'s buffers NULL or readable for their counts and strides; `options` NULL or a
+/// readable `QvBuildOptions` whose `layout` is NULL or NUL-terminated; `out` NULL or
+/// writable.
+unsafe fn build_indexed(
+    name: &str,
+    mesh: Mesh,
+    options: *const QvBuildOptions,
+    out: *mut *mut QvBvh,
+) -> QvStatus {
+    guard(name, || {
         // SAFETY: the caller's contract for `out`.
         unsafe { clear_out(out) }?;
-        // SAFETY: the caller's contract for the buffers, passed on unchanged.
-        let positions = unsafe { read_vertices(vertices, vertex_count, vertex_stride_bytes) }?;
-        // SAFETY: as above.
-        let tris =
-            unsafe { read_indices(indices, triangle_count, index_stride_bytes, vertex_count) }?;
-        let bvh = Bvh::from_mesh(&positions, &tris).map_err(|e| bad_mesh("indices", e))?;
+        // SAFETY: the caller's contract for `options`.
+        let options = unsafe { options_of(options) }?;
+        // SAFETY: the caller's contract for the buffers.
+        let (positions, tris) = unsafe { mesh.read() }?;
+        let bvh = Bvh::build_mesh(&positions, &tris, &options).map_err(|e| match e {
+            BuildError::Mesh(e) => bad_mesh("indices", e),
+            e => Failure::new(QvStatus::InvalidArgument, format!("options: {e}")),
+        })?;
         let handle = Box::new(QvBvh {
             bvh,
             indices: Some(tris),
@@ -250,6 +344,22 @@ pub unsafe extern "C" fn qv_bvh_load(path: *const c_char, out: *mut *mut QvBvh) 
         // SAFETY: `out` is not NULL and writable (checked by `clear_out`, the caller's
         // contract).
         unsafe { out.write(Box::into_raw(handle)) };
+        Ok(())
+    })
+}
+
+/// The bytes the BVH holds into `*bytes`: its nodes, its leaves' triangles and their ids, and
+/// what it keeps for refits (the core's `Footprint::kept`); not the index buffer kept for
+/// `qv_bvh_refit` nor the handle itself.
+///
+/// # Safety
+/// `bvh` a live handle or NULL; `bytes` writable or NULL.
+#[no_mangle]
+pub unsafe extern "C" fn qv_bvh_footprint(bvh: *const QvBvh, bytes: *mut usize) -> QvStatus {
+    guard("qv_bvh_footprint", || {
+        // SAFETY: the caller's contract for each pointer.
+        let (b, bytes) = unsafe { (get(bvh)?, output(bytes, 1, "bytes")?) };
+        bytes[0].write(b.bvh.footprint().kept);
         Ok(())
     })
 }

@@ -30,17 +30,19 @@ mod types;
 mod world;
 
 pub use bvh::{
-    qv_bvh_any_hit, qv_bvh_any_hits, qv_bvh_build_indexed, qv_bvh_closest_hit, qv_bvh_closest_hits,
-    qv_bvh_closest_point, qv_bvh_free, qv_bvh_load, qv_bvh_refit, qv_bvh_save, QvBvh,
+    qv_bvh_any_hit, qv_bvh_any_hits, qv_bvh_build_indexed, qv_bvh_build_indexed_with,
+    qv_bvh_closest_hit, qv_bvh_closest_hits, qv_bvh_closest_point, qv_bvh_footprint, qv_bvh_free,
+    qv_bvh_load, qv_bvh_refit, qv_bvh_save, QvBvh,
 };
 pub use error::{qv_last_error, QvStatus};
-pub use types::{QvFilterFn, QvHit, QvPointHit, QvRay, QV_INVALID_ID};
+pub use types::{QvBuildOptions, QvFilterFn, QvHit, QvPointHit, QvQuality, QvRay, QV_INVALID_ID};
 pub use world::{
-    qv_world_add_instance, qv_world_any_hit, qv_world_any_hits, qv_world_build,
-    qv_world_builder_add_instance, qv_world_builder_add_mesh, qv_world_builder_add_moving_instance,
-    qv_world_builder_add_moving_mesh, qv_world_builder_free, qv_world_builder_new,
-    qv_world_builder_set_filter, qv_world_closest_hit, qv_world_closest_hits,
-    qv_world_closest_point, qv_world_closest_point_at, qv_world_free, qv_world_load,
+    qv_world_add_instance, qv_world_add_mesh, qv_world_any_hit, qv_world_any_hits, qv_world_build,
+    qv_world_build_with, qv_world_builder_add_instance, qv_world_builder_add_mesh,
+    qv_world_builder_add_moving_instance, qv_world_builder_add_moving_mesh, qv_world_builder_free,
+    qv_world_builder_new, qv_world_builder_set_filter, qv_world_builder_set_options,
+    qv_world_closest_hit, qv_world_closest_hits, qv_world_closest_point, qv_world_closest_point_at,
+    qv_world_footprint, qv_world_free, qv_world_load, qv_world_refit_mesh,
     qv_world_remove_instance, qv_world_save, qv_world_set_mask, qv_world_set_motion,
     qv_world_set_transform, QvWorld, QvWorldBuilder,
 };

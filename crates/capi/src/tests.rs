@@ -1211,3 +1211,605 @@ fn bad_moving_meshes_are_refused_adding_nothing() {
         qv_world_free(world);
     }
 }
+
+/// An `n` by `n` grid of unit squares in the z = 0 plane over `[0, n]²`: square `(x, y)` is
+/// triangles `2 * (y * n + x)` (below its diagonal) and the next (above it).
+fn grid(n: u32) -> (Vec<[f32; 3]>, Vec<[u32; 3]>) {
+    let vertices = (0..=n)
+        .flat_map(|y| (0..=n).map(move |x| [x as f32, y as f32, 0.0]))
+        .collect();
+    let at = |x: u32, y: u32| y * (n + 1) + x;
+    let indices = (0..n)
+        .flat_map(|y| (0..n).map(move |x| (x, y)))
+        .flat_map(|(x, y)| {
+            let (a, b, c, d) = (at(x, y), at(x + 1, y), at(x + 1, y + 1), at(x, y + 1));
+            [[a, b, c], [a, c, d]]
+        })
+        .collect();
+    (vertices, indices)
+}
+
+/// Build options of `quality` and the layout named `layout` (a NUL-terminated name), if any.
+fn options(quality: u32, layout: Option<&std::ffi::CStr>) -> QvBuildOptions {
+    QvBuildOptions {
+        quality,
+        layout: layout.map_or(null(), |l| l.as_ptr()),
+    }
+}
+
+/// As [`build`], with `options` (NULL for the defaults).
+fn build_with(
+    vertices: &[[f32; 3]],
+    indices: &[[u32; 3]],
+    options: *const QvBuildOptions,
+) -> Result<*mut QvBvh, (QvStatus, String)> {
+    let mut out = null_mut();
+    // SAFETY: both buffers are packed and as long as the counts say; `options` is NULL or
+    // the caller's live options.
+    let s = unsafe {
+        qv_bvh_build_indexed_with(
+            vertices.as_ptr().cast(),
+            vertices.len(),
+            12,
+            indices.as_ptr().cast(),
+            indices.len(),
+            12,
+            options,
+            &mut out,
+        )
+    };
+    match s {
+        QvStatus::Ok => Ok(out),
+        s => {
+            assert!(out.is_null());
+            Err((s, last_error()))
+        }
+    }
+}
+
+/// The footprint of `bvh`.
+fn bvh_bytes(bvh: *const QvBvh) -> usize {
+    let mut bytes = 0;
+    // SAFETY: a live handle, one writable size.
+    assert_eq!(unsafe { qv_bvh_footprint(bvh, &mut bytes) }, QvStatus::Ok);
+    bytes
+}
+
+/// The footprint of `world`.
+fn world_bytes(world: *const QvWorld) -> usize {
+    let mut bytes = 0;
+    // SAFETY: a live handle, one writable size.
+    assert_eq!(
+        unsafe { qv_world_footprint(world, &mut bytes) },
+        QvStatus::Ok
+    );
+    bytes
+}
+
+/// Rays straight down over `[-0.2, 7.6] × [-0.2, 1.3]`, some on the squares' edges and
+/// diagonals.
+fn rays_over_two_squares() -> Vec<QvRay> {
+    (0..40 * 16)
+        .map(|i| down((i % 40) as f32 / 5.0 - 0.2, (i / 40) as f32 / 10.0 - 0.2))
+        .collect()
+}
+
+#[test]
+fn build_options_choose_the_preset_and_layout_and_the_hits_stay() {
+    let (verts, tris) = grid(6);
+    let default = build(&verts, &tris).unwrap();
+    let rays: Vec<QvRay> = (0..400)
+        .map(|i| down((i % 20) as f32 * 0.33 - 0.1, (i / 20) as f32 * 0.33 - 0.1))
+        .collect();
+    let layouts = [
+        None,
+        Some(c"bvh4-quant"),
+        Some(c"bvh2-dfs"),
+        Some(c"bvh8-dfs"),
+    ];
+    for quality in [QvQuality::Default, QvQuality::Fast, QvQuality::High] {
+        for layout in layouts {
+            let o = options(quality as u32, layout);
+            let square = build_with(&SQUARE, &INDICES, &o).unwrap();
+            let h = hit(square, down(0.25, 0.75));
+            assert_eq!((h.t, h.prim), (5.0, 1), "{quality:?} {layout:?}");
+            assert_eq!(hit(square, down(0.75, 0.25)).prim, 0);
+            assert_eq!(hit(square, down(1.5, 0.5)), QvHit::MISS);
+            let bvh = build_with(&verts, &tris, &o).unwrap();
+            for &ray in &rays {
+                assert_eq!(hit(bvh, ray), hit(default, ray), "{quality:?} {layout:?}");
+            }
+            // SAFETY: live handles, freed once.
+            unsafe {
+                qv_bvh_free(square);
+                qv_bvh_free(bvh);
+            }
+        }
+    }
+    // NULL options are the defaults, as qv_bvh_build_indexed builds.
+    let null_options = build_with(&verts, &tris, null()).unwrap();
+    assert_eq!(bvh_bytes(null_options), bvh_bytes(default));
+    // A moved square refit through a BVH built with options: 2 higher, t = 3.
+    let quant = build_with(&SQUARE, &INDICES, &options(1, Some(c"bvh4-quant"))).unwrap();
+    let up = SQUARE.map(|[x, y, _]| [x, y, 2.0]);
+    // SAFETY: a live handle; 4 packed vertices.
+    unsafe {
+        assert_eq!(qv_bvh_refit(quant, up.as_ptr().cast(), 4, 12), QvStatus::Ok);
+    }
+    assert_eq!(
+        (
+            hit(quant, down(0.25, 0.75)).t,
+            hit(quant, down(0.25, 0.75)).prim
+        ),
+        (3.0, 1)
+    );
+    // SAFETY: live handles, freed once.
+    unsafe {
+        qv_bvh_free(quant);
+        qv_bvh_free(null_options);
+        qv_bvh_free(default);
+    }
+}
+
+#[test]
+fn bad_build_options_are_refused_naming_the_field() {
+    let (s, msg) = build_with(&SQUARE, &INDICES, &options(0, Some(c"bvh3"))).unwrap_err();
+    assert_eq!(s, QvStatus::InvalidArgument);
+    assert!(
+        msg.starts_with("qv_bvh_build_indexed_with: options.layout: unknown layout 'bvh3'"),
+        "{msg}"
+    );
+    for name in ["bvh8-dfs", "bvh4-quant", "bvh2-dfs", "bvh2-compact-page"] {
+        assert!(msg.contains(name), "{msg}");
+    }
+    // "bvh8" is not a name: the names are exactly Layout::name's.
+    let (s, msg) = build_with(&SQUARE, &INDICES, &options(0, Some(c"bvh8"))).unwrap_err();
+    assert_eq!(s, QvStatus::InvalidArgument, "{msg}");
+    let (s, msg) = build_with(&SQUARE, &INDICES, &options(7, None)).unwrap_err();
+    assert_eq!(s, QvStatus::InvalidArgument);
+    assert_eq!(
+        msg,
+        "qv_bvh_build_indexed_with: options.quality: 7 is not a QvQuality (0 default, 1 fast, \
+         2 high)"
+    );
+    let (s, _) = build_with(&SQUARE, &INDICES, &options(u32::MAX, None)).unwrap_err();
+    assert_eq!(s, QvStatus::InvalidArgument);
+    let not_utf8 = c"bvh\xff";
+    let (s, msg) = build_with(&SQUARE, &INDICES, &options(0, Some(not_utf8))).unwrap_err();
+    assert_eq!(s, QvStatus::InvalidArgument);
+    assert!(msg.ends_with("options.layout: not UTF-8"), "{msg}");
+    // The options are checked as any argument is; a bad mesh is still a bad mesh.
+    let (s, _) = build_with(&SQUARE, &[[0, 1, 9]], &options(1, None)).unwrap_err();
+    assert_eq!(s, QvStatus::BadMesh);
+    // NULL out: refused, nothing read.
+    // SAFETY: packed buffers; a NULL out, which is refused.
+    let s = unsafe {
+        qv_bvh_build_indexed_with(
+            SQUARE.as_ptr().cast(),
+            4,
+            12,
+            INDICES.as_ptr().cast(),
+            2,
+            12,
+            null(),
+            null_mut(),
+        )
+    };
+    assert_eq!(s, QvStatus::NullPointer);
+    assert_eq!(last_error(), "qv_bvh_build_indexed_with: out is NULL");
+}
+
+#[test]
+fn footprints_are_the_rust_structures_totals() {
+    use quiver_rt::{BuildOptions, Bvh, Instance, Layout, World};
+    let (verts, tris) = grid(12);
+    let square = build(&SQUARE, &INDICES).unwrap();
+    let big = build(&verts, &tris).unwrap();
+    assert!(bvh_bytes(square) > 0);
+    assert!(bvh_bytes(big) > bvh_bytes(square));
+    let rust = |v: &[[f32; 3]], t: &[[u32; 3]], o: &BuildOptions<'_>| {
+        Bvh::build_mesh(v, t, o).unwrap().footprint().kept
+    };
+    assert_eq!(
+        bvh_bytes(square),
+        rust(&SQUARE, &INDICES, &BuildOptions::default())
+    );
+    assert_eq!(
+        bvh_bytes(big),
+        rust(&verts, &tris, &BuildOptions::default())
+    );
+    let quant = build_with(&verts, &tris, &options(1, Some(c"bvh4-quant"))).unwrap();
+    let fast_quant = BuildOptions::fast().layout(Layout::Bvh4Quant);
+    assert_eq!(bvh_bytes(quant), rust(&verts, &tris, &fast_quant));
+    assert_ne!(bvh_bytes(quant), bvh_bytes(big));
+
+    // The world of two squares, and the same built in Rust.
+    let world = two_squares(None, null_mut());
+    let mut b = World::builder();
+    let g = b.add_mesh(&SQUARE, &INDICES).unwrap();
+    b.add_instance(Instance::of(g));
+    b.add_instance(
+        Instance::of(g).transform(quiver_rt::glam::Affine3A::from_translation(
+            [2.0, 0.0, 0.0].into(),
+        )),
+    );
+    let rust_world = b.build(&BuildOptions::default()).unwrap();
+    assert_eq!(world_bytes(world), rust_world.footprint().kept);
+    assert!(world_bytes(world) > bvh_bytes(square));
+
+    let mut bytes = 7;
+    // SAFETY: live handles; NULLs where refused.
+    unsafe {
+        assert_eq!(qv_bvh_footprint(null(), &mut bytes), QvStatus::NullPointer);
+        assert_eq!(last_error(), "qv_bvh_footprint: bvh is NULL");
+        assert_eq!(qv_bvh_footprint(square, null_mut()), QvStatus::NullPointer);
+        assert_eq!(last_error(), "qv_bvh_footprint: bytes is NULL");
+        assert_eq!(
+            qv_world_footprint(null(), &mut bytes),
+            QvStatus::NullPointer
+        );
+        assert_eq!(qv_world_footprint(world, null_mut()), QvStatus::NullPointer);
+        assert_eq!(last_error(), "qv_world_footprint: bytes is NULL");
+        assert_eq!(bytes, 7);
+        qv_bvh_free(square);
+        qv_bvh_free(big);
+        qv_bvh_free(quant);
+        qv_world_free(world);
+    }
+}
+
+/// A builder holding the square (geometry 0) placed as [`two_squares`] places it: instance
+/// 0 at the origin (mask 1), instance 1 moved by (2, 0, 0) (mask 2).
+fn two_squares_builder() -> *mut QvWorldBuilder {
+    let (mut b, mut g, mut i) = (null_mut(), 0, 0);
+    let moved = [1., 0., 0., 2., 0., 1., 0., 0., 0., 0., 1., 0.];
+    // SAFETY: a live handle, packed buffers, 12-float transforms, writable outs.
+    unsafe {
+        assert_eq!(qv_world_builder_new(&mut b), QvStatus::Ok);
+        let s = qv_world_builder_add_mesh(
+            b,
+            SQUARE.as_ptr().cast(),
+            4,
+            12,
+            INDICES.as_ptr().cast(),
+            2,
+            12,
+            &mut g,
+        );
+        assert_eq!((s, g), (QvStatus::Ok, 0));
+        assert_eq!(
+            qv_world_builder_add_instance(b, g, IDENTITY.as_ptr(), 1, &mut i),
+            QvStatus::Ok
+        );
+        assert_eq!(
+            qv_world_builder_add_instance(b, g, moved.as_ptr(), 2, &mut i),
+            QvStatus::Ok
+        );
+    }
+    b
+}
+
+#[test]
+fn a_world_built_with_options_answers_as_the_default() {
+    let default = two_squares(None, null_mut());
+    let rays = rays_over_two_squares();
+    let quant = options(QvQuality::Fast as u32, Some(c"bvh4-quant"));
+    let binary = options(QvQuality::High as u32, Some(c"bvh2-dfs"));
+    for own in [None, Some(&binary)] {
+        let b = two_squares_builder();
+        let mut world = null_mut();
+        // SAFETY: a live builder, consumed by the build; live options; a writable out.
+        unsafe {
+            if let Some(own) = own {
+                assert_eq!(qv_world_builder_set_options(b, 0, own), QvStatus::Ok);
+            }
+            assert_eq!(qv_world_build_with(b, &quant, &mut world), QvStatus::Ok);
+        }
+        let h = world_hit(world, down(2.25, 0.75));
+        assert_eq!((h.t, h.prim, h.geometry, h.instance), (5.0, 1, 0, 1));
+        for &ray in &rays {
+            assert_eq!(world_hit(world, ray), world_hit(default, ray), "{ray:?}");
+        }
+        // SAFETY: a live handle, freed once.
+        unsafe { qv_world_free(world) };
+    }
+    // A world built with NULL options is the default one.
+    let b = two_squares_builder();
+    let mut world = null_mut();
+    // SAFETY: a live builder, consumed; a writable out.
+    unsafe {
+        assert_eq!(qv_world_build_with(b, null(), &mut world), QvStatus::Ok);
+    }
+    assert_eq!(world_bytes(world), world_bytes(default));
+    // SAFETY: live handles, freed once.
+    unsafe {
+        qv_world_free(world);
+        qv_world_free(default);
+    }
+}
+
+#[test]
+fn bad_world_build_options_are_refused() {
+    let b = two_squares_builder();
+    let bad_layout = options(0, Some(c"bvh9"));
+    // SAFETY: a live builder; options and NULLs as the test says.
+    unsafe {
+        assert_eq!(
+            qv_world_builder_set_options(b, 0, null()),
+            QvStatus::NullPointer
+        );
+        assert_eq!(
+            last_error(),
+            "qv_world_builder_set_options: options is NULL"
+        );
+        assert_eq!(
+            qv_world_builder_set_options(null_mut(), 0, &options(0, None)),
+            QvStatus::NullPointer
+        );
+        assert_eq!(
+            qv_world_builder_set_options(b, 3, &options(0, None)),
+            QvStatus::InvalidArgument
+        );
+        assert!(last_error().contains("geometry 3"), "{}", last_error());
+        assert_eq!(
+            qv_world_builder_set_options(b, 0, &bad_layout),
+            QvStatus::InvalidArgument
+        );
+        assert!(
+            last_error().starts_with("qv_world_builder_set_options: options.layout"),
+            "{}",
+            last_error()
+        );
+        // NULL out: nothing consumed, so the builder is still ours to build.
+        assert_eq!(
+            qv_world_build_with(b, &options(9, None), null_mut()),
+            QvStatus::NullPointer
+        );
+        // Refused options: refused, and the builder consumed (as a failed build consumes it).
+        let mut world = std::ptr::dangling_mut::<QvWorld>();
+        assert_eq!(
+            qv_world_build_with(b, &options(9, None), &mut world),
+            QvStatus::InvalidArgument
+        );
+        assert!(world.is_null());
+        assert_eq!(
+            last_error(),
+            "qv_world_build_with: options.quality: 9 is not a QvQuality (0 default, 1 fast, 2 high)"
+        );
+        let b = two_squares_builder();
+        assert_eq!(
+            qv_world_build_with(b, &bad_layout, &mut world),
+            QvStatus::InvalidArgument
+        );
+        assert!(
+            last_error().starts_with("qv_world_build_with: options.layout: unknown layout 'bvh9'"),
+            "{}",
+            last_error()
+        );
+        assert!(world.is_null());
+    }
+}
+
+/// Adds the square, moved by `lift` along z, to `world` as a new geometry built with
+/// `options` (NULL: the defaults).
+fn add_square(
+    world: *mut QvWorld,
+    lift: f32,
+    options: *const QvBuildOptions,
+) -> Result<u32, (QvStatus, String)> {
+    let verts = SQUARE.map(|[x, y, z]| [x, y, z + lift]);
+    let mut g = QV_INVALID_ID;
+    // SAFETY: packed buffers as long as their counts; the caller's handle and options.
+    let s = unsafe {
+        qv_world_add_mesh(
+            world,
+            verts.as_ptr().cast(),
+            4,
+            12,
+            INDICES.as_ptr().cast(),
+            2,
+            12,
+            options,
+            &mut g,
+        )
+    };
+    match s {
+        QvStatus::Ok => Ok(g),
+        s => Err((s, last_error())),
+    }
+}
+
+/// Refits geometry `geometry` of `world` to the square moved by `lift` along z.
+fn refit_square(world: *mut QvWorld, geometry: u32, lift: f32) -> (QvStatus, String) {
+    let verts = SQUARE.map(|[x, y, z]| [x, y, z + lift]);
+    // SAFETY: 4 packed vertices; the caller's handle.
+    let s = unsafe { qv_world_refit_mesh(world, geometry, verts.as_ptr().cast(), 4, 12) };
+    (s, last_error())
+}
+
+#[test]
+fn add_mesh_and_refit_mesh_edit_a_built_world() {
+    let world = two_squares(None, null_mut());
+    let far = down(5.75, 0.25);
+    assert_eq!(world_hit(world, far), QvHit::MISS);
+    let bytes = world_bytes(world);
+    let g = add_square(world, 0.0, &options(1, Some(c"bvh4-quant"))).unwrap();
+    assert_eq!(g, 1);
+    assert!(world_bytes(world) > bytes);
+    // Added, not yet placed.
+    assert_eq!(world_hit(world, far), QvHit::MISS);
+    let at5 = [1., 0., 0., 5., 0., 1., 0., 0., 0., 0., 1., 0.];
+    let mut i = 0;
+    // SAFETY: a live handle, a 12-float transform, a writable id.
+    unsafe {
+        assert_eq!(
+            qv_world_add_instance(world, g, at5.as_ptr(), u32::MAX, &mut i),
+            QvStatus::Ok
+        );
+    }
+    assert_eq!(i, 2);
+    let h = world_hit(world, far);
+    assert_eq!((h.t, h.prim, h.geometry, h.instance), (5.0, 0, 1, 2));
+
+    // Refits: the new geometry up by 2 (t = 3); the first one down by 1, both its instances.
+    assert_eq!(refit_square(world, 1, 2.0), (QvStatus::Ok, String::new()));
+    assert_eq!(world_hit(world, far).t, 3.0);
+    assert_eq!(refit_square(world, 0, -1.0), (QvStatus::Ok, String::new()));
+    let h = world_hit(world, down(2.25, 0.75));
+    assert_eq!((h.t, h.prim, h.geometry, h.instance), (6.0, 1, 0, 1));
+    assert_eq!(world_hit(world, down(0.75, 0.25)).t, 6.0);
+
+    // Refused refits change nothing.
+    let check_unchanged = || {
+        assert_eq!(world_hit(world, far).t, 3.0);
+        assert_eq!(world_hit(world, down(0.25, 0.75)).t, 6.0);
+    };
+    let (s, msg) = refit_square(world, 9, 0.0);
+    assert_eq!(s, QvStatus::InvalidArgument);
+    assert_eq!(
+        msg,
+        "qv_world_refit_mesh: geometry: 9 does not exist (the world has 2)"
+    );
+    let mut bad = SQUARE;
+    bad[3][2] = f32::NAN;
+    // SAFETY: a live handle; packed vertices, or a NULL, or too few for the indices.
+    unsafe {
+        assert_eq!(
+            qv_world_refit_mesh(world, 0, bad.as_ptr().cast(), 4, 12),
+            QvStatus::BadMesh
+        );
+        assert!(last_error().contains("vertex 3"), "{}", last_error());
+        assert_eq!(
+            qv_world_refit_mesh(world, 0, SQUARE.as_ptr().cast(), 2, 12),
+            QvStatus::BadMesh
+        );
+        assert!(
+            last_error().starts_with("qv_world_refit_mesh: vertices: geometry 0"),
+            "{}",
+            last_error()
+        );
+        assert_eq!(
+            qv_world_refit_mesh(world, 0, SQUARE.as_ptr().cast(), 4, 8),
+            QvStatus::BadMesh
+        );
+        assert_eq!(
+            qv_world_refit_mesh(world, 0, null(), 4, 12),
+            QvStatus::NullPointer
+        );
+        assert_eq!(last_error(), "qv_world_refit_mesh: vertices is NULL");
+        assert_eq!(
+            qv_world_refit_mesh(null_mut(), 0, SQUARE.as_ptr().cast(), 4, 12),
+            QvStatus::NullPointer
+        );
+    }
+    check_unchanged();
+
+    // Refused additions add nothing: the next geometry is still 2.
+    let (s, msg) = add_square(world, 0.0, &options(3, None)).unwrap_err();
+    assert_eq!(s, QvStatus::InvalidArgument);
+    assert!(msg.contains("options.quality"), "{msg}");
+    let mut g2 = 7;
+    // SAFETY: a live handle; a bad index, NULLs where refused.
+    unsafe {
+        let s = qv_world_add_mesh(
+            world,
+            SQUARE.as_ptr().cast(),
+            4,
+            12,
+            [[0u32, 1, 4]].as_ptr().cast(),
+            1,
+            12,
+            null(),
+            &mut g2,
+        );
+        assert_eq!(s, QvStatus::BadMesh);
+        assert!(last_error().contains("triangle 0"), "{}", last_error());
+        let s = qv_world_add_mesh(
+            world,
+            SQUARE.as_ptr().cast(),
+            4,
+            12,
+            INDICES.as_ptr().cast(),
+            2,
+            12,
+            null(),
+            null_mut(),
+        );
+        assert_eq!(s, QvStatus::NullPointer);
+        assert_eq!(last_error(), "qv_world_add_mesh: geometry_id is NULL");
+        let s = qv_world_add_mesh(
+            null_mut(),
+            SQUARE.as_ptr().cast(),
+            4,
+            12,
+            INDICES.as_ptr().cast(),
+            2,
+            12,
+            null(),
+            &mut g2,
+        );
+        assert_eq!(s, QvStatus::NullPointer);
+        assert_eq!(last_error(), "qv_world_add_mesh: world is NULL");
+    }
+    assert_eq!(g2, 7);
+    check_unchanged();
+    assert_eq!(add_square(world, 0.0, null()), Ok(2));
+    // SAFETY: a live handle, freed once.
+    unsafe { qv_world_free(world) };
+}
+
+#[test]
+fn refit_mesh_is_refused_for_loaded_worlds_and_moving_meshes() {
+    let dir = std::env::temp_dir().join(format!("quiver-capi-refit-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = std::ffi::CString::new(dir.join("w.qwld").to_str().unwrap()).unwrap();
+    let world = two_squares(None, null_mut());
+    let mut loaded = null_mut();
+    // SAFETY: a live handle, a NUL-terminated path, a writable out.
+    unsafe {
+        assert_eq!(qv_world_save(world, path.as_ptr()), QvStatus::Ok);
+        assert_eq!(qv_world_load(path.as_ptr(), &mut loaded), QvStatus::Ok);
+    }
+    let (s, msg) = refit_square(loaded, 0, 1.0);
+    assert_eq!(s, QvStatus::InvalidArgument);
+    assert!(msg.contains("keeps no index buffer"), "{msg}");
+    assert!(msg.contains("loaded from a file"), "{msg}");
+    assert_eq!(world_hit(loaded, down(0.25, 0.75)).t, 5.0);
+    // A mesh added to the loaded world keeps its indices: it refits.
+    let g = add_square(loaded, 0.0, null()).unwrap();
+    assert_eq!(g, 1);
+    let mut i = 0;
+    let at5 = [1., 0., 0., 5., 0., 1., 0., 0., 0., 0., 1., 0.];
+    // SAFETY: a live handle, a 12-float transform, a writable id.
+    unsafe {
+        assert_eq!(
+            qv_world_add_instance(loaded, g, at5.as_ptr(), u32::MAX, &mut i),
+            QvStatus::Ok
+        );
+    }
+    assert_eq!(refit_square(loaded, g, 2.0), (QvStatus::Ok, String::new()));
+    assert_eq!(world_hit(loaded, down(5.75, 0.25)).t, 3.0);
+
+    // A moving mesh is not refit by qv_world_refit_mesh.
+    let (mut b, mut moving) = (null_mut(), null_mut());
+    // SAFETY: live handles, buffers as long as their counts, writable outs.
+    unsafe {
+        assert_eq!(qv_world_builder_new(&mut b), QvStatus::Ok);
+        let g = add_moving(b, &moving_square(), 4, 3, &INDICES).unwrap();
+        assert_eq!(
+            qv_world_builder_add_instance(b, g, IDENTITY.as_ptr(), 1, &mut i),
+            QvStatus::Ok
+        );
+        assert_eq!(qv_world_build(b, &mut moving), QvStatus::Ok);
+    }
+    let (s, msg) = refit_square(moving, 0, 1.0);
+    assert_eq!(s, QvStatus::InvalidArgument);
+    assert!(msg.contains("moving mesh"), "{msg}");
+    // SAFETY: live handles, freed once.
+    unsafe {
+        qv_world_free(world);
+        qv_world_free(loaded);
+        qv_world_free(moving);
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -1,11 +1,12 @@
 //! The plain structs C passes and receives, and their conversions to and from the core's
 //! types.
 
+use crate::error::{Failure, QvStatus};
 use quiver_rt::glam::{Affine3A, Vec3A};
 use quiver_rt::point::PointHit;
 use quiver_rt::world::WorldPointHit;
-use quiver_rt::{Hit, Ray, WorldHit};
-use std::ffi::{c_int, c_void};
+use quiver_rt::{BuildOptions, Hit, Layout, Ray, WorldHit};
+use std::ffi::{c_char, c_int, c_void, CStr};
 
 /// The id a hit reports where it names nothing: no hit, or the geometry and instance of a
 /// hit in a lone BVH (`UINT32_MAX`, `QV_INVALID_ID` in C).
@@ -174,4 +175,81 @@ pub(crate) fn affine_of_rows(m: &[f32; 12]) -> Affine3A {
         m[2], m[6], m[10], // third column
         m[3], m[7], m[11], // translation
     ])
+}
+
+/// A build preset, [`QvBuildOptions::quality`]'s values.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum QvQuality {
+    /// `BuildOptions::default()`: binned SAH.
+    Default = 0,
+    /// `BuildOptions::fast()`: the LBVH builder, several times faster to build.
+    Fast = 1,
+    /// `BuildOptions::high_quality()`: spatial splits, slower to build, faster to trace
+    /// where triangles are long or overlap.
+    High = 2,
+}
+
+impl QvQuality {
+    /// Every preset, in the order of their values.
+    pub(crate) const ALL: [QvQuality; 3] = [QvQuality::Default, QvQuality::Fast, QvQuality::High];
+}
+
+/// How a BVH is built: a preset and, optionally, a layout other than the preset's.
+///
+/// `quality` is a `uint32_t` rather than the C enum so that a value outside [`QvQuality`]
+/// arrives as a number to refuse, not as an invalid Rust enum.
+#[repr(C)]
+#[derive(Clone, Copy, Debug)]
+pub struct QvBuildOptions {
+    /// A [`QvQuality`] value.
+    pub quality: u32,
+    /// NULL for the preset's layout, else a NUL-terminated layout name as quiver's CLI spells
+    /// it (`Layout::name`: `"bvh8-dfs"`, `"bvh4-quant"`, `"bvh2-dfs"`, ...).
+    pub layout: *const c_char,
+}
+
+/// The core's build options for the C options at `options` (NULL: the defaults); refusals
+/// name `options.quality` or `options.layout`.
+///
+/// # Safety
+/// `options` is NULL or readable for one `QvBuildOptions`, whose `layout` is NULL or a
+/// NUL-terminated string.
+pub(crate) unsafe fn options_of(
+    options: *const QvBuildOptions,
+) -> Result<BuildOptions<'static>, Failure> {
+    let bad = |why: String| Failure::new(QvStatus::InvalidArgument, why);
+    if options.is_null() {
+        return Ok(BuildOptions::default());
+    }
+    // SAFETY: not NULL (checked), readable (the caller's contract); read unaligned, as a C
+    // caller may hand any address, and every bit pattern is a valid `QvBuildOptions`.
+    let o = unsafe { options.read_unaligned() };
+    let preset = match QvQuality::ALL.get(o.quality as usize) {
+        Some(QvQuality::Default) => BuildOptions::default(),
+        Some(QvQuality::Fast) => BuildOptions::fast(),
+        Some(QvQuality::High) => BuildOptions::high_quality(),
+        None => {
+            return Err(bad(format!(
+                "options.quality: {} is not a QvQuality (0 default, 1 fast, 2 high)",
+                o.quality
+            )))
+        }
+    };
+    if o.layout.is_null() {
+        return Ok(preset);
+    }
+    // SAFETY: not NULL (checked), NUL-terminated (the caller's contract).
+    let name = unsafe { CStr::from_ptr(o.layout) };
+    let name = name
+        .to_str()
+        .map_err(|_| bad("options.layout: not UTF-8".to_string()))?;
+    let layout: Layout = name.parse().map_err(|e: quiver_rt::names::ParseError| {
+        bad(format!(
+            "options.layout: unknown layout '{}': expected one of {}",
+            e.given,
+            e.expected.join(", ")
+        ))
+    })?;
+    Ok(preset.layout(layout))
 }

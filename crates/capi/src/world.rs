@@ -2,28 +2,44 @@
 //! edits.
 
 use crate::buffers::{bad_mesh, input, output, read_indices, read_vertices};
+use crate::bvh::Mesh;
 use crate::error::{free_handle, guard, non_null, Failure, QvStatus};
 use crate::files::{self, path_of};
 use crate::trace;
-use crate::types::{affine_of_rows, QvFilterFn, QvHit, QvPointHit, QvRay};
+use crate::types::{
+    affine_of_rows, options_of, QvBuildOptions, QvFilterFn, QvHit, QvPointHit, QvRay,
+};
 use quiver_rt::glam::{Affine3A, Vec3A};
-use quiver_rt::world::{invert, WorldEdit, WorldPointHit, MAX_MOTION_KEYS};
+use quiver_rt::world::{invert, Geometry, WorldEdit, WorldPointHit, MAX_MOTION_KEYS};
 use quiver_rt::{
-    BuildOptions, GeometryId, Instance, InstanceId, Motion, Triangle, World, WorldBuilder,
-    WorldError, WorldHit,
+    GeometryId, Instance, InstanceId, Motion, Triangle, World, WorldBuilder, WorldError, WorldHit,
 };
 use std::ffi::{c_char, c_int, c_void};
 
 /// A world being collected: meshes, instances, filters (opaque to C).
 pub struct QvWorldBuilder {
     builder: WorldBuilder,
-    /// The geometries added so far, to refuse an instance of a missing one at once.
-    geometries: u32,
+    /// Each geometry's index buffer (a mesh's) or `None` (a moving mesh's), in the order
+    /// added: what the built world keeps for `qv_world_refit_mesh`, and how many geometries
+    /// there are, to refuse an instance of a missing one at once.
+    indices: Vec<Option<Vec<[u32; 3]>>>,
 }
 
-/// A built world (opaque to C).
+impl QvWorldBuilder {
+    /// The geometries added so far.
+    fn geometries(&self) -> u32 {
+        // At most `u32::MAX - 1`: the add functions refuse more.
+        self.indices.len() as u32
+    }
+}
+
+/// A built world (opaque to C), with its mesh geometries' index buffers kept for refits.
 pub struct QvWorld {
     world: World,
+    /// Geometry `g`'s index buffer at `g`, for `qv_world_refit_mesh`: `None` (or past the
+    /// end) for a moving mesh and for every geometry of a world loaded from a file (the file
+    /// format holds triangles, not indices).
+    indices: Vec<Option<Vec<[u32; 3]>>>,
 }
 
 /// A filter's `user` pointer, shared by every thread that queries the world.
@@ -72,10 +88,19 @@ impl trace::Traced for QvWorld {
 /// # Safety
 /// `w` is NULL or a live world handle no other thread uses during the call.
 unsafe fn world_mut<'a>(w: *mut QvWorld) -> Result<&'a mut World, Failure> {
+    // SAFETY: the caller's contract.
+    Ok(unsafe { &mut handle_mut(w)?.world })
+}
+
+/// The handle `w`, to edit its world and what it keeps beside it.
+///
+/// # Safety
+/// As [`world_mut`].
+unsafe fn handle_mut<'a>(w: *mut QvWorld) -> Result<&'a mut QvWorld, Failure> {
     non_null(w, "world")?;
     // SAFETY: not NULL (checked); a live handle used by no other thread (the caller's
     // contract), so this is the only reference.
-    Ok(unsafe { &mut (*w).world })
+    Ok(unsafe { &mut *w })
 }
 
 /// The status and message for a world's refusal.
@@ -152,7 +177,7 @@ pub unsafe extern "C" fn qv_world_builder_new(out: *mut *mut QvWorldBuilder) -> 
         non_null(out, "out")?;
         let handle = Box::new(QvWorldBuilder {
             builder: WorldBuilder::new(),
-            geometries: 0,
+            indices: Vec::new(),
         });
         // SAFETY: not NULL (checked) and writable (the caller's contract).
         unsafe { out.write(Box::into_raw(handle)) };
@@ -201,7 +226,7 @@ pub unsafe extern "C" fn qv_world_builder_add_mesh(
         // SAFETY: as above.
         let tris =
             unsafe { read_indices(indices, triangle_count, index_stride_bytes, vertex_count) }?;
-        if b.geometries == u32::MAX - 1 {
+        if b.geometries() == u32::MAX - 1 {
             return Err(world_failure(WorldError::TooMany));
         }
         // Checked above, so the builder never records a bad mesh (which would fail its build).
@@ -209,7 +234,7 @@ pub unsafe extern "C" fn qv_world_builder_add_mesh(
             .builder
             .add_mesh(&positions, &tris)
             .map_err(|e| bad_mesh("indices", e))?;
-        b.geometries += 1;
+        b.indices.push(Some(tris));
         id[0].write(g.0);
         Ok(())
     })
@@ -278,7 +303,7 @@ pub unsafe extern "C" fn qv_world_builder_add_moving_mesh(
         // SAFETY: as above.
         let tris =
             unsafe { read_indices(indices, triangle_count, index_stride_bytes, vertex_count) }?;
-        if b.geometries == u32::MAX - 1 {
+        if b.geometries() == u32::MAX - 1 {
             return Err(world_failure(WorldError::TooMany));
         }
         let steps: Vec<Vec<Triangle>> = (0..step_count)
@@ -298,7 +323,7 @@ pub unsafe extern "C" fn qv_world_builder_add_moving_mesh(
             .builder
             .add_moving_triangles(steps)
             .map_err(world_failure)?;
-        b.geometries += 1;
+        b.indices.push(None);
         id[0].write(g.0);
         Ok(())
     })
@@ -328,12 +353,12 @@ pub unsafe extern "C" fn qv_world_builder_add_instance(
                 output(instance_id, 1, "instance_id")?,
             )
         };
-        if geometry >= b.geometries {
+        if geometry >= b.geometries() {
             return Err(Failure::new(
                 QvStatus::InvalidArgument,
                 format!(
                     "geometry: {geometry} does not exist (the builder has {})",
-                    b.geometries
+                    b.geometries()
                 ),
             ));
         }
@@ -373,12 +398,12 @@ pub unsafe extern "C" fn qv_world_builder_add_moving_instance(
                 output(instance_id, 1, "instance_id")?,
             )
         };
-        if geometry >= b.geometries {
+        if geometry >= b.geometries() {
             return Err(Failure::new(
                 QvStatus::InvalidArgument,
                 format!(
                     "geometry: {geometry} does not exist (the builder has {})",
-                    b.geometries
+                    b.geometries()
                 ),
             ));
         }
@@ -423,9 +448,35 @@ pub unsafe extern "C" fn qv_world_builder_set_filter(
     })
 }
 
+/// Gives geometry `geometry` its own build options (`*options`, read as
+/// `qv_bvh_build_indexed_with` reads them), used rather than those `qv_world_build_with` is
+/// given. Replaces earlier options.
+///
+/// # Safety
+/// `builder` a live builder handle or NULL; `options` NULL or readable, its `layout` NULL or
+/// a NUL-terminated string.
+#[no_mangle]
+pub unsafe extern "C" fn qv_world_builder_set_options(
+    builder: *mut QvWorldBuilder,
+    geometry: u32,
+    options: *const QvBuildOptions,
+) -> QvStatus {
+    guard("qv_world_builder_set_options", || {
+        // SAFETY: the caller's contract for `builder`.
+        let b = unsafe { builder_mut(builder) }?;
+        non_null(options, "options")?;
+        // SAFETY: not NULL (checked); the caller's contract for what it points to.
+        let options = unsafe { options_of(options) }?;
+        b.builder
+            .set_options(GeometryId(geometry), &options)
+            .map_err(world_failure)
+    })
+}
+
 /// Builds the world (every geometry's BVH and the top level, on rayon's global pool) and
 /// consumes the builder, whether or not the build succeeds (except when `builder` or `out` is
 /// NULL: then nothing is consumed). `*out` is the world's handle, else NULL.
+/// `qv_world_build_with` with the default options.
 ///
 /// # Safety
 /// `builder` a live builder handle no other thread uses, or NULL; not used again unless this
@@ -435,20 +486,54 @@ pub unsafe extern "C" fn qv_world_build(
     builder: *mut QvWorldBuilder,
     out: *mut *mut QvWorld,
 ) -> QvStatus {
-    guard("qv_world_build", || {
+    // SAFETY: the caller's contract, which `build` asks; no options.
+    unsafe { build("qv_world_build", builder, std::ptr::null(), out) }
+}
+
+/// As `qv_world_build`, with `*options` (NULL: the defaults) for the top level and every
+/// geometry without options of its own. Refused options consume the builder too.
+///
+/// # Safety
+/// As `qv_world_build`; `options` NULL or readable, its `layout` NULL or a NUL-terminated
+/// string.
+#[no_mangle]
+pub unsafe extern "C" fn qv_world_build_with(
+    builder: *mut QvWorldBuilder,
+    options: *const QvBuildOptions,
+    out: *mut *mut QvWorld,
+) -> QvStatus {
+    // SAFETY: the caller's contract, which `build` asks.
+    unsafe { build("qv_world_build_with", builder, options, out) }
+}
+
+/// The body of exported function `name`: the world `builder` builds with `options`, into
+/// `*out`; consumes the builder unless `builder` or `out` is NULL.
+///
+/// # Safety
+/// `builder` a live builder handle no other thread uses, or NULL; `options` NULL or a
+/// readable `QvBuildOptions` whose `layout` is NULL or NUL-terminated; `out` NULL or
+/// writable.
+unsafe fn build(
+    name: &str,
+    builder: *mut QvWorldBuilder,
+    options: *const QvBuildOptions,
+    out: *mut *mut QvWorld,
+) -> QvStatus {
+    guard(name, || {
         non_null(out, "out")?;
         non_null(builder, "builder")?;
         // SAFETY: `out` is not NULL (checked) and writable (the caller's contract).
         unsafe { out.write(std::ptr::null_mut()) };
         // SAFETY: a live builder handle is a `Box` from `Box::into_raw`, given back once (the
-        // contract: the builder is consumed here) and used by no other thread.
+        // contract: the builder is consumed here) and used by no other thread. Taken before
+        // the options are read, so that refused options consume it as a failed build does.
         let b = unsafe { Box::from_raw(builder) };
-        let world = b
-            .builder
-            .build(&BuildOptions::default())
-            .map_err(world_failure)?;
+        // SAFETY: the caller's contract for `options`.
+        let options = unsafe { options_of(options) }?;
+        let QvWorldBuilder { builder, indices } = *b;
+        let world = builder.build(&options).map_err(world_failure)?;
         // SAFETY: as above for `out`.
-        unsafe { out.write(Box::into_raw(Box::new(QvWorld { world }))) };
+        unsafe { out.write(Box::into_raw(Box::new(QvWorld { world, indices }))) };
         Ok(())
     })
 }
@@ -567,8 +652,12 @@ pub unsafe extern "C" fn qv_world_load(path: *const c_char, out: *mut *mut QvWor
         // SAFETY: the caller's contract for `path`.
         let path = unsafe { path_of(path)? };
         let world = files::load(&path, World::from_bytes)?;
+        let handle = QvWorld {
+            world,
+            indices: Vec::new(),
+        };
         // SAFETY: as above for `out`.
-        unsafe { out.write(Box::into_raw(Box::new(QvWorld { world }))) };
+        unsafe { out.write(Box::into_raw(Box::new(handle))) };
         Ok(())
     })
 }
@@ -751,5 +840,121 @@ pub unsafe extern "C" fn qv_world_add_instance(
         let i = edit(w, |e| e.add_instance(instance))?;
         id[0].write(i.0);
         Ok(())
+    })
+}
+
+/// The bytes the world holds into `*bytes`: the top level, every geometry's BVH and
+/// triangles once (however many instances place it), the instance records and motion keys
+/// (the core's `World::footprint().kept`); not the index buffers kept for
+/// `qv_world_refit_mesh`, filters, nor the handle itself.
+///
+/// # Safety
+/// `world` a live world handle or NULL; `bytes` writable or NULL.
+#[no_mangle]
+pub unsafe extern "C" fn qv_world_footprint(world: *const QvWorld, bytes: *mut usize) -> QvStatus {
+    guard("qv_world_footprint", || {
+        non_null(world, "world")?;
+        // SAFETY: the caller's contract for each pointer; `world` is not NULL (checked) and
+        // live.
+        let (w, bytes) = unsafe { (&(*world).world, output(bytes, 1, "bytes")?) };
+        bytes[0].write(w.footprint().kept);
+        Ok(())
+    })
+}
+
+/// Adds an indexed triangle mesh (buffers as `qv_world_builder_add_mesh` reads them) to the
+/// built world as a new geometry, its BVH built now with `*options` (NULL: the defaults), as
+/// one committed edit; `*geometry_id` is its id, one past the last. Instance it with
+/// `qv_world_add_instance`.
+///
+/// # Safety
+/// `world` a live world handle no other thread uses during the call, or NULL; the buffers
+/// NULL or readable for their counts and strides; `options` NULL or readable, its `layout`
+/// NULL or a NUL-terminated string; `geometry_id` NULL or writable.
+#[no_mangle]
+#[allow(clippy::too_many_arguments)]
+pub unsafe extern "C" fn qv_world_add_mesh(
+    world: *mut QvWorld,
+    vertices: *const f32,
+    vertex_count: usize,
+    vertex_stride_bytes: usize,
+    indices: *const u32,
+    triangle_count: usize,
+    index_stride_bytes: usize,
+    options: *const QvBuildOptions,
+    geometry_id: *mut u32,
+) -> QvStatus {
+    let mesh = Mesh {
+        vertices,
+        vertex_count,
+        vertex_stride_bytes,
+        indices,
+        triangle_count,
+        index_stride_bytes,
+    };
+    guard("qv_world_add_mesh", || {
+        // SAFETY: the caller's contract for each pointer.
+        let (w, id, options, (positions, tris)) = unsafe {
+            (
+                handle_mut(world)?,
+                output(geometry_id, 1, "geometry_id")?,
+                options_of(options)?,
+                mesh.read()?,
+            )
+        };
+        let g = edit(&mut w.world, |e| e.add_mesh(&positions, &tris, &options))?;
+        let g_index = g.0 as usize;
+        if w.indices.len() < g_index {
+            w.indices.resize(g_index, None);
+        }
+        w.indices.push(Some(tris));
+        id[0].write(g.0);
+        Ok(())
+    })
+}
+
+/// Refits mesh geometry `geometry` to new vertex positions for the same triangles (the index
+/// buffer it was added with, kept since; vertices read as `qv_world_builder_add_mesh` reads
+/// them), as one committed edit: every instance placing it follows.
+///
+/// # Safety
+/// `world` a live world handle no other thread uses during the call, or NULL; `vertices` NULL
+/// or readable for `vertex_count` vertices `vertex_stride_bytes` apart.
+#[no_mangle]
+pub unsafe extern "C" fn qv_world_refit_mesh(
+    world: *mut QvWorld,
+    geometry: u32,
+    vertices: *const f32,
+    vertex_count: usize,
+    vertex_stride_bytes: usize,
+) -> QvStatus {
+    guard("qv_world_refit_mesh", || {
+        // SAFETY: the caller's contract for `world`.
+        let w = unsafe { handle_mut(world) }?;
+        let bad = |why: String| Failure::new(QvStatus::InvalidArgument, why);
+        let n = w.world.geometries().len();
+        let Some(kind) = w.world.geometries().get(geometry as usize) else {
+            return Err(bad(format!(
+                "geometry: {geometry} does not exist (the world has {n})"
+            )));
+        };
+        if let Geometry::MovingTriangles(_) = kind {
+            return Err(bad(format!(
+                "geometry: {geometry} is a moving mesh, which qv_world_refit_mesh does not refit"
+            )));
+        }
+        let Some(Some(indices)) = w.indices.get(geometry as usize) else {
+            return Err(bad(format!(
+                "geometry: {geometry} keeps no index buffer to refit with (its world was \
+                 loaded from a file; add meshes with qv_world_builder_add_mesh or \
+                 qv_world_add_mesh to refit them)"
+            )));
+        };
+        // SAFETY: the caller's contract for the buffer.
+        let positions = unsafe { read_vertices(vertices, vertex_count, vertex_stride_bytes) }?;
+        edit(&mut w.world, |e| {
+            e.refit_mesh(GeometryId(geometry), &positions, indices)
+        })
+        .map_err(|f| Failure::new(f.status, format!("vertices: {}", f.message)))
     })
 }

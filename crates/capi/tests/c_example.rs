@@ -170,12 +170,30 @@ fn the_c_example_answers_as_the_rust_api() {
     };
     // The C compiler lays the structs out at the sizes the library uses.
     let sizes = format!(
-        "sizes QvRay {} QvHit {} QvPointHit {}",
+        "sizes QvRay {} QvHit {} QvPointHit {} QvBuildOptions {}",
         size_of::<quiver_capi::QvRay>(),
         size_of::<quiver_capi::QvHit>(),
-        size_of::<quiver_capi::QvPointHit>()
+        size_of::<quiver_capi::QvPointHit>(),
+        size_of::<quiver_capi::QvBuildOptions>()
     );
     assert!(stdout.lines().any(|l| l == sizes), "{sizes} in\n{stdout}");
+    // qv_bvh_footprint is the Rust footprint's total, for each build minimal.c makes.
+    let quant = BuildOptions::fast().layout(quiver_rt::Layout::Bvh4Quant);
+    let footprints = format!(
+        "footprint bvh8-dfs {} bvh4-quant {}",
+        Bvh::from_mesh(&VERTICES, &INDICES)
+            .unwrap()
+            .footprint()
+            .kept,
+        Bvh::build_mesh(&VERTICES, &INDICES, &quant)
+            .unwrap()
+            .footprint()
+            .kept
+    );
+    assert!(
+        stdout.lines().any(|l| l == footprints),
+        "{footprints} in\n{stdout}"
+    );
 
     let bvh = Bvh::from_mesh(&VERTICES, &INDICES).unwrap();
     let world = world();

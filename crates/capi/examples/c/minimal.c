@@ -73,8 +73,8 @@ static void print_point(const char *what, const float p[3], float max_distance, 
 
 int main(void) {
     /* The struct sizes, which the Rust test compares with the library's own. */
-    printf("sizes QvRay %zu QvHit %zu QvPointHit %zu\n", sizeof(QvRay), sizeof(QvHit),
-           sizeof(QvPointHit));
+    printf("sizes QvRay %zu QvHit %zu QvPointHit %zu QvBuildOptions %zu\n", sizeof(QvRay),
+           sizeof(QvHit), sizeof(QvPointHit), sizeof(QvBuildOptions));
 
     /* A unit square in the z = 0 plane: four vertices, two triangles. */
     const float vertices[4][3] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}};
@@ -111,6 +111,25 @@ int main(void) {
     QvStatus s = qv_bvh_build_indexed(&vertices[0][0], 4, 12, bad_indices, 1, 12, &bad);
     check(s == QV_BAD_MESH && bad == NULL, "a bad index is QV_BAD_MESH");
     printf("refused: %s\n", qv_last_error());
+
+    /* The same mesh built fast into 4-wide quantized nodes: the same hits, its own size. */
+    const QvBuildOptions quant_options = {QV_QUALITY_FAST, "bvh4-quant"};
+    QvBvh *quant = NULL;
+    size_t bytes = 0, quant_bytes = 0;
+    if (ok(qv_bvh_build_indexed_with(&vertices[0][0], 4, 12, &indices[0][0], 2, 12,
+                                     &quant_options, &quant),
+           "qv_bvh_build_indexed_with")) {
+        for (int i = 0; i < 3; i++) {
+            QvHit h;
+            ok(qv_bvh_closest_hit(quant, &rays[i], &h), "qv_bvh_closest_hit");
+            check(memcmp(&h, &hits[i], sizeof(QvHit)) == 0, "bvh4-quant: the same hit");
+        }
+        ok(qv_bvh_footprint(bvh, &bytes), "qv_bvh_footprint");
+        ok(qv_bvh_footprint(quant, &quant_bytes), "qv_bvh_footprint");
+        check(bytes > 0 && quant_bytes > 0, "footprints");
+        printf("footprint bvh8-dfs %zu bvh4-quant %zu\n", bytes, quant_bytes);
+    }
+    qv_bvh_free(quant);
     qv_bvh_free(bvh);
 
     /* ---- A world: the square twice, the second moved by (2, 0, -1) and seen by mask 2 ---- */
