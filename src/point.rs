@@ -102,24 +102,20 @@ enum Item {
 type PointStack = Stack<(f64, Item), { 7 * MAX_DEPTH + 8 }>;
 
 /// The squared distance from `p` to the box `min..max` in f64 (no square root per child:
-/// the walk compares squares); infinite for an empty (inverted) box.
+/// the walk compares squares): [`box_distances2`] of one box. Infinite for an empty
+/// (inverted) box; a NaN coordinate gives no gap on its axis, so such a box is kept (a
+/// superset: what it holds is still measured, and a NaN distance never wins).
 #[inline]
 fn box_distance2(min: Vec3A, max: Vec3A, p: Vec3A) -> f64 {
-    let d = (min - p).max(p - max).max(Vec3A::ZERO);
-    let d = DVec3::new(d.x as f64, d.y as f64, d.z as f64);
-    let d2 = d.length_squared();
-    if d2.is_finite() {
-        d2
-    } else {
-        f64::INFINITY
-    }
+    let planes = [min.x, min.y, min.z, max.x, max.y, max.z].map(|c| [c]);
+    box_distances2::<1>(&planes, p)[0]
 }
 
 /// The squared distances from `p` to a wide node's `W` child boxes (`planes`: min x, y, z and
-/// max x, y, z, one lane per child), as [`box_distance2`] measures each, lane by lane so the
-/// compiler makes one vector operation of each step (comparisons rather than `f32::max`,
-/// whose NaN rule costs a blend per step: the planes are never NaN, and an empty slot's
-/// infinite planes give an infinite distance either way).
+/// max x, y, z, one lane per child), lane by lane so the compiler makes one vector operation
+/// of each step (comparisons rather than `f32::max`, whose NaN rule costs a blend per step:
+/// the planes are never NaN, and an empty slot's infinite planes give an infinite distance
+/// either way).
 #[inline]
 fn box_distances2<const W: usize>(planes: &[[f32; W]; 6], p: Vec3A) -> [f64; W] {
     let mut d2 = [0.0; W];
@@ -170,7 +166,8 @@ fn best_first(
     let mut stack = PointStack::new();
     stack.push(root);
     while let Some((d2, item)) = stack.pop() {
-        if d2 > reach2(*radius) {
+        let limit = reach2(*radius);
+        if d2 > limit {
             continue;
         }
         match item {
@@ -181,7 +178,7 @@ fn best_first(
             }
             Item::Node(i) => {
                 let at = stack.len();
-                children(i, reach2(*radius), &mut stack);
+                children(i, limit, &mut stack);
                 // Farthest first, so the nearest is popped next: an insertion sort of the (at
                 // most eight) pushed.
                 let pushed = stack.above_mut(at);
@@ -361,6 +358,28 @@ impl<P: Primitive> PointWalk<P> for Bvh8<P> {
 }
 
 /// True when a point query may run: a finite point, a radius that is not NaN nor negative.
+/// The point nearest `p` (the caller's units, in f64) on a primitive a walk offers, measured
+/// on the edges the layout stores at `local` (the point in the tree's frame, `up` the frame's
+/// scale): its distance in f64, the point in the caller's units and its barycentrics. `None`
+/// for a primitive without a triangle, or whose box lies beyond `r` (caller's units).
+#[inline]
+pub(crate) fn measure<P: Primitive>(
+    prim: PrimAt<'_, P>,
+    p: DVec3,
+    local: Vec3A,
+    r: f64,
+    up: f64,
+) -> Option<(f64, Vec3A, f32, f32)> {
+    let (a, ab, ac) = prim.edges()?;
+    if !may_reach([a, a + ab, a + ac], local, r / up) {
+        return None;
+    }
+    let (u, v) = closest_uv(a, ab, ac, local);
+    let q = wide(a + ab * u + ac * v) * up;
+    let d = (p - q).length();
+    Some((d, Vec3A::new(q.x as f32, q.y as f32, q.z as f32), u, v))
+}
+
 #[inline]
 fn valid(point: Vec3A, radius: f32) -> bool {
     point.is_finite() && radius >= 0.0
@@ -538,20 +557,12 @@ impl<P: Primitive> Bvh<P> {
         let mut hit = None;
         let p = wide(point);
         self.walk_points(point, max_distance as f64, &mut |id, prim, local, r, up| {
-            let Some((a, ab, ac)) = prim.edges() else {
+            let Some((d, point, u, v)) = measure(prim, p, local, *r, up) else {
                 return true;
             };
-            if !may_reach([a, a + ab, a + ac], local, *r / up) {
-                return true;
-            }
-            let (u, v) = closest_uv(a, ab, ac, local);
-            let q = a + ab * u + ac * v;
-            let world = wide(q) * up;
-            let d = (p - world).length();
             if d <= *r && beats(d, id, best) {
                 best = Some((d, id));
                 *r = d;
-                let point = Vec3A::new(world.x as f32, world.y as f32, world.z as f32);
                 hit = Some(PointHit {
                     prim: id,
                     point,

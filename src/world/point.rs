@@ -16,7 +16,7 @@ use super::instance::motion_of;
 use super::top::InstanceLeaf;
 use super::{Geometry, GeometryId, InstanceId, World};
 use crate::geometry::Triangle;
-use crate::point::{may_reach, wide, PointWalk, PrimAt};
+use crate::point::{may_reach, measure, wide, PointWalk, PrimAt};
 use crate::primitive::Primitive;
 use glam::{Affine3A, Vec3A};
 
@@ -178,13 +178,7 @@ impl<P: Primitive> World<P> {
                 // of the point's transform (a few ulps of its object-space coordinates).
                 let slack = local.abs().max_element() as f64 * (1.0 / (1u64 << 18) as f64);
                 let r_obj = *radius * stretch + slack;
-                let mut measure = |id: u32, tri: Option<Triangle>, r_obj: &mut f64| {
-                    let Some(tri) = tri.filter(|t| may_reach(t.v, local, *r_obj)) else {
-                        return true;
-                    };
-                    let tri = placed(&to_world, identity, tri);
-                    let (q, u, v) = tri.closest_point(point);
-                    let d = (p - wide(q)).length();
+                let mut offer = |id: u32, (d, q, u, v): (f64, Vec3A, f32, f32), r_obj: &mut f64| {
                     let better = match best {
                         None => true,
                         Some((bd, bi, bp)) => d < bd || (d == bd && (leaf.instance, id) < (bi, bp)),
@@ -203,17 +197,35 @@ impl<P: Primitive> World<P> {
                             distance: d as f32,
                         });
                     }
+                };
+                // A placed triangle: moved into world space (in f32) and measured there.
+                let mut placed_measure = |id: u32, tri: Option<Triangle>, r_obj: &mut f64| {
+                    if let Some(tri) = tri.filter(|t| may_reach(t.v, local, *r_obj)) {
+                        let (q, u, v) = placed(&to_world, identity, tri).closest_point(point);
+                        offer(id, ((p - wide(q)).length(), q, u, v), r_obj);
+                    }
                     true
                 };
                 match geometry {
+                    // At the identity the world's triangle is the object's: measured on the
+                    // edges the leaf stores, as `Bvh::closest_point` does (the same answer as
+                    // placing the input triangle, without reading it).
+                    Geometry::Triangles(bvh, _) if identity => {
+                        bvh.walk_points(local, r_obj, &mut |id, prim, at, r, up| {
+                            if let Some(m) = measure(prim, p, at, *r, up) {
+                                offer(id, m, r);
+                            }
+                            true
+                        })
+                    }
                     Geometry::Triangles(bvh, tris) => {
                         bvh.walk_points(local, r_obj, &mut |id, _, _, r, _| {
-                            measure(id, tris.get(id as usize).copied(), r)
+                            placed_measure(id, tris.get(id as usize).copied(), r)
                         })
                     }
                     Geometry::Prims(bvh, prims) => {
                         bvh.walk_points(local, r_obj, &mut |id, _, _, r, _| {
-                            measure(id, prims.get(id as usize).and_then(|p| p.triangle()), r)
+                            placed_measure(id, prims.get(id as usize).and_then(|p| p.triangle()), r)
                         })
                     }
                     // The tree of the segment `time` falls in, whose boxes hold each
@@ -221,7 +233,7 @@ impl<P: Primitive> World<P> {
                     Geometry::MovingTriangles(m) => {
                         let mut r = r_obj;
                         m.tree_at(time).point_walk(local, &mut r, &mut |id, _, r| {
-                            measure(id, m.triangle_at(id, time), r)
+                            placed_measure(id, m.triangle_at(id, time), r)
                         })
                     }
                 };
