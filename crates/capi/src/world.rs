@@ -213,6 +213,14 @@ pub unsafe extern "C" fn qv_world_builder_add_mesh(
     index_stride_bytes: usize,
     geometry_id: *mut u32,
 ) -> QvStatus {
+    let mesh = Mesh {
+        vertices,
+        vertex_count,
+        vertex_stride_bytes,
+        indices,
+        triangle_count,
+        index_stride_bytes,
+    };
     guard("qv_world_builder_add_mesh", || {
         // SAFETY: the caller's contract for each pointer.
         let (b, id) = unsafe {
@@ -222,10 +230,7 @@ pub unsafe extern "C" fn qv_world_builder_add_mesh(
             )
         };
         // SAFETY: the caller's contract for the buffers, passed on unchanged.
-        let positions = unsafe { read_vertices(vertices, vertex_count, vertex_stride_bytes) }?;
-        // SAFETY: as above.
-        let tris =
-            unsafe { read_indices(indices, triangle_count, index_stride_bytes, vertex_count) }?;
+        let (positions, tris) = unsafe { mesh.read() }?;
         if b.geometries() == u32::MAX - 1 {
             return Err(world_failure(WorldError::TooMany));
         }
