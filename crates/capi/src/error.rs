@@ -1,7 +1,7 @@
 //! Status codes, the thread's last error message, and [`guard`]: the one wrapper every
 //! exported function's body runs in, so no panic unwinds into C.
 
-use std::cell::RefCell;
+use std::cell::{Cell, RefCell};
 use std::ffi::c_char;
 use std::fmt::Display;
 use std::panic::{catch_unwind, AssertUnwindSafe};
@@ -37,7 +37,11 @@ pub(crate) struct Failure {
 }
 
 impl Failure {
-    /// A failure with `status`, saying `message`.
+    /// A failure with `status`, saying `message`. Cold and out of line, as is [`report`]:
+    /// kept out of the exported functions' bodies, the refusals leave the path of a call that
+    /// succeeds a few instructions and registers (a single-ray query is tens of nanoseconds).
+    #[cold]
+    #[inline(never)]
     pub fn new(status: QvStatus, message: impl Display) -> Failure {
         Failure {
             status,
@@ -46,6 +50,8 @@ impl Failure {
     }
 
     /// A NULL argument `name`.
+    #[cold]
+    #[inline(never)]
     pub fn null(name: &str) -> Failure {
         Failure::new(QvStatus::NullPointer, format!("{name} is NULL"))
     }
@@ -80,6 +86,11 @@ thread_local! {
     /// succeed (clearing it) allocate nothing: a single-ray query is a few dozen nanoseconds,
     /// and an allocation per call would be a sizeable part of it.
     static LAST_ERROR: RefCell<Vec<u8>> = const { RefCell::new(Vec::new()) };
+
+    /// Whether `LAST_ERROR` holds a message. Apart from it because it needs no destructor:
+    /// the check every successful call makes is one load, where the buffer's own
+    /// thread-local would first check that its destructor is registered.
+    static HAS_ERROR: Cell<bool> = const { Cell::new(false) };
 }
 
 /// Records `message` as the thread's last error (NUL bytes, which C cannot hold inside a
@@ -91,21 +102,25 @@ fn set_last_error(message: &str) {
         e.extend(message.bytes().map(|b| if b == 0 { b' ' } else { b }));
         e.push(0);
     });
+    HAS_ERROR.set(true);
 }
 
-/// Clears the thread's last error (no work when it is clear already).
+/// Clears the thread's last error (one load when it is clear already).
+#[inline]
 fn clear_last_error() {
-    LAST_ERROR.with(|e| {
-        let mut e = e.borrow_mut();
-        if e.len() > 1 {
+    if HAS_ERROR.get() {
+        LAST_ERROR.with(|e| {
+            let mut e = e.borrow_mut();
             e.clear();
             e.push(0);
-        }
-    });
+        });
+        HAS_ERROR.set(false);
+    }
 }
 
 /// Runs `f`, returning `fallback` if it panics. Every exported function's body runs inside
 /// this, directly or through [`guard`]: a panic unwinding into C is undefined behaviour.
+#[inline(always)]
 pub(crate) fn catch<T>(fallback: T, f: impl FnOnce() -> T) -> T {
     // Unwind safety: after a panic nothing `f` touched is used by this function, and the
     // objects a caller passed are documented as unchanged or freed (their Rust types keep
@@ -130,15 +145,21 @@ fn panic_message(payload: &(dyn std::any::Any + Send)) -> &str {
 /// Runs exported function `name`'s body `f`: clears the last error, then maps `f`'s refusal
 /// to its status (recording the message, prefixed by `name`) and a panic to
 /// [`QvStatus::Panic`].
+#[inline(always)]
 pub(crate) fn guard(name: &str, f: impl FnOnce() -> Result<(), Failure>) -> QvStatus {
     clear_last_error();
     catch(QvStatus::Panic, || match f() {
         Ok(()) => QvStatus::Ok,
-        Err(failure) => {
-            set_last_error(&format!("{name}: {}", failure.message));
-            failure.status
-        }
+        Err(failure) => report(name, failure),
     })
+}
+
+/// Records `failure` of exported function `name` as the thread's last error; its status.
+#[cold]
+#[inline(never)]
+fn report(name: &str, failure: Failure) -> QvStatus {
+    set_last_error(&format!("{name}: {}", failure.message));
+    failure.status
 }
 
 /// The message of the last refused call on this thread (naming the argument, vertex,
