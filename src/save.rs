@@ -1024,13 +1024,13 @@ impl Bvh<Triangle> {
         while got < HEADER {
             match r.read(&mut head[got..]) {
                 Ok(0) => break,
-                Ok(n) => got += n,
+                Ok(n) => got += n.min(HEADER - got),
                 Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
                 Err(e) => return Err(e.into()),
             }
         }
         let header = Header::parse(&head[..got])?;
-        read_bvh(&header, Source::new(r, &header, &head)?)
+        read_bvh(&header, Source::new(r, &header, Some(&head))?)
     }
 
     /// The BVH in `bytes`, which hold exactly one file [`Bvh::save`] wrote. Nothing is
@@ -1085,8 +1085,15 @@ impl Bvh<Triangle> {
                 extra: have - total,
             });
         }
+        // All the bytes are here: hashed first, in parallel, then copied unhashed.
+        let end = total as usize - 8;
+        let stored = u64::from_le_bytes(bytes[end..].try_into().expect("8 bytes"));
+        let computed = checksum(&bytes[..end]);
+        if stored != computed {
+            return Err(LoadError::Checksum { stored, computed });
+        }
         let mut rest = &bytes[HEADER..];
-        read_bvh(&header, Source::new(&mut rest, &header, &bytes[..HEADER])?)
+        read_bvh(&header, Source::new(&mut rest, &header, None)?)
     }
 }
 
@@ -1126,7 +1133,10 @@ const RESERVE: usize = 1 << 26;
 /// still in cache, then the checksum compared.
 struct Source<'r, R: ?Sized> {
     r: &'r mut R,
-    sum: StreamSum,
+    /// The checksum so far; `None` where the caller compared it before.
+    sum: Option<StreamSum>,
+    /// The most elements an array is given before its bytes arrive.
+    reserve: usize,
     /// Where each section's padding ends, then where the checksum ends.
     ends: [u64; 6],
     counts: [usize; 5],
@@ -1137,23 +1147,30 @@ struct Source<'r, R: ?Sized> {
 }
 
 impl<'r, R: Read + ?Sized> Source<'r, R> {
-    /// The sections of the file whose parsed `header` was `head`, from `r`, which holds the
-    /// bytes after the header.
-    fn new(r: &'r mut R, header: &Header, head: &[u8]) -> Result<Self, LoadError> {
+    /// The sections of the file whose parsed header is `header`, from `r`, which holds the
+    /// bytes after the header; `head`, the header's bytes, to start the checksum with, or
+    /// `None` where every byte is in memory, its lengths and checksum compared already (then
+    /// each array is allocated whole at once).
+    fn new(r: &'r mut R, header: &Header, head: Option<&[u8]>) -> Result<Self, LoadError> {
         let (extents, total) = header.extents()?;
         let mut ends = [total; 6];
         for (end, &(start, len)) in ends.iter_mut().zip(&extents) {
             *end = (start + len + padding(len)) as u64;
         }
-        let mut sum = StreamSum::new();
-        sum.put(head);
+        let reserve = if head.is_some() { RESERVE } else { usize::MAX };
+        let sum = head.map(|head| {
+            let mut sum = StreamSum::new();
+            sum.put(head);
+            sum
+        });
         Ok(Source {
             r,
             sum,
+            reserve,
             ends,
             // Each fits: `extents` checked its bytes against the address space.
             counts: header.counts.map(|c| c as usize),
-            at: head.len() as u64,
+            at: HEADER as u64,
             bad_padding: None,
         })
     }
@@ -1185,15 +1202,20 @@ impl<'r, R: Read + ?Sized> Source<'r, R> {
     fn pod<T: Pod>(&mut self, i: usize) -> Result<Vec<T>, LoadError> {
         let (count, size) = (self.counts[i], std::mem::size_of::<T>());
         let step = (PIECE / size).max(1);
-        let mut v: Vec<T> = Vec::with_capacity(count.min(RESERVE / size));
-        while v.len() < count {
-            let old = v.len();
-            // Zeroed, then overwritten while still in cache: the read needs initialized
-            // bytes, and the array grows only as bytes arrive.
-            v.resize(old + step.min(count - old), T::zeroed());
-            let piece: &mut [u8] = bytemuck::cast_slice_mut(&mut v[old..]);
+        // The read needs initialized bytes: zeroed pages fresh from the system (no work
+        // until touched), as far as a header may reserve ahead of its bytes; past that the
+        // array grows, zeroed in pieces, only as bytes arrive.
+        let mut v: Vec<T> = crate::mem::zeroed_vec(count.min(self.reserve / size));
+        let mut filled = 0;
+        while filled < count {
+            if v.len() == filled {
+                v.resize(filled + step.min(count - filled), T::zeroed());
+            }
+            let end = v.len().min(filled + step);
+            let piece: &mut [u8] = bytemuck::cast_slice_mut(&mut v[filled..end]);
             self.fill(piece, i)?;
-            self.sum.put(piece);
+            self.hash(piece);
+            filled = end;
         }
         self.pad(i, count * size)?;
         Ok(v)
@@ -1203,16 +1225,22 @@ impl<'r, R: Read + ?Sized> Source<'r, R> {
     fn triangles(&mut self) -> Result<Vec<Triangle>, LoadError> {
         let count = self.counts[1];
         let step = PIECE / TRIANGLE_BYTES;
-        let mut out = Vec::with_capacity(count.min(RESERVE / std::mem::size_of::<Triangle>()));
+        let mut out = crate::mem::with_capacity(count.min(self.reserve / size_of::<Triangle>()));
         let mut buf = vec![0u8; count.min(step) * TRIANGLE_BYTES];
         while out.len() < count {
             let piece = &mut buf[..step.min(count - out.len()) * TRIANGLE_BYTES];
             self.fill(piece, 1)?;
-            self.sum.put(piece);
+            self.hash(piece);
             out.extend(piece.chunks_exact(TRIANGLE_BYTES).map(triangle_from_bytes));
         }
         self.pad(1, count * TRIANGLE_BYTES)?;
         Ok(out)
+    }
+
+    fn hash(&mut self, bytes: &[u8]) {
+        if let Some(sum) = &mut self.sum {
+            sum.put(bytes);
+        }
     }
 
     /// The zeros after section `i`'s `len` bytes.
@@ -1220,7 +1248,7 @@ impl<'r, R: Read + ?Sized> Source<'r, R> {
         let mut zeros = [0u8; ALIGN];
         let zeros = &mut zeros[..padding(len)];
         self.fill(zeros, i)?;
-        self.sum.put(zeros);
+        self.hash(zeros);
         if self.bad_padding.is_none() && zeros.iter().any(|&b| b != 0) {
             self.bad_padding = Some(i);
         }
@@ -1231,10 +1259,11 @@ impl<'r, R: Read + ?Sized> Source<'r, R> {
     fn finish(mut self) -> Result<(), LoadError> {
         let mut stored = [0u8; 8];
         self.fill(&mut stored, 5)?;
-        let stored = u64::from_le_bytes(stored);
-        let computed = self.sum.finish();
-        if stored != computed {
-            return Err(LoadError::Checksum { stored, computed });
+        if let Some(sum) = self.sum {
+            let (stored, computed) = (u64::from_le_bytes(stored), sum.finish());
+            if stored != computed {
+                return Err(LoadError::Checksum { stored, computed });
+            }
         }
         match self.bad_padding {
             Some(i) => Err(LoadError::Padding {
