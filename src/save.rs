@@ -382,23 +382,118 @@ fn fnv(s: u64, w: u64) -> u64 {
 /// in four interleaved streams (word `i` to stream `i % 4`: four multiplications in flight,
 /// not one chain), folded in stream order.
 fn block_hash(block: &[u8]) -> u64 {
-    let mut s = [0u64; 4];
-    for (l, s) in s.iter_mut().enumerate() {
-        *s = FNV_OFFSET ^ l as u64;
-    }
-    let mut quads = block.chunks_exact(32);
-    for q in &mut quads {
+    let mut s = streams();
+    let whole = block.len() / 32 * 32;
+    quads(&mut s, &block[..whole]);
+    tail(&mut s, &block[whole..]);
+    fold_streams(&s)
+}
+
+/// The four streams' starting states.
+fn streams() -> [u64; 4] {
+    std::array::from_fn(|l| FNV_OFFSET ^ l as u64)
+}
+
+/// Steps the streams over `bytes`, a whole number of 32-byte quads starting on a quad
+/// boundary of the block (word `i` of a quad to stream `i`).
+#[inline]
+fn quads(s: &mut [u64; 4], bytes: &[u8]) {
+    for q in bytes.chunks_exact(32) {
         for (l, s) in s.iter_mut().enumerate() {
             let w = u64::from_le_bytes(q[8 * l..8 * l + 8].try_into().expect("8 bytes"));
             *s = fnv(*s, w);
         }
     }
-    for (i, w) in quads.remainder().chunks(8).enumerate() {
+}
+
+/// Steps the streams over a block's last bytes, fewer than a quad: word `i` to stream `i`,
+/// the last word zero-padded.
+fn tail(s: &mut [u64; 4], bytes: &[u8]) {
+    for (i, w) in bytes.chunks(8).enumerate() {
         let mut b = [0u8; 8];
         b[..w.len()].copy_from_slice(w);
         s[i] = fnv(s[i], u64::from_le_bytes(b));
     }
+}
+
+fn fold_streams(s: &[u64; 4]) -> u64 {
     s.iter().fold(FNV_OFFSET, |h, &x| fnv(h, x))
+}
+
+/// [`checksum`] over bytes that arrive in pieces of any size: the same value as `checksum` of
+/// all of them at once, computed while each piece is still in cache.
+struct StreamSum {
+    s: [u64; 4],
+    /// Bytes of the current block stepped into `s` (whole quads).
+    in_block: usize,
+    /// The start of a quad not yet complete.
+    quad: [u8; 32],
+    quad_len: usize,
+    /// The hashes of the blocks done, folded in order.
+    h: u64,
+    len: usize,
+}
+
+impl StreamSum {
+    fn new() -> Self {
+        StreamSum {
+            s: streams(),
+            in_block: 0,
+            quad: [0; 32],
+            quad_len: 0,
+            h: FNV_OFFSET,
+            len: 0,
+        }
+    }
+
+    fn put(&mut self, mut bytes: &[u8]) {
+        self.len += bytes.len();
+        if self.quad_len > 0 {
+            let take = (32 - self.quad_len).min(bytes.len());
+            self.quad[self.quad_len..self.quad_len + take].copy_from_slice(&bytes[..take]);
+            self.quad_len += take;
+            bytes = &bytes[take..];
+            if self.quad_len < 32 {
+                return;
+            }
+            let q = self.quad;
+            self.put_quads(&q);
+            self.quad_len = 0;
+        }
+        let whole = bytes.len() / 32 * 32;
+        self.put_quads(&bytes[..whole]);
+        let rest = &bytes[whole..];
+        self.quad[..rest.len()].copy_from_slice(rest);
+        self.quad_len = rest.len();
+    }
+
+    /// Whole quads, split at block ends.
+    fn put_quads(&mut self, mut bytes: &[u8]) {
+        while !bytes.is_empty() {
+            let take = (BLOCK - self.in_block).min(bytes.len());
+            quads(&mut self.s, &bytes[..take]);
+            self.in_block += take;
+            bytes = &bytes[take..];
+            if self.in_block == BLOCK {
+                self.h = fnv(self.h, fold_streams(&self.s));
+                self.s = streams();
+                self.in_block = 0;
+            }
+        }
+    }
+
+    fn finish(mut self) -> u64 {
+        // A quad never straddles a block end (blocks are whole quads), so the last partial
+        // quad is its block's tail.
+        if self.quad_len > 0 {
+            let q = self.quad;
+            tail(&mut self.s, &q[..self.quad_len]);
+        }
+        if self.in_block > 0 || self.quad_len > 0 {
+            self.h = fnv(self.h, fold_streams(&self.s));
+        }
+        fnv(self.h, self.len as u64)
+    }
 }
 
 /// The file checksum of `data` (everything before the stored checksum): FNV-1a-64 over the
@@ -929,19 +1024,13 @@ impl Bvh<Triangle> {
         while got < HEADER {
             match r.read(&mut head[got..]) {
                 Ok(0) => break,
-                Ok(n) => got += n,
+                Ok(n) => got += n.min(HEADER - got),
                 Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
                 Err(e) => return Err(e.into()),
             }
         }
         let header = Header::parse(&head[..got])?;
-        let (_, total) = header.extents()?;
-        let mut bytes = Vec::with_capacity(total.min(1 << 26) as usize);
-        bytes.extend_from_slice(&head);
-        // `take` stops at the file's end; `read_to_end` grows the buffer only as bytes
-        // arrive, so a header claiming terabytes costs what the reader really holds.
-        r.take(total - HEADER as u64).read_to_end(&mut bytes)?;
-        Self::from_bytes(&bytes)
+        read_bvh(&header, Source::new(r, &header, Some(&head))?)
     }
 
     /// The BVH in `bytes`, which hold exactly one file [`Bvh::save`] wrote. Nothing is
@@ -996,35 +1085,15 @@ impl Bvh<Triangle> {
                 extra: have - total,
             });
         }
+        // All the bytes are here: hashed first, in parallel, then copied unhashed.
         let end = total as usize - 8;
         let stored = u64::from_le_bytes(bytes[end..].try_into().expect("8 bytes"));
         let computed = checksum(&bytes[..end]);
         if stored != computed {
             return Err(LoadError::Checksum { stored, computed });
         }
-        let section = |i: usize| {
-            let (start, len) = extents[i];
-            let pad = &bytes[start + len..start + len + padding(len)];
-            if pad.iter().any(|&b| b != 0) {
-                return Err(LoadError::Padding {
-                    section: SECTIONS[i],
-                });
-            }
-            Ok(&bytes[start..start + len])
-        };
-        let sections = [
-            section(0)?,
-            section(1)?,
-            section(2)?,
-            section(3)?,
-            section(4)?,
-        ];
-        let layout = read_layout(&header, sections)?;
-        Ok(Bvh {
-            layout,
-            frame: header.frame,
-            bounds: header.bounds,
-        })
+        let mut rest = &bytes[HEADER..];
+        read_bvh(&header, Source::new(&mut rest, &header, None)?)
     }
 }
 
@@ -1045,97 +1114,311 @@ pub(crate) fn input_count(bvh: &Bvh<Triangle>) -> usize {
 
 /// The triangles of a section (nine little-endian f32 each).
 pub(crate) fn read_triangles(bytes: &[u8]) -> Vec<Triangle> {
-    let f: Vec<f32> = bytemuck::pod_collect_to_vec(bytes);
-    f.chunks_exact(9)
-        .map(|c| {
-            Triangle::new(
-                Vec3A::new(c[0], c[1], c[2]),
-                Vec3A::new(c[3], c[4], c[5]),
-                Vec3A::new(c[6], c[7], c[8]),
-            )
-        })
+    bytes
+        .chunks_exact(TRIANGLE_BYTES)
+        .map(triangle_from_bytes)
         .collect()
 }
 
-/// Checks the sections against the header's layout and each other, and builds the layout.
-fn read_layout(h: &Header, s: [&[u8]; 5]) -> Result<AnyLayout<Triangle>, LoadError> {
-    let [nodes, tris, ids, groups, far] = s;
-    let len_err = |section, len: usize, why| LoadError::SectionLength {
-        section,
-        len: len as u64,
-        why,
+/// Bytes read, zeroed, hashed and checked at a time: small enough to stay in cache from
+/// the read to the hash, large enough that a file costs few reads.
+const PIECE: usize = 1 << 18;
+
+/// The most a section reserves before its bytes arrive (beyond it, its array grows as they
+/// do): a header's claimed lengths cost no more than this.
+const RESERVE: usize = 1 << 26;
+
+/// A file's sections as the loader takes them from a reader: each read in pieces straight
+/// into the array it fills (no whole-file buffer, no second copy), hashed while the piece is
+/// still in cache, then the checksum compared.
+struct Source<'r, R: ?Sized> {
+    r: &'r mut R,
+    /// The checksum so far; `None` where the caller compared it before.
+    sum: Option<StreamSum>,
+    /// The most elements an array is given before its bytes arrive.
+    reserve: usize,
+    /// Where each section's padding ends, then where the checksum ends.
+    ends: [u64; 6],
+    counts: [usize; 5],
+    /// Bytes taken from the file so far (the header's included).
+    at: u64,
+    /// The first section whose padding is not zero, reported once the checksum matches.
+    bad_padding: Option<usize>,
+}
+
+impl<'r, R: Read + ?Sized> Source<'r, R> {
+    /// The sections of the file whose parsed header is `header`, from `r`, which holds the
+    /// bytes after the header; `head`, the header's bytes, to start the checksum with, or
+    /// `None` where every byte is in memory, its lengths and checksum compared already (then
+    /// each array is allocated whole at once).
+    fn new(r: &'r mut R, header: &Header, head: Option<&[u8]>) -> Result<Self, LoadError> {
+        let (extents, total) = header.extents()?;
+        let mut ends = [total; 6];
+        for (end, &(start, len)) in ends.iter_mut().zip(&extents) {
+            *end = (start + len + padding(len)) as u64;
+        }
+        let reserve = if head.is_some() { RESERVE } else { usize::MAX };
+        let sum = head.map(|head| {
+            let mut sum = StreamSum::new();
+            sum.put(head);
+            sum
+        });
+        Ok(Source {
+            r,
+            sum,
+            reserve,
+            ends,
+            // Each fits: `extents` checked its bytes against the address space.
+            counts: header.counts.map(|c| c as usize),
+            at: HEADER as u64,
+            bad_padding: None,
+        })
+    }
+
+    /// Fills `buf` with the next bytes of part `part` (a section, or 5: the checksum), which
+    /// the reader must hold: [`LoadError::Truncated`] where it ends first.
+    fn fill(&mut self, buf: &mut [u8], part: usize) -> Result<(), LoadError> {
+        let mut got = 0;
+        while got < buf.len() {
+            match self.r.read(&mut buf[got..]) {
+                Ok(0) => {
+                    return Err(LoadError::Truncated {
+                        section: SECTIONS.get(part).copied().unwrap_or("checksum"),
+                        need: self.ends[part],
+                        have: self.at + got as u64,
+                    })
+                }
+                // `min`: a reader claiming more than it was given gets no index past `buf`.
+                Ok(n) => got += n.min(buf.len() - got),
+                Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+                Err(e) => return Err(e.into()),
+            }
+        }
+        self.at += got as u64;
+        Ok(())
+    }
+
+    /// Section `i` as an array of `T`, read into the array itself a piece at a time.
+    fn pod<T: Pod>(&mut self, i: usize) -> Result<Vec<T>, LoadError> {
+        let (count, size) = (self.counts[i], std::mem::size_of::<T>());
+        let step = (PIECE / size).max(1);
+        // The read needs initialized bytes: zeroed pages fresh from the system (no work
+        // until touched), as far as a header may reserve ahead of its bytes; past that the
+        // array grows, zeroed in pieces, only as bytes arrive.
+        let mut v: Vec<T> = crate::mem::zeroed_vec(count.min(self.reserve / size));
+        let mut filled = 0;
+        while filled < count {
+            if v.len() == filled {
+                v.resize(filled + step.min(count - filled), T::zeroed());
+            }
+            let end = v.len().min(filled + step);
+            let piece: &mut [u8] = bytemuck::cast_slice_mut(&mut v[filled..end]);
+            self.fill(piece, i)?;
+            self.hash(piece);
+            filled = end;
+        }
+        self.pad(i, count * size)?;
+        Ok(v)
+    }
+
+    /// The triangles section (nine little-endian f32 each) as triangles.
+    fn triangles(&mut self) -> Result<Vec<Triangle>, LoadError> {
+        let count = self.counts[1];
+        let step = PIECE / TRIANGLE_BYTES;
+        let mut out = crate::mem::with_capacity(count.min(self.reserve / size_of::<Triangle>()));
+        let mut buf = vec![0u8; count.min(step) * TRIANGLE_BYTES];
+        while out.len() < count {
+            let piece = &mut buf[..step.min(count - out.len()) * TRIANGLE_BYTES];
+            self.fill(piece, 1)?;
+            self.hash(piece);
+            out.extend(piece.chunks_exact(TRIANGLE_BYTES).map(triangle_from_bytes));
+        }
+        self.pad(1, count * TRIANGLE_BYTES)?;
+        Ok(out)
+    }
+
+    fn hash(&mut self, bytes: &[u8]) {
+        if let Some(sum) = &mut self.sum {
+            sum.put(bytes);
+        }
+    }
+
+    /// The zeros after section `i`'s `len` bytes.
+    fn pad(&mut self, i: usize, len: usize) -> Result<(), LoadError> {
+        let mut zeros = [0u8; ALIGN];
+        let zeros = &mut zeros[..padding(len)];
+        self.fill(zeros, i)?;
+        self.hash(zeros);
+        if self.bad_padding.is_none() && zeros.iter().any(|&b| b != 0) {
+            self.bad_padding = Some(i);
+        }
+        Ok(())
+    }
+
+    /// Reads the stored checksum and compares it with the bytes', then the padding.
+    fn finish(mut self) -> Result<(), LoadError> {
+        let mut stored = [0u8; 8];
+        self.fill(&mut stored, 5)?;
+        if let Some(sum) = self.sum {
+            let (stored, computed) = (u64::from_le_bytes(stored), sum.finish());
+            if stored != computed {
+                return Err(LoadError::Checksum { stored, computed });
+            }
+        }
+        match self.bad_padding {
+            Some(i) => Err(LoadError::Padding {
+                section: SECTIONS[i],
+            }),
+            None => Ok(()),
+        }
+    }
+}
+
+/// A triangle from its nine little-endian f32.
+fn triangle_from_bytes(b: &[u8]) -> Triangle {
+    let f = |i: usize| f32::from_le_bytes(b[4 * i..4 * i + 4].try_into().expect("4 bytes"));
+    Triangle::new(
+        Vec3A::new(f(0), f(1), f(2)),
+        Vec3A::new(f(3), f(4), f(5)),
+        Vec3A::new(f(6), f(7), f(8)),
+    )
+}
+
+/// The five sections of a file whose nodes are `N`, read and checksummed, the input indices
+/// checked against the number of inputs.
+struct Sections<N> {
+    nodes: Vec<N>,
+    prims: Vec<Triangle>,
+    ids: Vec<u32>,
+    groups: Vec<Tri4>,
+    far: Vec<u32>,
+}
+
+fn read_sections<N: Pod, R: Read + ?Sized>(
+    h: &Header,
+    mut src: Source<'_, R>,
+) -> Result<Sections<N>, LoadError> {
+    let s = Sections {
+        nodes: src.pod(0)?,
+        prims: src.triangles()?,
+        ids: src.pod(2)?,
+        groups: src.pod(3)?,
+        far: src.pod(4)?,
     };
-    let ids: Vec<u32> = bytemuck::pod_collect_to_vec(ids);
+    src.finish()?;
     let n_inputs = h.inputs.len as u64;
-    if let Some((at, &id)) = ids.iter().enumerate().find(|(_, &i)| i as u64 >= n_inputs) {
+    if let Some((at, &id)) = s
+        .ids
+        .iter()
+        .enumerate()
+        .find(|(_, &i)| i as u64 >= n_inputs)
+    {
         return Err(LoadError::IdOutOfRange {
             at,
             id,
             len: n_inputs,
         });
     }
+    Ok(s)
+}
+
+fn len_err(section: &'static str, len: usize, why: &'static str) -> LoadError {
+    LoadError::SectionLength {
+        section,
+        len: len as u64,
+        why,
+    }
+}
+
+/// The BVH of a file whose header is `h`, its sections from `src`.
+fn read_bvh<R: Read + ?Sized>(h: &Header, src: Source<'_, R>) -> Result<Bvh, LoadError> {
+    Ok(Bvh {
+        layout: read_layout(h, src)?,
+        frame: h.frame,
+        bounds: h.bounds,
+    })
+}
+
+/// A binary layout's sections, checked.
+fn bvh2(
+    h: &Header,
+    mapping: Bvh2Mapping,
+    s: Sections<Bvh2Node>,
+) -> Result<AnyLayout<Triangle>, LoadError> {
+    if !s.groups.is_empty() {
+        return Err(len_err(
+            "groups",
+            s.groups.len(),
+            "binary layouts have none",
+        ));
+    }
+    if !s.far.is_empty() {
+        return Err(len_err("far", s.far.len(), "binary layouts have none"));
+    }
+    if s.prims.len() != s.ids.len() {
+        return Err(len_err("ids", s.ids.len(), "one per leaf-order triangle"));
+    }
+    check_bvh2(&s.nodes, mapping, s.prims.len())?;
+    Ok(AnyLayout::Bvh2(Bvh2 {
+        nodes: s.nodes,
+        prims: s.prims,
+        prim_ids: s.ids,
+        mapping,
+        inputs: h.inputs,
+    }))
+}
+
+/// A wide layout's leaf sections, checked (the nodes are checked against them after).
+fn wide_parts<N>(s: &mut Sections<N>) -> Result<(Vec<Tri4>, FarGroups), LoadError> {
+    if !s.prims.is_empty() {
+        return Err(len_err(
+            "triangles",
+            s.prims.len(),
+            "wide layouts keep their triangles in groups",
+        ));
+    }
+    let (groups, far) = (std::mem::take(&mut s.groups), std::mem::take(&mut s.far));
+    for (at, w) in far.windows(2).enumerate() {
+        if w[0] >= w[1] {
+            return Err(LoadError::FarGroup { at: at + 1 });
+        }
+    }
+    if let Some(&last) = far.last() {
+        if last as usize >= groups.len() {
+            return Err(LoadError::FarGroup { at: far.len() - 1 });
+        }
+    }
+    Ok((groups, FarGroups::from_checked(far)))
+}
+
+/// Reads the sections for the header's layout, checks them against it and each other, and
+/// builds the layout.
+fn read_layout<R: Read + ?Sized>(
+    h: &Header,
+    src: Source<'_, R>,
+) -> Result<AnyLayout<Triangle>, LoadError> {
     let isa = Isa::detect();
-    let bvh2 = |mapping| -> Result<AnyLayout<Triangle>, LoadError> {
-        if !groups.is_empty() || !far.is_empty() {
-            return Err(len_err("groups", groups.len(), "binary layouts have none"));
-        }
-        let nodes: Vec<Bvh2Node> = bytemuck::pod_collect_to_vec(nodes);
-        let prims = read_triangles(tris);
-        if prims.len() != ids.len() {
-            return Err(len_err("ids", ids.len(), "one per leaf-order triangle"));
-        }
-        check_bvh2(&nodes, mapping, prims.len())?;
-        Ok(AnyLayout::Bvh2(Bvh2 {
-            nodes,
-            prims,
-            prim_ids: ids.clone(),
-            mapping,
-            inputs: h.inputs,
-        }))
-    };
-    let wide_parts = || -> Result<(Vec<Tri4>, FarGroups), LoadError> {
-        if !tris.is_empty() {
-            return Err(len_err(
-                "triangles",
-                tris.len() / TRIANGLE_BYTES,
-                "wide layouts keep their triangles in groups",
-            ));
-        }
-        let groups: Vec<Tri4> = bytemuck::pod_collect_to_vec(groups);
-        let far: Vec<u32> = bytemuck::pod_collect_to_vec(far);
-        for (at, w) in far.windows(2).enumerate() {
-            if w[0] >= w[1] {
-                return Err(LoadError::FarGroup { at: at + 1 });
-            }
-        }
-        if let Some(&last) = far.last() {
-            if last as usize >= groups.len() {
-                return Err(LoadError::FarGroup { at: far.len() - 1 });
-            }
-        }
-        Ok((groups, FarGroups::from_checked(far)))
-    };
     Ok(match h.layout {
-        Layout::Bvh2Dfs => bvh2(Bvh2Mapping::DepthFirst)?,
-        Layout::Bvh2Bfs => bvh2(Bvh2Mapping::BreadthFirst)?,
-        Layout::Bvh2Shuffled => bvh2(Bvh2Mapping::Shuffled)?,
-        Layout::Bvh2Subtree => bvh2(Bvh2Mapping::Subtree)?,
-        Layout::Bvh2SubtreePage => bvh2(Bvh2Mapping::SubtreePage)?,
-        Layout::Bvh2Compact => bvh2(Bvh2Mapping::Compact)?,
-        Layout::Bvh2CompactPage => bvh2(Bvh2Mapping::CompactPage)?,
+        Layout::Bvh2Dfs => bvh2(h, Bvh2Mapping::DepthFirst, read_sections(h, src)?)?,
+        Layout::Bvh2Bfs => bvh2(h, Bvh2Mapping::BreadthFirst, read_sections(h, src)?)?,
+        Layout::Bvh2Shuffled => bvh2(h, Bvh2Mapping::Shuffled, read_sections(h, src)?)?,
+        Layout::Bvh2Subtree => bvh2(h, Bvh2Mapping::Subtree, read_sections(h, src)?)?,
+        Layout::Bvh2SubtreePage => bvh2(h, Bvh2Mapping::SubtreePage, read_sections(h, src)?)?,
+        Layout::Bvh2Compact => bvh2(h, Bvh2Mapping::Compact, read_sections(h, src)?)?,
+        Layout::Bvh2CompactPage => bvh2(h, Bvh2Mapping::CompactPage, read_sections(h, src)?)?,
         Layout::Bvh4Dfs | Layout::Bvh4Subtree => {
             let mapping = if h.layout == Layout::Bvh4Dfs {
                 Bvh4Mapping::DepthFirst
             } else {
                 Bvh4Mapping::Subtree
             };
-            let (tri4, far) = wide_parts()?;
-            let nodes: Vec<Bvh4Node> = bytemuck::pod_collect_to_vec(nodes);
-            check_wide::<4, _>(&nodes, mapping == Bvh4Mapping::DepthFirst, &ids, &tri4)?;
+            let mut s = read_sections::<Bvh4Node, R>(h, src)?;
+            let (tri4, far) = wide_parts(&mut s)?;
+            check_wide::<4, _>(&s.nodes, mapping == Bvh4Mapping::DepthFirst, &s.ids, &tri4)?;
             AnyLayout::Bvh4(Bvh4 {
-                nodes,
+                nodes: s.nodes,
                 prims: Vec::new(),
-                prim_ids: ids,
+                prim_ids: s.ids,
                 tri4,
                 far,
                 mapping,
@@ -1145,13 +1428,13 @@ fn read_layout(h: &Header, s: [&[u8]; 5]) -> Result<AnyLayout<Triangle>, LoadErr
             })
         }
         Layout::Bvh4Quant => {
-            let (tri4, far) = wide_parts()?;
-            let nodes: Vec<QBvh4Node> = bytemuck::pod_collect_to_vec(nodes);
-            check_wide::<4, _>(&nodes, true, &ids, &tri4)?;
+            let mut s = read_sections::<QBvh4Node, R>(h, src)?;
+            let (tri4, far) = wide_parts(&mut s)?;
+            check_wide::<4, _>(&s.nodes, true, &s.ids, &tri4)?;
             AnyLayout::QBvh4(Bvh4 {
-                nodes,
+                nodes: s.nodes,
                 prims: Vec::new(),
-                prim_ids: ids,
+                prim_ids: s.ids,
                 tri4,
                 far,
                 mapping: Bvh4Mapping::DepthFirst,
@@ -1161,13 +1444,13 @@ fn read_layout(h: &Header, s: [&[u8]; 5]) -> Result<AnyLayout<Triangle>, LoadErr
             })
         }
         Layout::Bvh8Dfs => {
-            let (tri4, far) = wide_parts()?;
-            let nodes: Vec<Bvh8Node> = bytemuck::pod_collect_to_vec(nodes);
-            check_wide::<8, _>(&nodes, true, &ids, &tri4)?;
+            let mut s = read_sections::<Bvh8Node, R>(h, src)?;
+            let (tri4, far) = wide_parts(&mut s)?;
+            check_wide::<8, _>(&s.nodes, true, &s.ids, &tri4)?;
             AnyLayout::Bvh8(Bvh8 {
-                nodes,
+                nodes: s.nodes,
                 prims: Vec::new(),
-                prim_ids: ids,
+                prim_ids: s.ids,
                 tri4,
                 far,
                 kernels: Kernels::new(isa),
@@ -1854,6 +2137,64 @@ mod tests {
             matches!(e, LoadError::TooDeep { depth, max: MAX_DEPTH } if depth == d),
             "{e}"
         );
+    }
+
+    #[test]
+    fn the_streamed_checksum_is_the_checksum() {
+        let data: Vec<u8> = (0..2 * BLOCK + 1000)
+            .map(|i| (i * 13 % 251) as u8)
+            .collect();
+        for len in [
+            0,
+            1,
+            7,
+            31,
+            32,
+            33,
+            100,
+            BLOCK - 1,
+            BLOCK,
+            BLOCK + 5,
+            data.len(),
+        ] {
+            let want = checksum(&data[..len]);
+            for piece in [1, 5, 32, 100, 4096, BLOCK + 3] {
+                let mut sum = StreamSum::new();
+                data[..len].chunks(piece).for_each(|p| sum.put(p));
+                assert_eq!(sum.finish(), want, "{len} bytes in pieces of {piece}");
+            }
+        }
+    }
+
+    /// A reader that hands out at most `n` bytes per read, to split the loader's reads.
+    struct Dribble<'a>(&'a [u8], usize);
+
+    impl Read for Dribble<'_> {
+        fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+            let n = buf.len().min(self.1).min(self.0.len());
+            buf[..n].copy_from_slice(&self.0[..n]);
+            self.0 = &self.0[n..];
+            Ok(n)
+        }
+    }
+
+    #[test]
+    fn a_reader_gets_what_bytes_get() {
+        for (layout, bytes) in small_files() {
+            let read = Bvh::load(&mut Dribble(&bytes, 7)).unwrap();
+            assert_eq!(read.to_bytes(), bytes, "{layout}");
+            for at in (0..bytes.len()).step_by(3) {
+                let mut bad = bytes.clone();
+                bad[at] ^= 0x40;
+                let a = Bvh::from_bytes(&bad).map(|_| ()).unwrap_err();
+                let b = Bvh::load(&mut Dribble(&bad, 61)).map(|_| ()).unwrap_err();
+                // A reader stops where the header says the file ends: what follows is not
+                // its business, so a shortened file reads as one with another checksum.
+                if !matches!(a, LoadError::TrailingBytes { .. }) {
+                    assert_eq!(format!("{a}"), format!("{b}"), "{layout}: byte {at}");
+                }
+            }
+        }
     }
 
     #[test]
